@@ -1,0 +1,171 @@
+"""Airframe: geometry θ and physical data → rotor layout, allocation, model parameter vector.
+
+Frames (DESIGN.md §3–4): body x forward (nose), y left, z up; rotors FR, FL, RL, RR. The paper
+draws the nose on body +y (x to the right): :func:`from_paper_frame` converts at this boundary.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from casadrone.config import AirframeConfig, ConfigError, rotor_positions_mm
+
+#: Names and order of the decision vector θ (paper Table 1) and their config keys.
+THETA_NAMES = ("lambda_a", "lambda_b", "alpha", "beta", "Ixx", "Iyy", "Izz")
+THETA_KEYS = (
+    "lambda_a_mm",
+    "lambda_b_mm",
+    "alpha_deg",
+    "beta_deg",
+    "ixx_kgm2",
+    "iyy_kgm2",
+    "izz_kgm2",
+)
+#: Paper Table 1 bounds, in config units (mm, deg, kg·m²).
+TABLE1_BOUNDS = {
+    "lambda_a_mm": (100.0, 150.0),
+    "lambda_b_mm": (100.0, 150.0),
+    "alpha_deg": (65.0, 90.0),
+    "beta_deg": (65.0, 90.0),
+    "ixx_kgm2": (0.0014, 0.0030),
+    "iyy_kgm2": (0.0012, 0.0021),
+    "izz_kgm2": (0.0027, 0.0042),
+}
+
+#: Order of the model parameter vector p (see :mod:`casadrone.model`).
+PARAM_NAMES = (
+    ("mass", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
+    + tuple(f"r{i}{c}" for i in range(1, 5) for c in "xyz")
+    + ("s1", "s2", "s3", "s4", "kappa", "CdA_x", "CdA_y", "CdA_z", "rho", "K", "tau", "g")
+)
+
+Family = Literal["SY", "HS", "NSY"]
+
+
+def family(alpha_deg: float, beta_deg: float, tol_deg: float = 1e-6) -> Family:
+    """SY: α = β = 90°; HS: exactly one of them at 90°; NSY: neither at 90° (paper §1.1.1)."""
+    a90 = abs(alpha_deg - 90.0) <= tol_deg
+    b90 = abs(beta_deg - 90.0) <= tol_deg
+    if a90 and b90:
+        return "SY"
+    if a90 or b90:
+        return "HS"
+    return "NSY"
+
+
+def from_paper_frame(r_paper: np.ndarray) -> np.ndarray:
+    """Paper body frame (x right, y nose, z up) → casadrone body frame (x nose, y left, z up)."""
+    r = np.asarray(r_paper, dtype=float)
+    return np.stack([r[..., 1], -r[..., 0], r[..., 2]], axis=-1)
+
+
+@dataclass(frozen=True)
+class Airframe:
+    """A physical airframe in SI units; ``p`` is the model parameter vector (PARAM_NAMES order)."""
+
+    name: str
+    family: Family
+    theta: np.ndarray  # λa (m), λb (m), α (rad), β (rad), Ixx, Iyy, Izz (kg·m²)
+    mass: float  # kg
+    inertia: np.ndarray  # 3×3 (kg·m²)
+    rotor_positions: np.ndarray  # 4×3 (m), body frame, rotors FR, FL, RL, RR
+    rotor_spins: np.ndarray  # 4, sign of reaction yaw torque about +z
+    kappa: float  # m
+    drag_area: np.ndarray  # 3 (m²)
+    thrust_gain: float  # K (N per unit command)
+    thrust_time_constant: float  # τ (s)
+    battery_voltage: float  # V
+    air_density: float  # kg/m³
+    gravity: float  # m/s²
+
+    @property
+    def p(self) -> np.ndarray:
+        """Model parameter vector, ordered as :data:`PARAM_NAMES`."""
+        J = self.inertia
+        return np.concatenate(
+            [
+                [self.mass, J[0, 0], J[1, 1], J[2, 2], J[0, 1], J[0, 2], J[1, 2]],
+                self.rotor_positions.ravel(),
+                self.rotor_spins,
+                [self.kappa],
+                self.drag_area,
+                [self.air_density, self.thrust_gain, self.thrust_time_constant, self.gravity],
+            ]
+        ).astype(float)
+
+    @property
+    def allocation_matrix(self) -> np.ndarray:
+        """4×4 map from rotor thrusts (N) to [total thrust (N), Mx, My, Mz (N·m)]."""
+        r, s = self.rotor_positions, self.rotor_spins
+        return np.vstack([np.ones(4), r[:, 1], -r[:, 0], s * self.kappa])
+
+    @property
+    def diagonal_mm(self) -> float:
+        """Motor-to-motor diagonal λ = λa + λb (mm), the size class."""
+        return 1000.0 * float(self.theta[0] + self.theta[1])
+
+    def hover_thrusts(self) -> np.ndarray:
+        """Rotor thrusts (N) that hold the airframe still: Σ T = m g, zero net moment."""
+        rhs = np.array([self.mass * self.gravity, 0.0, 0.0, 0.0])
+        return np.linalg.solve(self.allocation_matrix, rhs)
+
+
+def build_airframe(cfg: AirframeConfig) -> Airframe:
+    """Build the SI :class:`Airframe` of a validated config."""
+    r = np.array(rotor_positions_mm(cfg.lambda_a_mm, cfg.lambda_b_mm, cfg.alpha_deg, cfg.beta_deg))
+    J = np.array(
+        [
+            [cfg.ixx_kgm2, cfg.ixy_kgm2, cfg.ixz_kgm2],
+            [cfg.ixy_kgm2, cfg.iyy_kgm2, cfg.iyz_kgm2],
+            [cfg.ixz_kgm2, cfg.iyz_kgm2, cfg.izz_kgm2],
+        ]
+    )
+    if np.min(np.linalg.eigvalsh(J)) <= 0:
+        raise ConfigError([f"{cfg.name}: inertia tensor is not positive definite"])
+    theta = np.array(
+        [
+            cfg.lambda_a_mm / 1000,
+            cfg.lambda_b_mm / 1000,
+            np.radians(cfg.alpha_deg),
+            np.radians(cfg.beta_deg),
+            cfg.ixx_kgm2,
+            cfg.iyy_kgm2,
+            cfg.izz_kgm2,
+        ]
+    )
+    return Airframe(
+        name=cfg.name,
+        family=family(cfg.alpha_deg, cfg.beta_deg),
+        theta=theta,
+        mass=cfg.mass_kg,
+        inertia=J,
+        rotor_positions=r / 1000.0,
+        rotor_spins=np.array(cfg.rotor_spins, dtype=float),
+        kappa=cfg.kappa_m,
+        drag_area=np.array(cfg.drag_area_m2, dtype=float),
+        thrust_gain=cfg.thrust.gain_n,
+        thrust_time_constant=cfg.thrust.time_constant_s,
+        battery_voltage=cfg.battery_voltage_v,
+        air_density=cfg.air_density_kgm3,
+        gravity=cfg.gravity_mps2,
+    )
+
+
+def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = None):
+    """A copy of ``cfg`` with decision variables replaced (keys as in the config, e.g.
+    ``alpha_deg``), validated like a file: invalid geometry raises ConfigError."""
+    from pydantic import ValidationError
+
+    from casadrone.config import format_errors
+
+    data = cfg.model_dump()
+    data.update(theta)
+    if name is not None:
+        data["name"] = name
+    try:
+        return AirframeConfig.model_validate(data)
+    except ValidationError as exc:
+        raise ConfigError(format_errors(exc, name or cfg.name, AirframeConfig)) from None

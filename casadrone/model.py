@@ -1,0 +1,130 @@
+"""Symbolic quadrotor model, implicit F(ẋ, x, u, p) = 0, parametric in the airframe vector p.
+
+State (16): position x, y, z (world, m); body velocity u, v, w (m/s); body rates p, q, r
+(rad/s); ZYX Euler angles φ, θ, ψ (rad; positive θ is nose-down); rotor thrusts T1…T4 (N).
+Input (4): normalised ESC commands δ1…δ4 ∈ [0, 1]. Rotors FR, FL, RL, RR.
+
+The model is built once per process (:func:`quadrotor_model`); every airframe is only a value
+of p, so evaluating a thousand airframes never rebuilds an expression.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+
+from casadrone.airframe import PARAM_NAMES
+
+STATE_NAMES = (
+    "x", "y", "z", "u", "v", "w", "p", "q", "r", "phi", "theta", "psi", "T1", "T2", "T3", "T4",
+)  # fmt: skip
+INPUT_NAMES = ("delta1", "delta2", "delta3", "delta4")
+NX, NU, NP = len(STATE_NAMES), len(INPUT_NAMES), len(PARAM_NAMES)
+IDX = {name: i for i, name in enumerate(STATE_NAMES)}
+POS, VEL, RATE, EUL, THR = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 16)
+
+
+def rotation_matrix(phi, theta, psi):
+    """Body → world rotation R = Rz(ψ) Ry(θ) Rx(φ) (works on CasADi symbols and floats)."""
+    cph, sph = ca.cos(phi), ca.sin(phi)
+    cth, sth = ca.cos(theta), ca.sin(theta)
+    cps, sps = ca.cos(psi), ca.sin(psi)
+    return ca.vertcat(
+        ca.horzcat(cps * cth, cps * sth * sph - sps * cph, cps * sth * cph + sps * sph),
+        ca.horzcat(sps * cth, sps * sth * sph + cps * cph, sps * sth * cph - cps * sph),
+        ca.horzcat(-sth, cth * sph, cth * cph),
+    )
+
+
+def euler_rate_matrix(phi, theta):
+    """W with [φ̇, θ̇, ψ̇] = W ω for ZYX Euler angles (singular at θ = ±90°)."""
+    cph, sph = ca.cos(phi), ca.sin(phi)
+    cth, tth = ca.cos(theta), ca.tan(theta)
+    return ca.vertcat(
+        ca.horzcat(1, sph * tth, cph * tth),
+        ca.horzcat(0, cph, -sph),
+        ca.horzcat(0, sph / cth, cph / cth),
+    )
+
+
+def unpack_params(p):
+    """Named pieces of the parameter vector p (symbolic or numeric)."""
+    g = {name: p[i] for i, name in enumerate(PARAM_NAMES)}
+    J = ca.vertcat(
+        ca.horzcat(g["Ixx"], g["Ixy"], g["Ixz"]),
+        ca.horzcat(g["Ixy"], g["Iyy"], g["Iyz"]),
+        ca.horzcat(g["Ixz"], g["Iyz"], g["Izz"]),
+    )
+    r = [ca.vertcat(g[f"r{i}x"], g[f"r{i}y"], g[f"r{i}z"]) for i in range(1, 5)]
+    s = [g[f"s{i}"] for i in range(1, 5)]
+    cda = ca.vertcat(g["CdA_x"], g["CdA_y"], g["CdA_z"])
+    return g, J, r, s, cda
+
+
+@dataclass(frozen=True)
+class QuadrotorModel:
+    """The symbolic model and its compiled-once CasADi Functions.
+
+    Attributes:
+        F: implicit residual ``F(xdot, x, u, p) -> res`` (16).
+        f: explicit dynamics ``f(x, u, p) -> xdot`` derived from F.
+        jacobians: ``jacobians(xdot, x, u, p) -> (E, A_prime, B_prime)``, exact Jacobians of F.
+    """
+
+    F: ca.Function
+    f: ca.Function
+    jacobians: ca.Function
+    state_names: tuple[str, ...] = STATE_NAMES
+    input_names: tuple[str, ...] = INPUT_NAMES
+    param_names: tuple[str, ...] = PARAM_NAMES
+
+
+def implicit_residual(xdot, x, u, p):
+    """F(ẋ, x, u, p) of DESIGN.md §5 as an SX/MX expression (16 rows)."""
+    g, J, r, s, cda = unpack_params(p)
+    m, kappa, rho, K, tau, grav = g["mass"], g["kappa"], g["rho"], g["K"], g["tau"], g["g"]
+    vel, omega, eul, T = x[VEL], x[RATE], x[EUL], x[THR]
+    R = rotation_matrix(eul[0], eul[1], eul[2])
+    ez = ca.DM([0, 0, 1])
+
+    thrust_force = ca.sum1(T) * ez
+    gravity_body = R.T @ ca.vertcat(0, 0, -m * grav)
+    drag = -0.5 * rho * cda * ca.fabs(vel) * vel
+    torque = sum((ca.cross(r[i], T[i] * ez) + s[i] * kappa * T[i] * ez for i in range(4)), ca.DM.zeros(3))
+
+    res_pos = xdot[POS] - R @ vel
+    res_vel = m * xdot[VEL] + m * ca.cross(omega, vel) - thrust_force - gravity_body - drag
+    res_rate = J @ xdot[RATE] + ca.cross(omega, J @ omega) - torque
+    res_eul = xdot[EUL] - euler_rate_matrix(eul[0], eul[1]) @ omega
+    res_thr = tau * xdot[THR] + T - K * u
+    return ca.vertcat(res_pos, res_vel, res_rate, res_eul, res_thr)
+
+
+@lru_cache(maxsize=1)
+def quadrotor_model() -> QuadrotorModel:
+    """Build the model once per process and return its Functions."""
+    xdot = ca.SX.sym("xdot", NX)
+    x = ca.SX.sym("x", NX)
+    u = ca.SX.sym("u", NU)
+    p = ca.SX.sym("p", NP)
+    res = implicit_residual(xdot, x, u, p)
+    F = ca.Function("F", [xdot, x, u, p], [res], ["xdot", "x", "u", "p"], ["res"])
+
+    # F is affine in ẋ: F = E ẋ + F(0, x, u, p), so ẋ = -E⁻¹ F(0, x, u, p). E is block diagonal
+    # (I, m I, J, I, τ I); solve block by block so the explicit expression stays small.
+    E = ca.jacobian(res, xdot)
+    F0 = ca.substitute(res, xdot, ca.SX.zeros(NX))
+    blocks = [POS, VEL, RATE, EUL, THR]
+    xdot_expr = ca.vertcat(*[-ca.solve(E[b, b], F0[b]) for b in blocks])
+    f = ca.Function("f", [x, u, p], [ca.simplify(xdot_expr)], ["x", "u", "p"], ["xdot"])
+
+    jacobians = ca.Function(
+        "jacobians",
+        [xdot, x, u, p],
+        [E, ca.jacobian(res, x), ca.jacobian(res, u)],
+        ["xdot", "x", "u", "p"],
+        ["E", "A_prime", "B_prime"],
+    )
+    return QuadrotorModel(F=F, f=f, jacobians=jacobians)

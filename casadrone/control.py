@@ -1,0 +1,217 @@
+"""LQR-I: discrete LQR with integral action on x, y, z and yaw, its stability certificate and the
+robustness ensemble of paper Appendix B.
+
+The augmented state is [δx (16), ξ (4)] with ξ[k+1] = ξ[k] + Ts·(x, y, z, ψ)[k] − references; the
+control law is δ = u0 − K [δx; ξ]. The design is discrete (zero-order hold at Ts), so stability
+means every closed-loop eigenvalue inside the unit circle, and the Lyapunov certificate is the
+discrete counterpart of Appendix B's A_clᵀP + P A_cl = −I: A_clᵀ P A_cl − P = −I with P ≻ 0.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from casadrone.airframe import Airframe
+from casadrone.config import ControllerConfig
+from casadrone.linearise import LinearModel, linearise
+from casadrone.model import IDX, NX, STATE_NAMES
+
+INTEGRATED = ("x", "y", "z", "psi")
+AUG_STATE_NAMES = STATE_NAMES + tuple(f"int_{n}" for n in INTEGRATED)
+
+
+@dataclass(frozen=True)
+class HoverPoint:
+    """Analytic hover equilibrium: Σ T = m g with zero net moment (allocation matrix solve)."""
+
+    x0: np.ndarray
+    u0: np.ndarray
+
+
+def hover_point(airframe: Airframe) -> HoverPoint:
+    """Hover trim from the allocation matrix (exact for rotors in the CoM plane)."""
+    T = airframe.hover_thrusts()
+    x0 = np.zeros(NX)
+    x0[12:16] = T
+    return HoverPoint(x0=x0, u0=T / airframe.thrust_gain)
+
+
+def discretise(A: np.ndarray, B: np.ndarray, Ts: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold discretisation at period Ts (s)."""
+    n, m = B.shape
+    M = np.zeros((n + m, n + m))
+    M[:n, :n], M[:n, n:] = A, B
+    Md = sla.expm(M * Ts)
+    return Md[:n, :n], Md[:n, n:]
+
+
+def augment(Ad: np.ndarray, Bd: np.ndarray, Ts: float) -> tuple[np.ndarray, np.ndarray]:
+    """Append the four integrators of (x, y, z, ψ) to a discrete plant."""
+    n, m = Bd.shape
+    C = np.zeros((len(INTEGRATED), n))
+    C[np.arange(len(INTEGRATED)), [IDX[k] for k in INTEGRATED]] = 1.0
+    Aa = np.block([[Ad, np.zeros((n, 4))], [Ts * C, np.eye(4)]])
+    Ba = np.vstack([Bd, np.zeros((4, m))])
+    return Aa, Ba
+
+
+def weights(ctrl: ControllerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Diagonal Q (20×20) and R (4×4) from the controller config."""
+    q = ctrl.q
+    diag = [*q.position, *q.velocity, *q.rates, *q.attitude, *q.thrust, *ctrl.q_integral]
+    return np.diag(diag), np.diag(ctrl.r)
+
+
+@dataclass(frozen=True)
+class LQRIDesign:
+    """A discrete LQR-I gain and its certificate.
+
+    Attributes:
+        K: 4×20 gain on [δx; ξ].
+        Ad, Bd: augmented discrete plant (20×20, 20×4) the gain was designed on.
+        closed_loop_eigenvalues: eigenvalues of Ad − Bd K (complex, 20).
+        stable: all eigenvalues strictly inside the unit circle.
+        lyapunov_min_eig: smallest eigenvalue of P solving A_clᵀ P A_cl − P = −I (> 0 ⇒ stable).
+        riccati: the DARE solution S.
+    """
+
+    K: np.ndarray
+    Ad: np.ndarray
+    Bd: np.ndarray
+    sample_time_s: float
+    x0: np.ndarray
+    u0: np.ndarray
+    closed_loop_eigenvalues: np.ndarray
+    stable: bool
+    lyapunov_min_eig: float
+    riccati: np.ndarray
+    state_names: tuple[str, ...] = AUG_STATE_NAMES
+
+
+def certify(Acl: np.ndarray) -> tuple[np.ndarray, bool, float]:
+    """Eigenvalues, stability and the Lyapunov certificate of a discrete closed loop."""
+    eig = np.linalg.eigvals(Acl)
+    stable = bool(np.max(np.abs(eig)) < 1.0)
+    if not stable:
+        return eig, False, float("nan")
+    P = sla.solve_discrete_lyapunov(Acl.T, np.eye(Acl.shape[0]))
+    return eig, stable, float(np.min(np.linalg.eigvalsh(0.5 * (P + P.T))))
+
+
+def design_lqri(linear_model: LinearModel, ctrl: ControllerConfig) -> LQRIDesign:
+    """Discrete LQR-I gain at period ``ctrl.sample_time_s`` for a linear model."""
+    Ts = ctrl.sample_time_s
+    Aa, Ba = augment(*discretise(linear_model.A, linear_model.B, Ts), Ts)
+    Q, R = weights(ctrl)
+    S = sla.solve_discrete_are(Aa, Ba, Q, R)
+    K = np.linalg.solve(R + Ba.T @ S @ Ba, Ba.T @ S @ Aa)
+    eig, stable, lmin = certify(Aa - Ba @ K)
+    return LQRIDesign(K=K, Ad=Aa, Bd=Ba, sample_time_s=Ts, x0=linear_model.x0,
+                      u0=linear_model.u0, closed_loop_eigenvalues=eig, stable=stable,
+                      lyapunov_min_eig=lmin, riccati=S)
+
+
+def design_for(airframe: Airframe, ctrl: ControllerConfig, reference: Airframe | None = None):
+    """The gain an airframe flies with under the controller's gain policy.
+
+    ``redesign``: from the airframe's own hover linearisation. ``frozen``: from ``reference``'s
+    (the controller's ``reference_airframe``), shared by every candidate; the operating point
+    (x0, u0) stays the candidate's own hover trim.
+    """
+    if ctrl.gain_policy == "frozen":
+        if reference is None:
+            raise ValueError("gain_policy 'frozen' needs the reference airframe")
+        ref = design_lqri(linearise(reference, hover_point(reference)), ctrl)
+        own = hover_point(airframe)
+        Aa, Ba = plant(airframe, ctrl.sample_time_s)
+        eig, stable, lmin = certify(Aa - Ba @ ref.K)
+        return dataclasses.replace(ref, Ad=Aa, Bd=Ba, x0=own.x0, u0=own.u0,
+                                   closed_loop_eigenvalues=eig, stable=stable,
+                                   lyapunov_min_eig=lmin)
+    return design_lqri(linearise(airframe, hover_point(airframe)), ctrl)
+
+
+def plant(airframe: Airframe, Ts: float) -> tuple[np.ndarray, np.ndarray]:
+    """Augmented discrete hover plant of an airframe."""
+    lin = linearise(airframe, hover_point(airframe))
+    return augment(*discretise(lin.A, lin.B, Ts), Ts)
+
+
+# --------------------------------------------------------------------------------------------
+# Robustness ensemble (paper Appendix B)
+# --------------------------------------------------------------------------------------------
+
+
+def perturb(airframe: Airframe, rng: np.random.Generator, dynamics: float, coupling: float):
+    """A perturbed airframe: mass, inertia and drag scaled by U(1 ± dynamics); thrust gain, time
+    constant, κ and each rotor's arm length by U(1 ± coupling)."""
+
+    def s(spread, size=None):
+        return rng.uniform(1 - spread, 1 + spread, size)
+
+    J = airframe.inertia * np.sqrt(np.outer(d := s(dynamics, 3), d))
+    return dataclasses.replace(
+        airframe,
+        name=f"{airframe.name}-perturbed",
+        mass=airframe.mass * s(dynamics),
+        inertia=J,
+        drag_area=airframe.drag_area * s(dynamics, 3),
+        thrust_gain=airframe.thrust_gain * s(coupling),
+        thrust_time_constant=airframe.thrust_time_constant * s(coupling),
+        kappa=airframe.kappa * s(coupling),
+        rotor_positions=airframe.rotor_positions * s(coupling, (4, 1)),
+    )
+
+
+@dataclass(frozen=True)
+class Ensemble:
+    """Closed loops of N perturbed plants under one gain."""
+
+    n: int
+    eigenvalues: np.ndarray  # n × 20 complex
+    stable_each: np.ndarray  # n bool
+    plants: tuple[tuple[np.ndarray, np.ndarray], ...]  # (Aa, Ba) per plant
+
+    @property
+    def stable(self) -> bool:
+        """Every plant of the ensemble is stable under the shared gain."""
+        return bool(np.all(self.stable_each))
+
+    @property
+    def max_spectral_radius(self) -> float:
+        """Largest |eigenvalue| over the ensemble."""
+        return float(np.max(np.abs(self.eigenvalues)))
+
+
+def robustness_ensemble(
+    airframe: Airframe, design: LQRIDesign, ctrl: ControllerConfig, n: int | None = None
+) -> Ensemble:
+    """Apply ``design.K`` to ``n`` perturbed plants (default from the controller config)."""
+    rob = ctrl.robustness
+    n = rob.n_plants if n is None else n
+    rng = np.random.default_rng(rob.seed)
+    eigs, ok, plants = [], [], []
+    for _ in range(n):
+        pert = perturb(airframe, rng, rob.dynamics_pct / 100, rob.coupling_pct / 100)
+        Aa, Ba = plant(pert, design.sample_time_s)
+        e = np.linalg.eigvals(Aa - Ba @ design.K)
+        eigs.append(e)
+        ok.append(np.max(np.abs(e)) < 1.0)
+        plants.append((Aa, Ba))
+    return Ensemble(n=n, eigenvalues=np.array(eigs), stable_each=np.array(ok), plants=tuple(plants))
+
+
+def disturbance_response(Aa: np.ndarray, Ba: np.ndarray, K: np.ndarray, dx0: np.ndarray,
+                         steps: int) -> np.ndarray:
+    """Linear closed-loop response δx[k] (steps × 20) from an initial deviation ``dx0`` (Fig. B1)."""
+    Acl = Aa - Ba @ K
+    out = np.empty((steps, Aa.shape[0]))
+    x = np.asarray(dx0, float)
+    for k in range(steps):
+        out[k] = x
+        x = Acl @ x
+    return out

@@ -1,19 +1,23 @@
 """YAML configuration: pydantic v2 schemas and loading with clear, complete error reports.
 
 Every schema is frozen and forbids unknown keys. Loading a file reports every problem at once,
-one line each, as ``FILE: dotted.key: message``; a misspelt key gets a "did you mean" hint.
-Numbers carry their unit in the key when it is not SI-obvious (``lambda_a_mm``, ``alpha_deg``).
+one line each, as ``FILE: dotted.key: message``: field errors and cross-field (geometry) errors
+together, a "did you mean" hint for misspelt keys at any depth, the line of malformed YAML, and
+the name of any referenced file that does not exist. Numbers carry their unit in the key when it
+is not SI-obvious (``lambda_a_mm``, ``alpha_deg``).
 """
 
 from __future__ import annotations
 
+import copy
 import difflib
 import math
+from functools import lru_cache
 from pathlib import Path
-from typing import Any, Literal, TypeVar
+from typing import Annotated, Any, Literal, TypeVar
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG_DIR = ROOT / "configs"
@@ -23,14 +27,48 @@ class ConfigError(Exception):
     """A configuration problem; ``lines`` holds one ``FILE: key: message`` line per problem."""
 
     def __init__(self, lines: list[str]):
-        self.lines = list(lines)
+        self.lines = list(dict.fromkeys(lines))
         super().__init__("\n".join(self.lines))
 
 
+class Problems(ValueError):
+    """Several cross-field problems found at once, each a (dotted key, message) pair."""
+
+    def __init__(self, problems: list[tuple[str, str]]):
+        self.problems = list(problems)
+        super().__init__("; ".join(f"{k}: {m}" for k, m in self.problems))
+
+
 class Schema(BaseModel):
-    """Base of every config schema: frozen, unknown keys rejected."""
+    """Base of every config schema: frozen, unknown keys rejected.
+
+    Cross-field checks live in :meth:`problems`, which works on a plain dict of field values so
+    that the loader can still run it when some fields failed (those are simply absent): a file
+    with a negative mass *and* overlapping rotors gets both reported.
+    """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        """Cross-field problems as (key, message); skip a check when a key it needs is absent."""
+        return []
+
+    @model_validator(mode="after")
+    def _cross_field(self) -> Schema:
+        found = type(self).problems(dict(self))
+        if found:
+            raise Problems(found)
+        return self
+
+
+Positive = Annotated[float, Field(gt=0)]
+NonNegative = Annotated[float, Field(ge=0)]
+Spin = Literal[-1, 1]
+
+
+def _has(v: dict[str, Any], *keys: str) -> bool:
+    return all(k in v for k in keys)
 
 
 # --------------------------------------------------------------------------------------------
@@ -45,6 +83,9 @@ class ThrustModelConfig(Schema):
     time_constant_s: float = Field(0.060538, gt=0, description="tau (s)")
 
 
+ROTOR_LABELS = ("FR", "FL", "RL", "RR")
+
+
 class AirframeConfig(Schema):
     """An airframe: geometry θ = (λa, λb, α, β, Ixx, Iyy, Izz) plus mass, drag and propulsion."""
 
@@ -53,20 +94,20 @@ class AirframeConfig(Schema):
     lambda_b_mm: float = Field(gt=0, description="CoM to rear motors (mm)")
     alpha_deg: float = Field(gt=0, lt=180, description="angle between the nose arms (deg)")
     beta_deg: float = Field(gt=0, lt=180, description="angle between the tail arms (deg)")
-    ixx_kgm2: float = Field(gt=0)
-    iyy_kgm2: float = Field(gt=0)
-    izz_kgm2: float = Field(gt=0)
+    ixx_kgm2: float = Field(gt=0, description="roll inertia, about the nose axis (kg·m²)")
+    iyy_kgm2: float = Field(gt=0, description="pitch inertia (kg·m²)")
+    izz_kgm2: float = Field(gt=0, description="yaw inertia (kg·m²)")
     ixy_kgm2: float = 0.0
     ixz_kgm2: float = 0.0
     iyz_kgm2: float = 0.0
     mass_kg: float = Field(gt=0)
-    drag_area_m2: tuple[float, float, float] = Field(
+    drag_area_m2: tuple[NonNegative, NonNegative, NonNegative] = Field(
         (0.012, 0.012, 0.025), description="C_d·A along body x, y, z (m²)"
     )
     kappa_m: float = Field(0.016, gt=0, description="rotor yaw torque per unit thrust (m)")
     battery_voltage_v: float = Field(14.8, gt=0)
     prop_diameter_mm: float = Field(127.0, gt=0)
-    rotor_spins: tuple[int, int, int, int] = Field(
+    rotor_spins: tuple[Spin, Spin, Spin, Spin] = Field(
         (-1, 1, -1, 1),
         description="sign of each rotor's reaction yaw torque about body +z, rotors FR, FL, RL, RR",
     )
@@ -74,22 +115,69 @@ class AirframeConfig(Schema):
     air_density_kgm3: float = Field(1.225, gt=0)
     gravity_mps2: float = Field(9.81, gt=0)
 
-    @model_validator(mode="after")
-    def _geometry(self) -> AirframeConfig:
-        for name in ("drag_area_m2",):
-            if any(v < 0 for v in getattr(self, name)):
-                raise ValueError(f"{name}: drag areas must be non-negative")
-        if any(s not in (-1, 1) for s in self.rotor_spins):
-            raise ValueError("rotor_spins: each spin must be +1 or -1")
-        if sum(self.rotor_spins) != 0:
-            raise ValueError("rotor_spins: two rotors must spin each way (sum of spins must be 0)")
-        gap = min_rotor_gap_mm(self.lambda_a_mm, self.lambda_b_mm, self.alpha_deg, self.beta_deg)
-        if gap < self.prop_diameter_mm:
-            raise ValueError(
-                f"rotors overlap: closest rotor centres are {gap:.1f} mm apart, less than the "
-                f"prop diameter {self.prop_diameter_mm:.1f} mm"
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        found: list[tuple[str, str]] = []
+        s = v.get("rotor_spins")
+        if s is not None and not (s[0] == s[2] and s[1] == s[3] and s[0] == -s[1]):
+            found.append(
+                ("rotor_spins", "diagonal rotors must spin alike and the two pairs opposite "
+                 f"(FR with RL, FL with RR), e.g. [-1, 1, -1, 1]; got {list(s)}")
             )
-        return self
+        if _has(v, "lambda_a_mm", "lambda_b_mm", "alpha_deg", "beta_deg", "prop_diameter_mm"):
+            found += _overlaps(v)
+        if _has(v, "ixx_kgm2", "iyy_kgm2", "izz_kgm2", "ixy_kgm2", "ixz_kgm2", "iyz_kgm2"):
+            J = [
+                [v["ixx_kgm2"], v["ixy_kgm2"], v["ixz_kgm2"]],
+                [v["ixy_kgm2"], v["iyy_kgm2"], v["iyz_kgm2"]],
+                [v["ixz_kgm2"], v["iyz_kgm2"], v["izz_kgm2"]],
+            ]
+            if not _positive_definite(J):
+                key = next(k for k in ("ixy_kgm2", "ixz_kgm2", "iyz_kgm2") if v[k] != 0)
+                found.append((key, "inertia tensor is not positive definite: the products of "
+                              "inertia are too large for the principal moments"))
+        if _has(v, "mass_kg", "gravity_mps2", "thrust"):
+            weight, full = v["mass_kg"] * v["gravity_mps2"], 4 * v["thrust"].gain_n
+            if weight >= full:
+                found.append(("mass_kg", f"cannot hover: weight {weight:.2f} N is not below the "
+                              f"full thrust of four rotors {full:.2f} N (4 × thrust.gain_n)"))
+        return found
+
+
+def _overlaps(v: dict[str, Any]) -> list[tuple[str, str]]:
+    """One problem per pair of rotors whose discs (prop diameter) overlap."""
+    r = rotor_positions_mm(v["lambda_a_mm"], v["lambda_b_mm"], v["alpha_deg"], v["beta_deg"])
+    d = v["prop_diameter_mm"]
+    found = []
+    for i in range(4):
+        for j in range(i + 1, 4):
+            gap = math.dist(r[i], r[j])
+            if gap >= d:
+                continue
+            pair = f"rotors {ROTOR_LABELS[i]} and {ROTOR_LABELS[j]} overlap: centres {gap:.1f} mm"
+            msg = f"{pair} apart, less than the prop diameter {d:.1f} mm"
+            if (i, j) == (0, 1):
+                key, arm = "alpha_deg", v["lambda_a_mm"]
+            elif (i, j) == (2, 3):
+                key, arm = "beta_deg", v["lambda_b_mm"]
+            else:
+                key, arm = "prop_diameter_mm", None
+            if arm is not None and d < 2 * arm:
+                msg += f" (needs at least {math.degrees(2 * math.asin(d / (2 * arm))):.1f} deg)"
+            found.append((key, msg))
+    return found
+
+
+def _positive_definite(J: list[list[float]]) -> bool:
+    """Sylvester's criterion for a symmetric 3×3 matrix."""
+    m1 = J[0][0]
+    m2 = J[0][0] * J[1][1] - J[0][1] ** 2
+    m3 = (
+        J[0][0] * (J[1][1] * J[2][2] - J[1][2] * J[2][1])
+        - J[0][1] * (J[1][0] * J[2][2] - J[1][2] * J[2][0])
+        + J[0][2] * (J[1][0] * J[2][1] - J[1][1] * J[2][0])
+    )
+    return m1 > 0 and m2 > 0 and m3 > 0
 
 
 def rotor_positions_mm(la: float, lb: float, alpha_deg: float, beta_deg: float) -> list[list[float]]:
@@ -117,18 +205,11 @@ def min_rotor_gap_mm(la: float, lb: float, alpha_deg: float, beta_deg: float) ->
 class StateWeights(Schema):
     """Diagonal LQR state weights, one per state group (units: 1/unit² of the state)."""
 
-    position: tuple[float, float, float] = (1.0, 1.0, 4.0)
-    velocity: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    rates: tuple[float, float, float] = (0.1, 0.1, 0.1)
-    attitude: tuple[float, float, float] = (1.0, 1.0, 4.0)
-    thrust: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
-
-    @model_validator(mode="after")
-    def _non_negative(self) -> StateWeights:
-        for name, values in self:
-            if any(v < 0 for v in values):
-                raise ValueError(f"{name}: weights must be non-negative")
-        return self
+    position: tuple[NonNegative, NonNegative, NonNegative] = (1.0, 1.0, 4.0)
+    velocity: tuple[NonNegative, NonNegative, NonNegative] = (1.0, 1.0, 1.0)
+    rates: tuple[NonNegative, NonNegative, NonNegative] = (0.1, 0.1, 0.1)
+    attitude: tuple[NonNegative, NonNegative, NonNegative] = (1.0, 1.0, 4.0)
+    thrust: tuple[NonNegative, NonNegative, NonNegative, NonNegative] = (0.0, 0.0, 0.0, 0.0)
 
 
 class RobustnessConfig(Schema):
@@ -148,35 +229,57 @@ class ControllerConfig(Schema):
     name: str = "default"
     sample_time_s: float = Field(0.01, gt=0, le=0.1)
     q: StateWeights = StateWeights()
-    q_integral: tuple[float, float, float, float] = Field(
+    q_integral: tuple[NonNegative, NonNegative, NonNegative, NonNegative] = Field(
         (0.2, 0.2, 1.0, 0.2), description="weights of ∫e for x, y, z, yaw"
     )
-    r: tuple[float, float, float, float] = Field((1.0, 1.0, 1.0, 1.0))
+    r: tuple[Positive, Positive, Positive, Positive] = Field((1.0, 1.0, 1.0, 1.0))
     gain_policy: Literal["redesign", "frozen"] = "redesign"
     reference_airframe: Path | None = Field(
         None, description="airframe YAML whose gain is frozen for all (gain_policy: frozen)"
     )
     robustness: RobustnessConfig = RobustnessConfig()
 
-    @model_validator(mode="after")
-    def _policy(self) -> ControllerConfig:
-        if any(v <= 0 for v in self.r):
-            raise ValueError("r: input weights must be positive")
-        if any(v < 0 for v in self.q_integral):
-            raise ValueError("q_integral: weights must be non-negative")
-        if self.gain_policy == "frozen" and self.reference_airframe is None:
-            raise ValueError("reference_airframe: required when gain_policy is 'frozen'")
-        return self
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        if v.get("gain_policy") == "frozen" and v.get("reference_airframe", 0) is None:
+            return [("reference_airframe", "required when gain_policy is 'frozen'")]
+        return []
 
 
 # --------------------------------------------------------------------------------------------
-# Loading
+# Reading YAML
 # --------------------------------------------------------------------------------------------
 
 M = TypeVar("M", bound=BaseModel)
 
-# Keys whose values are paths to other config files, resolved relative to the referring file.
-PATH_KEYS = {"reference_airframe", "airframe", "track", "controller", "reference"}
+#: Keys whose values name other config files, and the ``configs/`` folder a bare name (``SY250``)
+#: is looked up in. Paths resolve relative to the referring file, then to the project root.
+PATH_KEYS = {
+    "reference_airframe": "airframes",
+    "airframe": "airframes",
+    "track": "tracks",
+    "controller": "controllers",
+    "reference": "references",
+}
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """SafeLoader that rejects a key given twice in one mapping (the second would win silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            try:
+                first = seen.setdefault(key, key_node.start_mark.line)
+            except TypeError:  # unhashable key: let SafeLoader report it
+                continue
+            if first != key_node.start_mark.line:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key '{key}' (first given on line {first + 1})",
+                    key_node.start_mark,
+                )
+        return super().construct_mapping(node, deep=deep)
 
 
 def read_yaml(path: str | Path) -> dict[str, Any]:
@@ -185,12 +288,17 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
     if not path.is_file():
         raise ConfigError([f"{path}: file not found"])
     try:
-        data = yaml.safe_load(path.read_text())
+        text = path.read_text(encoding="utf-8")
+        data = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader subclass)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError([f"{path}: cannot read: {exc}"]) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
         problem = getattr(exc, "problem", None) or str(exc)
-        raise ConfigError([f"{path}: {where}malformed YAML: {problem}"]) from None
+        context = getattr(exc, "context", None)
+        detail = f"{problem} ({context})" if context and "duplicate" not in problem else problem
+        raise ConfigError([f"{path}: {where}malformed YAML: {detail}"]) from None
     if data is None:
         data = {}
     if not isinstance(data, dict):
@@ -208,17 +316,15 @@ def parse_value(text: str) -> Any:
 
 def apply_overrides(data: dict[str, Any], overrides: list[str] | None, source: str) -> dict:
     """Apply ``dotted.key=value`` overrides to a nested dict (copy); bad syntax → ConfigError."""
-    import copy
-
     data = copy.deepcopy(data)
     errors = []
     for item in overrides or []:
-        if "=" not in item:
-            errors.append(f"{source}: override '{item}': expected key=value")
-            continue
-        key, value = item.split("=", 1)
-        node = data
+        key, sep, value = item.partition("=")
         parts = key.strip().split(".")
+        if not sep or not all(parts):
+            errors.append(f"{source}: override '{item}': expected key=value (e.g. alpha_deg=75)")
+            continue
+        node = data
         for part in parts[:-1]:
             if not isinstance(node.get(part), dict):
                 node[part] = {}
@@ -229,46 +335,124 @@ def apply_overrides(data: dict[str, Any], overrides: list[str] | None, source: s
     return data
 
 
+# --------------------------------------------------------------------------------------------
+# Error formatting
+# --------------------------------------------------------------------------------------------
+
+
+def _model_in(annotation: Any) -> type[BaseModel] | None:
+    """The pydantic model inside an annotation (``Model``, ``Model | None``), if any."""
+    for c in (annotation, *getattr(annotation, "__args__", ())):
+        if isinstance(c, type) and issubclass(c, BaseModel):
+            return c
+    return None
+
+
 def _fields_at(model: type[BaseModel], loc: tuple) -> list[str]:
     """Field names of the (nested) model reached by ``loc``, for "did you mean" hints."""
-    current: Any = model
+    current: type[BaseModel] | None = model
     for part in loc:
-        if isinstance(part, int) or not (isinstance(current, type) and issubclass(current, BaseModel)):
+        if isinstance(part, int):
             continue
-        field = current.model_fields.get(part)
-        if field is None:
-            break
-        ann = field.annotation
-        candidates = [ann, *getattr(ann, "__args__", ())]
-        current = next(
-            (c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)), None
-        )
+        field = current.model_fields.get(part) if current else None
+        current = _model_in(field.annotation) if field else None
         if current is None:
             return []
-    if isinstance(current, type) and issubclass(current, BaseModel):
-        return list(current.model_fields)
-    return []
+    return list(current.model_fields) if current else []
+
+
+def _unknown_key(model: type[BaseModel], loc: tuple) -> str:
+    known = _fields_at(model, loc[:-1])
+    close = difflib.get_close_matches(str(loc[-1]), known, n=1, cutoff=0.6)
+    if close:
+        return f"unknown key (did you mean '{close[0]}'?)"
+    return "unknown key" + (f"; known keys: {', '.join(known)}" if known else "")
+
+
+def _short(value: Any) -> str | None:
+    if isinstance(value, str | int | float | bool) or value is None:
+        text = repr(value)
+        return text if len(text) <= 40 else text[:37] + "..."
+    return None
+
+
+def error_pairs(exc: ValidationError, model: type[BaseModel]) -> list[tuple[str, str]]:
+    """(dotted key, message) for every error of a pydantic ValidationError."""
+    pairs = []
+    for err in exc.errors():
+        loc = tuple(err["loc"])
+        prefix = ".".join(str(p) for p in loc)
+        kind, msg = err["type"], err["msg"]
+        problems = (err.get("ctx") or {}).get("error")
+        if isinstance(problems, Problems):
+            pairs += [(f"{prefix}.{k}" if prefix else k, m) for k, m in problems.problems]
+            continue
+        if kind == "extra_forbidden":
+            msg = _unknown_key(model, loc)
+        elif kind == "missing" and loc and isinstance(loc[-1], int):
+            prefix = ".".join(str(p) for p in loc[:-1])
+            got = err["input"]
+            msg = f"expected {loc[-1] + 1} values, got {len(got)}"
+        elif kind == "missing":
+            msg = "required key missing"
+        else:
+            msg = msg.removeprefix("Value error, ")
+            got = _short(err.get("input"))
+            if got is not None and kind not in ("value_error", "assertion_error"):
+                msg += f" (got {got})"
+        pairs.append((prefix or "(top level)", msg))
+    return pairs
 
 
 def format_errors(exc: ValidationError, source: str, model: type[BaseModel]) -> list[str]:
     """One ``FILE: dotted.key: message`` line per pydantic error."""
-    lines = []
-    for err in exc.errors():
-        loc = tuple(err["loc"])
-        key = ".".join(str(p) for p in loc) or "(top level)"
-        msg = err["msg"]
-        if err["type"] == "extra_forbidden":
-            known = _fields_at(model, loc[:-1])
-            close = difflib.get_close_matches(str(loc[-1]), known, n=1, cutoff=0.6)
-            msg = "unknown key" + (f" (did you mean '{close[0]}'?)" if close else "")
-            if not close and known:
-                msg += f"; known keys: {', '.join(known)}"
-        elif err["type"] == "missing":
-            msg = "required key missing"
-        elif msg.startswith("Value error, "):
-            msg = msg[len("Value error, ") :]
-        lines.append(f"{source}: {key}: {msg}")
-    return lines
+    return list(dict.fromkeys(f"{source}: {k}: {m}" for k, m in error_pairs(exc, model)))
+
+
+@lru_cache(maxsize=None)
+def _field_adapter(model: type[BaseModel], name: str) -> TypeAdapter:
+    field = model.model_fields[name]
+    if not field.metadata:
+        return TypeAdapter(field.annotation)
+    return TypeAdapter(Annotated[field.annotation, *field.metadata])
+
+
+def partial_problems(model: type[BaseModel], data: Any) -> list[tuple[str, str]]:
+    """Cross-field problems of ``data`` using only the fields that are valid on their own.
+
+    Pydantic skips a model's cross-field validator when any field fails; this runs it anyway so
+    that one load reports field errors and geometry errors together.
+    """
+    if not isinstance(data, dict) or not issubclass(model, Schema):
+        return []
+    values, found = {}, []
+    for name, field in model.model_fields.items():
+        if name not in data:
+            if not field.is_required():
+                values[name] = field.get_default(call_default_factory=True)
+            continue
+        try:
+            values[name] = _field_adapter(model, name).validate_python(data[name])
+        except ValidationError:
+            sub = _model_in(field.annotation)
+            if sub is not None:
+                found += [(f"{name}.{k}", m) for k, m in partial_problems(sub, data[name])]
+    return found + model.problems(values)
+
+
+# --------------------------------------------------------------------------------------------
+# Loading and validating
+# --------------------------------------------------------------------------------------------
+
+
+def _resolve_reference(value: str, kind: str, base: Path) -> Path | None:
+    """A referenced config: a path (relative to ``base``, then the project root) or a bare name
+    of a file in ``configs/<kind>/``. None when nothing exists."""
+    p = Path(value)
+    candidates = [p] if p.is_absolute() else [base / p, ROOT / p]
+    if not p.suffix and len(p.parts) == 1:
+        candidates.append(CONFIG_DIR / kind / f"{value}.yaml")
+    return next((c for c in candidates if c.is_file()), None)
 
 
 def check_paths(data: dict[str, Any], base: Path, source: str) -> tuple[dict, list[str]]:
@@ -276,62 +460,93 @@ def check_paths(data: dict[str, Any], base: Path, source: str) -> tuple[dict, li
     errors: list[str] = []
 
     def walk(node: Any, prefix: str) -> Any:
-        if isinstance(node, dict):
-            out = {}
-            for k, v in node.items():
-                key = f"{prefix}.{k}" if prefix else str(k)
-                if k in PATH_KEYS and isinstance(v, str) and v.endswith((".yaml", ".yml")):
-                    p = Path(v)
-                    if not p.is_absolute():
-                        p = (base / p) if (base / p).exists() else (ROOT / p)
-                    if not p.is_file():
-                        errors.append(f"{source}: {key}: referenced file not found: {v}")
-                    out[k] = str(p)
-                else:
-                    out[k] = walk(v, key)
-            return out
-        return node
+        if not isinstance(node, dict):
+            return node
+        out = {}
+        for k, v in node.items():
+            key = f"{prefix}.{k}" if prefix else str(k)
+            if k in PATH_KEYS and isinstance(v, str):
+                found = _resolve_reference(v, PATH_KEYS[k], base)
+                looks_like_path = v.endswith((".yaml", ".yml")) or "/" in v
+                if found is not None:
+                    out[k] = str(found)
+                    continue
+                if looks_like_path:
+                    errors.append(f"{source}: {key}: referenced file not found: {v}")
+                elif (CONFIG_DIR / PATH_KEYS[k]).is_dir():
+                    names = [f.stem for f in (CONFIG_DIR / PATH_KEYS[k]).glob("*.yaml")]
+                    close = difflib.get_close_matches(v, names, n=1, cutoff=0.6)
+                    hint = f" (did you mean '{close[0]}'?)" if close else ""
+                    errors.append(f"{source}: {key}: referenced file not found: {v} is neither a "
+                                  f"file nor a name in configs/{PATH_KEYS[k]}/{hint}")
+            out[k] = walk(v, key)
+        return out
 
     return walk(data, ""), errors
 
 
-def validate_data(model: type[M], data: dict[str, Any], source: str, base: Path) -> M:
-    """Validate a dict against ``model``, raising ConfigError listing every problem."""
+def validate_data(
+    model: type[M], data: dict[str, Any], source: str, base: Path, overrides: list[str] | None = None
+) -> M:
+    """Validate a dict against ``model``, raising ConfigError listing every problem.
+
+    A problem whose key was set by a ``key=value`` override says so.
+    """
     data, errors = check_paths(data, base, source)
     try:
-        obj = model.model_validate(data)
+        return_value = model.model_validate(data)
+        pairs = []
     except ValidationError as exc:
-        errors.extend(format_errors(exc, source, model))
-        obj = None
+        pairs = error_pairs(exc, model) + partial_problems(model, data)
+        return_value = None
+    set_by = {o.partition("=")[0].strip(): o for o in overrides or [] if "=" in o}
+    for key, msg in dict.fromkeys(pairs):
+        origin = next((o for k, o in set_by.items() if key == k or key.startswith(k + ".")), None)
+        errors.append(f"{source}: {key}: {msg}" + (f" [override {origin}]" if origin else ""))
     if errors:
         raise ConfigError(errors)
-    return obj
+    return return_value
 
 
 def load(model: type[M], path: str | Path, overrides: list[str] | None = None) -> M:
     """Load and validate a YAML file, with optional ``key=value`` overrides."""
     path = Path(path)
     data = apply_overrides(read_yaml(path), overrides, str(path))
-    return validate_data(model, data, str(path), path.parent)
-
-
-def load_airframe(path: str | Path, overrides: list[str] | None = None) -> AirframeConfig:
-    """Load an airframe YAML (``configs/airframes/*.yaml``)."""
-    return load(AirframeConfig, resolve_config(path, "airframes"), overrides)
-
-
-def load_controller(path: str | Path | None = None, overrides: list[str] | None = None):
-    """Load a controller YAML; ``None`` gives ``configs/controllers/default.yaml``."""
-    return load(ControllerConfig, resolve_config(path or "default", "controllers"), overrides)
+    return validate_data(model, data, str(path), path.parent, overrides)
 
 
 def resolve_config(name: str | Path, kind: str) -> Path:
-    """A path as given if it exists, else ``configs/<kind>/<name>.yaml`` (e.g. ``SY250``)."""
+    """A path as given if it exists, else ``configs/<kind>/<name>.yaml`` (e.g. ``SY250``).
+
+    Raises ConfigError naming the known configs when neither exists.
+    """
     p = Path(name)
-    if p.is_file():
-        return p
-    candidate = CONFIG_DIR / kind / f"{p.stem if p.suffix else p.name}.yaml"
-    return candidate if candidate.is_file() else p
+    for candidate in (p, ROOT / p):
+        if candidate.is_file():
+            return candidate
+    candidate = CONFIG_DIR / kind / f"{p.stem}.yaml"
+    if len(p.parts) == 1 and p.suffix in ("", ".yaml", ".yml") and candidate.is_file():
+        return candidate
+    if len(p.parts) > 1:
+        raise ConfigError([f"{name}: file not found"])
+    known = sorted(f.stem for f in (CONFIG_DIR / kind).glob("*.yaml"))
+    close = difflib.get_close_matches(p.stem, known, n=1, cutoff=0.6)
+    hint = f"did you mean '{close[0]}'? " if close else ""
+    raise ConfigError([f"{name}: file not found, and no configs/{kind}/{p.stem}.yaml "
+                       f"({hint}known: {', '.join(known) or 'none'})"])
+
+
+def load_airframe(path: str | Path, overrides: list[str] | None = None) -> AirframeConfig:
+    """Load an airframe: a YAML path or a reference name (``SY250``), with ``key=value``
+    overrides (``alpha_deg=75``) validated like the file."""
+    return load(AirframeConfig, resolve_config(path, "airframes"), overrides)
+
+
+def load_controller(
+    path: str | Path | None = None, overrides: list[str] | None = None
+) -> ControllerConfig:
+    """Load a controller YAML or name; ``None`` gives ``configs/controllers/default.yaml``."""
+    return load(ControllerConfig, resolve_config(path or "default", "controllers"), overrides)
 
 
 # Schemas by config folder name, for ``casadrone validate``; later layers register theirs.
@@ -348,21 +563,46 @@ SCHEMAS_BY_KEY: dict[str, type[BaseModel]] = {
 
 
 def detect_schema(path: Path, data: dict[str, Any]) -> type[BaseModel] | None:
-    """The schema of a config file, from its folder (``airframes/`` …) or a telling key."""
+    """The schema of a config file: from its folder (``airframes/`` …), else a telling key,
+    else the known schema sharing the most top-level keys (so misspelt files are still checked)."""
     for part in reversed(Path(path).resolve().parts[:-1]):
         if part in SCHEMAS_BY_FOLDER:
             return SCHEMAS_BY_FOLDER[part]
     for key, model in SCHEMAS_BY_KEY.items():
         if key in data:
             return model
+    schemas = dict.fromkeys([*SCHEMAS_BY_FOLDER.values(), *SCHEMAS_BY_KEY.values()])
+    scored = sorted(((len(set(data) & set(m.model_fields)), m) for m in schemas),
+                    key=lambda t: -t[0])
+    if scored and scored[0][0] > 0 and (len(scored) == 1 or scored[0][0] > scored[1][0]):
+        return scored[0][1]
     return None
 
 
 def validate_file(path: str | Path) -> BaseModel:
-    """Validate any known config file; ConfigError lists every problem."""
+    """Validate any known config file, and the config files it references; ConfigError lists
+    every problem."""
     path = Path(path)
     data = read_yaml(path)
     model = detect_schema(path, data)
     if model is None:
-        raise ConfigError([f"{path}: cannot tell what kind of config this is (folder or keys)"])
-    return validate_data(model, data, str(path), path.parent)
+        kinds = ", ".join(SCHEMAS_BY_FOLDER)
+        raise ConfigError([f"{path}: (top level): cannot tell what kind of config this is; put it "
+                           f"in a folder named after its kind ({kinds})"])
+    errors: list[str] = []
+    try:
+        obj = validate_data(model, data, str(path), path.parent)
+    except ConfigError as exc:
+        errors += exc.lines
+        obj = None
+    resolved, _ = check_paths(data, path.parent, str(path))
+    for key, kind in PATH_KEYS.items():
+        ref = resolved.get(key)
+        if isinstance(ref, str) and Path(ref).is_file() and kind in SCHEMAS_BY_FOLDER:
+            try:
+                load(SCHEMAS_BY_FOLDER[kind], ref)
+            except ConfigError as exc:
+                errors += [f"{path}: {key}: referenced file is invalid"] + exc.lines
+    if errors:
+        raise ConfigError(errors)
+    return obj

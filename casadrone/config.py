@@ -549,17 +549,31 @@ def load_controller(
     return load(ControllerConfig, resolve_config(path or "default", "controllers"), overrides)
 
 
-# Schemas by config folder name, for ``casadrone validate``; later layers register theirs.
-SCHEMAS_BY_FOLDER: dict[str, type[BaseModel]] = {
+# Schemas by config folder name, for ``casadrone validate``; later layers register theirs. A
+# value is a schema class, or "module:Class" for a schema defined in a heavier module (imported
+# only when a file of that kind is validated).
+SCHEMAS_BY_FOLDER: dict[str, type[BaseModel] | str] = {
     "airframes": AirframeConfig,
     "controllers": ControllerConfig,
+    "tracks": "casadrone.guidance:TrackConfig",
 }
 # Fallback when the folder says nothing: a key that only that schema has.
-SCHEMAS_BY_KEY: dict[str, type[BaseModel]] = {
+SCHEMAS_BY_KEY: dict[str, type[BaseModel] | str] = {
     "lambda_a_mm": AirframeConfig,
     "sample_time_s": ControllerConfig,
     "gain_policy": ControllerConfig,
+    "waypoints_m": "casadrone.guidance:TrackConfig",
 }
+
+
+def schema_class(entry: type[BaseModel] | str) -> type[BaseModel]:
+    """A registered schema: the class itself, or imported from its "module:Class" string."""
+    if isinstance(entry, str):
+        import importlib
+
+        module, _, name = entry.partition(":")
+        return getattr(importlib.import_module(module), name)
+    return entry
 
 
 def detect_schema(path: Path, data: dict[str, Any]) -> type[BaseModel] | None:
@@ -567,12 +581,13 @@ def detect_schema(path: Path, data: dict[str, Any]) -> type[BaseModel] | None:
     else the known schema sharing the most top-level keys (so misspelt files are still checked)."""
     for part in reversed(Path(path).resolve().parts[:-1]):
         if part in SCHEMAS_BY_FOLDER:
-            return SCHEMAS_BY_FOLDER[part]
-    for key, model in SCHEMAS_BY_KEY.items():
+            return schema_class(SCHEMAS_BY_FOLDER[part])
+    for key, entry in SCHEMAS_BY_KEY.items():
         if key in data:
-            return model
-    schemas = dict.fromkeys([*SCHEMAS_BY_FOLDER.values(), *SCHEMAS_BY_KEY.values()])
-    scored = sorted(((len(set(data) & set(m.model_fields)), m) for m in schemas),
+            return schema_class(entry)
+    entries = dict.fromkeys(e for e in (*SCHEMAS_BY_FOLDER.values(), *SCHEMAS_BY_KEY.values())
+                            if not isinstance(e, str))  # never import heavy modules to guess
+    scored = sorted(((len(set(data) & set(m.model_fields)), m) for m in entries),
                     key=lambda t: -t[0])
     if scored and scored[0][0] > 0 and (len(scored) == 1 or scored[0][0] > scored[1][0]):
         return scored[0][1]
@@ -600,7 +615,7 @@ def validate_file(path: str | Path) -> BaseModel:
         ref = resolved.get(key)
         if isinstance(ref, str) and Path(ref).is_file() and kind in SCHEMAS_BY_FOLDER:
             try:
-                load(SCHEMAS_BY_FOLDER[kind], ref)
+                load(schema_class(SCHEMAS_BY_FOLDER[kind]), ref)
             except ConfigError as exc:
                 errors += [f"{path}: {key}: referenced file is invalid"] + exc.lines
     if errors:

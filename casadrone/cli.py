@@ -1,0 +1,401 @@
+"""casadrone command line: a thin typer layer over the public API (DESIGN.md §10).
+
+Every command that prints results also takes ``--json``. Bad input (a config problem, a bad
+``key=value`` override, an unknown option) prints one ``FILE: key: message`` line per problem on
+stderr and exits with code 2, without a traceback. Heavy modules (CasADi, the chain) are imported
+inside the commands, so ``casadrone validate`` stays fast.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from enum import Enum
+from functools import wraps
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from casadrone.config import ConfigError
+
+app = typer.Typer(
+    name="casadrone",
+    help="Racing-drone airframe optimisation: validate configs, trim, linearise, design LQR-I.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+EXIT_BAD_INPUT = 2
+
+
+class Condition(str, Enum):
+    hover = "hover"
+    forward = "forward"
+
+
+class TrimSolver(str, Enum):
+    ipopt = "ipopt"
+    nelder_mead = "nelder-mead"
+    newton = "newton"
+    all = "all"
+
+
+class LinMethod(str, Enum):
+    exact = "exact"
+    fd = "fd"
+    both = "both"
+
+
+AirframeArg = Annotated[
+    str, typer.Argument(help="airframe YAML, or a reference name (SY250, HS200, ...)")
+]
+OverridesArg = Annotated[
+    list[str] | None,
+    typer.Argument(help="key=value overrides of the airframe, e.g. alpha_deg=75 lambda_a_mm=140"),
+]
+JsonOpt = Annotated[bool, typer.Option("--json", help="print one JSON object instead of text")]
+
+
+def bad_input(lines: list[str]) -> typer.Exit:
+    """Print one line per problem on stderr; the caller raises the returned Exit (code 2)."""
+    for line in lines:
+        typer.echo(line, err=True)
+    return typer.Exit(EXIT_BAD_INPUT)
+
+
+def reports_config_errors(command):
+    """Turn a ConfigError raised anywhere in ``command`` into its lines and exit code 2."""
+
+    @wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except ConfigError as exc:
+            raise bad_input(exc.lines) from None
+
+    return wrapper
+
+
+def jsonable(value: Any) -> Any:
+    """numpy arrays/scalars → lists/floats; complex → [re, im]; NaN/inf → null (strict JSON)."""
+    import numpy as np
+
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, np.bool_ | bool):
+        return bool(value)
+    if isinstance(value, np.integer | int):
+        return int(value)
+    if isinstance(value, complex | np.complexfloating):
+        return [jsonable(float(value.real)), jsonable(float(value.imag))]
+    if isinstance(value, np.floating | float):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def print_json(obj: dict) -> None:
+    typer.echo(json.dumps(jsonable(obj), indent=2, allow_nan=False))
+
+
+def load_airframe_or_exit(airframe: str, overrides: list[str] | None):
+    """(config, Airframe) of an airframe path or name with overrides; ConfigError propagates."""
+    from casadrone.airframe import build_airframe
+    from casadrone.config import load_airframe
+
+    cfg = load_airframe(airframe, overrides or [])
+    return cfg, build_airframe(cfg)
+
+
+def _matrix_text(M, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
+    width = 10
+    head = " " * 8 + "".join(f"{c:>{width}}" for c in cols)
+    body = [f"{r:>8}" + "".join(f"{v:>{width}.4g}" for v in row) for r, row in zip(rows, M)]
+    return "\n".join([head, *body])
+
+
+# --------------------------------------------------------------------------------------------
+# validate
+# --------------------------------------------------------------------------------------------
+
+
+def _yaml_files(paths: list[Path]) -> list[Path]:
+    """The files given, with a folder expanded to every YAML below it (sorted)."""
+    out: list[Path] = []
+    for p in paths:
+        if p.is_dir():
+            out += sorted(f for f in p.rglob("*") if f.suffix in (".yaml", ".yml"))
+        else:
+            out.append(p)
+    return out
+
+
+@app.command()
+def validate(
+    files: Annotated[list[Path], typer.Argument(help="config YAML files or folders of them")],
+    as_json: JsonOpt = False,
+) -> None:
+    """Validate config files: exit 0 when all are valid, 2 otherwise (one line per problem)."""
+    from casadrone.config import validate_file
+
+    report = []
+    for path in _yaml_files(files):
+        try:
+            validate_file(path)
+            report.append({"file": str(path), "valid": True, "problems": []})
+        except ConfigError as exc:
+            report.append({"file": str(path), "valid": False, "problems": exc.lines})
+    n_bad = sum(not r["valid"] for r in report)
+    if as_json:
+        print_json({"valid": n_bad == 0, "files": report})
+    else:
+        for r in report:
+            if r["valid"]:
+                typer.echo(f"{r['file']}: ok")
+            for line in r["problems"]:
+                typer.echo(line, err=True)
+        if n_bad:
+            typer.echo(f"{n_bad} of {len(report)} file(s) invalid", err=True)
+    if n_bad or not report:
+        if not report:
+            typer.echo("no YAML files found", err=True)
+        raise typer.Exit(EXIT_BAD_INPUT)
+
+
+# --------------------------------------------------------------------------------------------
+# trim
+# --------------------------------------------------------------------------------------------
+
+
+@app.command()
+@reports_config_errors
+def trim(
+    airframe: AirframeArg,
+    overrides: OverridesArg = None,
+    condition: Annotated[Condition, typer.Option(help="operating point")] = Condition.hover,
+    speed: Annotated[
+        float | None, typer.Option(help="forward speed (m/s), required with forward")
+    ] = None,
+    solver: Annotated[
+        TrimSolver, typer.Option(help="trim solver, or all to compare them")
+    ] = TrimSolver.ipopt,
+    as_json: JsonOpt = False,
+) -> None:
+    """Trim an airframe in hover or level forward flight; --solver all compares the solvers."""
+    speed_mps = _check_speed(condition.value, speed)
+    cfg, frame = load_airframe_or_exit(airframe, overrides)
+    from casadrone import trim as trim_mod
+
+    if solver is TrimSolver.all:
+        points = trim_mod.trim_all(frame, condition.value, speed_mps)
+    else:
+        points = [trim_mod.trim(frame, condition.value, speed_mps, solver.value)]
+    result = {
+        "airframe": frame.name,
+        "condition": condition.value,
+        "speed_mps": speed_mps,
+        "mass_kg": frame.mass,
+        "kappa_m": frame.kappa,
+        "rotor_positions_m": frame.rotor_positions,
+        "rotor_spins": frame.rotor_spins.astype(int),
+        "results": [_trim_result(tp) for tp in points],
+    }
+    if as_json:
+        print_json(result)
+    else:
+        typer.echo(_trim_table(result))
+
+
+def _check_speed(condition: str, speed: float | None) -> float:
+    if speed is not None and not math.isfinite(speed):
+        raise bad_input([f"--speed: must be a finite number (got {speed})"])
+    if condition == "hover":
+        if speed not in (None, 0.0):
+            raise bad_input([f"--speed: hover has no speed (got {speed}); use --condition forward"])
+        return 0.0
+    if speed is None:
+        raise bad_input(["--speed: required with --condition forward (m/s)"])
+    return float(speed)
+
+
+def _trim_result(tp) -> dict:
+    return {
+        "solver": tp.solver,
+        "success": tp.success,
+        "residual_norm": tp.residual_norm,
+        "iterations": tp.iterations,
+        "wall_time_s": tp.wall_time_s,
+        "message": tp.message,
+        "x0": dict(zip(tp.state_names, (float(v) for v in tp.x0))),
+        "u0": tp.u0,
+        "thrusts_N": tp.thrusts,
+    }
+
+
+def _trim_table(r: dict) -> str:
+    import numpy as np
+
+    pos = np.asarray(r["rotor_positions_m"]) * 1000
+    lines = [
+        f"{r['airframe']}: {r['condition']}"
+        + (f" at {r['speed_mps']:g} m/s" if r["condition"] == "forward" else "")
+        + f", mass {r['mass_kg']:.3f} kg, kappa {r['kappa_m']:.4f} m",
+        "rotors (mm, body x fwd, y left): "
+        + "  ".join(f"{n}({x:.1f}, {y:.1f})" for n, (x, y, _) in zip(("FR", "FL", "RL", "RR"), pos)),
+        "",
+        f"{'solver':<12}{'ok':<4}{'residual':>11}{'iter':>7}{'time (s)':>10}  "
+        f"{'theta (deg)':>11}  {'u0 (delta1..4)':<31}{'T (N)':<27}{'max|du0|':>9}",
+    ]
+    ok = [res for res in r["results"] if res["success"]]
+    ref = np.asarray(ok[0]["u0"]) if ok else None
+    for res in r["results"]:
+        u0 = np.asarray(res["u0"])
+        agree = f"{np.max(np.abs(u0 - ref)):9.1e}" if ref is not None else f"{'-':>9}"
+        lines.append(
+            f"{res['solver']:<12}{'yes' if res['success'] else 'NO':<4}"
+            f"{res['residual_norm']:>11.2e}{res['iterations']:>7d}{res['wall_time_s']:>10.4f}  "
+            f"{math.degrees(res['x0']['theta']):>11.4f}  "
+            + " ".join(f"{v:7.5f}" for v in u0) + "  "
+            + " ".join(f"{v:6.4f}" for v in res["thrusts_N"]) + f"{agree}"
+        )
+    if ref is not None and len(r["results"]) > 1:
+        lines.append(f"max|du0|: largest command difference from {ok[0]['solver']} "
+                     "(the first solver that succeeded)")
+    for res in r["results"]:
+        lines.append(f"{res['solver']}: {res['message']}")
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------------
+# linearise
+# --------------------------------------------------------------------------------------------
+
+
+@app.command()
+@reports_config_errors
+def linearise(
+    airframe: AirframeArg,
+    overrides: OverridesArg = None,
+    method: Annotated[
+        LinMethod, typer.Option(help="exact (AD), fd (finite differences) or both, compared")
+    ] = LinMethod.exact,
+    condition: Annotated[Condition, typer.Option(help="operating point")] = Condition.hover,
+    speed: Annotated[float | None, typer.Option(help="forward speed (m/s)")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Linearise about the (ipopt) trim point: E, A′, B′ and A, B with state and input names."""
+    speed_mps = _check_speed(condition.value, speed)
+    cfg, frame = load_airframe_or_exit(airframe, overrides)
+    from casadrone import linearise as lin_mod
+    from casadrone.trim import trim as trim_fn
+
+    tp = trim_fn(frame, condition.value, speed_mps, "ipopt")
+    if not tp.success:
+        raise bad_input([f"{cfg.name}: trim: {tp.message}"])
+    first = "fd" if method is LinMethod.fd else "exact"
+    lm = lin_mod.linearise(frame, tp, first)
+    result = {
+        "airframe": frame.name,
+        "condition": condition.value,
+        "method": method.value,
+        "state_names": list(lm.state_names),
+        "input_names": list(lm.input_names),
+        "x0": lm.x0,
+        "u0": lm.u0,
+        "E": lm.E,
+        "A_prime": lm.A_prime,
+        "B_prime": lm.B_prime,
+        "A": lm.A,
+        "B": lm.B,
+    }
+    if method is LinMethod.both:
+        cmp = lin_mod.compare(lm, lin_mod.linearise(frame, tp, "fd"))
+        result |= {
+            "max_abs_diff_A": cmp.max_abs_diff_A,
+            "max_abs_diff_B": cmp.max_abs_diff_B,
+            "max_rel_diff": cmp.max_rel_diff,
+        }
+    if as_json:
+        print_json(result)
+        return
+    names, inputs = tuple(lm.state_names), tuple(lm.input_names)
+    typer.echo(f"{frame.name}: {condition.value} linearisation ({first})")
+    typer.echo("A =\n" + _matrix_text(lm.A, names, names))
+    typer.echo("B =\n" + _matrix_text(lm.B, names, inputs))
+    if method is LinMethod.both:
+        typer.echo(
+            f"exact vs fd: max|dA| = {result['max_abs_diff_A']:.3e}, "
+            f"max|dB| = {result['max_abs_diff_B']:.3e}, max relative = {result['max_rel_diff']:.3e}"
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# lqr
+# --------------------------------------------------------------------------------------------
+
+
+@app.command()
+@reports_config_errors
+def lqr(
+    airframe: AirframeArg,
+    overrides: OverridesArg = None,
+    controller: Annotated[
+        str | None, typer.Option(help="controller YAML or name (default: configs/controllers/default)")
+    ] = None,
+    ensemble: Annotated[
+        int | None, typer.Option(min=1, help="also apply the gain to N perturbed plants")
+    ] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Design the hover LQR-I gain and certify it (eigenvalues, Lyapunov P, optional ensemble)."""
+    import numpy as np
+
+    from casadrone.config import load_controller
+
+    cfg, frame = load_airframe_or_exit(airframe, overrides)
+    ctrl = load_controller(controller)
+    from casadrone import control
+
+    reference = None
+    if ctrl.gain_policy == "frozen":
+        _, reference = load_airframe_or_exit(str(ctrl.reference_airframe), None)
+    design = control.design_for(frame, ctrl, reference)
+    eig = np.asarray(design.closed_loop_eigenvalues)
+    result = {
+        "airframe": frame.name,
+        "controller": ctrl.name,
+        "gain_policy": ctrl.gain_policy,
+        "sample_time_s": design.sample_time_s,
+        "state_names": list(design.state_names),
+        "K": design.K,
+        "closed_loop_eigenvalues": [[float(e.real), float(e.imag)] for e in eig],
+        "spectral_radius": float(np.max(np.abs(eig))),
+        "stable": design.stable,
+        "lyapunov_min_eig": design.lyapunov_min_eig,
+    }
+    if ensemble is not None:
+        ens = control.robustness_ensemble(frame, design, ctrl, ensemble)
+        result |= {
+            "ensemble_n": ens.n,
+            "ensemble_stable": ens.stable,
+            "ensemble_n_stable": int(np.sum(ens.stable_each)),
+            "ensemble_max_spectral_radius": ens.max_spectral_radius,
+        }
+    if as_json:
+        print_json(result)
+        return
+    typer.echo(
+        f"{frame.name}: LQR-I ({ctrl.name}, {ctrl.gain_policy}, Ts = {design.sample_time_s:g} s)"
+    )
+    typer.echo(f"closed loop {'stable' if design.stable else 'UNSTABLE'}: spectral radius "
+               f"{result['spectral_radius']:.6f}, Lyapunov min eig(P) {design.lyapunov_min_eig:.4g}")
+    typer.echo("K (rows delta1..4) =\n" + _matrix_text(design.K, ("d1", "d2", "d3", "d4"),
+                                                    tuple(design.state_names)))
+    if ensemble is not None:
+        typer.echo(f"ensemble: {result['ensemble_n_stable']} of {ens.n} perturbed plants stable, "
+                   f"max spectral radius {ens.max_spectral_radius:.6f}")

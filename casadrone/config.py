@@ -205,10 +205,10 @@ def min_rotor_gap_mm(la: float, lb: float, alpha_deg: float, beta_deg: float) ->
 class StateWeights(Schema):
     """Diagonal LQR state weights, one per state group (units: 1/unit² of the state)."""
 
-    position: tuple[NonNegative, NonNegative, NonNegative] = (1.0, 1.0, 4.0)
-    velocity: tuple[NonNegative, NonNegative, NonNegative] = (1.0, 1.0, 1.0)
-    rates: tuple[NonNegative, NonNegative, NonNegative] = (0.1, 0.1, 0.1)
-    attitude: tuple[NonNegative, NonNegative, NonNegative] = (1.0, 1.0, 4.0)
+    position: tuple[NonNegative, NonNegative, NonNegative] = (0.5, 0.5, 1.0)
+    velocity: tuple[NonNegative, NonNegative, NonNegative] = (0.2, 0.2, 0.2)
+    rates: tuple[NonNegative, NonNegative, NonNegative] = (0.05, 0.05, 0.05)
+    attitude: tuple[NonNegative, NonNegative, NonNegative] = (2.0, 2.0, 4.0)
     thrust: tuple[NonNegative, NonNegative, NonNegative, NonNegative] = (0.0, 0.0, 0.0, 0.0)
 
 
@@ -230,9 +230,9 @@ class ControllerConfig(Schema):
     sample_time_s: float = Field(0.01, gt=0, le=0.1)
     q: StateWeights = StateWeights()
     q_integral: tuple[NonNegative, NonNegative, NonNegative, NonNegative] = Field(
-        (0.2, 0.2, 1.0, 0.2), description="weights of ∫e for x, y, z, yaw"
+        (0.05, 0.05, 0.1, 0.05), description="weights of ∫e for x, y, z, yaw"
     )
-    r: tuple[Positive, Positive, Positive, Positive] = Field((1.0, 1.0, 1.0, 1.0))
+    r: tuple[Positive, Positive, Positive, Positive] = Field((10.0, 10.0, 10.0, 10.0))
     gain_policy: Literal["redesign", "frozen"] = "redesign"
     reference_airframe: Path | None = Field(
         None, description="airframe YAML whose gain is frozen for all (gain_policy: frozen)"

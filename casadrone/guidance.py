@@ -1,0 +1,180 @@
+"""Race track and line-of-sight guidance, written symbolically so it compiles into the closed loop.
+
+The route is the start point, an optional climb point, then the timed waypoints. Segment k runs
+from route point k to k + 1. On the active segment (Breivik & Fossen style line of sight):
+
+- along-track coordinate s and cross-track error e (the position error the LQR-I sees is the
+  offset from the closest point of the segment, so only cross-track and height errors count);
+- a look-ahead point Δ ahead of the projection (clamped at the segment end); the velocity
+  reference points from the vehicle at it, with magnitude min(V, √(V_c² + 2 a_b d_end)) so the
+  vehicle brakes to the corner speed V_c before each waypoint;
+- the segment switches when the vehicle is inside the acceptance radius of the segment end or
+  has passed it (s ≥ L);
+- the nose points at the next waypoint: ψ_ref is the heading of the active segment (of the next
+  horizontal one for a vertical climb).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from pydantic import Field, model_validator
+
+from casadrone.config import Schema
+
+Vec3 = tuple[float, float, float]
+
+
+class TrackConfig(Schema):
+    """A race track and the guidance settings flown on it (identical for every airframe)."""
+
+    name: str
+    start_position_m: Vec3 = (0.0, 0.0, 0.0)
+    start_yaw_deg: float = 0.0
+    climb_to_m: Vec3 | None = Field(None, description="route point before the first waypoint")
+    waypoints_m: list[Vec3] = Field(min_length=1, description="timed waypoints, in order")
+    straight: list[bool] = Field(description="leg ending at each waypoint is a straight sector")
+    acceptance_radius_m: float = Field(1.0, gt=0)
+    look_ahead_m: float = Field(3.0, gt=0)
+    speed_mps: float = Field(15.0, gt=0, description="reference speed V on the track")
+    corner_speed_mps: float = Field(4.0, ge=0, description="speed V_c to brake to at waypoints")
+    brake_mps2: float = Field(6.0, gt=0, description="braking deceleration a_b of the profile")
+    max_yaw_error_deg: float = Field(45.0, gt=0, le=180)
+    max_position_error_m: float = Field(5.0, gt=0, description="clamp of the error fed to LQR")
+    max_accel_mps2: float = Field(
+        10.0, gt=0, description="rate limit of the velocity reference (reference shaping)"
+    )
+    time_limit_s: float = Field(60.0, gt=0)
+    max_tilt_deg: float = Field(80.0, gt=0, lt=90, description="attitude limit → failed lap")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> TrackConfig:
+        if len(self.straight) != len(self.waypoints_m):
+            raise ValueError("straight: needs one entry per waypoint")
+        return self
+
+    @property
+    def route(self) -> np.ndarray:
+        """Route points (n × 3, m): start, climb point (if any), waypoints."""
+        pts = [self.start_position_m]
+        if self.climb_to_m is not None:
+            pts.append(self.climb_to_m)
+        return np.array(pts + list(self.waypoints_m), dtype=float)
+
+    @property
+    def first_timed_segment(self) -> int:
+        """Index of the segment that ends at the first waypoint."""
+        return 0 if self.climb_to_m is None else 1
+
+
+def segment_headings(route: np.ndarray, start_yaw: float) -> np.ndarray:
+    """Heading (rad) of each segment; a vertical segment takes the next horizontal heading."""
+    d = np.diff(route, axis=0)
+    heads = np.arctan2(d[:, 1], d[:, 0])
+    horizontal = np.hypot(d[:, 0], d[:, 1]) > 1e-6
+    nxt = start_yaw
+    for k in range(len(d) - 1, -1, -1):
+        if horizontal[k]:
+            nxt = heads[k]
+        else:
+            heads[k] = nxt
+    # unwrap so consecutive headings differ by less than π (yaw error is wrapped anyway)
+    return np.unwrap(heads)
+
+
+@dataclass(frozen=True)
+class GuidanceLayout:
+    """Packing of the track into the guidance parameter vector."""
+
+    n_route: int
+
+    @property
+    def n_seg(self) -> int:
+        return self.n_route - 1
+
+    @property
+    def size(self) -> int:
+        return 3 * self.n_route + self.n_seg + 8
+
+
+def track_vector(track: TrackConfig) -> np.ndarray:
+    """Numeric guidance parameter vector of a track (layout :class:`GuidanceLayout`)."""
+    route = track.route
+    heads = segment_headings(route, math.radians(track.start_yaw_deg))
+    return np.concatenate(
+        [
+            route.ravel(),
+            heads,
+            [
+                track.acceptance_radius_m,
+                track.look_ahead_m,
+                track.speed_mps,
+                track.corner_speed_mps,
+                track.brake_mps2,
+                math.radians(track.max_yaw_error_deg),
+                track.max_position_error_m,
+                track.max_accel_mps2,
+            ],
+        ]
+    )
+
+
+def wrap(angle):
+    """Wrap an angle to (−π, π] (symbolic)."""
+    return ca.atan2(ca.sin(angle), ca.cos(angle))
+
+
+def guidance(pos, seg, g, layout: GuidanceLayout):
+    """Symbolic line-of-sight guidance.
+
+    Args:
+        pos: position (3, world, m). seg: active segment index (float, 0 … n_seg; n_seg = done).
+        g: guidance parameter vector (``track_vector``). layout: its packing.
+
+    Returns:
+        (p_ref, v_ref, psi_ref, seg_next): closest point on the active segment (m), world
+        velocity reference (m/s), yaw reference (rad), segment index after switching.
+    """
+    n, ns = layout.n_route, layout.n_seg
+    route = ca.reshape(g[: 3 * n], 3, n)
+    heads = g[3 * n : 3 * n + ns]
+    r_acc, look, speed, v_corner, brake = (g[3 * n + ns + i] for i in range(5))
+
+    def active(seg_index):
+        """Start, end and heading of segment ``seg_index`` (the last one once done)."""
+        a, b, h = route[:, ns - 1], route[:, ns], heads[ns - 1]
+        for k in range(ns - 1, -1, -1):
+            sel = seg_index <= k + 0.5
+            a = ca.if_else(sel, route[:, k], a)
+            b = ca.if_else(sel, route[:, k + 1], b)
+            h = ca.if_else(sel, heads[k], h)
+        return a, b, h
+
+    # switching on the segment that was active
+    a, b, _ = active(seg)
+    t_vec = b - a
+    length = ca.norm_2(t_vec)
+    s = ca.dot(pos - a, t_vec) / length
+    switch = ca.logic_and(
+        seg < ns - 0.5, ca.logic_or(ca.norm_2(pos - b) < r_acc, s >= length)
+    )
+    seg_next = seg + ca.if_else(switch, 1, 0)
+    done = seg_next > ns - 0.5
+
+    a, b, psi_ref = active(seg_next)
+    t_vec = b - a
+    length = ca.norm_2(t_vec)
+    t_hat = t_vec / length
+    s = ca.fmin(ca.fmax(ca.dot(pos - a, t_hat), 0), length)
+    p_closest = a + s * t_hat
+    p_look = a + ca.fmin(s + look, length) * t_hat
+    los = p_look - pos
+    d_end = length - s
+    v_mag = ca.fmin(speed, ca.sqrt(v_corner**2 + 2 * brake * d_end))
+    v_ref = v_mag * los / ca.fmax(ca.norm_2(los), 1e-6)
+    p_ref = ca.if_else(done, b, p_closest)
+    v_ref = ca.if_else(done, ca.DM.zeros(3), v_ref)
+    return p_ref, v_ref, psi_ref, seg_next

@@ -1,0 +1,405 @@
+"""Closed-loop lap: LQR-I + line-of-sight guidance at Ts, plant integrated between samples.
+
+Integrators:
+- ``rk4``: fixed-step RK4 with sub-steps; the controller, guidance and plant of one sample are one
+  symbolic step, chained with ``mapaccum`` into chunks of samples, generated as C, compiled once
+  and cached on disk (``$CASADRONE_CACHE`` or ``~/.cache/casadrone``). The airframe, trim point,
+  gain and track are inputs, so one compiled function serves every candidate.
+- ``cvodes``: SUNDIALS CVODES on the explicit f, the same compiled-once controller per sample.
+- ``idas``: SUNDIALS IDAS on the implicit residual F(ẋ, x, u, p) = 0 (ẋ as algebraic unknowns).
+
+A lap that diverges (non-finite state, ground strike, attitude beyond the track's limit) or times
+out is returned as a failed :class:`Trajectory` with a reason; it never raises.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+import time
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Literal
+
+import casadi as ca
+import numpy as np
+
+from casadrone.airframe import Airframe
+from casadrone.control import LQRIDesign
+from casadrone.guidance import GuidanceLayout, TrackConfig, guidance, track_vector, wrap
+from casadrone.model import NP, NU, NX, quadrotor_model, rotation_matrix
+
+Integrator = Literal["rk4", "cvodes", "idas"]
+INTEGRATORS: tuple[str, ...] = ("rk4", "cvodes", "idas")
+NC = 8  # controller state: ∫e (x, y, z, ψ) (4), active segment (1), shaped velocity ref (3)
+NREF = 10  # logged per sample: p_ref (3), v_ref (3), ψ_ref (1), world acceleration (3)
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """Numerical settings of the closed loop (the controller period comes from the design)."""
+
+    substeps: int = 2  # RK4 steps per controller sample
+    chunk: int = 250  # samples per compiled chunk (lap checked for its end between chunks)
+    rtol: float = 1e-8  # SUNDIALS tolerances
+    atol: float = 1e-8
+    ground_margin_m: float = 0.1
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A closed-loop flight, sampled at the controller period.
+
+    Row k holds the state at t[k] and the command applied on [t[k], t[k+1]).
+    """
+
+    status: Literal["completed", "failed"]
+    reason: str
+    integrator: str
+    t: np.ndarray  # (N,) s
+    x: np.ndarray  # (N, 16) state
+    u: np.ndarray  # (N, 4) ESC commands δ ∈ [0, 1]
+    p_ref: np.ndarray  # (N, 3) position reference, m
+    v_ref: np.ndarray  # (N, 3) shaped velocity reference, m/s (world)
+    psi_ref: np.ndarray  # (N,) yaw reference, rad
+    acceleration: np.ndarray  # (N, 3) world kinematic acceleration, m/s²
+    segment: np.ndarray  # (N,) active route segment after switching at t[k]
+    u0: np.ndarray  # (4,) trim commands
+    battery_voltage: float  # V
+    waypoints: np.ndarray  # (W, 3) timed waypoints, m
+    straight: tuple[bool, ...]  # leg ending at each waypoint is straight
+    split_times: np.ndarray  # (W,) time each waypoint was reached (NaN if not), s
+    wall_time_s: float = 0.0
+    extras: dict = field(default_factory=dict)
+
+    @property
+    def completed(self) -> bool:
+        return self.status == "completed"
+
+    @property
+    def voltage(self) -> np.ndarray:
+        """ESC voltage commands V_i = δ_i V_batt (N, 4), V."""
+        return self.u * self.battery_voltage
+
+    @property
+    def thrust(self) -> np.ndarray:
+        """Rotor thrusts (N, 4), N."""
+        return self.x[:, 12:16]
+
+    @property
+    def speed(self) -> np.ndarray:
+        """Airspeed |v| (N,), m/s."""
+        return np.linalg.norm(self.x[:, 3:6], axis=1)
+
+    @property
+    def lap_time(self) -> float:
+        """Time at the last waypoint (s), NaN if not reached."""
+        return float(self.split_times[-1])
+
+    @property
+    def waypoint_index(self) -> np.ndarray:
+        """Index (0-based) of the waypoint being flown to at each sample; W once done."""
+        first = self.extras.get("first_timed_segment", 0)
+        return np.clip(self.segment - first, 0, len(self.waypoints)).astype(int)
+
+
+# --------------------------------------------------------------------------------------------
+# Symbolic closed loop
+# --------------------------------------------------------------------------------------------
+
+
+def _controller_expr(x, c, p, x0, u0, K, g, Ts: float, layout: GuidanceLayout):
+    """Guidance + reference shaping + LQR-I + saturation + anti-windup for one sample."""
+    xi, seg, vf = c[0:4], c[4], c[5:8]
+    p_ref, v_ref, psi_ref, seg_next = guidance(x[0:3], seg, g, layout)
+    a_max, max_pos, max_yaw = g[layout.size - 1], g[layout.size - 2], g[layout.size - 3]
+
+    dv = v_ref - vf
+    step = ca.fmin(1, a_max * Ts / ca.fmax(ca.norm_2(dv), 1e-9))
+    vf_next = vf + step * dv
+
+    phi, theta, psi = x[9], x[10], x[11]
+    cps, sps = ca.cos(psi), ca.sin(psi)
+    world_to_heading = ca.vertcat(ca.horzcat(cps, sps, 0), ca.horzcat(-sps, cps, 0), ca.horzcat(0, 0, 1))
+    e_pos = ca.fmin(ca.fmax(world_to_heading @ (x[0:3] - p_ref), -max_pos), max_pos)
+    R = rotation_matrix(phi, theta, psi)
+    e_vel = x[3:6] - R.T @ vf_next
+    e_psi = ca.fmin(ca.fmax(wrap(psi - psi_ref), -max_yaw), max_yaw)
+    dx = ca.vertcat(e_pos, e_vel, x[6:9], phi - x0[9], theta - x0[10], e_psi, x[12:16] - x0[12:16])
+    u_raw = u0 - K @ ca.vertcat(dx, xi)
+    u = ca.fmin(ca.fmax(u_raw, 0), 1)
+    saturated = ca.sum1(ca.fabs(u_raw - u)) > 0
+    xi_next = ca.if_else(saturated, xi, xi + Ts * ca.vertcat(e_pos, e_psi))
+    return u, ca.vertcat(xi_next, seg_next, vf_next), ca.vertcat(p_ref, vf_next, psi_ref)
+
+
+def _world_acceleration(x, u, p):
+    """World-frame kinematic acceleration R (v̇ + ω × v) (m/s²)."""
+    xdot = quadrotor_model().f(x, u, p)
+    R = rotation_matrix(x[9], x[10], x[11])
+    return R @ (xdot[3:6] + ca.cross(x[6:9], x[3:6]))
+
+
+def _symbols(layout: GuidanceLayout):
+    return dict(
+        x=ca.SX.sym("x", NX),
+        c=ca.SX.sym("c", NC),
+        p=ca.SX.sym("p", NP),
+        x0=ca.SX.sym("x0", NX),
+        u0=ca.SX.sym("u0", NU),
+        K=ca.SX.sym("K", NU, NX + 4),
+        g=ca.SX.sym("g", layout.size),
+    )
+
+
+@lru_cache(maxsize=8)
+def controller_function(Ts: float, n_route: int) -> ca.Function:
+    """``controller(x, c, p, x0, u0, K, g) -> (u, c_next, ref)`` for the SUNDIALS loops."""
+    layout = GuidanceLayout(n_route)
+    s = _symbols(layout)
+    u, c_next, ref = _controller_expr(s["x"], s["c"], s["p"], s["x0"], s["u0"], s["K"], s["g"], Ts, layout)
+    acc = _world_acceleration(s["x"], u, s["p"])
+    names = ["x", "c", "p", "x0", "u0", "K", "g"]
+    return ca.Function("controller", [s[n] for n in names], [u, c_next, ca.vertcat(ref, acc)],
+                       names, ["u", "c_next", "ref"])
+
+
+def step_function(Ts: float, substeps: int, n_route: int) -> ca.Function:
+    """One sample of the closed loop with an RK4 plant: ``(x, c, …) -> (x_next, c_next, u, ref)``."""
+    layout = GuidanceLayout(n_route)
+    s = _symbols(layout)
+    x, p = s["x"], s["p"]
+    u, c_next, ref = _controller_expr(x, s["c"], p, s["x0"], s["u0"], s["K"], s["g"], Ts, layout)
+    f = quadrotor_model().f
+    h = Ts / substeps
+    xk = x
+    for _ in range(substeps):
+        k1 = f(xk, u, p)
+        k2 = f(xk + h / 2 * k1, u, p)
+        k3 = f(xk + h / 2 * k2, u, p)
+        k4 = f(xk + h * k3, u, p)
+        xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    acc = _world_acceleration(x, u, p)
+    names = ["x", "c", "p", "x0", "u0", "K", "g"]
+    return ca.Function("step", [s[n] for n in names], [xk, c_next, u, ca.vertcat(ref, acc)],
+                       names, ["x_next", "c_next", "u", "ref"])
+
+
+def cache_dir() -> Path:
+    """Where compiled closed loops are kept between processes."""
+    root = os.environ.get("CASADRONE_CACHE") or Path.home() / ".cache" / "casadrone"
+    path = Path(root)
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def compile_function(fun: ca.Function, flags: tuple[str, ...] = ("-O2",)) -> ca.Function:
+    """Generate C for ``fun``, compile it once (cached on disk by source hash) and load it."""
+    with tempfile.TemporaryDirectory() as tmp:
+        cname = f"{fun.name()}.c"
+        fun.generate(cname, {"with_header": False})
+        src_path = Path(cname)
+        src = src_path.read_text()
+        src_path.unlink()
+        digest = hashlib.sha256((src + " ".join(flags) + ca.__version__).encode()).hexdigest()[:16]
+        target = cache_dir() / f"{fun.name()}_{digest}.so"
+        if not target.exists():
+            c_file = Path(tmp) / cname
+            c_file.write_text(src)
+            tmp_so = Path(tmp) / "out.so"
+            cc = os.environ.get("CC", "gcc")
+            subprocess.run([cc, *flags, "-shared", "-fPIC", str(c_file), "-o", str(tmp_so), "-lm"],
+                           check=True, capture_output=True)
+            staged = target.with_suffix(f".{os.getpid()}.tmp")
+            shutil.copyfile(tmp_so, staged)
+            os.replace(staged, target)
+    return ca.external(fun.name(), str(target))
+
+
+@lru_cache(maxsize=8)
+def chunk_function(Ts: float, substeps: int, n_route: int, chunk: int) -> ca.Function:
+    """``chunk`` samples of the RK4 closed loop, compiled once (see :func:`compile_function`)."""
+    step = step_function(Ts, substeps, n_route)
+    acc = step.mapaccum(f"lap_rk4_{chunk}", chunk, 2)
+    try:
+        return compile_function(acc)
+    except (OSError, subprocess.CalledProcessError):  # no C compiler: CasADi's virtual machine
+        return acc
+
+
+@lru_cache(maxsize=8)
+def sundials_integrator(kind: str, Ts: float, rtol: float, atol: float) -> ca.Function:
+    """CVODES on ẋ = f(x, u, p) or IDAS on 0 = F(z, x, u, p), ẋ = z, over one period Ts."""
+    model = quadrotor_model()
+    x = ca.SX.sym("x", NX)
+    up = ca.SX.sym("up", NU + NP)
+    u, p = up[:NU], up[NU:]
+    opts = {"abstol": atol, "reltol": rtol}
+    if kind == "cvodes":
+        dae = {"x": x, "p": up, "ode": model.f(x, u, p)}
+    else:
+        z = ca.SX.sym("z", NX)
+        dae = {"x": x, "z": z, "p": up, "ode": z, "alg": model.F(z, x, u, p)}
+    return ca.integrator(f"plant_{kind}", kind, dae, 0.0, Ts, opts)
+
+
+# --------------------------------------------------------------------------------------------
+# Simulation
+# --------------------------------------------------------------------------------------------
+
+
+def initial_state(airframe: Airframe, design: LQRIDesign, track: TrackConfig):
+    """On the ground at the start, at rest, rotors at trim thrust; controller state zero."""
+    x = np.zeros(NX)
+    x[0:3] = track.start_position_m
+    x[11] = np.radians(track.start_yaw_deg)
+    x[12:16] = design.x0[12:16]
+    return x, np.zeros(NC)
+
+
+def _check(x: np.ndarray, t: np.ndarray, track: TrackConfig, margin: float) -> tuple[int, str]:
+    """First sample index at which the flight fails, and why (−1, "" when it does not)."""
+    bad = ~np.all(np.isfinite(x), axis=1)
+    tilt = np.radians(track.max_tilt_deg)
+    over = (np.abs(x[:, 9]) > tilt) | (np.abs(x[:, 10]) > tilt)
+    z0 = track.start_position_m[2]
+    airborne = np.maximum.accumulate(x[:, 2] - z0 > 1.0)
+    ground = (x[:, 2] < z0 - margin) | (airborne & (x[:, 2] < z0 + 0.0))
+    for mask, why in ((bad, "non-finite state (diverged)"), (over, "attitude beyond limit"),
+                      (ground, "ground strike")):
+        if mask.any():
+            k = int(np.argmax(mask))
+            reason = why
+            if why == "attitude beyond limit":
+                reason = (f"attitude beyond {track.max_tilt_deg:g} deg (roll "
+                          f"{np.degrees(x[k, 9]):.0f}, pitch {np.degrees(x[k, 10]):.0f} deg)")
+            return k, f"{reason} at t = {t[k]:.2f} s"
+    return -1, ""
+
+
+def simulate(
+    airframe: Airframe,
+    design: LQRIDesign,
+    track: TrackConfig,
+    integrator: Integrator = "rk4",
+    options: SimOptions = SimOptions(),
+) -> Trajectory:
+    """Fly one lap of ``track`` under the LQR-I ``design``; failures come back as a result."""
+    start = time.perf_counter()
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"unknown integrator {integrator!r}; choose from {', '.join(INTEGRATORS)}")
+    Ts = design.sample_time_s
+    route = track.route
+    n_route, n_seg = len(route), len(route) - 1
+    args = [airframe.p, design.x0, design.u0, design.K, track_vector(track)]
+    x, c = initial_state(airframe, design, track)
+    n_max = int(np.ceil(track.time_limit_s / Ts))
+    X, C, U, REF = [], [], [], []
+    n_done, status, reason = 0, "failed", f"time-out: lap not finished in {track.time_limit_s:g} s"
+
+    if integrator == "rk4":
+        fun = chunk_function(Ts, options.substeps, n_route, options.chunk)
+    else:
+        ctrl = controller_function(Ts, n_route)
+        plant = sundials_integrator(integrator, Ts, options.rtol, options.atol)
+
+    while n_done < n_max:
+        if integrator == "rk4":
+            xs, cs, us, refs = (np.array(a) for a in fun(x, c, *args))
+            Xc = np.hstack([x[:, None], xs[:, :-1]]).T
+            x, c = xs[:, -1], cs[:, -1]
+            C.append(cs.T)
+            U.append(us.T)
+            REF.append(refs.T)
+            X.append(Xc)
+            n_new = xs.shape[1]
+        else:
+            n_new = min(options.chunk, n_max - n_done)
+            Xc = np.empty((n_new, NX))
+            for k in range(n_new):
+                Xc[k] = x
+                u, c_next, ref = (np.array(a).ravel() for a in ctrl(x, c, *args))
+                try:
+                    if integrator == "cvodes":
+                        x = np.array(plant(x0=x, p=np.concatenate([u, airframe.p]))["xf"]).ravel()
+                    else:
+                        z0 = np.array(quadrotor_model().f(x, u, airframe.p)).ravel()
+                        x = np.array(plant(x0=x, z0=z0, p=np.concatenate([u, airframe.p]))["xf"]).ravel()
+                except RuntimeError as exc:
+                    x = np.full(NX, np.nan)
+                    reason = f"{integrator} failed: {str(exc).splitlines()[-1][:120]}"
+                c = c_next
+                C.append(c_next[None, :])
+                U.append(u[None, :])
+                REF.append(ref[None, :])
+                if not np.all(np.isfinite(x)):
+                    Xc = Xc[: k + 1]
+                    break
+            X.append(Xc)
+            n_new = len(Xc)
+        n_done += n_new
+        t_all = np.arange(n_done) * Ts
+        X_all = np.vstack(X)
+        k_fail, why = _check(X_all, t_all, track, options.ground_margin_m)
+        seg_all = np.vstack(C)[:, 4]
+        done = np.flatnonzero(seg_all > n_seg - 0.5)
+        k_done = int(done[0]) if done.size else -1
+        if k_fail >= 0 and (k_done < 0 or k_fail <= k_done):
+            status, reason, n_keep = "failed", why, k_fail + 1
+            break
+        if k_done >= 0:
+            status, reason, n_keep = "completed", "", k_done + 1
+            break
+        if not np.all(np.isfinite(x)):
+            status, n_keep = "failed", n_done
+            break
+    else:
+        n_keep = n_max
+
+    X_all = np.vstack(X)[:n_keep]
+    C_all, U_all, R_all = (np.vstack(a)[:n_keep] for a in (C, U, REF))
+    t = np.arange(n_keep) * Ts
+    seg = np.rint(C_all[:, 4]).astype(int)
+    splits = split_times(t, X_all, seg, route, track)
+    return Trajectory(
+        status=status, reason=reason, integrator=integrator, t=t, x=X_all, u=U_all,
+        p_ref=R_all[:, 0:3], v_ref=R_all[:, 3:6], psi_ref=R_all[:, 6], acceleration=R_all[:, 7:10],
+        segment=seg, u0=np.asarray(design.u0), battery_voltage=airframe.battery_voltage,
+        waypoints=np.array(track.waypoints_m, float), straight=tuple(track.straight),
+        split_times=splits, wall_time_s=time.perf_counter() - start,
+        extras={"first_timed_segment": track.first_timed_segment},
+    )
+
+
+def split_times(t, x, seg, route, track: TrackConfig) -> np.ndarray:
+    """Time each waypoint was reached, interpolated inside the sample where the segment switched.
+
+    The switch condition is g ≤ 0 with g = min(|p − b| − r_acc, L − s); between the last sample
+    with g > 0 and the first with g ≤ 0, g is interpolated linearly.
+    """
+    first = track.first_timed_segment
+    out = np.full(len(track.waypoints_m), np.nan)
+    for j in range(len(track.waypoints_m)):
+        k_seg = first + j
+        hit = np.flatnonzero(seg > k_seg)
+        if not hit.size:
+            continue
+        k = int(hit[0])
+        a, b = route[k_seg], route[k_seg + 1]
+        L = np.linalg.norm(b - a)
+
+        def g(i):
+            s = np.dot(x[i, :3] - a, (b - a) / L)
+            return min(np.linalg.norm(x[i, :3] - b) - track.acceptance_radius_m, L - s)
+
+        if k == 0:
+            out[j] = t[0]
+            continue
+        g0, g1 = g(k - 1), g(k)
+        frac = g0 / (g0 - g1) if g0 > 0 and g1 <= 0 and g0 != g1 else 1.0
+        out[j] = t[k - 1] + frac * (t[k] - t[k - 1])
+    return out

@@ -296,8 +296,11 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
         mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
         problem = getattr(exc, "problem", None) or str(exc)
-        context = getattr(exc, "context", None)
-        detail = f"{problem} ({context})" if context and "duplicate" not in problem else problem
+        context, cmark = getattr(exc, "context", None), getattr(exc, "context_mark", None)
+        detail = problem
+        if context and "duplicate" not in problem:
+            started = f" started on line {cmark.line + 1}" if cmark and cmark is not mark else ""
+            detail += f" ({context}{started})"
         raise ConfigError([f"{path}: {where}malformed YAML: {detail}"]) from None
     if data is None:
         data = {}
@@ -379,6 +382,11 @@ def _short(value: Any) -> str | None:
 def error_pairs(exc: ValidationError, model: type[BaseModel]) -> list[tuple[str, str]]:
     """(dotted key, message) for every error of a pydantic ValidationError."""
     pairs = []
+    n_expected = {}  # tuple too short: one error per missing item; report the length once
+    for err in exc.errors():
+        loc = tuple(err["loc"])
+        if err["type"] == "missing" and loc and isinstance(loc[-1], int):
+            n_expected[loc[:-1]] = max(n_expected.get(loc[:-1], 0), loc[-1] + 1)
     for err in exc.errors():
         loc = tuple(err["loc"])
         prefix = ".".join(str(p) for p in loc)
@@ -391,8 +399,7 @@ def error_pairs(exc: ValidationError, model: type[BaseModel]) -> list[tuple[str,
             msg = _unknown_key(model, loc)
         elif kind == "missing" and loc and isinstance(loc[-1], int):
             prefix = ".".join(str(p) for p in loc[:-1])
-            got = err["input"]
-            msg = f"expected {loc[-1] + 1} values, got {len(got)}"
+            msg = f"expected {n_expected[loc[:-1]]} values, got {len(err['input'])}"
         elif kind == "missing":
             msg = "required key missing"
         else:

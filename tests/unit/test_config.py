@@ -1,0 +1,321 @@
+"""Config schemas and loader: every shipped config validates; broken ones report every problem,
+one ``FILE: key: message`` line each."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from pydantic import ValidationError
+
+from casadrone import config as C
+from casadrone.config import (
+    AirframeConfig,
+    ConfigError,
+    ControllerConfig,
+    Schema,
+    apply_overrides,
+    load_airframe,
+    load_controller,
+    validate_file,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+BAD = ROOT / "tests" / "data" / "bad"
+ALL_CONFIGS = sorted((ROOT / "configs").rglob("*.yaml"))
+
+SY250 = {
+    "name": "t",
+    "lambda_a_mm": 125.0,
+    "lambda_b_mm": 125.0,
+    "alpha_deg": 90.0,
+    "beta_deg": 90.0,
+    "ixx_kgm2": 0.0022,
+    "iyy_kgm2": 0.0017,
+    "izz_kgm2": 0.0036,
+    "mass_kg": 0.32,
+}
+
+
+def problems_of(data: dict, model=AirframeConfig, source: str = "f.yaml") -> list[str]:
+    """The ConfigError lines of validating ``data``."""
+    with pytest.raises(ConfigError) as info:
+        C.validate_data(model, data, source, Path("."))
+    return info.value.lines
+
+
+def test_configs_exist():
+    assert any("airframes" in p.parts for p in ALL_CONFIGS)
+    assert (ROOT / "configs" / "controllers" / "default.yaml") in ALL_CONFIGS
+
+
+@pytest.mark.parametrize("path", ALL_CONFIGS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_shipped_config_validates(path):
+    validate_file(path)
+
+
+# ---------------------------------------------------------------------------------------------
+# Broken files: each problem on its own line, FILE: dotted.key: message
+# ---------------------------------------------------------------------------------------------
+
+#: file → (dotted key, message fragment) lines that must appear (several per file allowed)
+BAD_EXPECTED = {
+    "misspelt_key.yaml": [("mas_kg", "unknown key (did you mean 'mass_kg'?)"),
+                          ("mass_kg", "required key missing")],
+    "misspelt_nested_key.yaml": [("thrust.gainn", "did you mean 'gain_n'")],
+    "wrong_type.yaml": [("mass_kg", "valid number")],
+    "negative_mass.yaml": [("mass_kg", "greater than 0")],
+    "angle_out_of_range.yaml": [("alpha_deg", "less than 180")],
+    "overlapping_rotors.yaml": [("alpha_deg", "rotors FR and FL overlap")],
+    "several_problems.yaml": [("mass_kg", "greater than 0"),
+                              ("kapa_m", "did you mean 'kappa_m'"),
+                              ("alpha_deg", "rotors FR and FL overlap")],
+    "missing_reference.yaml": [("reference_airframe",
+                                "referenced file not found: does-not-exist.yaml")],
+    "controller_bad_weights.yaml": [("q.position.2", "greater than or equal to 0"),
+                                    ("q.velocty", "did you mean 'velocity'"),
+                                    ("r.1", "greater than 0")],
+    "sample_time_too_long.yaml": [("sample_time_s", "less than or equal to 0.1")],
+    "malformed.yaml": [("line 3", "malformed YAML")],
+    "malformed_flow.yaml": [("line 4", "started on line 3")],
+    "duplicate_key.yaml": [("line 3", "duplicate key 'lambda_a_mm' (first given on line 2)")],
+}
+
+
+def test_every_bad_file_has_an_expectation():
+    assert {p.name for p in BAD.glob("*.yaml")} == set(BAD_EXPECTED)
+
+
+@pytest.mark.parametrize("name", sorted(BAD_EXPECTED))
+def test_bad_file_reports_file_key_and_message(name):
+    path = BAD / name
+    with pytest.raises(ConfigError) as info:
+        validate_file(path)
+    lines = info.value.lines
+    for key, fragment in BAD_EXPECTED[name]:
+        prefix = f"{path}: {key}"
+        assert any(ln.startswith(prefix) and fragment in ln for ln in lines), (key, lines)
+    assert all(ln.startswith(f"{path}: ") and "\n" not in ln for ln in lines)
+
+
+def test_several_problems_are_reported_at_once():
+    # field errors, an unknown key and cross-field (geometry) errors in one report
+    lines = problems_of({**SY250, "mass_kg": -1, "alpha_deg": 60, "lambda_a_mm": 110, "kapa": 1,
+                         "rotor_spins": [1, 1, -1, -1], "drag_area_m2": [0.1, -0.1, 0.1]})
+    keys = [ln.split(": ")[1] for ln in lines]
+    assert keys == ["mass_kg", "drag_area_m2.1", "kapa", "rotor_spins", "alpha_deg"], lines
+
+
+def test_nested_model_problems_get_dotted_keys():
+    lines = problems_of({"q": {"position": [1, 1, -1]}, "thrust": 1}, ControllerConfig)
+    assert "f.yaml: q.position.2: Input should be greater than or equal to 0 (got -1)" in lines
+    assert any(ln.startswith("f.yaml: thrust: unknown key") for ln in lines)
+
+
+def test_unknown_key_without_close_match_lists_known_keys():
+    lines = problems_of({"q": {"zzz": 1}}, ControllerConfig)
+    assert lines == ["f.yaml: q.zzz: unknown key; known keys: position, velocity, rates, "
+                     "attitude, thrust"]
+
+
+def test_wrong_tuple_length_is_one_line():
+    assert problems_of({**SY250, "drag_area_m2": [0.1]}) == [
+        "f.yaml: drag_area_m2: expected 3 values, got 1"
+    ]
+
+
+# ---------------------------------------------------------------------------------------------
+# Geometry in physical sense
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("key", ["lambda_a_mm", "lambda_b_mm", "ixx_kgm2", "iyy_kgm2",
+                                 "izz_kgm2", "mass_kg", "prop_diameter_mm"])
+@pytest.mark.parametrize("value", [0.0, -1.0])
+def test_non_positive_lengths_inertias_mass_rejected(key, value):
+    lines = problems_of({**SY250, key: value})
+    assert any(ln.startswith(f"f.yaml: {key}: Input should be greater than 0") for ln in lines)
+
+
+@pytest.mark.parametrize("key", ["alpha_deg", "beta_deg"])
+@pytest.mark.parametrize("value", [0.0, 180.0, -10.0, 200.0])
+def test_angles_outside_open_interval_rejected(key, value):
+    lines = problems_of({**SY250, key: value})
+    assert lines and all(f": {key}: Input should be" in ln for ln in lines)
+
+
+def test_rear_rotor_overlap_names_beta_and_minimum_angle():
+    # HS200 rear arms: 100 mm; the props touch below beta = 2 asin(63.5 / 100) = 78.8 deg
+    base = {**SY250, "lambda_a_mm": 100.0, "lambda_b_mm": 100.0}
+    AirframeConfig(**{**base, "beta_deg": 80.0})
+    (line,) = problems_of({**base, "beta_deg": 78.0})
+    gap = 2 * 100 * math.sin(math.radians(39))
+    assert line == (f"f.yaml: beta_deg: rotors RL and RR overlap: centres {gap:.1f} mm apart, "
+                    "less than the prop diameter 127.0 mm (needs at least 78.8 deg)")
+
+
+def test_rotors_exactly_touching_are_accepted():
+    # front gap = 2 * la * sin(45 deg) equals the prop diameter
+    la = 127.0 / (2 * math.sin(math.radians(45)))
+    AirframeConfig(**{**SY250, "lambda_a_mm": la, "lambda_b_mm": la})
+
+
+def test_side_overlap_reported_on_prop_diameter():
+    lines = problems_of({**SY250, "alpha_deg": 170, "beta_deg": 170})
+    assert any(ln.startswith("f.yaml: prop_diameter_mm: rotors FR and RR overlap") for ln in lines)
+
+
+def test_inertia_tensor_must_be_positive_definite():
+    (line,) = problems_of({**SY250, "ixy_kgm2": 0.003})
+    assert line.startswith("f.yaml: ixy_kgm2: inertia tensor is not positive definite")
+    AirframeConfig(**{**SY250, "ixy_kgm2": 0.0001})
+
+
+def test_rotor_spins_must_pair_diagonals():
+    (line,) = problems_of({**SY250, "rotor_spins": [1, 1, -1, -1]})
+    assert line.startswith("f.yaml: rotor_spins: diagonal rotors must spin alike")
+    assert any("rotor_spins.0: Input should be -1 or 1 (got 2)" in ln
+               for ln in problems_of({**SY250, "rotor_spins": [2, 1, -1, 1]}))
+    assert AirframeConfig(**{**SY250, "rotor_spins": [1, -1, 1, -1]}).rotor_spins == (1, -1, 1, -1)
+
+
+def test_airframe_that_cannot_hover_is_rejected():
+    (line,) = problems_of({**SY250, "mass_kg": 5.0})
+    assert line.startswith("f.yaml: mass_kg: cannot hover")
+
+
+# ---------------------------------------------------------------------------------------------
+# Schemas: frozen, extra forbidden, defaults
+# ---------------------------------------------------------------------------------------------
+
+
+def _all_schemas(cls=Schema):
+    for sub in cls.__subclasses__():
+        yield sub
+        yield from _all_schemas(sub)
+
+
+def test_every_schema_is_frozen_and_forbids_extra_keys():
+    schemas = [s for s in _all_schemas() if s.__module__ == "casadrone.config"]
+    assert {AirframeConfig, ControllerConfig, C.StateWeights, C.ThrustModelConfig} <= set(schemas)
+    for s in schemas:
+        assert s.model_config["frozen"] is True and s.model_config["extra"] == "forbid", s
+
+
+def test_configs_are_frozen():
+    cfg = load_airframe("SY250")
+    with pytest.raises(ValidationError):
+        cfg.mass_kg = 1.0
+
+
+def test_default_controller_file_equals_schema_defaults():
+    assert load_controller() == ControllerConfig()
+    assert load_controller("default") == load_controller(ROOT / "configs/controllers/default.yaml")
+    assert load_controller().sample_time_s == 0.01
+
+
+# ---------------------------------------------------------------------------------------------
+# Loading: names, paths, overrides, references
+# ---------------------------------------------------------------------------------------------
+
+
+def test_airframe_by_name_or_path():
+    assert load_airframe("SY250") == load_airframe(ROOT / "configs/airframes/SY250.yaml")
+    assert load_airframe("SY250.yaml").name == "SY250"
+
+
+def test_unknown_airframe_name_suggests_one():
+    with pytest.raises(ConfigError) as info:
+        load_airframe("SY25")
+    (line,) = info.value.lines
+    assert line.startswith("SY25: file not found") and "did you mean 'SY250'?" in line
+    with pytest.raises(ConfigError, match="nowhere/x.yaml: file not found"):
+        load_airframe("nowhere/x.yaml")
+
+
+def test_overrides_are_validated_like_the_file():
+    cfg = load_airframe("SY250", ["alpha_deg=75", "lambda_a_mm=140", "thrust.gain_n=10"])
+    assert (cfg.alpha_deg, cfg.lambda_a_mm, cfg.thrust.gain_n) == (75.0, 140.0, 10.0)
+    assert cfg.thrust.time_constant_s == 0.060538  # sibling nested key kept
+    with pytest.raises(ConfigError) as info:
+        load_airframe("SY250", ["alpha_deg=200", "thrust.gainn=3", "mass_kg=x"])
+    src = str(ROOT / "configs/airframes/SY250.yaml")
+    assert info.value.lines == [
+        f"{src}: alpha_deg: Input should be less than 180 (got 200) [override alpha_deg=200]",
+        f"{src}: mass_kg: Input should be a valid number, unable to parse string as a number "
+        "(got 'x') [override mass_kg=x]",
+        f"{src}: thrust.gainn: unknown key (did you mean 'gain_n'?) [override thrust.gainn=3]",
+    ]
+
+
+def test_override_syntax_errors():
+    with pytest.raises(ConfigError) as info:
+        apply_overrides({}, ["alpha_deg", "=3", "a..b=1"], "src")
+    assert len(info.value.lines) == 3
+    assert all(ln.startswith("src: override '") for ln in info.value.lines)
+    assert apply_overrides({"a": {"b": 1}}, ["a.c=[1, 2]"], "s") == {"a": {"b": 1, "c": [1, 2]}}
+
+
+def test_frozen_gain_reference_by_name_and_relative_path(tmp_path):
+    (tmp_path / "frame.yaml").write_text(
+        "\n".join(f"{k}: {v}" for k, v in SY250.items()) + "\n"
+    )
+    by_name = tmp_path / "by_name.yaml"
+    by_name.write_text("gain_policy: frozen\nreference_airframe: SY250\n")
+    assert validate_file(by_name).reference_airframe == ROOT / "configs/airframes/SY250.yaml"
+    rel = tmp_path / "rel.yaml"
+    rel.write_text("gain_policy: frozen\nreference_airframe: frame.yaml\n")
+    assert validate_file(rel).reference_airframe == tmp_path / "frame.yaml"
+
+
+def test_frozen_gain_without_reference():
+    assert problems_of({"gain_policy": "frozen"}, ControllerConfig) == [
+        "f.yaml: reference_airframe: required when gain_policy is 'frozen'"
+    ]
+
+
+def test_referenced_file_that_is_invalid_is_reported(tmp_path):
+    (tmp_path / "frame.yaml").write_text("name: x\nlambda_a_mm: -1\n")
+    ctrl = tmp_path / "ctrl.yaml"
+    ctrl.write_text("gain_policy: frozen\nreference_airframe: frame.yaml\n")
+    with pytest.raises(ConfigError) as info:
+        validate_file(ctrl)
+    lines = info.value.lines
+    assert f"{ctrl}: reference_airframe: referenced file is invalid" in lines
+    assert any(ln.startswith(f"{tmp_path / 'frame.yaml'}: lambda_a_mm: Input should be greater")
+               for ln in lines)
+
+
+def test_unknown_reference_name_suggests_one(tmp_path):
+    ctrl = tmp_path / "ctrl.yaml"
+    ctrl.write_text("gain_policy: frozen\nreference_airframe: SY25\n")
+    with pytest.raises(ConfigError) as info:
+        validate_file(ctrl)
+    (line,) = info.value.lines
+    assert line.startswith(f"{ctrl}: reference_airframe: referenced file not found: SY25")
+    assert "did you mean 'SY250'?" in line
+
+
+def test_file_of_unknown_kind(tmp_path):
+    f = tmp_path / "x.yaml"
+    f.write_text("colour: blue\n")
+    with pytest.raises(ConfigError, match="cannot tell what kind of config"):
+        validate_file(f)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("- 1\n- 2\n", "top level must be a mapping"),
+    ("", "required key missing"),
+])
+def test_top_level_shape(tmp_path, text, message):
+    f = tmp_path / "airframes" / "x.yaml"
+    f.parent.mkdir()
+    f.write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        validate_file(f)
+
+
+def test_missing_file():
+    with pytest.raises(ConfigError, match="no/such.yaml: file not found"):
+        validate_file("no/such.yaml")

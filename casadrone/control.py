@@ -115,29 +115,46 @@ def design_lqri(linear_model: LinearModel, ctrl: ControllerConfig) -> LQRIDesign
                       lyapunov_min_eig=lmin, riccati=S)
 
 
-def design_for(airframe: Airframe, ctrl: ControllerConfig, reference: Airframe | None = None):
+def design_for(
+    airframe: Airframe,
+    ctrl: ControllerConfig,
+    reference: Airframe | None = None,
+    operating_point=None,
+) -> LQRIDesign:
     """The gain an airframe flies with under the controller's gain policy.
 
-    ``redesign``: from the airframe's own hover linearisation. ``frozen``: from ``reference``'s
-    (the controller's ``reference_airframe``), shared by every candidate; the operating point
-    (x0, u0) stays the candidate's own hover trim.
+    ``operating_point`` (anything with ``x0``, ``u0``: a hover TrimPoint) defaults to the analytic
+    :func:`hover_point`. ``redesign``: the gain comes from the airframe's own linearisation.
+    ``frozen``: from ``reference``'s (the controller's ``reference_airframe``), shared by every
+    candidate; the operating point (x0, u0) stays the candidate's own.
     """
+    op = operating_point if operating_point is not None else hover_point(airframe)
     if ctrl.gain_policy == "frozen":
         if reference is None:
             raise ValueError("gain_policy 'frozen' needs the reference airframe")
-        ref = design_lqri(linearise(reference, hover_point(reference)), ctrl)
-        own = hover_point(airframe)
-        Aa, Ba = plant(airframe, ctrl.sample_time_s)
+        ref = _frozen_gain(reference, ctrl)
+        Aa, Ba = plant(airframe, ctrl.sample_time_s, op)
         eig, stable, lmin = certify(Aa - Ba @ ref.K)
-        return dataclasses.replace(ref, Ad=Aa, Bd=Ba, x0=own.x0, u0=own.u0,
+        return dataclasses.replace(ref, Ad=Aa, Bd=Ba, x0=np.asarray(op.x0), u0=np.asarray(op.u0),
                                    closed_loop_eigenvalues=eig, stable=stable,
                                    lyapunov_min_eig=lmin)
-    return design_lqri(linearise(airframe, hover_point(airframe)), ctrl)
+    return design_lqri(linearise(airframe, op), ctrl)
 
 
-def plant(airframe: Airframe, Ts: float) -> tuple[np.ndarray, np.ndarray]:
-    """Augmented discrete hover plant of an airframe."""
-    lin = linearise(airframe, hover_point(airframe))
+_FROZEN: dict[tuple, LQRIDesign] = {}
+
+
+def _frozen_gain(reference: Airframe, ctrl: ControllerConfig) -> LQRIDesign:
+    """The reference airframe's design, computed once per process for a (reference, controller)."""
+    key = (reference.name, tuple(reference.p), ctrl.model_dump_json())
+    if key not in _FROZEN:
+        _FROZEN[key] = design_lqri(linearise(reference, hover_point(reference)), ctrl)
+    return _FROZEN[key]
+
+
+def plant(airframe: Airframe, Ts: float, operating_point=None) -> tuple[np.ndarray, np.ndarray]:
+    """Augmented discrete plant of an airframe about an operating point (default: hover)."""
+    lin = linearise(airframe, operating_point or hover_point(airframe))
     return augment(*discretise(lin.A, lin.B, Ts), Ts)
 
 

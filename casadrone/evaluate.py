@@ -1,0 +1,144 @@
+"""θ → Evaluation: the whole chain for one candidate, with every failure captured.
+
+airframe → hover trim → exact linearisation → LQR-I → closed-loop lap → indices. A candidate that
+fails at any stage (invalid geometry, no trim, unstable design, lap not completed) comes back as a
+failed :class:`Evaluation` with its stage and reason; nothing in here raises for a bad candidate.
+The symbolic model, trim solvers and compiled lap are built once per process and reused.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
+from casadrone.config import (
+    AirframeConfig,
+    ConfigError,
+    ControllerConfig,
+    load,
+    load_airframe,
+    load_controller,
+)
+from casadrone.control import design_for
+from casadrone.guidance import TrackConfig
+from casadrone.simulate import SimOptions, Trajectory, simulate
+from casadrone.trim import trim
+
+DEFAULT_TRACK = Path(__file__).resolve().parent.parent / "configs" / "tracks" / "paper-rectangle.yaml"
+
+
+@dataclass(frozen=True)
+class EvaluationSetup:
+    """Everything shared by the candidates of one study (control invariance, DESIGN.md §1)."""
+
+    template: AirframeConfig
+    controller: ControllerConfig
+    track: TrackConfig
+    integrator: str = "rk4"
+    trim_solver: str = "newton"
+    sim_options: SimOptions = SimOptions()
+
+    @cached_property
+    def reference_airframe(self) -> Airframe | None:
+        """The airframe whose gain is frozen (gain_policy: frozen), else None."""
+        ref = self.controller.reference_airframe
+        return build_airframe(load_airframe(ref)) if ref is not None else None
+
+
+def default_setup(
+    airframe: str | Path = "SY250",
+    controller: str | Path | None = None,
+    track: str | Path | None = None,
+    integrator: str = "rk4",
+) -> EvaluationSetup:
+    """A setup from config files (reference airframe name or path; defaults: paper track,
+    default controller)."""
+    return EvaluationSetup(
+        template=load_airframe(airframe),
+        controller=load_controller(controller),
+        track=load(TrackConfig, track or DEFAULT_TRACK),
+        integrator=integrator,
+    )
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """The result of one candidate: indices when the lap was completed, else stage and reason."""
+
+    theta: dict[str, float]
+    status: str  # "completed" or "failed"
+    stage: str  # "geometry", "trim", "control", "lap" or "" when completed
+    reason: str
+    indices: dict[str, float] = field(default_factory=dict)
+    intervals: tuple = ()
+    wall_time_s: float = 0.0
+    trajectory: Trajectory | None = None
+
+    @property
+    def completed(self) -> bool:
+        return self.status == "completed"
+
+
+def _failed(theta, stage, reason, start) -> Evaluation:
+    return Evaluation(theta=dict(theta), status="failed", stage=stage, reason=reason,
+                      wall_time_s=time.perf_counter() - start)
+
+
+def evaluate(
+    theta: Mapping[str, float],
+    setup: EvaluationSetup,
+    index_names: Sequence[str] | None = None,
+    keep_trajectory: bool = False,
+) -> Evaluation:
+    """Evaluate one candidate ``theta`` (config keys, e.g. ``{"alpha_deg": 80, …}``)."""
+    from casadrone.indices import compute_indices, interval_table
+
+    start = time.perf_counter()
+    theta = {k: float(v) for k, v in theta.items()}
+    try:
+        airframe = build_airframe(with_theta(setup.template, theta))
+    except ConfigError as exc:
+        return _failed(theta, "geometry", "; ".join(exc.lines), start)
+    tp = trim(airframe, "hover", 0.0, solver=setup.trim_solver)
+    if not tp.success:
+        return _failed(theta, "trim", tp.message, start)
+    if np.any(tp.u0 > 1.0):
+        return _failed(theta, "trim", f"hover needs ESC commands above 1 ({tp.u0.max():.2f}): "
+                       "too heavy for its thrust", start)
+    design = design_for(airframe, setup.controller, setup.reference_airframe, tp)
+    if not design.stable:
+        return _failed(theta, "control", "LQR-I closed loop unstable", start)
+    traj = simulate(airframe, design, setup.track, setup.integrator, setup.sim_options)
+    if not traj.completed:
+        ev = _failed(theta, "lap", traj.reason, start)
+        return ev if not keep_trajectory else _with(ev, trajectory=traj)
+    return Evaluation(
+        theta=theta, status="completed", stage="", reason="",
+        indices=compute_indices(traj, index_names), intervals=tuple(interval_table(traj)),
+        wall_time_s=time.perf_counter() - start, trajectory=traj if keep_trajectory else None,
+    )
+
+
+def _with(ev: Evaluation, **changes) -> Evaluation:
+    from dataclasses import replace
+
+    return replace(ev, **changes)
+
+
+def theta_of(cfg: AirframeConfig) -> dict[str, float]:
+    """The decision variables of an airframe config (Table 1 keys)."""
+    return {k: float(getattr(cfg, k)) for k in THETA_KEYS}
+
+
+def evaluate_batch(
+    thetas: Sequence[Mapping[str, float]], setup: EvaluationSetup,
+    index_names: Sequence[str] | None = None,
+) -> list[Evaluation]:
+    """Evaluate candidates in this process, in order."""
+    return [evaluate(th, setup, index_names) for th in thetas]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import math
-from enum import Enum
+from enum import StrEnum
 from functools import wraps
 from pathlib import Path
 from typing import Annotated, Any
@@ -30,19 +30,19 @@ app = typer.Typer(
 EXIT_BAD_INPUT = 2
 
 
-class Condition(str, Enum):
+class Condition(StrEnum):
     hover = "hover"
     forward = "forward"
 
 
-class TrimSolver(str, Enum):
+class TrimSolver(StrEnum):
     ipopt = "ipopt"
     nelder_mead = "nelder-mead"
     newton = "newton"
     all = "all"
 
 
-class LinMethod(str, Enum):
+class LinMethod(StrEnum):
     exact = "exact"
     fd = "fd"
     both = "both"
@@ -115,7 +115,10 @@ def load_airframe_or_exit(airframe: str, overrides: list[str] | None):
 def _matrix_text(M, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
     width = 10
     head = " " * 8 + "".join(f"{c:>{width}}" for c in cols)
-    body = [f"{r:>8}" + "".join(f"{v:>{width}.4g}" for v in row) for r, row in zip(rows, M)]
+    body = [
+        f"{r:>8}" + "".join(f"{v:>{width}.4g}" for v in row)
+        for r, row in zip(rows, M, strict=True)
+    ]
     return "\n".join([head, *body])
 
 
@@ -231,7 +234,7 @@ def _trim_result(tp) -> dict:
         "iterations": tp.iterations,
         "wall_time_s": tp.wall_time_s,
         "message": tp.message,
-        "x0": dict(zip(tp.state_names, (float(v) for v in tp.x0))),
+        "x0": dict(zip(tp.state_names, (float(v) for v in tp.x0), strict=True)),
         "u0": tp.u0,
         "thrusts_N": tp.thrusts,
     }
@@ -241,12 +244,13 @@ def _trim_table(r: dict) -> str:
     import numpy as np
 
     pos = np.asarray(r["rotor_positions_m"]) * 1000
+    rotors = zip(("FR", "FL", "RL", "RR"), pos, strict=True)
     lines = [
         f"{r['airframe']}: {r['condition']}"
         + (f" at {r['speed_mps']:g} m/s" if r["condition"] == "forward" else "")
         + f", mass {r['mass_kg']:.3f} kg, kappa {r['kappa_m']:.4f} m",
         "rotors (mm, body x fwd, y left): "
-        + "  ".join(f"{n}({x:.1f}, {y:.1f})" for n, (x, y, _) in zip(("FR", "FL", "RL", "RR"), pos)),
+        + "  ".join(f"{n}({x:.1f}, {y:.1f})" for n, (x, y, _) in rotors),
         "",
         f"{'solver':<12}{'ok':<4}{'residual':>11}{'iter':>7}{'time (s)':>10}  "
         f"{'theta (deg)':>11}  {'u0 (delta1..4)':<31}{'T (N)':<27}{'max|du0|':>9}",
@@ -345,7 +349,8 @@ def lqr(
     airframe: AirframeArg,
     overrides: OverridesArg = None,
     controller: Annotated[
-        str | None, typer.Option(help="controller YAML or name (default: configs/controllers/default)")
+        str | None,
+        typer.Option(help="controller YAML or name (default: configs/controllers/default.yaml)"),
     ] = None,
     ensemble: Annotated[
         int | None, typer.Option(min=1, help="also apply the gain to N perturbed plants")
@@ -392,8 +397,9 @@ def lqr(
     typer.echo(
         f"{frame.name}: LQR-I ({ctrl.name}, {ctrl.gain_policy}, Ts = {design.sample_time_s:g} s)"
     )
-    typer.echo(f"closed loop {'stable' if design.stable else 'UNSTABLE'}: spectral radius "
-               f"{result['spectral_radius']:.6f}, Lyapunov min eig(P) {design.lyapunov_min_eig:.4g}")
+    verdict = "stable" if design.stable else "UNSTABLE"
+    typer.echo(f"closed loop {verdict}: spectral radius {result['spectral_radius']:.6f}, "
+               f"Lyapunov min eig(P) {design.lyapunov_min_eig:.4g}")
     typer.echo("K (rows delta1..4) =\n" + _matrix_text(design.K, ("d1", "d2", "d3", "d4"),
                                                     tuple(design.state_names)))
     if ensemble is not None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import copy
 import difflib
 import math
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar
 
@@ -180,7 +180,9 @@ def _positive_definite(J: list[list[float]]) -> bool:
     return m1 > 0 and m2 > 0 and m3 > 0
 
 
-def rotor_positions_mm(la: float, lb: float, alpha_deg: float, beta_deg: float) -> list[list[float]]:
+def rotor_positions_mm(
+    la: float, lb: float, alpha_deg: float, beta_deg: float
+) -> list[list[float]]:
     """Rotor centres (mm) in the body frame (x nose, y left): FR, FL, RL, RR (DESIGN.md §4)."""
     a, b = math.radians(alpha_deg) / 2, math.radians(beta_deg) / 2
     return [
@@ -416,7 +418,7 @@ def format_errors(exc: ValidationError, source: str, model: type[BaseModel]) -> 
     return list(dict.fromkeys(f"{source}: {k}: {m}" for k, m in error_pairs(exc, model)))
 
 
-@lru_cache(maxsize=None)
+@cache
 def _field_adapter(model: type[BaseModel], name: str) -> TypeAdapter:
     field = model.model_fields[name]
     if not field.metadata:
@@ -493,7 +495,11 @@ def check_paths(data: dict[str, Any], base: Path, source: str) -> tuple[dict, li
 
 
 def validate_data(
-    model: type[M], data: dict[str, Any], source: str, base: Path, overrides: list[str] | None = None
+    model: type[M],
+    data: dict[str, Any],
+    source: str,
+    base: Path,
+    overrides: list[str] | None = None,
 ) -> M:
     """Validate a dict against ``model``, raising ConfigError listing every problem.
 

@@ -406,6 +406,9 @@ def error_pairs(exc: ValidationError, model: type[BaseModel]) -> list[tuple[str,
             msg = "required key missing"
         else:
             msg = msg.removeprefix("Value error, ")
+            field, sep, rest = msg.partition(": ")
+            if kind == "value_error" and sep and field in _fields_at(model, loc):
+                prefix, msg = f"{prefix}.{field}" if prefix else field, rest  # "key: message"
             got = _short(err.get("input"))
             if got is not None and kind not in ("value_error", "assertion_error"):
                 msg += f" (got {got})"

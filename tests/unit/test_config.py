@@ -119,6 +119,24 @@ def test_unknown_key_without_close_match_lists_known_keys():
                      "attitude, thrust"]
 
 
+def test_plain_value_error_naming_a_field_gets_its_key():
+    from pydantic import model_validator
+
+    class Legs(Schema):
+        waypoints: list[float]
+        straight: list[bool]
+
+        @model_validator(mode="after")
+        def _same_length(self):
+            if len(self.straight) != len(self.waypoints):
+                raise ValueError("straight: needs one entry per waypoint")
+            return self
+
+    assert problems_of({"waypoints": [1, 2], "straight": [True]}, Legs) == [
+        "f.yaml: straight: needs one entry per waypoint"
+    ]
+
+
 def test_wrong_tuple_length_is_one_line():
     assert problems_of({**SY250, "drag_area_m2": [0.1]}) == [
         "f.yaml: drag_area_m2: expected 3 values, got 1"

@@ -41,8 +41,18 @@ import numpy as np
 from scipy.optimize import minimize
 
 from casadrone.airframe import PARAM_NAMES, Airframe
-from casadrone.model import EUL, INPUT_NAMES, NP, NX, RATE, STATE_NAMES, THR, VEL, quadrotor_model
-from casadrone.model import rotation_matrix
+from casadrone.model import (
+    EUL,
+    INPUT_NAMES,
+    NP,
+    NX,
+    RATE,
+    STATE_NAMES,
+    THR,
+    VEL,
+    quadrotor_model,
+    rotation_matrix,
+)
 
 Solver = Literal["ipopt", "nelder-mead", "newton"]
 Condition = Literal["hover", "forward"]
@@ -145,8 +155,9 @@ def _state_expr(z, p, V):
     """(x, u) of the unknowns Z at world speed V (symbolic)."""
     phi, theta, delta = z[0], z[1], z[2:6]
     R = rotation_matrix(phi, theta, 0)
-    x = ca.vertcat(ca.SX.zeros(3), R.T @ ca.vertcat(V, 0, 0), ca.SX.zeros(3), phi, theta, 0,
-                   p[_K] * delta)  # fmt: skip
+    x = ca.vertcat(
+        ca.SX.zeros(3), R.T @ ca.vertcat(V, 0, 0), ca.SX.zeros(3), phi, theta, 0, p[_K] * delta
+    )
     return x, delta
 
 
@@ -163,10 +174,12 @@ def _functions() -> _TrimFunctions:
     return _TrimFunctions(
         state=ca.Function("trim_state", [z, p, V], [x, u], ["z", "p", "V"], ["x", "u"]),
         residual=ca.Function("trim_residual", [z, p, V], [Q], ["z", "p", "V"], ["Q"]),
-        cost=ca.Function("trim_cost", [z, p, V, h], [ca.dot(Q, h * Q)], ["z", "p", "V", "h"],
-                         ["cost"]),  # fmt: skip
-        residual_norm=ca.Function("trim_residual_norm", [xs, us, p], [ca.norm_2(rows)],
-                                  ["x", "u", "p"], ["norm"]),  # fmt: skip
+        cost=ca.Function(
+            "trim_cost", [z, p, V, h], [ca.dot(Q, h * Q)], ["z", "p", "V", "h"], ["cost"]
+        ),
+        residual_norm=ca.Function(
+            "trim_residual_norm", [xs, us, p], [ca.norm_2(rows)], ["x", "u", "p"], ["norm"]
+        ),
     )
 
 
@@ -237,11 +250,18 @@ def _solve_nelder_mead(z0, p, V, o: TrimOptions):
     while nit < o.nelder_mead_max_iterations:
         simplex = z + np.vstack([np.zeros(6), step * np.eye(6)])
         res = minimize(
-            cost, z, method="Nelder-Mead",
-            options={"adaptive": True, "xatol": 1e-12, "fatol": 1e-4 * target**2,
-                     "initial_simplex": simplex, "maxfev": 10**9,
-                     "maxiter": min(2000, o.nelder_mead_max_iterations - nit)},
-        )  # fmt: skip
+            cost,
+            z,
+            method="Nelder-Mead",
+            options={
+                "adaptive": True,
+                "xatol": 1e-12,
+                "fatol": 1e-4 * target**2,
+                "initial_simplex": simplex,
+                "maxfev": 10**9,
+                "maxiter": min(2000, o.nelder_mead_max_iterations - nit),
+            },
+        )
         nit, runs = nit + int(res.nit), runs + 1
         moved = float(np.max(np.abs(res.x - z)))
         if cost(res.x) <= cost(z):

@@ -446,9 +446,13 @@ def partial_problems(model: type[BaseModel], data: Any) -> list[tuple[str, str]]
         try:
             values[name] = _field_adapter(model, name).validate_python(data[name])
         except ValidationError:
-            sub = _model_in(field.annotation)
-            if sub is not None:
-                found += [(f"{name}.{k}", m) for k, m in partial_problems(sub, data[name])]
+            sub, value = _model_in(field.annotation), data[name]
+            if sub is None:
+                continue
+            items = enumerate(value) if isinstance(value, list) else [(None, value)]
+            for i, item in items:  # a nested model, or a list of them
+                at = name if i is None else f"{name}.{i}"
+                found += [(f"{at}.{k}", m) for k, m in partial_problems(sub, item)]
     return found + model.problems(values)
 
 

@@ -137,6 +137,31 @@ def test_plain_value_error_naming_a_field_gets_its_key():
     ]
 
 
+def test_cross_field_problems_of_list_items_are_reported_with_field_errors():
+    from pydantic import Field
+
+    class Bound(Schema):
+        lower: float
+        upper: float
+        count: int = Field(1, ge=0)
+
+        @classmethod
+        def problems(cls, v):
+            if "lower" in v and "upper" in v and v["lower"] >= v["upper"]:
+                return [("lower", f"lower bound {v['lower']} is not below upper {v['upper']}")]
+            return []
+
+    class Bounds(Schema):
+        bounds: list[Bound]
+
+    lines = problems_of({"bounds": [{"lower": 0, "upper": 1},
+                                    {"lower": 2, "upper": 1, "count": -1}]}, Bounds)
+    assert lines == [
+        "f.yaml: bounds.1.count: Input should be greater than or equal to 0 (got -1)",
+        "f.yaml: bounds.1.lower: lower bound 2.0 is not below upper 1.0",
+    ]
+
+
 def test_wrong_tuple_length_is_one_line():
     assert problems_of({**SY250, "drag_area_m2": [0.1]}) == [
         "f.yaml: drag_area_m2: expected 3 values, got 1"

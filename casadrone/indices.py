@@ -1,0 +1,288 @@
+"""Performance indices J1…J5, Jp (paper Table 2) and the per-interval table (paper Table 4).
+
+Which samples count
+-------------------
+A :class:`~casadrone.simulate.Trajectory` is sampled at the controller period Ts; row k holds the
+state at t[k] and the ESC command held on [t[k], t[k+1]). ``Trajectory.waypoint_index[k]`` is the
+(0-based) waypoint being flown to after the guidance switched at t[k]; it is W (the number of
+timed waypoints) once the last one has been reached.
+
+- **lap samples**: every k with ``waypoint_index[k] < W``, i.e. from t = 0 (on the ground) until
+  the sample at which the last waypoint is reached, that sample excluded. The climb from the
+  ground counts: it is part of the lap and of interval 1 (the paper times the lap from the start).
+- **interval j** (j = 1…W): lap samples with ``waypoint_index == j − 1``, flying to waypoint j.
+  Interval 1 includes the climb.
+- **straight sector**: lap samples whose active waypoint's leg is straight
+  (``Trajectory.straight``), *excluding the climb* (route segments before
+  ``extras["first_timed_segment"]``), so J1 measures the horizontal straights (the paper's 50 m
+  legs), not the vertical take-off.
+- **curved sector**: lap samples whose active waypoint's leg is not straight.
+
+Means are plain sample means: the samples are equally spaced, so for the commands (held constant
+over each sample) a sample mean is the exact time average, and for states it is the rectangle rule.
+
+Failed laps
+-----------
+Indices are defined for completed laps only. :func:`compute_indices`, :func:`interval_table` and
+every built-in index raise ``ValueError`` (naming the failure reason) for a failed trajectory: a
+failed lap is an infeasible evaluation, to be recorded as such by the caller, never a set of NaNs
+that could slip into a Pareto front. An index whose sector does not exist on the track (J2 on a
+track without curves) is NaN.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Literal
+
+import numpy as np
+
+from casadrone.simulate import Trajectory
+
+Sense = Literal["min", "max"]
+IndexFunction = Callable[[Trajectory], float]
+
+
+@dataclass(frozen=True)
+class Index:
+    """A named scalar performance index of a closed-loop lap.
+
+    Attributes:
+        name: registry key (``"J1"``).
+        unit: unit of the value (``"m/s"``).
+        sense: default optimisation sense, ``"min"`` or ``"max"``.
+        description: one line saying exactly what is measured.
+        function: ``function(trajectory) -> float``, called on completed laps only.
+    """
+
+    name: str
+    unit: str
+    sense: Sense
+    description: str
+    function: IndexFunction
+
+    def __call__(self, traj: Trajectory) -> float:
+        _require_completed(traj)
+        return float(self.function(traj))
+
+
+# --------------------------------------------------------------------------------------------
+# Sample selections (public: user-defined indices use them too)
+# --------------------------------------------------------------------------------------------
+
+
+def _require_completed(traj: Trajectory) -> None:
+    if not traj.completed:
+        raise ValueError(f"indices are not defined for a failed lap ({traj.reason or 'failed'})")
+
+
+def lap_mask(traj: Trajectory) -> np.ndarray:
+    """Samples of the lap: from t = 0 to the sample that reaches the last waypoint (excluded)."""
+    return traj.waypoint_index < len(traj.waypoints)
+
+
+def interval_mask(traj: Trajectory, waypoint: int) -> np.ndarray:
+    """Samples of interval ``waypoint`` (1-based): flying to that waypoint (interval 1 includes
+    the climb)."""
+    if not 1 <= waypoint <= len(traj.waypoints):
+        raise ValueError(f"waypoint must be 1…{len(traj.waypoints)}, got {waypoint}")
+    return traj.waypoint_index == waypoint - 1
+
+
+def sector_mask(traj: Trajectory, straight: bool) -> np.ndarray:
+    """Lap samples on straight (``straight=True``) or curved legs; the climb is in neither."""
+    wi = traj.waypoint_index
+    legs = np.array(traj.straight, dtype=bool)
+    on_leg = lap_mask(traj) & (traj.segment >= traj.extras.get("first_timed_segment", 0))
+    return on_leg & (legs[np.minimum(wi, len(legs) - 1)] == straight)
+
+
+def roll_effort_voltage(traj: Trajectory) -> np.ndarray:
+    """Roll-effort voltage (N,), V: mean ESC voltage of the left rotors minus that of the right
+    rotors, as a deviation from trim.
+
+    With rotors FR, FL, RL, RR (1…4; FL and RL on the left, body y):
+    ``((δ2 + δ3) − (δ1 + δ4)) / 2 · V_batt`` minus the same combination of the trim commands u0.
+    It is the left-right voltage split an ESC log shows, twice the per-motor roll command δA of an
+    X mixer (δ_i = δTh ± δA ± …). Positive: left rotors above right, a rolling moment about +x
+    (right side down, φ growing). It is signed, so a mean over an interval can be negative, as in
+    paper Table 4, and it is zero at trim for every casadrone frame (frames are mirror-symmetric
+    about the body x axis, so trim thrusts are equal left and right).
+    """
+    u = traj.u - np.asarray(traj.u0)[None, :]
+    return ((u[:, 1] + u[:, 2]) - (u[:, 0] + u[:, 3])) / 2 * traj.battery_voltage
+
+
+def pair_thrust_difference(traj: Trajectory) -> np.ndarray:
+    """Opposing-pair thrust difference (N,), N: left pair minus right pair, (T2 + T3) − (T1 + T4).
+
+    The thrust couple behind the rolling moment (the paper's "opposing motor thrust"); zero at
+    trim for every casadrone frame (see :func:`roll_effort_voltage`), so no trim is subtracted.
+    In steady state T_i = K δ_i, so this equals (2 K / V_batt) × the roll-effort voltage.
+    """
+    T = traj.thrust
+    return (T[:, 1] + T[:, 2]) - (T[:, 0] + T[:, 3])
+
+
+# --------------------------------------------------------------------------------------------
+# Built-in indices
+# --------------------------------------------------------------------------------------------
+
+
+def _mean_or_nan(values: np.ndarray) -> float:
+    return float(np.mean(values)) if values.size else float("nan")
+
+
+def mean_straight_speed(traj: Trajectory) -> float:
+    """J1: mean speed |v| (m/s) over the straight-sector samples (climb excluded)."""
+    return _mean_or_nan(traj.speed[sector_mask(traj, True)])
+
+
+def mean_curve_speed(traj: Trajectory) -> float:
+    """J2: mean speed |v| (m/s) over the curved-sector samples."""
+    return _mean_or_nan(traj.speed[sector_mask(traj, False)])
+
+
+def lap_time(traj: Trajectory) -> float:
+    """J3: lap time (s), the interpolated time at which the last waypoint was reached."""
+    return traj.lap_time
+
+
+def max_acceleration(traj: Trajectory) -> float:
+    """J4: maximum over the lap samples of |a| (m/s²), a the world kinematic acceleration
+    (d/dt of the world velocity, gravity not included: zero in hover)."""
+    return float(np.max(np.linalg.norm(traj.acceleration[lap_mask(traj)], axis=1)))
+
+
+def effort_rms(traj: Trajectory) -> float:
+    """J5: RMS (V) of the ESC voltage deviation from trim, (δ_i − u0_i) V_batt, over the lap
+    samples and the four motors."""
+    dv = (traj.u[lap_mask(traj)] - np.asarray(traj.u0)[None, :]) * traj.battery_voltage
+    return float(np.sqrt(np.mean(dv**2)))
+
+
+def max_pitch(traj: Trajectory) -> float:
+    """Jp: maximum |θ| (deg) over the lap samples, θ the ZYX Euler pitch angle."""
+    return float(np.degrees(np.max(np.abs(traj.x[lap_mask(traj), 10]))))
+
+
+_BUILTIN = (
+    Index("J1", "m/s", "max", "mean speed on straight sectors (climb excluded)",
+          mean_straight_speed),
+    Index("J2", "m/s", "max", "mean speed on curved sectors", mean_curve_speed),
+    Index("J3", "s", "min", "lap time: time at the last waypoint", lap_time),
+    Index("J4", "m/s²", "max", "maximum world kinematic acceleration over the lap",
+          max_acceleration),
+    Index("J5", "V", "min", "RMS of ESC voltage deviation from trim over the lap and the four "
+          "motors", effort_rms),
+    Index("Jp", "deg", "min", "maximum pitch angle |θ| over the lap", max_pitch),
+)
+BUILTIN_NAMES: tuple[str, ...] = tuple(i.name for i in _BUILTIN)
+
+_REGISTRY: dict[str, Index] = {i.name: i for i in _BUILTIN}
+#: Read-only view of the registry, in registration order (built-ins first).
+INDICES = MappingProxyType(_REGISTRY)
+
+
+def register_index(
+    name: str, function: IndexFunction, *, unit: str, sense: Sense, description: str = ""
+) -> Index:
+    """Add a user index to the registry and return it.
+
+    Args:
+        name: registry key; must not be taken (``ValueError`` otherwise).
+        function: ``function(trajectory) -> float``; it is only called on completed laps
+            (:func:`lap_mask`, :func:`interval_mask`, :func:`sector_mask` select samples).
+        unit: unit of the value. sense: ``"min"`` or ``"max"``. description: what it measures.
+    """
+    if not isinstance(name, str) or not name.strip():
+        raise ValueError("index name must be a non-empty string")
+    if name in _REGISTRY:
+        raise ValueError(f"index {name!r} is already registered ({_REGISTRY[name].description}); "
+                         "choose another name")
+    if sense not in ("min", "max"):
+        raise ValueError(f"index {name!r}: sense must be 'min' or 'max', got {sense!r}")
+    if not callable(function):
+        raise ValueError(f"index {name!r}: function must be callable")
+    index = Index(name=name, unit=unit, sense=sense, description=description, function=function)
+    _REGISTRY[name] = index
+    return index
+
+
+def unregister_index(name: str) -> None:
+    """Remove a user index (built-in indices cannot be removed)."""
+    if name in BUILTIN_NAMES:
+        raise ValueError(f"index {name!r} is built in and cannot be removed")
+    get_index(name)
+    del _REGISTRY[name]
+
+
+def get_index(name: str) -> Index:
+    """The registered index called ``name`` (``ValueError`` listing the known names otherwise)."""
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise ValueError(f"unknown index {name!r}; known: {', '.join(_REGISTRY)}") from None
+
+
+def compute_indices(traj: Trajectory, names: list[str] | tuple[str, ...] | None = None
+                    ) -> dict[str, float]:
+    """Values of the named indices (all registered ones by default) for a completed lap.
+
+    Raises:
+        ValueError: the lap failed, or a name is not registered.
+    """
+    selected = [get_index(n) for n in (INDICES if names is None else names)]
+    _require_completed(traj)
+    return {i.name: float(i.function(traj)) for i in selected}
+
+
+# --------------------------------------------------------------------------------------------
+# Per-interval table (paper Table 4)
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Interval:
+    """One row of the paper's Table 4 for a simulated lap.
+
+    Attributes:
+        waypoint: 1…W; the interval is the flight to this waypoint (1 includes the climb).
+        split_time_s: time at which this waypoint was reached, cumulative from the start (s).
+        effort_V: mean over the interval of :func:`roll_effort_voltage` (V, signed).
+        pair_thrust_max_N, pair_thrust_min_N: max and min over the interval of
+            :func:`pair_thrust_difference` (N).
+        straight: the leg to this waypoint is a straight sector.
+        n_samples: samples in the interval.
+    """
+
+    waypoint: int
+    split_time_s: float
+    effort_V: float
+    pair_thrust_max_N: float
+    pair_thrust_min_N: float
+    straight: bool
+    n_samples: int
+
+
+def interval_table(traj: Trajectory) -> list[Interval]:
+    """The per-interval split time, signed mean roll effort and opposing-pair thrust extremes."""
+    _require_completed(traj)
+    effort = roll_effort_voltage(traj)
+    pair = pair_thrust_difference(traj)
+    rows = []
+    for j in range(1, len(traj.waypoints) + 1):
+        m = interval_mask(traj, j)
+        n = int(m.sum())
+        rows.append(Interval(
+            waypoint=j,
+            split_time_s=float(traj.split_times[j - 1]),
+            effort_V=float(np.mean(effort[m])) if n else float("nan"),
+            pair_thrust_max_N=float(np.max(pair[m])) if n else float("nan"),
+            pair_thrust_min_N=float(np.min(pair[m])) if n else float("nan"),
+            straight=bool(traj.straight[j - 1]),
+            n_samples=n,
+        ))
+    return rows

@@ -247,6 +247,8 @@ def _solve_nelder_mead(z0, p, V, o: TrimOptions):
     target = 0.1 * o.nelder_mead_tolerance
     z, step, nit, runs = np.asarray(z0, dtype=float), o.nelder_mead_step, 0, 0
     status = "iteration cap reached"
+    if qnorm(z) <= target:
+        return z, 0, "initial guess already within tolerance"
     while nit < o.nelder_mead_max_iterations:
         simplex = z + np.vstack([np.zeros(6), step * np.eye(6)])
         res = minimize(

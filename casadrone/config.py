@@ -641,3 +641,161 @@ def validate_file(path: str | Path) -> BaseModel:
     if errors:
         raise ConfigError(errors)
     return obj
+
+
+# --------------------------------------------------------------------------------------------
+# Optimisation problems (problems/*.yaml)
+# --------------------------------------------------------------------------------------------
+
+
+class VariableConfig(Schema):
+    """A decision variable: an airframe config key (with its unit) and its bounds."""
+
+    name: str
+    lower: float
+    upper: float
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        found = []
+        if _has(v, "lower", "upper") and not v["lower"] < v["upper"]:
+            found.append(("lower", f"lower bound {v['lower']} is not below upper bound "
+                          f"{v['upper']}"))
+        if "name" in v and v["name"] not in AirframeConfig.model_fields:
+            close = difflib.get_close_matches(v["name"], list(AirframeConfig.model_fields), 1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            found.append(("name", f"'{v['name']}' is not an airframe key{hint}"))
+        return found
+
+
+def _table1_variables() -> list[VariableConfig]:
+    from casadrone.airframe import TABLE1_BOUNDS
+
+    return [VariableConfig(name=k, lower=lo, upper=hi) for k, (lo, hi) in TABLE1_BOUNDS.items()]
+
+
+class ObjectiveConfig(Schema):
+    """An objective: a registered index and its sense (default: the index's own)."""
+
+    index: str
+    sense: Literal["min", "max"] | None = None
+
+
+class ConstraintConfig(Schema):
+    """A limit on an index (the lap-completed constraint is always on)."""
+
+    index: str
+    min: float | None = None
+    max: float | None = None
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        if v.get("min") is None and v.get("max") is None:
+            return [("max", "give min or max (or both)")]
+        if v.get("min") is not None and v.get("max") is not None and v["min"] > v["max"]:
+            return [("min", f"min {v['min']} is above max {v['max']}")]
+        return []
+
+
+class AlgorithmConfig(Schema):
+    """The optimiser: ``evmoga`` or any pymoo algorithm by name, with its settings."""
+
+    name: str = "evmoga"
+    population: int = Field(100, ge=2, description="ev-MOGA n_ind_p / pymoo pop_size")
+    generations: int = Field(50, ge=1, description="generations after the initial population")
+    settings: dict[str, Any] = Field(default_factory=dict, description="algorithm keywords")
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        if "name" not in v:
+            return []
+        from casadrone.optimise.algorithms import ALGORITHMS
+
+        if v["name"] not in ALGORITHMS:
+            close = difflib.get_close_matches(v["name"], list(ALGORITHMS), 1)
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            return [("name", f"unknown algorithm '{v['name']}' ({hint}known: "
+                     f"{', '.join(ALGORITHMS)})")]
+        return []
+
+
+class BackendConfig(Schema):
+    """Where candidates are evaluated: this process, a process pool, or a Dask cluster."""
+
+    name: Literal["serial", "processes", "dask"] = "serial"
+    workers: int = Field(1, ge=1, description="processes (or LocalCluster workers)")
+    scheduler: str | None = Field(None, description="Dask scheduler address; None: LocalCluster")
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        import importlib.util
+
+        if v.get("name") == "dask" and importlib.util.find_spec("distributed") is None:
+            return [("name", "backend 'dask' needs the dask extra: pip install 'casadrone[dask]'")]
+        return []
+
+
+class PymooProblemConfig(Schema):
+    """A pymoo test problem with a known front, to check algorithm settings."""
+
+    name: Literal["zdt1", "zdt2", "zdt3", "dtlz2"]
+    n_var: int = Field(4, ge=2)
+    n_obj: int = Field(3, ge=2, description="dtlz2 only")
+
+
+class ProblemConfig(Schema):
+    """An optimisation problem (DESIGN.md §9): what varies, what is flown, what is optimised."""
+
+    name: str
+    description: str = ""
+    airframe: Path | None = Field(None, description="template airframe YAML (fixed parameters)")
+    variables: list[VariableConfig] = Field(default_factory=_table1_variables, min_length=1)
+    fixed: dict[str, Any] = Field(default_factory=dict, description="airframe key overrides")
+    track: Path | None = None
+    controller: Path | None = None
+    integrator: Literal["rk4", "cvodes", "idas"] = "rk4"
+    objectives: list[ObjectiveConfig] = Field(default_factory=list)
+    constraints: list[ConstraintConfig] = Field(default_factory=list)
+    algorithm: AlgorithmConfig = Field(default_factory=AlgorithmConfig)
+    seed: int = 1
+    backend: BackendConfig = Field(default_factory=BackendConfig)
+    test_problem: PymooProblemConfig | None = None
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        found: list[tuple[str, str]] = []
+        test = v.get("test_problem")
+        if test is None:
+            if v.get("airframe", 0) is None:
+                found.append(("airframe", "required (or give test_problem)"))
+            if "objectives" in v and len(v["objectives"]) < 1:
+                found.append(("objectives", "give at least one objective"))
+            from casadrone.indices import INDICES
+
+            for group in ("objectives", "constraints"):
+                for i, o in enumerate(v.get(group) or []):
+                    if o.index not in INDICES:
+                        close = difflib.get_close_matches(o.index, list(INDICES), 1)
+                        hint = f"did you mean '{close[0]}'? " if close else ""
+                        found.append((f"{group}.{i}.index", f"unknown index '{o.index}' ({hint}"
+                                      f"known: {', '.join(INDICES)})"))
+            names = [o.index for o in v.get("objectives") or []]
+            for dup in sorted({n for n in names if names.count(n) > 1}):
+                found.append(("objectives", f"objective '{dup}' is listed twice"))
+            vnames = [x.name for x in v.get("variables") or []]
+            for dup in sorted({n for n in vnames if vnames.count(n) > 1}):
+                found.append(("variables", f"variable '{dup}' is listed twice"))
+            for key in v.get("fixed") or {}:
+                if key not in AirframeConfig.model_fields:
+                    found.append((f"fixed.{key}", "not an airframe key"))
+        return found
+
+
+SCHEMAS_BY_FOLDER["problems"] = ProblemConfig
+SCHEMAS_BY_KEY["objectives"] = ProblemConfig
+PATH_KEYS.setdefault("reference_airframe", "airframes")
+
+
+def load_problem(path: str | Path, overrides: list[str] | None = None) -> ProblemConfig:
+    """Load a problem YAML with ``dotted.key=value`` overrides (``algorithm.generations=20``)."""
+    return load(ProblemConfig, path, overrides)

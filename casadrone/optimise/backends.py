@@ -1,0 +1,104 @@
+"""Evaluation backends: this process, a spawn process pool, or a Dask cluster.
+
+Each gets a whole generation at once and returns the records in input order, so the results do
+not depend on the backend. Workers receive the picklable :class:`Study` and rows of θ, and build
+the evaluation chain once per process (:func:`casadrone.optimise.problem.study_setup`).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+from casadrone.config import BackendConfig
+from casadrone.optimise.problem import Record, Study, evaluate_rows
+
+
+def _chunks(X: np.ndarray, n: int) -> list[np.ndarray]:
+    """Split rows into about ``n`` contiguous, order-preserving chunks."""
+    return [c for c in np.array_split(X, max(1, min(n, len(X)))) if len(c)]
+
+
+class SerialBackend:
+    """Evaluate in the coordinating process."""
+
+    name = "serial"
+
+    def evaluate(self, study: Study, X: np.ndarray) -> list[Record]:
+        return evaluate_rows(study, X)
+
+    def close(self) -> None:
+        pass
+
+
+def _warm(study: Study) -> int:
+    """Build (and compile) the chain in a worker before the first generation."""
+    from casadrone.optimise.problem import study_setup
+
+    if study.problem.test_problem is None:
+        study_setup(study)
+    return 0
+
+
+class ProcessBackend:
+    """A pool of ``workers`` spawned processes (no fork: CasADi and BLAS are not fork-safe)."""
+
+    name = "processes"
+
+    def __init__(self, workers: int):
+        self.workers = workers
+        self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+
+    def evaluate(self, study: Study, X: np.ndarray) -> list[Record]:
+        parts = _chunks(np.asarray(X), 4 * self.workers)
+        out: list[Record] = []
+        for recs in self.pool.map(evaluate_rows, [study] * len(parts), parts):
+            out.extend(recs)
+        return out
+
+    def close(self) -> None:
+        self.pool.shutdown(cancel_futures=True)
+
+
+class DaskBackend:
+    """A Dask cluster: the scheduler at ``scheduler``, or a LocalCluster of ``workers``
+    single-threaded worker processes."""
+
+    name = "dask"
+
+    def __init__(self, workers: int, scheduler: str | None = None):
+        from distributed import Client, LocalCluster
+
+        self.cluster = None
+        if scheduler:
+            self.client = Client(scheduler)
+        else:
+            self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                        dashboard_address=None)
+            self.client = Client(self.cluster)
+        self.workers = max(1, len(self.client.scheduler_info()["workers"]))
+
+    def evaluate(self, study: Study, X: np.ndarray) -> list[Record]:
+        parts = _chunks(np.asarray(X), 4 * self.workers)
+        study_f = self.client.scatter(study, broadcast=True)
+        futures = self.client.map(evaluate_rows, [study_f] * len(parts), parts, pure=False)
+        out: list[Record] = []
+        for recs in self.client.gather(futures):
+            out.extend(recs)
+        return out
+
+    def close(self) -> None:
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+def make_backend(cfg: BackendConfig):
+    """The backend a problem's ``backend`` section asks for."""
+    if cfg.name == "serial":
+        return SerialBackend()
+    if cfg.name == "processes":
+        return ProcessBackend(cfg.workers)
+    return DaskBackend(cfg.workers, cfg.scheduler)

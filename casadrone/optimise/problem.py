@@ -1,0 +1,189 @@
+"""The pymoo problem over the evaluation chain (or over a pymoo test problem).
+
+A :class:`Study` is the picklable description shared by the coordinator and the workers: the
+resolved :class:`~casadrone.config.ProblemConfig`. Workers turn it into an evaluation setup once
+per process (:func:`study_setup`, cached), then evaluate rows of decision vectors into
+:class:`Record` objects. :class:`CandidateProblem` maps records to pymoo's F (minimised) and G
+(≤ 0 feasible): a failed candidate is infeasible with its reason kept, never NaN in F.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+from pymoo.core.problem import Problem
+
+from casadrone.config import ProblemConfig
+
+#: Constraint violation of a failed candidate, by the stage where it failed: earlier failures are
+#: worse, so feasibility-first selection moves the search towards candidates that fly.
+FAILURE_CV = {"geometry": 4.0, "trim": 3.0, "control": 2.0, "lap": 1.0}
+#: Objective value stored for failed candidates (pymoo needs finite F; feasibility decides first).
+FAILED_F = 1e9
+
+
+@dataclass(frozen=True)
+class Record:
+    """One evaluation as stored in the run history."""
+
+    theta: dict[str, float]
+    status: str
+    stage: str = ""
+    reason: str = ""
+    indices: dict[str, float] = field(default_factory=dict)
+    wall_time_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Study:
+    """What every worker needs to evaluate candidates of one problem."""
+
+    problem: ProblemConfig
+
+    @property
+    def key(self) -> str:
+        """Hash of the resolved problem (cache key of the per-process setup)."""
+        return hashlib.sha256(self.problem.model_dump_json().encode()).hexdigest()
+
+    @property
+    def variable_names(self) -> list[str]:
+        if self.problem.test_problem is not None:
+            return [f"x{i + 1}" for i in range(self.problem.test_problem.n_var)]
+        return [v.name for v in self.problem.variables]
+
+    @property
+    def objective_names(self) -> list[str]:
+        if self.problem.test_problem is not None:
+            return [f"f{j + 1}" for j in range(pymoo_test_problem(self.problem).n_obj)]
+        return [o.index for o in self.problem.objectives]
+
+    @property
+    def senses(self) -> list[str]:
+        if self.problem.test_problem is not None:
+            return ["min"] * len(self.objective_names)
+        from casadrone.indices import INDICES
+
+        return [o.sense or INDICES[o.index].sense for o in self.problem.objectives]
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.problem.test_problem is not None:
+            tp = pymoo_test_problem(self.problem)
+            return np.asarray(tp.xl, float), np.asarray(tp.xu, float)
+        return (np.array([v.lower for v in self.problem.variables]),
+                np.array([v.upper for v in self.problem.variables]))
+
+
+def pymoo_test_problem(cfg: ProblemConfig):
+    """The pymoo test problem named by ``cfg.test_problem``."""
+    from pymoo.problems import get_problem
+
+    tp = cfg.test_problem
+    if tp.name == "dtlz2":
+        return get_problem("dtlz2", n_var=tp.n_var, n_obj=tp.n_obj)
+    return get_problem(tp.name, n_var=tp.n_var)
+
+
+@lru_cache(maxsize=4)
+def _setup(key: str, problem: ProblemConfig):
+    """The evaluation setup of a problem, built once per process (the model and compiled lap are
+    cached inside the chain's modules, so the first evaluation pays for them only once)."""
+    from casadrone.config import load, load_airframe, load_controller
+    from casadrone.evaluate import DEFAULT_TRACK, EvaluationSetup
+    from casadrone.guidance import TrackConfig
+
+    template = load_airframe(problem.airframe)
+    if problem.fixed:
+        template = template.model_validate({**template.model_dump(), **problem.fixed})
+    return EvaluationSetup(
+        template=template,
+        controller=load_controller(problem.controller),
+        track=load(TrackConfig, problem.track or DEFAULT_TRACK),
+        integrator=problem.integrator,
+    )
+
+
+def study_setup(study: Study):
+    """The cached evaluation setup of a study in this process."""
+    return _setup(study.key, study.problem)
+
+
+def evaluate_rows(study: Study, X: np.ndarray) -> list[Record]:
+    """Evaluate decision vectors (rows of X) in this process, in order."""
+    X = np.atleast_2d(np.asarray(X, float))
+    names = study.variable_names
+    if study.problem.test_problem is not None:
+        tp = pymoo_test_problem(study.problem)
+        out = []
+        for x in X:
+            start = time.perf_counter()
+            F = np.asarray(tp.evaluate(x[None, :])).ravel()
+            out.append(Record(theta=dict(zip(names, map(float, x), strict=True)),
+                              status="completed",
+                              indices=dict(zip(study.objective_names, map(float, F), strict=True)),
+                              wall_time_s=time.perf_counter() - start))
+        return out
+    from casadrone.evaluate import evaluate
+
+    setup = study_setup(study)
+    records = []
+    for x in X:
+        ev = evaluate(dict(zip(names, map(float, x), strict=True)), setup)
+        records.append(Record(theta=ev.theta, status=ev.status, stage=ev.stage, reason=ev.reason,
+                              indices=ev.indices, wall_time_s=ev.wall_time_s))
+    return records
+
+
+def objectives_and_constraints(study: Study, records: list[Record]) -> tuple[np.ndarray, np.ndarray]:
+    """pymoo F (minimised) and G (≤ 0 feasible) of a batch of records."""
+    cfg = study.problem
+    names, senses = study.objective_names, study.senses
+    cons = [] if cfg.test_problem is not None else cfg.constraints
+    F = np.full((len(records), len(names)), FAILED_F)
+    G = np.zeros((len(records), 1 + 2 * len(cons)))
+    for i, rec in enumerate(records):
+        if rec.status != "completed":
+            G[i, 0] = FAILURE_CV.get(rec.stage, 1.0)
+            continue
+        F[i] = [rec.indices[n] * (-1.0 if s == "max" else 1.0)
+                for n, s in zip(names, senses, strict=True)]
+        for j, c in enumerate(cons):
+            value = rec.indices[c.index]
+            G[i, 1 + 2 * j] = (value - c.max) if c.max is not None else 0.0
+            G[i, 2 + 2 * j] = (c.min - value) if c.min is not None else 0.0
+    return F, G
+
+
+class CandidateProblem(Problem):
+    """pymoo problem: a whole batch (one generation) goes to the backend at once.
+
+    ``backend`` (an object with ``evaluate(study, X) -> list[Record]``) is attached by the runner
+    and dropped when pickled (checkpoints), as are the records of the last batch.
+    """
+
+    def __init__(self, study: Study, backend=None):
+        xl, xu = study.bounds
+        super().__init__(n_var=len(xl), n_obj=len(study.objective_names),
+                         n_ieq_constr=1 + 2 * (0 if study.problem.test_problem else
+                                               len(study.problem.constraints)),
+                         xl=xl, xu=xu)
+        self.study = study
+        self.backend = backend
+        self.last_records: list[Record] = []
+
+    def _evaluate(self, X, out, *args, **kwargs):
+        if self.backend is None:
+            raise RuntimeError("no evaluation backend attached")
+        records = self.backend.evaluate(self.study, X)
+        self.last_records = list(records)
+        out["F"], out["G"] = objectives_and_constraints(self.study, records)
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["backend"] = None
+        state["last_records"] = []
+        return state

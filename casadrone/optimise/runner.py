@@ -1,0 +1,184 @@
+"""Run an optimisation problem into a run directory, and resume a killed run.
+
+The loop is pymoo's own ``Algorithm.next()`` (ask → evaluate the whole generation on the backend
+→ tell), one generation at a time; after each generation the coordinator stores its evaluations
+and then checkpoints the algorithm (random state included). Resuming loads the checkpoint,
+re-attaches a backend and continues: the run ends exactly as an uninterrupted one would.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from casadrone.config import BackendConfig, ProblemConfig
+from casadrone.optimise.backends import make_backend
+from casadrone.optimise.problem import CandidateProblem, Study
+from casadrone.optimise.store import RunStore, now
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """A finished run: its directory, Pareto set (variables) and front (objective values in their
+    own units and sense)."""
+
+    path: Path
+    variable_names: list[str]
+    objective_names: list[str]
+    X: np.ndarray
+    F: np.ndarray
+    n_evaluations: int
+    generations: int
+
+
+def build_algorithm(problem: ProblemConfig, n_obj: int):
+    """The problem's algorithm and its pymoo termination (G generations after initialisation)."""
+    from casadrone.optimise.algorithms import make_algorithm
+
+    a = problem.algorithm
+    algorithm = make_algorithm(a.name, population=a.population, generations=a.generations,
+                               n_obj=n_obj, settings=a.settings)
+    return algorithm, ("n_gen", a.generations + 1)
+
+
+def front(algorithm, study: Study) -> tuple[np.ndarray, np.ndarray]:
+    """Feasible non-dominated set of the algorithm's result (objectives back in their sense)."""
+    opt = algorithm.opt
+    if opt is None or len(opt) == 0:
+        return np.empty((0, len(study.variable_names))), np.empty((0, len(study.objective_names)))
+    feas = np.asarray(opt.get("feasible")).ravel()
+    X, F = opt.get("X")[feas], opt.get("F")[feas]
+    sign = np.array([-1.0 if s == "max" else 1.0 for s in study.senses])
+    order = np.lexsort(F.T[::-1])
+    return X[order], F[order] * sign
+
+
+def hypervolume(F_min: np.ndarray, test_problem: bool) -> float:
+    """Hypervolume of a (minimised) front: raw with reference 1.1 for test problems, else in the
+    front's own normalised space ([0, 1] per objective, reference 1.1)."""
+    from pymoo.indicators.hv import HV
+
+    if len(F_min) == 0:
+        return 0.0
+    if not test_problem:
+        lo, hi = F_min.min(axis=0), F_min.max(axis=0)
+        F_min = (F_min - lo) / np.where(hi > lo, hi - lo, 1.0)
+    return float(HV(ref_point=np.full(F_min.shape[1], 1.1))(F_min))
+
+
+class Progress:
+    """One line per generation (and a bar on a terminal) unless quiet."""
+
+    def __init__(self, total_generations: int, quiet: bool = False, stream=None):
+        self.total, self.quiet = total_generations, quiet
+        self.stream = stream or sys.stderr
+        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+
+    def __call__(self, gen: int, stats: dict) -> None:
+        if self.quiet:
+            return
+        done = (gen + 1) / (self.total + 1)
+        eta = stats["elapsed_s"] * (1 - done) / done
+        line = (f"gen {gen:>4}/{self.total}  evals {stats['n_evaluations']:>7}  "
+                f"archive {stats['archive_size']:>4}  feasible {stats['feasible_fraction']:6.1%}  "
+                f"HV {stats['hypervolume']:.5f}  elapsed {stats['elapsed_s']:7.1f} s  "
+                f"remaining {eta:7.1f} s")
+        if self.tty:
+            width = 24
+            bar = "#" * int(width * done) + "-" * (width - int(width * done))
+            line = f"[{bar}] {line}"
+        print(line, file=self.stream, flush=True)
+
+
+def _loop(store: RunStore, algorithm, study: Study, backend, elapsed0: float,
+          progress: Callable[[int, dict], None] | None, stop_after: int | None = None) -> RunResult:
+    problem = algorithm.problem
+    problem.backend = backend
+    start = time.perf_counter()
+    steps = 0
+    while algorithm.has_next():
+        algorithm.next()
+        # pymoo's n_gen is 2 after the initial population (generation 0 here), 3 after the next…
+        gen = int(algorithm.n_gen) - 2
+        records = problem.last_records
+        X_f, F_f = front(algorithm, study)
+        sign = np.array([-1.0 if s == "max" else 1.0 for s in study.senses])
+        stats = {
+            "n_evaluations": int(algorithm.evaluator.n_eval),
+            "archive_size": len(X_f),
+            "feasible_fraction": float(np.mean([r.status == "completed" for r in records]))
+            if records else 0.0,
+            "hypervolume": hypervolume(F_f * sign, study.problem.test_problem is not None),
+            "elapsed_s": elapsed0 + time.perf_counter() - start,
+        }
+        store.write_generation(gen, records, stats)
+        problem.last_records = []
+        store.save_checkpoint({"algorithm": algorithm, "elapsed_s": stats["elapsed_s"],
+                               "generation": gen})
+        if progress:
+            progress(gen, stats)
+        steps += 1
+        if stop_after is not None and steps >= stop_after:
+            break
+    X, F = front(algorithm, study)
+    if not algorithm.has_next():
+        store.write_pareto(study.variable_names, study.objective_names, X, F)
+        store.update_manifest(finished=now(), status="completed",
+                              n_evaluations=int(algorithm.evaluator.n_eval))
+    return RunResult(path=store.path, variable_names=study.variable_names,
+                     objective_names=study.objective_names, X=X, F=F,
+                     n_evaluations=int(algorithm.evaluator.n_eval),
+                     generations=int(algorithm.n_gen or 0))
+
+
+def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None = None,
+        quiet: bool = False, progress: Callable | None = None,
+        stop_after: int | None = None) -> RunResult:
+    """Run ``problem`` into the new run directory ``out``.
+
+    ``backend`` overrides the problem's own; ``stop_after`` stops after that many generations
+    (as if killed; resume continues it).
+    """
+    from casadrone.indices import INDICES
+
+    backend_cfg = backend or problem.backend
+    problem = problem.model_copy(update={"backend": backend_cfg})
+    study = Study(problem)
+    index_names = (study.objective_names if problem.test_problem is not None
+                   else list(INDICES))
+    store = RunStore.create(out, problem, study.variable_names, index_names, backend_cfg.name)
+    algorithm, termination = build_algorithm(problem, len(study.objective_names))
+    algorithm.setup(CandidateProblem(study), termination=termination, seed=problem.seed,
+                    verbose=False)
+    be = make_backend(backend_cfg)
+    try:
+        prog = progress or Progress(problem.algorithm.generations, quiet)
+        return _loop(store, algorithm, study, be, 0.0, prog, stop_after)
+    finally:
+        be.close()
+
+
+def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = False,
+           progress: Callable | None = None, stop_after: int | None = None) -> RunResult:
+    """Continue the run in ``out`` from its last checkpoint."""
+    store = RunStore(Path(out))
+    if not (store.path / "checkpoint.pkl").exists():
+        raise FileNotFoundError(f"{out}: no checkpoint.pkl: not a run directory, or killed "
+                                "before its first generation was stored (start it again)")
+    problem = store.problem()
+    state = store.load_checkpoint()
+    algorithm = state["algorithm"]
+    backend_cfg = backend or problem.backend
+    be = make_backend(backend_cfg)
+    store.update_manifest(status="running", resumed=now())
+    try:
+        prog = progress or Progress(problem.algorithm.generations, quiet)
+        return _loop(store, algorithm, algorithm.problem.study, be, state["elapsed_s"], prog,
+                     stop_after)
+    finally:
+        be.close()

@@ -576,6 +576,7 @@ SCHEMAS_BY_FOLDER: dict[str, type[BaseModel] | str] = {
     "airframes": AirframeConfig,
     "controllers": ControllerConfig,
     "tracks": "casadrone.guidance:TrackConfig",
+    "references": "casadrone.benchmark:Table4Reference",
 }
 # Fallback when the folder says nothing: a key that only that schema has.
 SCHEMAS_BY_KEY: dict[str, type[BaseModel] | str] = {

@@ -209,6 +209,8 @@ Notes:
   small-angle drag-balance guess and show real solves: Nelder–Mead pays ~40 µs per cost
   evaluation (Python → CasADi call) for several hundred iterations.
 - LQR-I (ZOH `expm` + 20-state DARE + Lyapunov certificate, scipy) dominates the path.
+- Load average (1 min) at start/end: {r["load"][0]:.2f} / {r["load"][1]:.2f} on {m["nproc"]} CPUs.
+  Other jobs may share the machine: quote the medians; p90 and max include interference.
 """
     path.write_text(text)
 
@@ -219,7 +221,9 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-write", action="store_true", help="print only, do not write RESULTS")
     args = ap.parse_args()
+    load0 = os.getloadavg()[0]
     r = run(args.n, args.seed)
+    r["load"] = (load0, os.getloadavg()[0])
     m = machine()
     print(f"{m['cpu']} ({m['uname']}), {m['date']}")
     print(tables(r))

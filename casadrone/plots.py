@@ -1,0 +1,486 @@
+"""Figures: track, time histories, robustness (paper Figs B1, B2), airframes, Pareto front.
+
+Every function returns a :class:`matplotlib.figure.Figure` built directly (no pyplot state, no
+window, no GUI backend needed), so figures can be drawn in worker processes and on servers.
+Functions that draw a single panel take an optional ``ax`` to draw into an existing figure.
+Units: SI, except angles in degrees and airframe dimensions in millimetres; every axis says which.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle
+
+from casadrone.airframe import Airframe
+from casadrone.control import Ensemble, LQRIDesign, disturbance_response
+from casadrone.model import IDX
+from casadrone.simulate import Trajectory
+
+NOMINAL = "tab:blue"
+ENSEMBLE = "0.6"
+#: Rotor order FR, FL, RL, RR (DESIGN.md §4): left rotors 2, 3 (index 1, 2), right 1, 4.
+LEFT, RIGHT = [1, 2], [0, 3]
+
+
+def _figure_axes(ax: Axes | None, figsize: tuple[float, float], **kw) -> tuple[Figure, Axes]:
+    if ax is not None:
+        return ax.get_figure(root=True), ax
+    fig = Figure(figsize=figsize, layout="constrained")
+    return fig, fig.add_subplot(**kw)
+
+
+def _colours(n: int) -> list:
+    return [f"C{i % 10}" for i in range(n)]
+
+
+def _label(name: str, traj: Trajectory) -> str:
+    if traj.completed:
+        return f"{name} (lap {traj.lap_time:.2f} s)"
+    return f"{name} (failed)"
+
+
+# --------------------------------------------------------------------------------------------
+# Derived signals
+# --------------------------------------------------------------------------------------------
+
+
+def roll_effort(traj: Trajectory) -> np.ndarray:
+    """Roll component of the ESC voltages minus its trim value (N,), V.
+
+    ((V2 + V3) − (V1 + V4)) / 2 with rotors FR, FL, RL, RR: half the left-minus-right voltage,
+    positive when the left rotors push harder (rolling right), zero at hover trim.
+    """
+    d = traj.u - np.asarray(traj.u0)[None, :]
+    return (d[:, LEFT].sum(axis=1) - d[:, RIGHT].sum(axis=1)) / 2 * traj.battery_voltage
+
+
+def opposing_pair_thrust(traj: Trajectory) -> np.ndarray:
+    """Left-pair minus right-pair thrust (T2 + T3) − (T1 + T4) (N,), N."""
+    T = traj.thrust
+    return T[:, LEFT].sum(axis=1) - T[:, RIGHT].sum(axis=1)
+
+
+# --------------------------------------------------------------------------------------------
+# Track
+# --------------------------------------------------------------------------------------------
+
+
+def _waypoints(trajectories: Mapping[str, Trajectory], waypoints) -> np.ndarray:
+    if waypoints is None:
+        waypoints = next(iter(trajectories.values())).waypoints
+    return np.atleast_2d(np.asarray(waypoints, float))
+
+
+def track_top_view(trajectories: Mapping[str, Trajectory], waypoints=None, *,
+                   ax: Axes | None = None, title: str | None = None) -> Figure:
+    """Ground track (x east, y north) of each flight, waypoints marked and numbered from 1.
+
+    ``waypoints`` (W × 3, m) defaults to the first trajectory's. Equal aspect: the paper's track
+    is 50 m × 2.5 m, so the figure is wide and the cross-track overshoot shows at true scale.
+    """
+    wp = _waypoints(trajectories, waypoints)
+    pts = np.vstack([wp[:, :2]] + [tr.x[:, :2] for tr in trajectories.values()])
+    span = np.ptp(pts, axis=0) + 4.0
+    fig, ax = _figure_axes(ax, (10.0, float(np.clip(10.0 * span[1] / span[0] + 1.2, 3.0, 8.0))))
+    for (name, tr), c in zip(trajectories.items(), _colours(len(trajectories)), strict=True):
+        ax.plot(tr.x[:, 0], tr.x[:, 1], color=c, lw=1.4, label=_label(name, tr),
+                gid=f"track:{name}")
+        ax.plot(tr.x[0, 0], tr.x[0, 1], "o", color=c, mfc="white", ms=6)
+    ax.plot(wp[:, 0], wp[:, 1], "s", color="k", ms=7, mfc="gold", label="waypoints",
+            gid="waypoints", zorder=5)
+    for i, (x, y) in enumerate(wp[:, :2], start=1):
+        ax.annotate(f"WP{i}", (x, y), xytext=(6, 6), textcoords="offset points", fontsize=9,
+                    fontweight="bold")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x, east (m)")
+    ax.set_ylabel("y, north (m)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(title or "Track, top view")
+    return fig
+
+
+def trajectory_3d(trajectories: Mapping[str, Trajectory], waypoints=None, *,
+                  title: str | None = None) -> Figure:
+    """3-D flight paths (m) with numbered waypoints and their shadows on the ground.
+
+    The axes are not to scale: each spans its data so the narrow paper track (50 m × 2.5 m at
+    20 m) reads as a loop; use :func:`track_top_view` for true proportions.
+    """
+    wp = _waypoints(trajectories, waypoints)
+    fig = Figure(figsize=(10.0, 6.0), layout="constrained")
+    ax = fig.add_subplot(projection="3d")
+    for (name, tr), c in zip(trajectories.items(), _colours(len(trajectories)), strict=True):
+        ax.plot(tr.x[:, 0], tr.x[:, 1], tr.x[:, 2], color=c, lw=1.4, label=_label(name, tr),
+                gid=f"track:{name}")
+        ax.plot(tr.x[:, 0], tr.x[:, 1], np.zeros(len(tr.t)), color=c, lw=0.8, alpha=0.3)
+    ax.scatter(wp[:, 0], wp[:, 1], wp[:, 2], marker="s", s=40, color="gold", edgecolor="k",
+               label="waypoints", depthshade=False)
+    for i, p in enumerate(wp, start=1):
+        ax.text(p[0], p[1], p[2] + 1.5, f"WP{i}", fontsize=9, fontweight="bold")
+    pts = np.vstack([wp] + [tr.x[:, :3] for tr in trajectories.values()])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.05 * np.maximum(hi - lo, 1.0)
+    ax.set_xlim(lo[0] - pad[0], hi[0] + pad[0])
+    ax.set_ylim(lo[1] - pad[1], hi[1] + pad[1])
+    ax.set_zlim(min(lo[2], 0.0), hi[2] + 2 * pad[2])
+    ax.set_box_aspect((1.0, 0.45, 0.45))
+    ax.view_init(elev=25, azim=-70)
+    ax.set_xlabel("x, east (m)")
+    ax.set_ylabel("y, north (m)")
+    ax.set_zlabel("z, up (m)")
+    ax.legend(loc="upper left", fontsize=8)
+    ax.set_title(title or "Track, 3-D (axes not to scale)")
+    return fig
+
+
+def time_histories(trajectories: Mapping[str, Trajectory], *, title: str | None = None) -> Figure:
+    """Stacked altitude, speed, roll effort and left-minus-right thrust against time.
+
+    Waypoint split times are dashed vertical lines in each flight's colour. Roll effort and
+    thrust difference: see :func:`roll_effort` and :func:`opposing_pair_thrust`.
+    """
+    fig = Figure(figsize=(10.0, 8.0), layout="constrained")
+    axes = fig.subplots(4, 1, sharex=True)
+    rows = [
+        ("altitude z (m)", lambda tr: tr.x[:, IDX["z"]]),
+        ("speed |v| (m/s)", lambda tr: tr.speed),
+        ("roll effort (V)", roll_effort),
+        ("thrust left − right (N)", opposing_pair_thrust),
+    ]
+    for (name, tr), c in zip(trajectories.items(), _colours(len(trajectories)), strict=True):
+        for ax, (_, signal) in zip(axes, rows, strict=True):
+            ax.plot(tr.t, signal(tr), color=c, lw=1.0, label=_label(name, tr), gid=f"signal:{name}")
+            for ts in tr.split_times[np.isfinite(tr.split_times)]:
+                ax.axvline(ts, color=c, ls="--", lw=0.8, alpha=0.7)
+    first = next(iter(trajectories.values()))
+    for i, ts in enumerate(first.split_times, start=1):  # waypoint names once, above the top axes
+        if np.isfinite(ts):
+            axes[0].annotate(f"WP{i}", (ts, 1.0), xycoords=("data", "axes fraction"),
+                             xytext=(0, 2), textcoords="offset points", fontsize=8,
+                             ha="center", va="bottom")
+    for ax, (ylabel, _) in zip(axes, rows, strict=True):
+        ax.set_ylabel(ylabel)
+        ax.grid(True, alpha=0.3)
+    for ax in axes[2:]:
+        ax.axhline(0.0, color="k", lw=0.6)
+    axes[-1].set_xlabel("time t (s)")
+    axes[0].legend(loc="lower right", fontsize=8)
+    fig.suptitle(title or "Time histories")
+    return fig
+
+
+# --------------------------------------------------------------------------------------------
+# Robustness (paper Appendix B)
+# --------------------------------------------------------------------------------------------
+
+
+def _zoom_window(eig: np.ndarray) -> tuple[float, float, float, float]:
+    """Re/Im limits around the slowest eigenvalues (those with |z| ≥ 0.9, or the top quarter)."""
+    mag = np.abs(eig)
+    slow = eig[mag >= min(0.9, np.quantile(mag, 0.75))]
+    re_lo = float(slow.real.min())
+    half = 0.55 * max(1.0 - re_lo, 2 * float(np.max(np.abs(slow.imag))), 2e-3)  # square window
+    mid = (re_lo + 1.0) / 2
+    return mid - half, mid + half, -half, half
+
+
+def eigenvalue_cloud(design: LQRIDesign, ensemble: Ensemble | None = None, *,
+                     zoom: bool | tuple[float, float, float, float] = True,
+                     ax: Axes | None = None, title: str | None = None) -> Figure:
+    """Discrete closed-loop eigenvalues of A − BK in the z-plane (paper Fig. B2, top).
+
+    The nominal design (blue crosses) over the perturbed plants of ``ensemble`` (grey dots),
+    with the unit circle: stable means inside it. ``zoom`` adds a second panel around z = 1, where
+    the slow modes sit at Ts = 0.01 s (True: window chosen from the eigenvalues; a tuple:
+    (re_min, re_max, im_min, im_max)). With ``ax`` a single panel is drawn: the zoom window if a
+    tuple is given, the whole disc otherwise.
+    """
+    nominal = np.asarray(design.closed_loop_eigenvalues)
+    cloud = np.asarray(ensemble.eigenvalues).ravel() if ensemble is not None else np.empty(0)
+    every = np.concatenate([nominal, cloud])
+    windows: list[tuple[float, float, float, float] | None] = [None]
+    if zoom is not False:
+        windows.append(_zoom_window(every) if zoom is True else tuple(zoom))
+    if ax is not None:
+        windows = [windows[-1] if not isinstance(zoom, bool) else None]
+        fig, axes = ax.get_figure(root=True), [ax]
+    else:
+        fig = Figure(figsize=(5.0 * len(windows), 5.4), layout="constrained")
+        axes = list(np.atleast_1d(fig.subplots(1, len(windows))))
+    phi = np.linspace(0, 2 * np.pi, 400)
+    rho = float(np.max(np.abs(nominal)))
+    for a, win in zip(axes, windows, strict=True):
+        a.plot(np.cos(phi), np.sin(phi), color="k", lw=0.8, gid="unit-circle")
+        a.axhline(0.0, color="k", lw=0.4)
+        a.axvline(0.0, color="k", lw=0.4)
+        if cloud.size:
+            worst = ensemble.max_spectral_radius
+            a.plot(cloud.real, cloud.imag, ".", color=ENSEMBLE, ms=4, gid="ensemble",
+                   label=f"{ensemble.n} perturbed plants (max |z| = {worst:.4f})")
+        a.plot(nominal.real, nominal.imag, "x", color=NOMINAL, ms=7, mew=1.5, gid="nominal",
+               label=f"nominal (max |z| = {rho:.4f})")
+        a.set_aspect("equal", adjustable="box")
+        if win is None and len(windows) > 1:  # outline the zoom window on the whole disc
+            zx0, zx1, zy0, zy1 = windows[1]
+            a.plot([zx0, zx1, zx1, zx0, zx0], [zy0, zy0, zy1, zy1, zy0], color="k", ls=":",
+                   lw=0.8, gid="zoom-window")
+        if win is not None:
+            a.set_xlim(win[0], win[1])
+            a.set_ylim(win[2], win[3])
+            a.set_title("zoom near z = 1", fontsize=10)
+        else:
+            a.set_xlim(-1.1, 1.1)
+            a.set_ylim(-1.1, 1.1)
+        a.set_xlabel("Re z (–)")
+        a.set_ylabel("Im z (–)")
+        a.grid(True, alpha=0.3)
+    head = title or f"Closed-loop eigenvalues, Ts = {design.sample_time_s:g} s"
+    if ax is None:
+        fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=2,
+                   fontsize=9)
+        fig.suptitle(head)
+    else:
+        ax.legend(loc="lower left", fontsize=8)
+        ax.set_title(head)
+    return fig
+
+
+#: Fig. B1 panels: (state, axis label, scale from SI to the plotted unit).
+B1_PANELS = (
+    ("u", "u (m/s)", 1.0), ("v", "v (m/s)", 1.0), ("w", "w (m/s)", 1.0),
+    ("p", "p (deg/s)", np.degrees(1.0)), ("q", "q (deg/s)", np.degrees(1.0)),
+    ("r", "r (deg/s)", np.degrees(1.0)),
+    ("phi", "φ (deg)", np.degrees(1.0)), ("theta", "θ (deg)", np.degrees(1.0)),
+    ("psi", "ψ (deg)", np.degrees(1.0)),
+    ("x", "X (m)", 1.0), ("y", "Y (m)", 1.0), ("z", "Z (m)", 1.0),
+)  # fmt: skip
+
+
+#: Smallest half-span of a Fig. B1 panel, in its plotted unit (below it a trace is round-off).
+MIN_SPAN = 1e-3
+
+
+def default_bump(n: int = 20) -> np.ndarray:
+    """Fig. B1 bump: u = w = 1 m/s, p = q = 1 rad/s, every other deviation zero."""
+    dx0 = np.zeros(n)
+    for name, value in (("u", 1.0), ("w", 1.0), ("p", 1.0), ("q", 1.0)):
+        dx0[IDX[name]] = value
+    return dx0
+
+
+def disturbance_responses(design: LQRIDesign, ensemble: Ensemble | None = None,
+                          dx0: np.ndarray | None = None, horizon_s: float = 10.0, *,
+                          title: str | None = None) -> Figure:
+    """Hover disturbance responses of the nominal and perturbed closed loops (paper Fig. B1).
+
+    State deviations from trim after the initial deviation ``dx0`` (20, augmented state; default
+    :func:`default_bump`), for the nominal plant (blue) and each plant of ``ensemble`` (grey),
+    all under the same gain K. Rates and angles in degrees.
+    """
+    dx0 = default_bump(design.Ad.shape[0]) if dx0 is None else np.asarray(dx0, float)
+    Ts = design.sample_time_s
+    steps = int(round(horizon_s / Ts)) + 1
+    t = np.arange(steps) * Ts
+    nominal = disturbance_response(design.Ad, design.Bd, design.K, dx0, steps)
+    perturbed = [disturbance_response(A, B, design.K, dx0, steps)
+                 for A, B in (ensemble.plants if ensemble is not None else ())]
+    fig = Figure(figsize=(11.0, 9.0), layout="constrained")
+    axes = fig.subplots(4, 3, sharex=True)
+    for a, (state, ylabel, scale) in zip(axes.ravel(), B1_PANELS, strict=True):
+        i = IDX[state]
+        for resp in perturbed:
+            a.plot(t, scale * resp[:, i], color=ENSEMBLE, lw=0.6, gid="ensemble")
+        a.plot(t, scale * nominal[:, i], color=NOMINAL, lw=1.4, gid="nominal")
+        a.axhline(0.0, color="k", lw=0.5)
+        lo, hi = a.get_ylim()
+        if hi - lo < 2 * MIN_SPAN:  # a state the bump does not excite: show it flat, not its noise
+            a.set_ylim(-MIN_SPAN, MIN_SPAN)
+        a.set_ylabel(ylabel)
+        a.grid(True, alpha=0.3)
+    for a in axes[-1]:
+        a.set_xlabel("time t (s)")
+    handles = [Line2D([], [], color=NOMINAL, lw=1.4, label="nominal")]
+    if perturbed:
+        handles.append(Line2D([], [], color=ENSEMBLE, lw=0.8,
+                              label=f"{len(perturbed)} perturbed plants"))
+    fig.legend(handles=handles, loc="outside lower center", ncols=2, fontsize=9)
+    bump = ", ".join(f"{n} = {dx0[IDX[n]]:g} {'m/s' if n in 'uvw' else 'rad/s'}"
+                     for n in ("u", "v", "w", "p", "q", "r") if dx0[IDX[n]] != 0)
+    fig.suptitle(title or f"Hover disturbance response, deviation from trim "
+                          f"(bump at t = 0: {bump})")
+    return fig
+
+
+# --------------------------------------------------------------------------------------------
+# Airframes (paper Figs 15, 17, 19)
+# --------------------------------------------------------------------------------------------
+
+
+def top_view_xy(rotor_positions: np.ndarray) -> np.ndarray:
+    """Body-frame positions (m) → drawing coordinates (mm): right (−y_b) across, nose (x_b) up,
+    the paper's view of the airframe."""
+    r = np.asarray(rotor_positions, float)
+    return 1000.0 * np.column_stack([-r[:, 1], r[:, 0]])
+
+
+def _draw_airframe(ax: Axes, af: Airframe, colour, prop_mm: float, reference: bool) -> None:
+    xy = top_view_xy(af.rotor_positions)
+    ls, lw, z = ("--", 1.2, 1) if reference else ("-", 2.5, 3)
+    for p in xy:
+        ax.plot([0.0, p[0]], [0.0, p[1]], color=colour, ls=ls, lw=lw, zorder=z)
+        ax.add_patch(Circle(tuple(p), prop_mm / 2, fill=not reference, facecolor=colour,
+                            edgecolor=colour, alpha=0.8 if reference else 0.15, ls=ls, lw=1.0,
+                            zorder=z - 0.5))
+    ax.plot(xy[:, 0], xy[:, 1], "o", color=colour, ms=5 if reference else 12, zorder=z + 1,
+            gid=f"rotors:{af.name}", label=f"{af.name} ({af.family}, λ = {af.diagonal_mm:.0f} mm)"
+            + (" — reference" if reference else ""))
+    if not reference:
+        for i, p in enumerate(xy, start=1):
+            ax.annotate(str(i), tuple(p), ha="center", va="center", fontsize=8, fontweight="bold",
+                        zorder=z + 2, color="white")
+        nose = 0.5 * float(np.min(xy[:2, 1]))
+        ax.annotate("", xy=(0.0, nose), xytext=(0.0, 0.0), zorder=z + 2,
+                    arrowprops=dict(arrowstyle="-|>", color="k", lw=1.5))
+        ax.text(0.0, nose + 2.0, "nose", ha="center", va="bottom", fontsize=8, zorder=z + 2)
+        ax.plot(0.0, 0.0, "+", color="k", ms=10, mew=1.5, zorder=z + 2)
+
+
+def airframe_top_view(airframes: Sequence[Airframe], reference: Airframe | None = None,
+                      prop_diameter_m: float = 0.127, *, overlay: bool = False,
+                      ax: Axes | None = None, title: str | None = None) -> Figure:
+    """Top view of candidate airframes, each over the reference in grey dashed (mm, nose up).
+
+    Arms from the centre of mass (+) to the rotors (numbered 1 FR, 2 FL, 3 RL, 4 RR), prop discs of
+    ``prop_diameter_m``, an arrow to the nose. One panel per airframe, or all in one
+    (``overlay=True``, or whenever ``ax`` is given).
+    """
+    airframes = list(airframes)
+    prop_mm = 1000.0 * prop_diameter_m
+    if ax is not None or overlay or len(airframes) <= 1:
+        fig, a = _figure_axes(ax, (6.0, 6.0))
+        panels = [(a, list(enumerate(airframes)))]
+    else:
+        fig = Figure(figsize=(5.0 * len(airframes), 5.4), layout="constrained")
+        axs = fig.subplots(1, len(airframes), sharex=True, sharey=True)
+        panels = [(a, [(i, af)]) for i, (a, af) in enumerate(zip(np.atleast_1d(axs), airframes,
+                                                                  strict=True))]
+    everything = airframes + ([reference] if reference is not None else [])
+    reach = max(float(np.max(np.abs(top_view_xy(af.rotor_positions)))) for af in everything)
+    lim = reach + prop_mm / 2 + 10.0
+    colours = _colours(len(airframes))
+    for a, group in panels:
+        if reference is not None:
+            _draw_airframe(a, reference, ENSEMBLE, prop_mm, reference=True)
+        for i, af in group:
+            _draw_airframe(a, af, colours[i], prop_mm, reference=False)
+        a.set_xlim(-lim, lim)
+        a.set_ylim(-lim, lim)
+        a.set_aspect("equal")
+        a.set_xlabel("right, −y_b (mm)")
+        a.set_ylabel("forward, x_b (mm)")
+        a.grid(True, alpha=0.3)
+        a.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), fontsize=8)
+    head = title or "Airframes, top view (nose up)"
+    if len(panels) > 1:
+        fig.suptitle(head)
+    else:
+        panels[0][0].set_title(head)
+    return fig
+
+
+# --------------------------------------------------------------------------------------------
+# Optimisation
+# --------------------------------------------------------------------------------------------
+
+
+def _objective_label(name: str, unit: str | None) -> str:
+    return f"{name} ({unit})" if unit else name
+
+
+def pareto_front(F: np.ndarray, names: Sequence[str], highlight: Mapping[str, int] | None = None,
+                 *, units: Sequence[str] | None = None, title: str | None = None) -> Figure:
+    """Objective values of a front: one scatter for 2 objectives, a lower-triangular scatter
+    matrix (every pair once, m(m−1)/2 panels) for more.
+
+    ``F`` (n × m) holds the objectives in their physical units and sense (not negated for
+    maximisation); ``units`` labels each axis. ``highlight`` maps a label (e.g. "utopian") to a
+    row of ``F``: those points are ringed and labelled.
+    """
+    F = np.atleast_2d(np.asarray(F, float))
+    m = F.shape[1]
+    if len(names) != m:
+        raise ValueError(f"{len(names)} names for {m} objectives")
+    if m < 2:
+        raise ValueError("a Pareto front needs at least two objectives")
+    labels = [_objective_label(n, u) for n, u in zip(names, units or [None] * m, strict=True)]
+    highlight = dict(highlight or {})
+    if m == 2:
+        fig = Figure(figsize=(6.5, 5.0), layout="constrained")
+        pairs = [(fig.add_subplot(), 0, 1)]
+    else:
+        fig = Figure(figsize=(2.6 * (m - 1) + 1.0, 2.4 * (m - 1) + 0.8), layout="constrained")
+        grid = fig.subplots(m - 1, m - 1, squeeze=False)
+        pairs = []
+        for r in range(m - 1):
+            for c in range(m - 1):
+                if c > r:
+                    grid[r, c].remove()
+                else:
+                    pairs.append((grid[r, c], c, r + 1))
+    colours = _colours(len(highlight) + 1)[1:]
+    for a, i, j in pairs:
+        a.scatter(F[:, i], F[:, j], s=14, color=NOMINAL, alpha=0.7, gid="front",
+                  label="Pareto front")
+        for (name, k), c in zip(highlight.items(), colours, strict=True):
+            a.scatter(F[k, i], F[k, j], s=90, facecolor="none", edgecolor=c, lw=2.0, zorder=3,
+                      gid=f"highlight:{name}", label=name)
+            a.annotate(name, (F[k, i], F[k, j]), xytext=(5, 5), textcoords="offset points",
+                       fontsize=8, color=c, fontweight="bold")
+        a.grid(True, alpha=0.3)
+        a.set_xlabel(labels[i], fontsize=9)
+        a.set_ylabel(labels[j], fontsize=9)
+    if m == 2:
+        pairs[0][0].legend(fontsize=8)
+    else:
+        fig.legend(*pairs[0][0].get_legend_handles_labels(), loc="upper right", fontsize=9)
+    fig.suptitle(title or f"Pareto front ({F.shape[0]} designs)")
+    return fig
+
+
+def convergence(generations: Sequence[int], hypervolume: Sequence[float],
+                archive_size: Sequence[int] | None = None, *, hypervolume_unit: str = "–",
+                title: str | None = None) -> Figure:
+    """Hypervolume (and, if given, the size of the Pareto archive) per generation."""
+    rows = 1 if archive_size is None else 2
+    fig = Figure(figsize=(7.0, 2.6 * rows + 0.6), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows, 1, sharex=True))
+    axes[0].plot(generations, hypervolume, "o-", color=NOMINAL, ms=3, gid="hypervolume")
+    axes[0].set_ylabel(f"hypervolume ({hypervolume_unit})")
+    if archive_size is not None:
+        axes[1].step(generations, archive_size, where="post", color="tab:orange", gid="archive")
+        axes[1].set_ylabel("archive size (designs)")
+    for a in axes:
+        a.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("generation (–)")
+    fig.suptitle(title or "Convergence")
+    return fig
+
+
+def save_figure(fig: Figure, path_without_suffix: str | Path,
+                formats: Sequence[str] = ("png", "svg"), dpi: int = 150) -> list[Path]:
+    """Write ``fig`` once per format (parent folders created); returns the paths written."""
+    base = Path(path_without_suffix)
+    base.parent.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for fmt in formats:
+        path = base.with_name(f"{base.name}.{fmt.lstrip('.')}")
+        fig.savefig(path, format=fmt.lstrip("."), dpi=dpi)
+        paths.append(path)
+    return paths

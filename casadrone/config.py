@@ -710,9 +710,9 @@ class AlgorithmConfig(Schema):
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
         if "name" not in v:
             return []
-        from casadrone.optimise.algorithms import ALGORITHMS
+        from casadrone.optimise.algorithms import ALGORITHM_NAMES as ALGORITHMS
 
-        if v["name"] not in ALGORITHMS:
+        if v["name"].strip().lower() not in ALGORITHMS:
             close = difflib.get_close_matches(v["name"], list(ALGORITHMS), 1)
             hint = f"did you mean '{close[0]}'? " if close else ""
             return [("name", f"unknown algorithm '{v['name']}' ({hint}known: "

@@ -12,7 +12,6 @@ from __future__ import annotations
 import hashlib
 import time
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
 from pymoo.core.problem import Problem
@@ -88,7 +87,9 @@ def pymoo_test_problem(cfg: ProblemConfig):
     return get_problem(tp.name, n_var=tp.n_var)
 
 
-@lru_cache(maxsize=4)
+_SETUPS: dict[str, object] = {}
+
+
 def _setup(key: str, problem: ProblemConfig):
     """The evaluation setup of a problem, built once per process (the model and compiled lap are
     cached inside the chain's modules, so the first evaluation pays for them only once)."""
@@ -96,15 +97,18 @@ def _setup(key: str, problem: ProblemConfig):
     from casadrone.evaluate import DEFAULT_TRACK, EvaluationSetup
     from casadrone.guidance import TrackConfig
 
+    if key in _SETUPS:
+        return _SETUPS[key]
     template = load_airframe(problem.airframe)
     if problem.fixed:
         template = template.model_validate({**template.model_dump(), **problem.fixed})
-    return EvaluationSetup(
+    _SETUPS[key] = EvaluationSetup(
         template=template,
         controller=load_controller(problem.controller),
         track=load(TrackConfig, problem.track or DEFAULT_TRACK),
         integrator=problem.integrator,
     )
+    return _SETUPS[key]
 
 
 def study_setup(study: Study):

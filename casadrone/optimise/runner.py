@@ -41,8 +41,10 @@ def build_algorithm(problem: ProblemConfig, n_obj: int):
     from casadrone.optimise.algorithms import make_algorithm
 
     a = problem.algorithm
-    algorithm = make_algorithm(a.name, population=a.population, generations=a.generations,
-                               n_obj=n_obj, settings=a.settings)
+    settings = dict(a.settings)
+    if a.name.strip().lower() == "evmoga":
+        settings["generations"] = a.generations  # ev-MOGA's dd and σ schedules need G
+    algorithm = make_algorithm(a.name, settings, pop_size=a.population, n_obj=n_obj)
     return algorithm, ("n_gen", a.generations + 1)
 
 

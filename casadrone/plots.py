@@ -19,13 +19,12 @@ from matplotlib.patches import Circle
 
 from casadrone.airframe import Airframe
 from casadrone.control import Ensemble, LQRIDesign, disturbance_response
+from casadrone.indices import pair_thrust_difference, roll_effort_voltage
 from casadrone.model import IDX
 from casadrone.simulate import Trajectory
 
 NOMINAL = "tab:blue"
 ENSEMBLE = "0.6"
-#: Rotor order FR, FL, RL, RR (DESIGN.md §4): left rotors 2, 3 (index 1, 2), right 1, 4.
-LEFT, RIGHT = [1, 2], [0, 3]
 
 
 def _figure_axes(ax: Axes | None, figsize: tuple[float, float], **kw) -> tuple[Figure, Axes]:
@@ -43,27 +42,6 @@ def _label(name: str, traj: Trajectory) -> str:
     if traj.completed:
         return f"{name} (lap {traj.lap_time:.2f} s)"
     return f"{name} (failed)"
-
-
-# --------------------------------------------------------------------------------------------
-# Derived signals
-# --------------------------------------------------------------------------------------------
-
-
-def roll_effort(traj: Trajectory) -> np.ndarray:
-    """Roll component of the ESC voltages minus its trim value (N,), V.
-
-    ((V2 + V3) − (V1 + V4)) / 2 with rotors FR, FL, RL, RR: half the left-minus-right voltage,
-    positive when the left rotors push harder (rolling right), zero at hover trim.
-    """
-    d = traj.u - np.asarray(traj.u0)[None, :]
-    return (d[:, LEFT].sum(axis=1) - d[:, RIGHT].sum(axis=1)) / 2 * traj.battery_voltage
-
-
-def opposing_pair_thrust(traj: Trajectory) -> np.ndarray:
-    """Left-pair minus right-pair thrust (T2 + T3) − (T1 + T4) (N,), N."""
-    T = traj.thrust
-    return T[:, LEFT].sum(axis=1) - T[:, RIGHT].sum(axis=1)
 
 
 # --------------------------------------------------------------------------------------------
@@ -144,15 +122,17 @@ def time_histories(trajectories: Mapping[str, Trajectory], *, title: str | None 
     """Stacked altitude, speed, roll effort and left-minus-right thrust against time.
 
     Waypoint split times are dashed vertical lines in each flight's colour. Roll effort and
-    thrust difference: see :func:`roll_effort` and :func:`opposing_pair_thrust`.
+    thrust difference are the signals of the per-interval table (paper Table 4):
+    :func:`casadrone.indices.roll_effort_voltage` ((V2 + V3 − V1 − V4)/2 minus trim) and
+    :func:`casadrone.indices.pair_thrust_difference` ((T2 + T3) − (T1 + T4)).
     """
     fig = Figure(figsize=(10.0, 8.0), layout="constrained")
     axes = fig.subplots(4, 1, sharex=True)
     rows = [
         ("altitude z (m)", lambda tr: tr.x[:, IDX["z"]]),
         ("speed |v| (m/s)", lambda tr: tr.speed),
-        ("roll effort (V)", roll_effort),
-        ("thrust left − right (N)", opposing_pair_thrust),
+        ("roll effort (V)", roll_effort_voltage),
+        ("thrust left − right (N)", pair_thrust_difference),
     ]
     for (name, tr), c in zip(trajectories.items(), _colours(len(trajectories)), strict=True):
         for ax, (_, signal) in zip(axes, rows, strict=True):

@@ -61,12 +61,6 @@ def assert_units(*labels):
         assert "(" in label and label.rstrip().endswith(")"), f"no unit in {label!r}"
 
 
-def test_roll_effort_and_pair_thrust_follow_their_definitions():
-    tr = fake_trajectory()
-    np.testing.assert_allclose(plots.roll_effort(tr), (0.05 + 0.03) / 2 * V_BATT, rtol=1e-12)
-    np.testing.assert_allclose(plots.opposing_pair_thrust(tr), 2.5, rtol=1e-12)
-
-
 def test_track_top_view_plots_each_trajectory_and_numbered_waypoints():
     trs = {"A": fake_trajectory(), "B": fake_trajectory(shift=1.0)}
     fig = plots.track_top_view(trs, WAYPOINTS)
@@ -107,6 +101,7 @@ def test_time_histories_stack_four_signals_with_split_lines():
     tr = fake_trajectory()
     fig = plots.time_histories({"A": tr})
     assert len(fig.axes) == 4
+    # roll effort ((δ2 + δ3) − (δ1 + δ4))/2 · V_batt minus trim; thrust (T2 + T3) − (T1 + T4)
     units = ["(m)", "(m/s)", "(V)", "(N)"]
     expected = [tr.x[:, IDX["z"]], np.full(len(tr.t), 5.0), np.full(len(tr.t), 0.04 * V_BATT),
                 np.full(len(tr.t), 2.5)]

@@ -329,12 +329,21 @@ def apply_overrides(data: dict[str, Any], overrides: list[str] | None, source: s
         if not sep or not all(parts):
             errors.append(f"{source}: override '{item}': expected key=value (e.g. alpha_deg=75)")
             continue
-        node = data
-        for part in parts[:-1]:
-            if not isinstance(node.get(part), dict):
-                node[part] = {}
-            node = node[part]
-        node[parts[-1]] = parse_value(value)
+        node: Any = data
+        try:
+            for part in parts[:-1]:
+                if isinstance(node, list):  # list item by position: objectives.0.index=J3
+                    node = node[int(part)]
+                    continue
+                if not isinstance(node.get(part), dict | list):
+                    node[part] = {}
+                node = node[part]
+            if isinstance(node, list):
+                node[int(parts[-1])] = parse_value(value)
+            else:
+                node[parts[-1]] = parse_value(value)
+        except (ValueError, IndexError):
+            errors.append(f"{source}: override '{item}': {key.strip()}: no such list item")
     if errors:
         raise ConfigError(errors)
     return data

@@ -53,7 +53,7 @@ def front(algorithm, study: Study) -> tuple[np.ndarray, np.ndarray]:
     opt = algorithm.opt
     if opt is None or len(opt) == 0:
         return np.empty((0, len(study.variable_names))), np.empty((0, len(study.objective_names)))
-    feas = np.asarray(opt.get("feasible")).ravel()
+    feas = np.asarray(opt.get("CV")).ravel() <= 0
     X, F = opt.get("X")[feas], opt.get("F")[feas]
     sign = np.array([-1.0 if s == "max" else 1.0 for s in study.senses])
     order = np.lexsort(F.T[::-1])

@@ -36,7 +36,7 @@ def run_json(cli_runner, *args: str) -> dict:
 
 
 def test_validate_shipped_configs_exit_0(cli_runner):
-    files = sorted((ROOT / "configs").rglob("*.yaml"))
+    files = sorted([*(ROOT / "configs").rglob("*.yaml"), *(ROOT / "problems").rglob("*.yaml")])
     result = run(cli_runner, "validate", *files)
     assert result.exit_code == 0, result.output
     assert result.stdout.splitlines() == [f"{f}: ok" for f in files]
@@ -61,6 +61,7 @@ BAD_CASES = {
     "malformed.yaml": ("line 3", "malformed YAML"),
     "overlapping_rotors.yaml": ("alpha_deg", "rotors FR and FL overlap"),
     "controller_bad_weights.yaml": ("q.velocty", "did you mean 'velocity'"),
+    "bounds_inverted.yaml": ("variables.1.lower", "lower bound 90.0 is not below upper bound 65.0"),
 }
 
 

@@ -23,7 +23,7 @@ from casadrone.config import (
 
 ROOT = Path(__file__).resolve().parents[2]
 BAD = ROOT / "tests" / "data" / "bad"
-ALL_CONFIGS = sorted((ROOT / "configs").rglob("*.yaml"))
+ALL_CONFIGS = sorted([*(ROOT / "configs").rglob("*.yaml"), *(ROOT / "problems").rglob("*.yaml")])
 
 SY250 = {
     "name": "t",
@@ -47,6 +47,7 @@ def problems_of(data: dict, model=AirframeConfig, source: str = "f.yaml") -> lis
 
 def test_configs_exist():
     assert any("airframes" in p.parts for p in ALL_CONFIGS)
+    assert any("problems" in p.parts for p in ALL_CONFIGS)
     assert (ROOT / "configs" / "controllers" / "default.yaml") in ALL_CONFIGS
 
 
@@ -80,6 +81,8 @@ BAD_EXPECTED = {
     "malformed.yaml": [("line 3", "malformed YAML")],
     "malformed_flow.yaml": [("line 4", "started on line 3")],
     "duplicate_key.yaml": [("line 3", "duplicate key 'lambda_a_mm' (first given on line 2)")],
+    "bounds_inverted.yaml": [("variables.1.lower",
+                              "lower bound 90.0 is not below upper bound 65.0")],
 }
 
 

@@ -1,0 +1,127 @@
+"""LQR-I: gain against independent Riccati solutions, stability and the robustness ensemble."""
+
+import numpy as np
+import pytest
+
+from casadrone.airframe import build_airframe
+from casadrone.config import ControllerConfig, load_airframe, load_controller
+from casadrone.control import (
+    augment,
+    certify,
+    design_for,
+    design_lqri,
+    discretise,
+    hover_point,
+    robustness_ensemble,
+    weights,
+)
+from casadrone.linearise import linearise
+
+REFERENCES = ["SY250", "SY220", "HS200", "HS210", "NSY200"]
+
+
+@pytest.fixture(scope="module")
+def ctrl():
+    return load_controller()
+
+
+def riccati_iteration(A, B, Q, R, iters=200000, tol=1e-14):
+    """Value iteration of the Riccati difference equation from S = Q until it stops moving: an
+    oracle sharing no code with scipy's Schur-based DARE solver."""
+    S = Q.copy()
+    for _ in range(iters):
+        K = np.linalg.solve(R + B.T @ S @ B, B.T @ S @ A)
+        S_next = Q + A.T @ S @ (A - B @ K)
+        S_next = 0.5 * (S_next + S_next.T)
+        if np.max(np.abs(S_next - S)) <= tol * np.max(np.abs(S_next)):
+            return np.linalg.solve(R + B.T @ S_next @ B, B.T @ S_next @ A)
+        S = S_next
+    raise AssertionError("Riccati iteration did not converge")
+
+
+def test_scalar_integrator_lqr_analytic():
+    """Discrete integrator x⁺ = x + b u with q, r: S solves S = q + S − S² b²/(r + b² S), i.e.
+    S = (q + √(q² + 4 q r / b²)) / 2, and K = b S / (r + b² S)."""
+    import scipy.linalg as sla
+
+    b, q, r = 0.1, 2.0, 0.5
+    S = (q + np.sqrt(q**2 + 4 * q * r / b**2)) / 2
+    K = b * S / (r + b**2 * S)
+    S_num = sla.solve_discrete_are(np.eye(1), np.array([[b]]), np.array([[q]]), np.array([[r]]))
+    assert S_num[0, 0] == pytest.approx(S, rel=1e-12)
+    assert riccati_iteration(np.eye(1), np.array([[b]]), np.eye(1) * q, np.eye(1) * r)[0, 0] == \
+        pytest.approx(K, rel=1e-10)
+
+
+@pytest.mark.parametrize("name", ["SY250", "HS210"])
+def test_gain_matches_python_control_and_riccati_iteration(name, ctrl):
+    a = build_airframe(load_airframe(name))
+    lin = linearise(a, hover_point(a))
+    d = design_lqri(lin, ctrl)
+    Aa, Ba = augment(*discretise(lin.A, lin.B, ctrl.sample_time_s), ctrl.sample_time_s)
+    Q, R = weights(ctrl)
+    import control
+
+    K_ctrl, _, _ = control.dlqr(Aa, Ba, Q, R)
+    np.testing.assert_allclose(d.K, K_ctrl, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(d.K, riccati_iteration(Aa, Ba, Q, R), rtol=0, atol=1e-8)
+
+
+def test_zoh_discretisation_of_double_integrator():
+    """ẍ = u held for T: x⁺ = x + T v + T²/2 u, v⁺ = v + T u."""
+    T = 0.01
+    Ad, Bd = discretise(np.array([[0, 1.0], [0, 0]]), np.array([[0], [1.0]]), T)
+    np.testing.assert_allclose(Ad, [[1, T], [0, 1]], atol=1e-15)
+    np.testing.assert_allclose(Bd, [[T**2 / 2], [T]], atol=1e-15)
+
+
+def test_integral_states_accumulate_position_and_yaw_error():
+    Ad, Bd = np.eye(16), np.zeros((16, 4))
+    Aa, Ba = augment(Ad, Bd, 0.01)
+    x = np.zeros(20)
+    x[0], x[1], x[2], x[11] = 1.0, 2.0, 3.0, 0.5  # x, y, z, psi
+    np.testing.assert_allclose((Aa @ x)[16:], 0.01 * np.array([1, 2, 3, 0.5]))
+
+
+@pytest.mark.parametrize("name", REFERENCES)
+def test_closed_loop_stable_with_certificate_and_robust(name, ctrl):
+    a = build_airframe(load_airframe(name))
+    d = design_for(a, ctrl)
+    assert d.stable
+    assert np.max(np.abs(d.closed_loop_eigenvalues)) < 1.0
+    # Lyapunov certificate: P ≻ 0 and A_clᵀ P A_cl − P = −I holds
+    Acl = d.Ad - d.Bd @ d.K
+    assert d.lyapunov_min_eig > 0
+    import scipy.linalg as sla
+
+    P = sla.solve_discrete_lyapunov(Acl.T, np.eye(20))
+    np.testing.assert_allclose(Acl.T @ P @ Acl - P, -np.eye(20), atol=1e-6 * np.abs(P).max())
+    ens = robustness_ensemble(a, d, ctrl)
+    assert ens.n == 50 and ens.eigenvalues.shape == (50, 20)
+    assert ens.stable, f"{name}: {np.sum(~ens.stable_each)} perturbed plants unstable"
+
+
+def test_ensemble_plants_really_differ(ctrl):
+    a = build_airframe(load_airframe("SY250"))
+    d = design_for(a, ctrl)
+    ens = robustness_ensemble(a, d, ctrl, n=5)
+    spreads = [np.max(np.abs(ens.plants[i][0] - d.Ad)) for i in range(5)]
+    assert min(spreads) > 1e-4
+
+
+def test_certificate_rejects_unstable_loop():
+    eig, stable, lmin = certify(np.diag([0.5, 1.01]))
+    assert not stable and np.isnan(lmin)
+
+
+def test_frozen_policy_uses_reference_gain_on_own_plant():
+    cfg = ControllerConfig(gain_policy="frozen", reference_airframe="configs/airframes/SY250.yaml")
+    ref = build_airframe(load_airframe("SY250"))
+    cand = build_airframe(load_airframe("NSY200"))
+    frozen = design_for(cand, cfg, reference=ref)
+    own = design_for(ref, cfg.model_copy(update={"gain_policy": "redesign"}))
+    np.testing.assert_allclose(frozen.K, own.K)
+    np.testing.assert_allclose(frozen.u0, hover_point(cand).u0)
+    np.testing.assert_allclose(np.linalg.eigvals(frozen.Ad - frozen.Bd @ frozen.K),
+                               frozen.closed_loop_eigenvalues)
+    assert frozen.stable

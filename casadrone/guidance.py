@@ -7,7 +7,8 @@ from route point k to k + 1. On the active segment (Breivik & Fossen style line 
   offset from the closest point of the segment, so only cross-track and height errors count);
 - a look-ahead point Δ ahead of the projection (clamped at the segment end); the velocity
   reference points from the vehicle at it, with magnitude min(V, √(V_c² + 2 a_b d_end)) so the
-  vehicle brakes to the corner speed V_c before each waypoint;
+  vehicle brakes to the corner speed V_c before each waypoint (the climb: capped at the climb
+  speed, braking to rest at its top, so the race starts from a hover at altitude);
 - the segment switches when the vehicle is inside the acceptance radius of the segment end or
   has passed it (s ≥ L);
 - the nose points at the next waypoint: ψ_ref is the heading of the active segment (of the next
@@ -35,6 +36,9 @@ class TrackConfig(Schema):
     start_position_m: Vec3 = (0.0, 0.0, 0.0)
     start_yaw_deg: float = 0.0
     climb_to_m: Vec3 | None = Field(None, description="route point before the first waypoint")
+    climb_speed_mps: float = Field(
+        5.0, gt=0, description="speed cap on the climb; the climb brakes to rest at its top"
+    )
     waypoints_m: list[Vec3] = Field(min_length=1, description="timed waypoints, in order")
     straight: list[bool] = Field(description="leg ending at each waypoint is a straight sector")
     acceptance_radius_m: float = Field(1.0, gt=0)
@@ -97,17 +101,24 @@ class GuidanceLayout:
 
     @property
     def size(self) -> int:
-        return 3 * self.n_route + self.n_seg + 8
+        return 3 * self.n_route + 3 * self.n_seg + 8
 
 
 def track_vector(track: TrackConfig) -> np.ndarray:
     """Numeric guidance parameter vector of a track (layout :class:`GuidanceLayout`)."""
     route = track.route
     heads = segment_headings(route, math.radians(track.start_yaw_deg))
+    n_seg = len(route) - 1
+    caps = np.full(n_seg, track.speed_mps)
+    ends = np.full(n_seg, track.corner_speed_mps)
+    if track.climb_to_m is not None:  # climb gently and stop at the top before racing
+        caps[0], ends[0] = min(track.climb_speed_mps, track.speed_mps), 0.0
     return np.concatenate(
         [
             route.ravel(),
             heads,
+            caps,
+            ends,
             [
                 track.acceptance_radius_m,
                 track.look_ahead_m,
@@ -141,20 +152,26 @@ def guidance(pos, seg, g, layout: GuidanceLayout):
     n, ns = layout.n_route, layout.n_seg
     route = ca.reshape(g[: 3 * n], 3, n)
     heads = g[3 * n : 3 * n + ns]
-    r_acc, look, speed, v_corner, brake = (g[3 * n + ns + i] for i in range(5))
+    caps = g[3 * n + ns : 3 * n + 2 * ns]
+    ends = g[3 * n + 2 * ns : 3 * n + 3 * ns]
+    r_acc, look, _speed, _v_corner, brake = (g[3 * n + 3 * ns + i] for i in range(5))
 
     def active(seg_index):
-        """Start, end and heading of segment ``seg_index`` (the last one once done)."""
+        """Start, end, heading, speed cap and end speed of segment ``seg_index`` (the last one
+        once done)."""
         a, b, h = route[:, ns - 1], route[:, ns], heads[ns - 1]
+        cap, end = caps[ns - 1], ends[ns - 1]
         for k in range(ns - 1, -1, -1):
             sel = seg_index <= k + 0.5
             a = ca.if_else(sel, route[:, k], a)
             b = ca.if_else(sel, route[:, k + 1], b)
             h = ca.if_else(sel, heads[k], h)
-        return a, b, h
+            cap = ca.if_else(sel, caps[k], cap)
+            end = ca.if_else(sel, ends[k], end)
+        return a, b, h, cap, end
 
     # switching on the segment that was active
-    a, b, _ = active(seg)
+    a, b, _, _, _ = active(seg)
     t_vec = b - a
     length = ca.norm_2(t_vec)
     s = ca.dot(pos - a, t_vec) / length
@@ -164,7 +181,7 @@ def guidance(pos, seg, g, layout: GuidanceLayout):
     seg_next = seg + ca.if_else(switch, 1, 0)
     done = seg_next > ns - 0.5
 
-    a, b, psi_ref = active(seg_next)
+    a, b, psi_ref, speed, v_corner = active(seg_next)
     t_vec = b - a
     length = ca.norm_2(t_vec)
     t_hat = t_vec / length

@@ -104,3 +104,14 @@ def test_split_time_interpolated_inside_sample(track):
     splits = split_times(t, x, seg, track.route, track)
     assert splits[0] == pytest.approx((49.0 - 45.003) / 10.0, abs=1e-9)
     assert np.isnan(splits[1:]).all()
+
+
+def test_climb_is_capped_and_brakes_to_rest_at_the_top(guide, track):
+    # halfway up the climb: the climb speed cap (5 m/s), straight up
+    _, v_ref, psi_ref, seg = guide([0.0, 0.0, 10.0], 0)
+    assert seg == 0
+    np.testing.assert_allclose(v_ref, [0, 0, track.climb_speed_mps], atol=1e-12)
+    assert psi_ref == pytest.approx(0.0)  # nose already points down the first straight
+    # 1.5 m below the top: braking to rest, v = sqrt(0 + 2 a d) = sqrt(2·6·1.5) = 4.24 m/s
+    _, v_ref, _, _ = guide([0.0, 0.0, 18.5], 0)
+    np.testing.assert_allclose(v_ref, [0, 0, math.sqrt(2 * 6 * 1.5)], atol=1e-12)

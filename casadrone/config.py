@@ -770,10 +770,20 @@ class ProblemConfig(Schema):
     seed: int = 1
     backend: BackendConfig = Field(default_factory=BackendConfig)
     test_problem: PymooProblemConfig | None = None
+    plugins: list[str] = Field(
+        default_factory=list,
+        description="modules or .py files imported in every process before evaluation "
+        "(e.g. to register custom indices)",
+    )
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
         found: list[tuple[str, str]] = []
+        for i, plugin in enumerate(v.get("plugins") or []):
+            try:
+                import_plugin(plugin)
+            except Exception as exc:  # noqa: BLE001 - any import failure is a config problem
+                found.append((f"plugins.{i}", f"cannot import '{plugin}': {exc}"))
         test = v.get("test_problem")
         if test is None:
             if v.get("airframe", 0) is None:
@@ -799,6 +809,37 @@ class ProblemConfig(Schema):
                 if key not in AirframeConfig.model_fields:
                     found.append((f"fixed.{key}", "not an airframe key"))
         return found
+
+
+_PLUGINS: dict[str, Any] = {}
+
+
+def import_plugin(plugin: str) -> Any:
+    """Import a plugin once per process: a module name, or a path to a ``.py`` file (relative
+    paths from the working directory, then the project root)."""
+    import importlib
+    import importlib.util
+
+    if plugin in _PLUGINS:
+        return _PLUGINS[plugin]
+    if plugin.endswith(".py"):
+        path = Path(plugin)
+        if not path.is_file():
+            path = ROOT / plugin
+        if not path.is_file():
+            raise FileNotFoundError(f"no such file: {plugin}")
+        name = f"casadrone_plugin_{path.stem}"
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        _PLUGINS[plugin] = module  # before exec: a failing plugin is not imported twice
+        try:
+            spec.loader.exec_module(module)
+        except Exception:
+            del _PLUGINS[plugin]
+            raise
+    else:
+        _PLUGINS[plugin] = importlib.import_module(plugin)
+    return _PLUGINS[plugin]
 
 
 SCHEMAS_BY_FOLDER["problems"] = ProblemConfig

@@ -99,6 +99,10 @@ def _setup(key: str, problem: ProblemConfig):
 
     if key in _SETUPS:
         return _SETUPS[key]
+    from casadrone.config import import_plugin
+
+    for plugin in problem.plugins:  # workers start fresh: register custom indices here too
+        import_plugin(plugin)
     template = load_airframe(problem.airframe)
     if problem.fixed:
         template = template.model_validate({**template.model_dump(), **problem.fixed})

@@ -92,24 +92,27 @@ class LQRIDesign:
     state_names: tuple[str, ...] = AUG_STATE_NAMES
 
 
-def certify(Acl: np.ndarray) -> tuple[np.ndarray, bool, float]:
-    """Eigenvalues, stability and the Lyapunov certificate of a discrete closed loop."""
+def certify(Acl: np.ndarray, lyapunov: bool = True) -> tuple[np.ndarray, bool, float]:
+    """Eigenvalues, stability and (if ``lyapunov``) the Lyapunov certificate of a discrete closed
+    loop; without it the certificate is NaN (the optimiser needs only the eigenvalues)."""
     eig = np.linalg.eigvals(Acl)
     stable = bool(np.max(np.abs(eig)) < 1.0)
-    if not stable:
+    if not stable or not lyapunov:
         return eig, False, float("nan")
     P = sla.solve_discrete_lyapunov(Acl.T, np.eye(Acl.shape[0]))
     return eig, stable, float(np.min(np.linalg.eigvalsh(0.5 * (P + P.T))))
 
 
-def design_lqri(linear_model: LinearModel, ctrl: ControllerConfig) -> LQRIDesign:
-    """Discrete LQR-I gain at period ``ctrl.sample_time_s`` for a linear model."""
+def design_lqri(linear_model: LinearModel, ctrl: ControllerConfig,
+                certificate: bool = True) -> LQRIDesign:
+    """Discrete LQR-I gain at period ``ctrl.sample_time_s`` for a linear model (``certificate``:
+    also solve the Lyapunov equation)."""
     Ts = ctrl.sample_time_s
     Aa, Ba = augment(*discretise(linear_model.A, linear_model.B, Ts), Ts)
     Q, R = weights(ctrl)
     S = sla.solve_discrete_are(Aa, Ba, Q, R)
     K = np.linalg.solve(R + Ba.T @ S @ Ba, Ba.T @ S @ Aa)
-    eig, stable, lmin = certify(Aa - Ba @ K)
+    eig, stable, lmin = certify(Aa - Ba @ K, certificate)
     return LQRIDesign(K=K, Ad=Aa, Bd=Ba, sample_time_s=Ts, x0=linear_model.x0,
                       u0=linear_model.u0, closed_loop_eigenvalues=eig, stable=stable,
                       lyapunov_min_eig=lmin, riccati=S)
@@ -120,6 +123,7 @@ def design_for(
     ctrl: ControllerConfig,
     reference: Airframe | None = None,
     operating_point=None,
+    certificate: bool = True,
 ) -> LQRIDesign:
     """The gain an airframe flies with under the controller's gain policy.
 
@@ -134,11 +138,11 @@ def design_for(
             raise ValueError("gain_policy 'frozen' needs the reference airframe")
         ref = _frozen_gain(reference, ctrl)
         Aa, Ba = plant(airframe, ctrl.sample_time_s, op)
-        eig, stable, lmin = certify(Aa - Ba @ ref.K)
+        eig, stable, lmin = certify(Aa - Ba @ ref.K, certificate)
         return dataclasses.replace(ref, Ad=Aa, Bd=Ba, x0=np.asarray(op.x0), u0=np.asarray(op.u0),
                                    closed_loop_eigenvalues=eig, stable=stable,
                                    lyapunov_min_eig=lmin)
-    return design_lqri(linearise(airframe, op), ctrl)
+    return design_lqri(linearise(airframe, op), ctrl, certificate)
 
 
 _FROZEN: dict[tuple, LQRIDesign] = {}
@@ -146,7 +150,7 @@ _FROZEN: dict[tuple, LQRIDesign] = {}
 
 def _frozen_gain(reference: Airframe, ctrl: ControllerConfig) -> LQRIDesign:
     """The reference airframe's design, computed once per process for a (reference, controller)."""
-    key = (reference.name, tuple(reference.p), ctrl.model_dump_json())
+    key = (reference.name, tuple(reference.p), ctrl)
     if key not in _FROZEN:
         _FROZEN[key] = design_lqri(linearise(reference, hover_point(reference)), ctrl)
     return _FROZEN[key]

@@ -21,7 +21,7 @@ import subprocess
 import tempfile
 import time
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import Literal
 
@@ -100,7 +100,7 @@ class Trajectory:
         """Time at the last waypoint (s), NaN if not reached."""
         return float(self.split_times[-1])
 
-    @property
+    @cached_property
     def waypoint_index(self) -> np.ndarray:
         """Index (0-based) of the waypoint being flown to at each sample; W once done."""
         first = self.extras.get("first_timed_segment", 0)
@@ -293,14 +293,16 @@ def initial_state(airframe: Airframe, design: LQRIDesign, track: TrackConfig):
     return x, np.zeros(NC)
 
 
-def _check(x: np.ndarray, t: np.ndarray, track: TrackConfig, margin: float) -> tuple[int, str]:
-    """First sample index at which the flight fails, and why (−1, "" when it does not)."""
+def _check(x: np.ndarray, t: np.ndarray, track: TrackConfig, margin: float,
+           airborne: bool) -> tuple[int, str, bool]:
+    """First sample of a chunk at which the flight fails and why (−1, "" when none), and whether
+    the vehicle has been airborne (more than 1 m up) by the chunk's end."""
     bad = ~np.all(np.isfinite(x), axis=1)
     tilt = np.radians(track.max_tilt_deg)
     over = (np.abs(x[:, 9]) > tilt) | (np.abs(x[:, 10]) > tilt)
     z0 = track.start_position_m[2]
-    airborne = np.maximum.accumulate(x[:, 2] - z0 > 1.0)
-    ground = (x[:, 2] < z0 - margin) | (airborne & (x[:, 2] < z0 + 0.0))
+    up = np.logical_or.accumulate(x[:, 2] - z0 > 1.0) | airborne
+    ground = (x[:, 2] < z0 - margin) | (up & (x[:, 2] < z0))
     for mask, why in ((bad, "non-finite state (diverged)"), (over, "attitude beyond limit"),
                       (ground, "ground strike")):
         if mask.any():
@@ -309,8 +311,48 @@ def _check(x: np.ndarray, t: np.ndarray, track: TrackConfig, margin: float) -> t
             if why == "attitude beyond limit":
                 reason = (f"attitude beyond {track.max_tilt_deg:g} deg (roll "
                           f"{np.degrees(x[k, 9]):.0f}, pitch {np.degrees(x[k, 10]):.0f} deg)")
-            return k, f"{reason} at t = {t[k]:.2f} s"
-    return -1, ""
+            return k, f"{reason} at t = {t[k]:.2f} s", bool(up[-1])
+    return -1, "", bool(up[-1])
+
+
+def _rk4_chunks(kernel: LapKernel, x, c, args):
+    """Chunks (X, C, U, REF) of the compiled RK4 closed loop, without end."""
+    while True:
+        xs, cs, us, refs = kernel(x, c, *args)
+        X = np.vstack([x[None, :], xs[:-1]])
+        x, c = xs[-1].copy(), cs[-1].copy()
+        yield X, cs.copy(), us.copy(), refs.copy(), ""
+
+
+def _sundials_chunks(kind: str, airframe: Airframe, x, c, args, Ts, n_route, options):
+    """Chunks of the closed loop with a SUNDIALS plant, one controller sample at a time; a
+    solver error ends the flight with a non-finite state and its message."""
+    ctrl = controller_function(Ts, n_route)
+    plant = sundials_integrator(kind, Ts, options.rtol, options.atol)
+    f = quadrotor_model().f
+    while True:
+        X, C, U, R = (np.empty((options.chunk, n)) for n in (NX, NC, NU, NREF))
+        error = ""
+        for k in range(options.chunk):
+            X[k] = x
+            u, c, ref = (np.array(a).ravel() for a in ctrl(x, c, *args))
+            C[k], U[k], R[k] = c, u, ref
+            up = np.concatenate([u, airframe.p])
+            try:
+                if kind == "cvodes":
+                    x = np.array(plant(x0=x, p=up)["xf"]).ravel()
+                else:
+                    z0 = np.array(f(x, u, airframe.p)).ravel()
+                    x = np.array(plant(x0=x, z0=z0, p=up)["xf"]).ravel()
+            except RuntimeError as exc:
+                x = np.full(NX, np.nan)
+                error = f"{kind} failed: {str(exc).splitlines()[-1][:120]}"
+            if not np.all(np.isfinite(x)):
+                X[k + 1 :] = np.nan
+                break
+        yield X[: k + 1] if error else X, C, U, R, error
+        if error:
+            return
 
 
 def simulate(
@@ -330,71 +372,32 @@ def simulate(
     args = [airframe.p, design.x0, design.u0, design.K, track_vector(track)]
     x, c = initial_state(airframe, design, track)
     n_max = int(np.ceil(track.time_limit_s / Ts))
-    X, C, U, REF = [], [], [], []
-    n_done, status, reason = 0, "failed", f"time-out: lap not finished in {track.time_limit_s:g} s"
-
     if integrator == "rk4":
-        kernel = lap_kernel(Ts, options.substeps, n_route, options.chunk)
+        chunks = _rk4_chunks(lap_kernel(Ts, options.substeps, n_route, options.chunk), x, c, args)
     else:
-        ctrl = controller_function(Ts, n_route)
-        plant = sundials_integrator(integrator, Ts, options.rtol, options.atol)
+        chunks = _sundials_chunks(integrator, airframe, x, c, args, Ts, n_route, options)
 
-    while n_done < n_max:
-        if integrator == "rk4":
-            xs, cs, us, refs = kernel(x, c, *args)
-            Xc = np.vstack([x[None, :], xs[:-1]])
-            x, c = xs[-1].copy(), cs[-1].copy()
-            C.append(cs.copy())
-            U.append(us.copy())
-            REF.append(refs.copy())
-            X.append(Xc)
-            n_new = len(xs)
-        else:
-            n_new = min(options.chunk, n_max - n_done)
-            Xc = np.empty((n_new, NX))
-            for k in range(n_new):
-                Xc[k] = x
-                u, c_next, ref = (np.array(a).ravel() for a in ctrl(x, c, *args))
-                try:
-                    if integrator == "cvodes":
-                        x = np.array(plant(x0=x, p=np.concatenate([u, airframe.p]))["xf"]).ravel()
-                    else:
-                        z0 = np.array(quadrotor_model().f(x, u, airframe.p)).ravel()
-                        x = np.array(plant(x0=x, z0=z0, p=np.concatenate([u, airframe.p]))["xf"]).ravel()
-                except RuntimeError as exc:
-                    x = np.full(NX, np.nan)
-                    reason = f"{integrator} failed: {str(exc).splitlines()[-1][:120]}"
-                c = c_next
-                C.append(c_next[None, :])
-                U.append(u[None, :])
-                REF.append(ref[None, :])
-                if not np.all(np.isfinite(x)):
-                    Xc = Xc[: k + 1]
-                    break
-            X.append(Xc)
-            n_new = len(Xc)
-        n_done += n_new
-        t_all = np.arange(n_done) * Ts
-        X_all = np.vstack(X)
-        k_fail, why = _check(X_all, t_all, track, options.ground_margin_m)
-        seg_all = np.vstack(C)[:, 4]
-        done = np.flatnonzero(seg_all > n_seg - 0.5)
+    parts: list[tuple[np.ndarray, ...]] = []
+    n_done, airborne = 0, False
+    status, reason = "failed", f"time-out: lap not finished in {track.time_limit_s:g} s"
+    for X, C, U, R, error in chunks:
+        t = (n_done + np.arange(len(X))) * Ts
+        k_fail, why, airborne = _check(X, t, track, options.ground_margin_m, airborne)
+        done = np.flatnonzero(C[: len(X), 4] > n_seg - 0.5)
         k_done = int(done[0]) if done.size else -1
         if k_fail >= 0 and (k_done < 0 or k_fail <= k_done):
-            status, reason, n_keep = "failed", why, k_fail + 1
+            status, reason, n = "failed", error or why, k_fail + 1
+        elif k_done >= 0:
+            status, reason, n = "completed", "", k_done + 1
+        else:
+            n = min(len(X), n_max - n_done)
+        parts.append((X[:n], C[:n], U[:n], R[:n]))
+        n_done += n
+        if k_fail >= 0 or k_done >= 0 or n_done >= n_max:
             break
-        if k_done >= 0:
-            status, reason, n_keep = "completed", "", k_done + 1
-            break
-        if not np.all(np.isfinite(x)):
-            status, n_keep = "failed", n_done
-            break
-    else:
-        n_keep = n_max
 
-    X_all = np.vstack(X)[:n_keep]
-    C_all, U_all, R_all = (np.vstack(a)[:n_keep] for a in (C, U, REF))
-    t = np.arange(n_keep) * Ts
+    X_all, C_all, U_all, R_all = (np.vstack(p) for p in zip(*parts, strict=True))
+    t = np.arange(n_done) * Ts
     seg = np.rint(C_all[:, 4]).astype(int)
     splits = split_times(t, X_all, seg, route, track)
     return Trajectory(

@@ -8,6 +8,7 @@ inside the commands, so ``casadrone validate`` stays fast.
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 from enum import StrEnum
@@ -245,7 +246,8 @@ def trim(
     """Trim an airframe in hover or level forward flight; --solver all compares the solvers."""
     speed_mps = _check_speed(condition.value, speed)
     cfg, frame = load_airframe_or_exit(airframe, overrides)
-    from casadrone import trim as trim_mod
+    # the module, not the package attribute: ``casadrone.trim`` is also the public function
+    trim_mod = importlib.import_module("casadrone.trim")
 
     if solver is TrimSolver.all:
         points = trim_mod.trim_all(frame, condition.value, speed_mps)
@@ -348,7 +350,7 @@ def linearise(
     """Linearise about the (ipopt) trim point: E, A′, B′ and A, B with state and input names."""
     speed_mps = _check_speed(condition.value, speed)
     cfg, frame = load_airframe_or_exit(airframe, overrides)
-    from casadrone import linearise as lin_mod
+    lin_mod = importlib.import_module("casadrone.linearise")  # the module, as in trim
     from casadrone.trim import trim as trim_fn
 
     tp = trim_fn(frame, condition.value, speed_mps, "ipopt")

@@ -276,3 +276,257 @@ def test_lqr_missing_reference_exits_2(cli_runner):
 
 def test_lqr_ensemble_must_be_positive(cli_runner):
     assert run(cli_runner, "lqr", "SY250", "--ensemble", "0").exit_code == 2
+
+
+def test_lqr_plot_saves_robustness_figures(cli_runner, tmp_path):
+    out = run_json(cli_runner, "lqr", "SY250", "--ensemble", "3", "--plot", tmp_path / "figs")
+    names = ("eigenvalue-cloud", "disturbance-responses")
+    expected = [str(tmp_path / "figs" / f"{n}.{ext}") for n in names for ext in ("png", "svg")]
+    assert out["figures"] == expected and out["ensemble_n"] == 3
+    assert all(Path(p).stat().st_size > 0 for p in expected)
+
+
+def test_lqr_plot_into_a_file_exits_2(cli_runner, tmp_path):
+    (tmp_path / "f").write_text("")
+    result = run(cli_runner, "lqr", "SY250", "--plot", tmp_path / "f")
+    assert result.exit_code == 2 and "--plot" in result.stderr and "not a folder" in result.stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# simulate
+# ---------------------------------------------------------------------------------------------
+
+INTERVAL_KEYS = {"waypoint", "split_time_s", "effort_V", "pair_thrust_max_N", "pair_thrust_min_N"}
+
+
+def test_simulate_json_shape_and_values(cli_runner):
+    out = run_json(cli_runner, "simulate", "SY250")
+    assert out["status"] == "completed" and out["reason"] == "" and out["integrator"] == "rk4"
+    assert out["track"] == "paper-rectangle" and out["controller"] == "default"
+    assert set(out["indices"]) == {"J1", "J2", "J3", "J4", "J5", "Jp"}
+    assert out["index_units"]["J3"] == "s"
+    intervals = out["intervals"]
+    assert [i["waypoint"] for i in intervals] == [1, 2, 3, 4]
+    assert all(set(i) == INTERVAL_KEYS for i in intervals)
+    splits = [i["split_time_s"] for i in intervals]
+    assert np.all(np.diff(splits) > 0)
+    assert out["indices"]["J3"] == splits[-1]  # the lap time is the last split, exactly
+    assert out["indices"]["J1"] > out["indices"]["J2"] > 0
+    assert all(i["pair_thrust_min_N"] <= i["pair_thrust_max_N"] for i in intervals)
+    assert out["wall_time_s"] > 0
+
+
+def test_simulate_same_chain_as_evaluate_and_overrides_apply(cli_runner):
+    from casadrone.config import load_airframe
+    from casadrone.evaluate import default_setup, evaluate, theta_of
+
+    out = run_json(cli_runner, "simulate", "SY250", "alpha_deg=80", "beta_deg=85")
+    cfg = load_airframe("SY250", ["alpha_deg=80", "beta_deg=85"])
+    ev = evaluate(theta_of(cfg), default_setup())
+    assert out["indices"] == ev.indices
+
+
+def test_simulate_too_heavy_airframe_is_a_failed_lap_not_an_error(cli_runner):
+    # 3 kg hovers (weight 29.4 N below the rotors' 36.2 N) but cannot fly the track
+    out = run_json(cli_runner, "simulate", "SY250", "mass_kg=3")
+    assert out["status"] == "failed" and out["stage"] in {"trim", "control", "lap"}
+    assert out["reason"] and out["indices"] == {} and out["intervals"] == []
+    text = run(cli_runner, "simulate", "SY250", "mass_kg=3")
+    assert text.exit_code == 0 and "lap FAILED" in text.stdout
+
+
+def test_simulate_airframe_that_cannot_hover_is_bad_input(cli_runner):
+    # 4 kg: weight 39.2 N above the four rotors' full thrust, rejected by the config check
+    result = run(cli_runner, "simulate", "SY250", "mass_kg=4")
+    assert result.exit_code == 2
+    assert "mass_kg: cannot hover" in result.stderr and "[override mass_kg=4]" in result.stderr
+    assert "Traceback" not in result.output
+
+
+def test_simulate_text_and_plots(cli_runner, tmp_path):
+    result = run(cli_runner, "simulate", "HS200", "--plot", tmp_path)
+    assert result.exit_code == 0, result.output
+    assert "HS200: track paper-rectangle" in result.stdout and "lap completed" in result.stdout
+    for name in ("track-top-view", "track-3d", "time-histories"):
+        for ext in ("png", "svg"):
+            assert (tmp_path / f"{name}.{ext}").stat().st_size > 0
+
+
+def test_simulate_track_and_controller_options(cli_runner, tmp_path):
+    track = tmp_path / "short.yaml"
+    text = (ROOT / "configs" / "tracks" / "paper-rectangle.yaml").read_text()
+    track.write_text(text.replace("time_limit_s: 60.0", "time_limit_s: 2.0"))
+    out = run_json(cli_runner, "simulate", "SY250", "--track", track, "--controller", "default")
+    assert out["status"] == "failed" and "time-out" in out["reason"]
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["SY250", "--track", "nowhere"], "nowhere: file not found"),
+    (["SY250", "--controller", BAD / "controller_bad_weights.yaml"], "r.1: Input should be"),
+    (["SY250", "--integrator", "euler"], ""),
+    (["SY250", "alpha_dg=80"], "did you mean 'alpha_deg'"),
+])
+def test_simulate_bad_input_exits_2(cli_runner, args, expected):
+    result = run(cli_runner, "simulate", *args)
+    assert result.exit_code == 2
+    assert expected in result.stderr and "Traceback" not in result.output
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("integrator", ["cvodes", "idas"])
+def test_simulate_reference_integrators_agree_with_rk4(cli_runner, integrator):
+    fast = run_json(cli_runner, "simulate", "SY250")
+    ref = run_json(cli_runner, "simulate", "SY250", "--integrator", integrator)
+    assert ref["integrator"] == integrator and ref["status"] == "completed"
+    for name, value in fast["indices"].items():
+        assert ref["indices"][name] == pytest.approx(value, rel=1e-3, abs=1e-3), name
+
+
+# ---------------------------------------------------------------------------------------------
+# benchmark
+# ---------------------------------------------------------------------------------------------
+
+
+def test_benchmark_json_five_airframes(cli_runner):
+    out = run_json(cli_runner, "benchmark")
+    assert out["integrator"] == "rk4"
+    assert [r["airframe"] for r in out["rows"]] == ["SY250", "SY220", "HS200", "HS210", "NSY200"]
+    for r in out["rows"]:
+        assert r["status"] == "completed", r["reason"]
+        assert len(r["simulated"]) == 4 and len(r["measured"]["split_times_s"]) == 4
+        assert r["lap_time_s"] == r["simulated"][-1]["split_time_s"] == r["indices"]["J3"]
+    text = run(cli_runner, "benchmark")
+    assert text.exit_code == 0 and text.stdout.startswith("Table-4-style benchmark")
+
+
+# ---------------------------------------------------------------------------------------------
+# run, resume, decide, compare, report: bad input (the real runs are in
+# tests/integration/test_cli_optimise.py)
+# ---------------------------------------------------------------------------------------------
+
+QUICK = ROOT / "problems" / "quick.yaml"
+
+
+@pytest.mark.parametrize("args, expected", [
+    ([BAD / "bounds_inverted.yaml"], "variables.1.lower: lower bound 90.0 is not below"),
+    ([QUICK, "objectives.0.index=J9"], "objectives.0.index: unknown index 'J9'"),
+    ([QUICK, "algorithm.population"], "expected key=value"),
+    ([QUICK, "algorithm.nmae=evmoga"], "algorithm.nmae: unknown key"),
+    ([ROOT / "problems" / "nowhere.yaml"], "nowhere.yaml: file not found"),
+    ([QUICK, "--backend", "serial", "--scheduler", "tcp://127.0.0.1:1"],
+     "--scheduler: only with --backend dask"),
+    ([QUICK, "--quiet", "--verbose"], "--quiet and --verbose"),
+    ([QUICK, "-j", "0"], ""),
+    ([QUICK, "--backend", "cluster"], ""),
+])
+def test_run_bad_input_exits_2(cli_runner, tmp_path, args, expected):
+    result = run(cli_runner, "run", *args, "--out", tmp_path / "run")
+    assert result.exit_code == 2, result.output
+    assert expected in result.stderr and "Traceback" not in result.output
+    assert not (tmp_path / "run").exists()  # nothing started
+
+
+def test_run_needs_out(cli_runner):
+    result = run(cli_runner, "run", QUICK)
+    assert result.exit_code == 2 and "--out" in result.stderr
+
+
+def test_run_into_an_existing_run_exits_2(cli_runner, tmp_path):
+    (tmp_path / "manifest.json").write_text("{}")
+    result = run(cli_runner, "run", QUICK, "--out", tmp_path)
+    assert result.exit_code == 2
+    assert f"--out: {tmp_path}: already holds a run; resume it with" in result.stderr
+
+
+def test_dask_backend_without_extra_exits_2(cli_runner, tmp_path, monkeypatch):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "distributed" else real(name, *a))
+    result = run(cli_runner, "run", QUICK, "--backend", "dask", "--out", tmp_path / "run")
+    assert result.exit_code == 2
+    assert "--backend: name: backend 'dask' needs the dask extra" in result.stderr
+
+
+def make_run_dir(path: Path, finished: bool = True, checkpoint: bool = False) -> Path:
+    """A run directory of the quick problem with a hand-made two-design front."""
+    from casadrone.config import load_problem
+    from casadrone.optimise.problem import Study
+    from casadrone.optimise.store import RunStore
+
+    problem = load_problem(QUICK, ["objectives=[{index: J3, sense: min}, {index: J4}]"])
+    study = Study(problem)
+    store = RunStore.create(path, problem, study.variable_names, study.objective_names, "serial")
+    if checkpoint:
+        store.save_checkpoint({"algorithm": None})
+    if finished:
+        X = np.array([[120.0, 125.0, 85.0, 80.0, 0.0021, 0.0017, 0.0036],
+                      [125.0, 125.0, 90.0, 90.0, 0.0022, 0.0017, 0.0036]])
+        store.write_pareto(study.variable_names, study.objective_names, X,
+                           np.array([[16.5, 14.0], [16.6, 15.0]]))
+        store.update_manifest(status="completed", n_evaluations=2, finished="2026-01-01")
+    return path
+
+
+@pytest.mark.parametrize("command", ["resume", "decide", "compare", "report"])
+def test_run_dir_commands_on_a_missing_or_foreign_dir_exit_2(cli_runner, tmp_path, command):
+    missing = run(cli_runner, command, tmp_path / "nowhere")
+    assert missing.exit_code == 2
+    assert missing.stderr == f"{tmp_path / 'nowhere'}: no such run directory\n"
+    foreign = run(cli_runner, command, tmp_path)
+    assert foreign.exit_code == 2
+    assert f"{tmp_path}: not a run directory (no config.yaml, manifest.json)" in foreign.stderr
+    damaged = make_run_dir(tmp_path / "damaged")
+    (damaged / "config.yaml").write_text("name: [unclosed\n")
+    bad = run(cli_runner, command, damaged)
+    assert bad.exit_code == 2 and "config.yaml: not a valid resolved problem" in bad.stderr
+    assert "Traceback" not in missing.output + foreign.output + bad.output
+
+
+def test_resume_of_a_finished_run_reports_it_complete(cli_runner, tmp_path):
+    d = make_run_dir(tmp_path / "run")
+    before = (d / "manifest.json").read_text()
+    result = run(cli_runner, "resume", d)
+    assert result.exit_code == 0, result.output
+    assert result.stdout.startswith(f"{d}: the run is already complete (finished 2026-01-01)")
+    assert "Pareto front: 2 design(s) from 2 evaluations" in result.stdout
+    assert (d / "manifest.json").read_text() == before  # untouched
+
+
+def test_resume_without_checkpoint_exits_2(cli_runner, tmp_path):
+    d = make_run_dir(tmp_path / "run", finished=False)
+    result = run(cli_runner, "resume", d)
+    assert result.exit_code == 2 and "no checkpoint.pkl" in result.stderr
+
+
+def test_decide_unfinished_run_and_unknown_objective_exit_2(cli_runner, tmp_path):
+    d = make_run_dir(tmp_path / "running", finished=False)
+    result = run(cli_runner, "decide", d)
+    assert result.exit_code == 2 and "no pareto.csv: the run has not finished" in result.stderr
+    done = make_run_dir(tmp_path / "done")
+    result = run(cli_runner, "decide", done, "--objective", "J9")
+    assert result.exit_code == 2
+    assert f"{done}: unknown objective 'J9'; objectives of this run: J3, J4" in result.stderr
+    assert run(cli_runner, "decide", done, "--method", "nearest").exit_code == 2
+
+
+def test_decide_on_a_hand_made_front(cli_runner, tmp_path):
+    d = make_run_dir(tmp_path / "run")
+    out = json.loads(run(cli_runner, "decide", d, "--json").stdout)
+    assert [c["method"] for c in out] == ["utopian", "compromise", "extreme"]
+    assert [c["candidate"] for c in out] == ["A", "B", "C"]
+    # J3 min and J4 max conflict: extreme on J3 (the first objective) is row 0
+    assert out[2]["row"] == 0 and out[2]["objective"] == "J3"
+    assert out[2]["objectives"] == {"J3": 16.5, "J4": 14.0}
+    (j4,) = json.loads(run(cli_runner, "decide", d, "--method", "extreme", "--objective", "J4",
+                           "--json").stdout)
+    assert j4["row"] == 1 and j4["theta"]["alpha_deg"] == 90.0
+    text = run(cli_runner, "decide", d)
+    assert text.exit_code == 0 and text.stdout.startswith("A utopian: pareto.csv row")
+
+
+def test_compare_bad_reference_exits_2(cli_runner, tmp_path):
+    d = make_run_dir(tmp_path / "run")
+    result = run(cli_runner, "compare", d, "--reference", "SY25")
+    assert result.exit_code == 2 and "did you mean 'SY250'" in result.stderr

@@ -35,6 +35,7 @@ from pymoo.termination.max_eval import MaximumFunctionCallTermination
 from pymoo.termination.max_gen import MaximumGenerationTermination
 from pymoo.util.display.multi import MultiObjectiveOutput
 from pymoo.util.nds.non_dominated_sorting import NonDominatedSorting
+from pymoo.util.optimum import filter_optimum
 
 __all__ = [
     "EvMOGA",
@@ -127,6 +128,10 @@ class EvMOGA(Algorithm):
         generations: Number of ev-MOGA generations G (drives the dd/σ schedule). If ``None`` it is
             derived from the termination (see the module docstring).
         **kwargs: Passed to ``pymoo.core.algorithm.Algorithm`` (termination, callback, ...).
+
+    The result (``self.opt``, ``minimize(...).X / .F``) is the archive A; while A is empty (no
+    feasible solution yet) ``self.opt`` is the least infeasible member of P, as in pymoo, and the
+    result's X / F are ``None`` unless ``return_least_infeasible=True``.
 
     After ``setup`` the archive is exposed as ``archive_pop`` (Population), ``archive_F``
     (objectives), ``archive_box`` (box indices), and the grid as ``grid_min``, ``grid_max``,
@@ -265,7 +270,10 @@ class EvMOGA(Algorithm):
                 self.pop_F[j], self.pop_cv[j] = F[i], cv[i]
 
     def _set_optimum(self) -> None:
-        self.opt = self.archive_pop.copy()  # a snapshot: A is edited in place later
+        if len(self.archive_pop):
+            self.opt = self.archive_pop.copy()  # a snapshot: A is edited in place later
+        else:  # nothing feasible yet: pymoo's convention, the least infeasible member of P
+            self.opt = filter_optimum(self.pop, least_infeasible=True)
 
     # ---- archive ------------------------------------------------------------------------------
 

@@ -387,6 +387,18 @@ def test_feasibility_first_on_constrained_toy():
     assert res.F[:, 0].min() < 0.55 and res.F[:, 0].max() > 0.95
 
 
+def test_verbose_display_before_and_after_the_first_feasible_point(capsys):
+    res = minimize(
+        CornerProblem(), EvMOGA(n_ind_p=10, n_div=20, generations=300), seed=1, verbose=True
+    )
+    out = capsys.readouterr().out
+    assert "n_nds" in out and "cv_min" in out and len(out.splitlines()) >= 301
+    assert res.F is not None and np.all(res.CV <= 0.0)
+    # no feasible point ever: the result is empty, as in pymoo
+    res = minimize(CornerProblem(), EvMOGA(n_ind_p=10, generations=1), seed=1)
+    assert res.F is None
+
+
 def test_nonfinite_objectives_are_infeasible():
     class Holey(Problem):
         def __init__(self):

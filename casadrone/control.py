@@ -98,7 +98,7 @@ def certify(Acl: np.ndarray, lyapunov: bool = True) -> tuple[np.ndarray, bool, f
     eig = np.linalg.eigvals(Acl)
     stable = bool(np.max(np.abs(eig)) < 1.0)
     if not stable or not lyapunov:
-        return eig, False, float("nan")
+        return eig, stable, float("nan")
     P = sla.solve_discrete_lyapunov(Acl.T, np.eye(Acl.shape[0]))
     return eig, stable, float(np.min(np.linalg.eigvalsh(0.5 * (P + P.T))))
 

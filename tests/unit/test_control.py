@@ -114,6 +114,16 @@ def test_certificate_rejects_unstable_loop():
     assert not stable and np.isnan(lmin)
 
 
+def test_stability_without_certificate():
+    """Skipping the Lyapunov solve (the optimiser's path) must not change the verdict."""
+    assert certify(np.diag([0.5, 0.99]), lyapunov=False)[1]
+    assert not certify(np.diag([0.5, 1.01]), lyapunov=False)[1]
+    a = build_airframe(load_airframe("HS200"))
+    ctrl = load_controller()
+    d = design_for(a, ctrl, certificate=False)
+    assert d.stable and np.isnan(d.lyapunov_min_eig)
+
+
 def test_frozen_policy_uses_reference_gain_on_own_plant():
     cfg = ControllerConfig(gain_policy="frozen", reference_airframe="configs/airframes/SY250.yaml")
     ref = build_airframe(load_airframe("SY250"))

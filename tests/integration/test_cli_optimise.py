@@ -83,6 +83,20 @@ def test_run_prints_the_directory_and_a_front_summary(tiny_run):
     assert config["algorithm"]["generations"] == 4
 
 
+def test_run_verbose_and_progress(cli_runner, tmp_path):
+    out = tmp_path / "run"
+    result = invoke(cli_runner, "run", QUICK, *TINY, "--backend", "serial", "-v", "--out", out)
+    assert result.exit_code == 0, result.output
+    err = result.stderr.splitlines()
+    assert err[0].startswith("problem quick: 7 variables, objectives J1 (max)")
+    assert "backend serial (1 worker(s))" in err[0] and err[0].endswith(f"-> {out}")
+    gens = [ln for ln in err if ln.startswith("gen ")]  # one line per generation, no bar
+    assert [ln.split()[1] for ln in gens] == [f"{g}/4" for g in range(5)]
+    n = POPULATION + 4 * CHILDREN
+    assert any(ln.endswith(f"of {n} evaluations completed") for ln in err)
+    assert result.stdout.startswith(f"run directory: {out}")
+
+
 def test_decide_json_reproduces_pareto_rows(cli_runner, tiny_run):
     out, _ = tiny_run
     result = invoke(cli_runner, "decide", out, "--json")

@@ -530,3 +530,30 @@ def test_compare_bad_reference_exits_2(cli_runner, tmp_path):
     d = make_run_dir(tmp_path / "run")
     result = run(cli_runner, "compare", d, "--reference", "SY25")
     assert result.exit_code == 2 and "did you mean 'SY250'" in result.stderr
+
+
+def test_report_calls_write_report(cli_runner, tmp_path, monkeypatch):
+    import types
+
+    calls = []
+
+    def write_report(run_dir, references=("SY250",), out=None):
+        calls.append((Path(run_dir), references, out))
+        return Path(out or Path(run_dir) / "report.html")
+
+    monkeypatch.setitem(sys.modules, "casadrone.report",
+                        types.SimpleNamespace(write_report=write_report))
+    d = make_run_dir(tmp_path / "run")
+    result = run(cli_runner, "report", d)
+    assert result.exit_code == 0 and result.stdout == f"{d / 'report.html'}\n"
+    result = run(cli_runner, "report", d, "--reference", "SY250", "--reference", "NSY200",
+                 "--out", tmp_path / "r.html")
+    assert result.exit_code == 0 and result.stdout == f"{tmp_path / 'r.html'}\n"
+    assert calls == [(d, ("SY250",), None), (d, ("SY250", "NSY200"), tmp_path / "r.html")]
+
+
+def test_report_without_the_report_module_exits_1(cli_runner, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "casadrone.report", None)  # import raises ImportError
+    result = run(cli_runner, "report", make_run_dir(tmp_path / "run"))
+    assert result.exit_code == 1, result.output
+    assert "casadrone.report is not available" in result.stderr

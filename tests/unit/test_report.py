@@ -1,0 +1,228 @@
+"""The HTML run report: every section, embedded figures, no external reference, the candidates'
+θ as stored, the figure files, and an empty front reported rather than crashing."""
+
+from __future__ import annotations
+
+import base64
+import re
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from casadrone.benchmark import run_candidates
+from casadrone.config import BackendConfig, load_problem
+from casadrone.decide import decide
+from casadrone.optimise.runner import run
+from casadrone.optimise.store import RunStore
+from casadrone.report import (
+    choose_candidates,
+    convergence_history,
+    failure_groups,
+    feasible_front,
+    num,
+    read_run,
+    reason_group,
+    write_report,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+SECTIONS = ("problem", "convergence", "pareto", "candidates", "airframes", "failures", "trim")
+TINY = ["algorithm.population=16", "algorithm.generations=2", "algorithm.settings.n_ind_ga=8"]
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+EXTERNAL = re.compile(r'src="http|href="http|url\(|<link|<script src', re.IGNORECASE)
+IMG = re.compile(r'<img src="data:image/png;base64,([A-Za-z0-9+/=]+)"')
+
+
+def make_run(path: Path, overrides: list[str]) -> Path:
+    problem = load_problem(ROOT / "problems" / "quick.yaml", TINY + overrides)
+    run(problem, path, BackendConfig(name="serial"), quiet=True)
+    return path
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory) -> tuple[Path, str]:
+    """A tiny quick.yaml run and its report."""
+    run_dir = make_run(tmp_path_factory.mktemp("run") / "quick", [])
+    path = write_report(run_dir)
+    return run_dir, path.read_text(encoding="utf-8")
+
+
+def require_front(run_dir: Path) -> None:
+    """Fail with the reason when the tiny run found no feasible design (a broken chain)."""
+    if not RunStore(run_dir).read_pareto()[1]:
+        groups = failure_groups(RunStore(run_dir).history())
+        pytest.fail("the tiny quick.yaml run has an empty front, the evaluation chain upstream of "
+                    f"the report is broken; failures (stage, reason, count): "
+                    f"{[g[:3] for g in groups]}")
+
+
+def section(html: str, name: str) -> str:
+    start = html.index(f'<section id="{name}">')
+    return html[start:html.index("</section>", start)]
+
+
+def test_report_is_written_in_the_run_directory(report):
+    run_dir, _ = report
+    assert (run_dir / "report.html").is_file()
+
+
+def test_every_section_with_a_heading(report):
+    _, html = report
+    for name in SECTIONS:
+        assert re.search(rf'<section id="{name}"><h2>', html), name
+    assert html.count("<section ") == len(SECTIONS)
+
+
+def test_figures_are_embedded_png(report):
+    run_dir, html = report
+    images = IMG.findall(html)
+    assert len(images) >= 3  # convergence, failures, trim: even for an empty front
+    png = base64.b64decode(images[0])
+    assert png[:8] == PNG_MAGIC
+    assert png[12:16] == b"IHDR"
+    width, height = struct.unpack(">II", png[16:24])
+    assert width >= 300 and height >= 200
+    assert png == (run_dir / "plots" / "convergence.png").read_bytes()
+
+
+def test_no_external_reference(report):
+    _, html = report
+    assert EXTERNAL.search(html) is None
+    assert "<script" not in html
+
+
+def test_figure_files_exist_as_png_and_svg(report):
+    run_dir, html = report
+    names = re.findall(r"\(plots/([\w.-]+)\.png, \.svg\)", html)
+    assert len(names) == len(IMG.findall(html))
+    for name in names:
+        png, svg = run_dir / "plots" / f"{name}.png", run_dir / "plots" / f"{name}.svg"
+        assert png.read_bytes()[:8] == PNG_MAGIC
+        assert svg.read_text(encoding="utf-8").lstrip().startswith("<?xml")
+        assert "<svg" in svg.read_text(encoding="utf-8")
+
+
+def test_candidate_theta_equals_pareto_rows(report):
+    run_dir, html = report
+    require_front(run_dir)
+    header, rows = RunStore(run_dir).read_pareto()
+    names = header[:7]
+    cands = choose_candidates(read_run(run_dir))
+    assert {m for c in cands for m in c.methods} == {"utopian", "compromise", "extreme"}
+    part = section(html, "candidates")
+    for c in cands:
+        start = part.index(f'id="candidate-{c.label}"')
+        theta = part[start:part.index("</table>", start)]
+        values = [float(v) for v in re.findall(r'data-value="([^"]+)"', theta)]
+        assert values == rows[c.row][:7]  # exact: repr round trip
+        shown = re.findall(r'data-value="[^"]+">([^<]+)<', theta)
+        np.testing.assert_allclose([float(v) for v in shown], rows[c.row][:7], rtol=1e-4)
+        assert f"Row {c.row} of the front" in part[start:]
+        for n in names:
+            assert f"<td>{n}</td>" in theta
+    # per candidate: top view and time histories; the airframes over SY250
+    assert len(IMG.findall(part)) >= 2 * len(cands)
+    assert len(IMG.findall(section(html, "airframes"))) == 1
+
+
+def test_candidates_match_the_decisions(report):
+    run_dir, _ = report
+    require_front(run_dir)
+    r = read_run(run_dir)
+    cands = choose_candidates(r)
+    by_method = {m: c.row for c in cands for m in c.methods}
+    senses = r.study.senses
+    assert by_method["utopian"] == decide(r.F, senses, "utopian").index
+    assert by_method["compromise"] == decide(r.F, senses, "compromise").index
+    assert by_method["extreme"] == decide(r.F, senses, "extreme", 0).index
+    same = {(d.method, d.row) for d in run_candidates(run_dir)}  # `casadrone decide` agrees
+    assert same == {(m, c.row) for c in cands for m in c.methods}
+    labels = {m: c.label for c in cands for m in c.methods}
+    assert labels["utopian"].startswith("A")  # paper: A utopian, B trade-off, C extreme
+    assert "C" in labels["extreme"] and "B" in labels["compromise"]
+
+
+def test_candidates_reproduce_the_stored_objectives(report):
+    run_dir, html = report
+    require_front(run_dir)
+    part = section(html, "candidates")
+    assert "every objective reproduces pareto.csv" in part
+
+
+def test_convergence_is_monotone_and_ends_on_the_non_dominated_set(report):
+    run_dir, _ = report
+    require_front(run_dir)
+    r = read_run(run_dir)
+    ch = convergence_history(r)
+    assert list(ch.generations) == [g["generation"] for g in r.generations]
+    assert np.all(np.diff(ch.hypervolume) >= -1e-12)
+    assert ch.hypervolume[-1] > 0
+    _, F, ok = feasible_front(r.study, r.history)
+    P = np.unique(F[ok], axis=0)  # brute-force oracle of the final non-dominated set
+    dominated = [any(np.all(q <= p) and np.any(q < p) for q in P) for p in P]
+    assert ch.n_non_dominated[-1] == len(P) - sum(dominated)
+    np.testing.assert_allclose(ch.ideal, P.min(axis=0), rtol=0, atol=0)
+    sparse = convergence_history(r, max_points=1)  # 3 generations: first and last only
+    assert np.isnan(sparse.hypervolume[1])
+    np.testing.assert_allclose(sparse.hypervolume[[0, 2]], ch.hypervolume[[0, 2]], rtol=1e-12)
+    np.testing.assert_array_equal(sparse.n_non_dominated, ch.n_non_dominated)
+
+
+def test_reason_groups_ignore_times_and_numbers():
+    a = "attitude beyond 80 deg (roll 81.2 deg, pitch 3.0 deg) at t = 3.21 s"
+    b = "attitude beyond 80 deg (roll 95.0 deg, pitch -1.5 deg) at t = 12.00 s"
+    assert reason_group(a) == reason_group(b) == "attitude beyond # deg (roll # deg, pitch # deg)"
+    assert reason_group("SY250: rotors overlap") == "SY250: rotors overlap"  # names keep digits
+    history = [
+        {"status": "failed", "stage": "lap", "reason": a},
+        {"status": "failed", "stage": "lap", "reason": b},
+        {"status": "failed", "stage": "geometry", "reason": "bad"},
+        {"status": "completed", "stage": "", "reason": ""},
+    ]
+    groups = failure_groups(history)
+    assert [(g[0], g[2]) for g in groups] == [("geometry", 1), ("lap", 2)]
+    assert groups[1][3] == a  # first reason seen is the example
+
+
+def test_number_cells():
+    assert num(None) == "—" and num(float("nan")) == "—"
+    assert num(-1e-17, ".3f") == "0.000"
+    assert num(-0.04, "+.1f") == "+0.0"
+    assert num(-0.06, "+.1f") == "-0.1"
+    assert num(0.0017971107, ".5g") == "0.0017971"
+
+
+def test_empty_front_is_reported_not_raised(tmp_path):
+    # Jp below 1 deg: every completed lap violates the constraint, nothing is feasible
+    run_dir = make_run(tmp_path / "empty", ["constraints.0.max=1.0", "algorithm.generations=1"])
+    assert RunStore(run_dir).read_pareto()[1] == []
+    html = write_report(run_dir, out=tmp_path / "elsewhere" / "r.html").read_text()
+    for name in ("pareto", "candidates", "airframes"):
+        assert "The Pareto front is empty" in section(html, name)
+    assert "no feasible evaluation" in section(html, "convergence")
+    assert (tmp_path / "elsewhere" / "plots" / "failures.svg").is_file()
+    assert EXTERNAL.search(html) is None
+
+
+def test_unfinished_run_reports_the_front_of_its_history(tmp_path):
+    problem = load_problem(ROOT / "problems" / "quick.yaml", TINY)
+    run(problem, tmp_path / "part", BackendConfig(name="serial"), quiet=True, stop_after=1)
+    assert not (tmp_path / "part" / "pareto.csv").exists()
+    html = write_report(tmp_path / "part").read_text()
+    for name in SECTIONS:
+        assert f'<section id="{name}">' in html
+    assert "history.sqlite (no pareto.csv: the run has not finished)" in section(html, "pareto")
+
+
+def test_report_of_a_test_problem_run(tmp_path):
+    problem_file = tmp_path / "zdt.yaml"
+    problem_file.write_text("name: zdt\ntest_problem: {name: zdt1, n_var: 4}\n"
+                            "algorithm: {name: nsga2, population: 12, generations: 3}\n")
+    run(load_problem(problem_file), tmp_path / "zdt", BackendConfig(name="serial"), quiet=True)
+    html = write_report(tmp_path / "zdt").read_text()
+    for name in SECTIONS:
+        assert f'<section id="{name}">' in html
+    assert "A pymoo test problem has no airframe" in section(html, "airframes")
+    assert len(IMG.findall(section(html, "pareto"))) == 2

@@ -735,7 +735,7 @@ def run_command(
     """
     from casadrone.config import load_problem
     from casadrone.optimise import runner
-    from casadrone.optimise.store import MANIFEST
+    from casadrone.optimise.store import MANIFEST, RunInProgress
 
     if quiet and verbose:
         raise bad_input(["--quiet and --verbose: choose one"])
@@ -755,6 +755,8 @@ def run_command(
                    f"{', scheduler ' + be.scheduler if be.scheduler else ''}) -> {out}", err=True)
     try:
         runner.run(cfg, out, be, quiet=quiet)
+    except RunInProgress as exc:
+        raise bad_input([str(exc)]) from None
     except OSError as exc:
         typer.echo(f"{out}: the run stopped: {exc}", err=True)
         raise typer.Exit(1) from None
@@ -779,7 +781,7 @@ def resume(
     idempotent, so scripts may call it unconditionally.
     """
     from casadrone.optimise import runner
-    from casadrone.optimise.store import CHECKPOINT, PARETO, RunStore
+    from casadrone.optimise.store import CHECKPOINT, PARETO, RunInProgress, RunStore
 
     require_run_dir(run_dir)
     problem = open_problem(run_dir)
@@ -795,6 +797,8 @@ def resume(
     be = backend_config(problem.backend, backend, workers, scheduler)
     try:
         runner.resume(run_dir, be, quiet=quiet)
+    except RunInProgress as exc:
+        raise bad_input([str(exc)]) from None
     except OSError as exc:
         typer.echo(f"{run_dir}: the run stopped: {exc}", err=True)
         raise typer.Exit(1) from None

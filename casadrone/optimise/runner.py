@@ -101,6 +101,14 @@ def _loop(store: RunStore, algorithm, study: Study, backend, elapsed0: float,
           progress: Callable[[int, dict], None] | None, stop_after: int | None = None) -> RunResult:
     problem = algorithm.problem
     problem.backend = backend
+    store.acquire()
+    try:
+        return _generations(store, algorithm, study, problem, elapsed0, progress, stop_after)
+    finally:
+        store.release()
+
+
+def _generations(store, algorithm, study, problem, elapsed0, progress, stop_after) -> RunResult:
     start = time.perf_counter()
     steps = 0
     while algorithm.has_next():
@@ -154,6 +162,7 @@ def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None =
     index_names = (study.objective_names if problem.test_problem is not None
                    else list(INDICES))
     store = RunStore.create(out, problem, study.variable_names, index_names, backend_cfg.name)
+    study = Study(store.problem())  # the run's own copies of its input files
     algorithm, termination = build_algorithm(problem, len(study.objective_names))
     algorithm.setup(CandidateProblem(study), termination=termination, seed=problem.seed,
                     verbose=False)

@@ -38,6 +38,24 @@ CONFIG, MANIFEST, HISTORY, CHECKPOINT, PARETO = (
     "config.yaml", "manifest.json", "history.sqlite", "checkpoint.pkl", "pareto.csv")
 
 
+class RunInProgress(RuntimeError):
+    """Another live process coordinates this run directory."""
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process with this pid exists (and is not a zombie)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
+    except (OSError, IndexError):
+        return True
+
+
 def now() -> str:
     return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
 
@@ -65,6 +83,42 @@ def versions() -> dict[str, str]:
             "python": platform.python_version()}
 
 
+def snapshot_inputs(problem: ProblemConfig, path: Path) -> ProblemConfig:
+    """Copy the airframe, track and controller files (and a frozen gain's reference airframe)
+    into ``path/inputs/`` and point the problem at the copies (relative to the run directory), so
+    resuming or reporting a run never depends on files edited after it started."""
+    import shutil
+
+    from casadrone.config import CONFIG_DIR, read_yaml, resolve_config
+
+    if problem.test_problem is not None:
+        return problem
+    inputs = path / "inputs"
+    inputs.mkdir(exist_ok=True)
+    sources = {
+        "airframe": resolve_config(problem.airframe, "airframes"),
+        "track": Path(problem.track or CONFIG_DIR / "tracks" / "paper-rectangle.yaml"),
+        "controller": resolve_config(problem.controller or "default", "controllers"),
+    }
+    updates = {}
+    for key, src in sources.items():
+        dst = inputs / f"{key}.yaml"
+        if key == "controller":
+            data = read_yaml(src)
+            ref = data.get("reference_airframe")
+            if ref:
+                ref_path = Path(ref) if Path(ref).is_absolute() else src.parent / ref
+                if not ref_path.is_file():
+                    ref_path = resolve_config(ref, "airframes")
+                shutil.copyfile(ref_path, inputs / "reference_airframe.yaml")
+                data["reference_airframe"] = "reference_airframe.yaml"
+            dst.write_text(f"# copied from {src}\n" + yaml.safe_dump(data, sort_keys=False))
+        else:
+            shutil.copyfile(src, dst)
+        updates[key] = Path("inputs") / dst.name
+    return problem.model_copy(update=updates)
+
+
 def resolved_yaml(problem: ProblemConfig) -> str:
     """The resolved problem as YAML (paths as absolute strings)."""
     return yaml.safe_dump(json.loads(problem.model_dump_json()), sort_keys=False)
@@ -87,6 +141,7 @@ class RunStore:
             raise FileExistsError(f"{path}: already holds a run; resume it with "
                                   f"'casadrone resume {path}' or choose another --out")
         path.mkdir(parents=True, exist_ok=True)
+        problem = snapshot_inputs(problem, path)
         text = resolved_yaml(problem)
         (path / CONFIG).write_text(text)
         store = cls(path)
@@ -124,8 +179,10 @@ class RunStore:
         self.write_manifest({**self.manifest, **changes})
 
     def problem(self) -> ProblemConfig:
-        """The resolved problem of this run."""
-        return ProblemConfig.model_validate(yaml.safe_load((self.path / CONFIG).read_text()))
+        """The resolved problem of this run (its input files from the run's own ``inputs/``)."""
+        from casadrone.config import load
+
+        return load(ProblemConfig, self.path / CONFIG)
 
     # -- history ----------------------------------------------------------------------------
 
@@ -161,6 +218,31 @@ class RunStore:
         with self.connect() as db:
             db.row_factory = sqlite3.Row
             return [dict(r) for r in db.execute("SELECT * FROM generations ORDER BY generation")]
+
+    # -- one coordinator at a time ----------------------------------------------------------
+
+    def acquire(self) -> None:
+        """Take the run's lock (``run.lock`` holding this pid): a second ``run``/``resume`` on a
+        directory whose coordinator is still alive is refused; a dead coordinator's (killed) lock
+        is taken over."""
+        lock = self.path / "run.lock"
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            try:
+                pid = int(lock.read_text().strip() or 0)
+            except (OSError, ValueError):
+                pid = 0
+            if pid and pid != os.getpid() and _alive(pid):
+                raise RunInProgress(f"{self.path}: run in progress (coordinator pid {pid}); "
+                                   "wait for it or kill it before resuming") from None
+            lock.write_text(str(os.getpid()))
+            return
+        with os.fdopen(fd, "w") as fh:
+            fh.write(str(os.getpid()))
+
+    def release(self) -> None:
+        (self.path / "run.lock").unlink(missing_ok=True)
 
     # -- checkpoint and front -----------------------------------------------------------------
 

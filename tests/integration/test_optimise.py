@@ -147,3 +147,38 @@ def test_dask_backend_without_extra_fails_at_load(monkeypatch):
         load_problem(QUICK, ["backend.name=dask"])
     assert any("backend.name: backend 'dask' needs the dask extra" in line
                for line in err.value.lines), err.value.lines
+
+
+def test_second_coordinator_is_refused_while_first_is_alive(uninterrupted):
+    import os
+    import subprocess
+    import sys
+
+    store = RunStore(uninterrupted)
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (uninterrupted / "run.lock").write_text(str(sleeper.pid))
+        with pytest.raises(RuntimeError, match=f"run in progress \\(coordinator pid {sleeper.pid}\\)"):
+            store.acquire()
+    finally:
+        sleeper.kill()
+        sleeper.wait()
+    store.acquire()  # the dead coordinator's lock is taken over
+    assert (uninterrupted / "run.lock").read_text() == str(os.getpid())
+    store.release()
+    assert not (uninterrupted / "run.lock").exists()
+
+
+def test_run_keeps_its_own_copies_of_input_files(uninterrupted, tmp_path):
+    """Resume and report use the run's inputs/ copies, not files edited after the run began."""
+    inputs = uninterrupted / "inputs"
+    assert sorted(p.name for p in inputs.iterdir()) == [
+        "airframe.yaml", "controller.yaml", "reference_airframe.yaml", "track.yaml"]
+    problem = RunStore(uninterrupted).problem()
+    assert problem.airframe == inputs / "airframe.yaml"
+    assert problem.track == inputs / "track.yaml"
+    from casadrone.config import load_controller
+
+    ctrl = load_controller(problem.controller)
+    assert ctrl.gain_policy == "frozen"
+    assert ctrl.reference_airframe == inputs / "reference_airframe.yaml"

@@ -28,16 +28,14 @@ if hasattr(os, "sched_setaffinity"):
     os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
-import platform  # noqa: E402
-import subprocess  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-import casadi  # noqa: E402
 import numpy as np  # noqa: E402
-import scipy  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from benchmarks.machine import describe  # noqa: E402
 from casadrone.airframe import TABLE1_BOUNDS, build_airframe, with_theta  # noqa: E402
 from casadrone.config import ConfigError, load_airframe, load_controller  # noqa: E402
 from casadrone.control import design_lqri  # noqa: E402
@@ -123,30 +121,7 @@ def run(n: int, seed: int) -> dict:
 
 
 def machine() -> dict[str, str]:
-    cpu = "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        cmd = ["git", "rev-parse", "--short", "HEAD"]
-        out = subprocess.run(cmd, capture_output=True, text=True, cwd=Path(__file__).parent)
-        rev = out.stdout.strip()
-    except OSError:
-        rev = ""
-    return {
-        "uname": " ".join(platform.uname()),
-        "nproc": str(os.cpu_count()),
-        "cpu": cpu,
-        "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
-        "python": platform.python_version(),
-        "versions": f"casadi {casadi.__version__}, numpy {np.__version__}, "
-        f"scipy {scipy.__version__}",
-        "git": rev or "unknown",
-    }
+    return describe()
 
 
 def tables(r: dict) -> str:

@@ -16,9 +16,6 @@ Writes ``benchmarks/RESULTS-optimise.md``.
 from __future__ import annotations
 
 import argparse
-import datetime
-import os
-import platform
 import statistics
 import sys
 import tempfile
@@ -30,19 +27,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.machine import markdown  # noqa: E402
 from casadrone.config import BackendConfig, load_problem  # noqa: E402
 from casadrone.optimise.backends import ProcessBackend, SerialBackend  # noqa: E402
 from casadrone.optimise.problem import Study  # noqa: E402
 from casadrone.optimise.runner import run  # noqa: E402
 
 PAPER_EVALS = 850 + 350 * 850
-
-
-def machine() -> str:
-    cpu = next((line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo")
-                if line.startswith("model name")), platform.processor())
-    return (f"{platform.node()} · {cpu} · {os.cpu_count()} cores · Python "
-            f"{platform.python_version()} · load average {os.getloadavg()[0]:.2f} at start")
 
 
 def throughput(n: int, seed: int = 0) -> list[tuple[str, float, float]]:
@@ -98,8 +89,7 @@ def main() -> None:
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "RESULTS-optimise.md"))
     args = ap.parse_args()
 
-    lines = ["# Optimisation benchmark", "",
-             f"{datetime.date.today()} · {machine()}", "",
+    lines = ["# Optimisation benchmark", "", markdown(), "",
              f"Command: `python benchmarks/bench_optimise.py --n {args.n} --budget-generations "
              f"{args.budget_generations} --population {args.population} --seeds {args.seeds}`", "",
              f"## Throughput: one generation of {args.n} drone evaluations (paper-run1, random θ "

@@ -16,17 +16,14 @@ Run: ``python benchmarks/sensitivity.py`` (writes benchmarks/RESULTS-sensitivity
 from __future__ import annotations
 
 import argparse
-import datetime as dt
-import os
-import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
 
-import casadi
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from benchmarks.machine import markdown  # noqa: E402
 from casadrone.airframe import TABLE1_BOUNDS, THETA_KEYS, build_airframe, with_theta
 from casadrone.benchmark import DEFAULT_TRACK
 from casadrone.config import load, load_airframe, load_controller
@@ -113,32 +110,6 @@ def fmt(v: float) -> str:
     return f"{v:+.2e}"
 
 
-def machine() -> str:
-    cpu = "unknown CPU"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{platform.platform()}; {cpu}, nproc {os.cpu_count()}"
-
-
-def git_rev() -> str:
-    """Short revision, flagged when the package has uncommitted changes (they affect results)."""
-    try:
-        def run(*cmd):
-            return subprocess.run(["git", *cmd], capture_output=True, text=True, cwd=HERE,
-                                  check=True).stdout.strip()
-
-        dirty = run("status", "--porcelain", "--untracked-files=no", "--", "../casadrone")
-        changed = ", ".join(line.split()[-1] for line in dirty.splitlines())
-        return run("rev-parse", "--short", "HEAD") + (f" + uncommitted {changed}" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=HERE / "RESULTS-sensitivity.md")
@@ -175,10 +146,7 @@ def main(argv: list[str] | None = None) -> int:
         "",
         f"`python benchmarks/sensitivity.py` — {__doc__.splitlines()[0].lower()}",
         "",
-        f"- date: {dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC",
-        f"- machine: {machine()}",
-        f"- Python {platform.python_version()}; casadi {casadi.__version__}, numpy "
-        f"{np.__version__}; casadrone git {git_rev()}",
+        markdown(),
         f"- track `{track.name}`, controller `{ctrl.name}` (gain policy {ctrl.gain_policy}), "
         f"rk4 with the default SimOptions (substeps {SimOptions().substeps}), CVODES "
         f"rtol = atol = {args.cvodes_tol:g}",

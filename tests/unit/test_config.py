@@ -243,8 +243,10 @@ def _all_schemas(cls=Schema):
 
 
 def test_every_schema_is_frozen_and_forbids_extra_keys():
-    schemas = [s for s in _all_schemas() if s.__module__ == "casadrone.config"]
-    assert {AirframeConfig, ControllerConfig, C.StateWeights, C.ThrustModelConfig} <= set(schemas)
+    schemas = [s for s in _all_schemas()
+               if s.__module__ in ("casadrone.config", "casadrone.problemconfig")]
+    assert {AirframeConfig, ControllerConfig, C.StateWeights, C.ThrustModelConfig,
+            C.ProblemConfig, C.VariableConfig, C.AlgorithmConfig} <= set(schemas)
     for s in schemas:
         assert s.model_config["frozen"] is True and s.model_config["extra"] == "forbid", s
 

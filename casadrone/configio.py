@@ -1,0 +1,384 @@
+"""Reading config files: YAML, ``key=value`` overrides, referenced files and complete error reports.
+
+The generic half of the configuration: :class:`Schema`, the base of every schema (the schemas
+themselves are in :mod:`casadrone.config` and :mod:`casadrone.problemconfig`), and the loader that
+validates a YAML file against one. Loading a file reports every problem at once, one line each,
+as ``FILE: dotted.key: message``: field errors and cross-field (geometry) errors together, a "did
+you mean" hint for misspelt keys at any depth, the line of malformed YAML, and the name of any
+referenced file that does not exist.
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+from functools import cache
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import yaml
+from pydantic import BaseModel, ConfigDict, TypeAdapter, ValidationError, model_validator
+
+ROOT = Path(__file__).resolve().parent.parent
+CONFIG_DIR = ROOT / "configs"
+
+
+class ConfigError(Exception):
+    """A configuration problem; ``lines`` holds one ``FILE: key: message`` line per problem."""
+
+    def __init__(self, lines: list[str]):
+        self.lines = list(dict.fromkeys(lines))
+        super().__init__("\n".join(self.lines))
+
+
+class Problems(ValueError):
+    """Several cross-field problems found at once, each a (dotted key, message) pair."""
+
+    def __init__(self, problems: list[tuple[str, str]]):
+        self.problems = list(problems)
+        super().__init__("; ".join(f"{k}: {m}" for k, m in self.problems))
+
+
+class Schema(BaseModel):
+    """Base of every config schema: frozen, unknown keys rejected.
+
+    Cross-field checks live in :meth:`problems`, which works on a plain dict of field values so
+    that the loader can still run it when some fields failed (those are simply absent): a file
+    with a negative mass *and* overlapping rotors gets both reported.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        """Cross-field problems as (key, message); skip a check when a key it needs is absent."""
+        return []
+
+    @model_validator(mode="after")
+    def _cross_field(self) -> Schema:
+        found = type(self).problems(dict(self))
+        if found:
+            raise Problems(found)
+        return self
+
+
+def has_keys(v: dict[str, Any], *keys: str) -> bool:
+    """True when every key is present (for :meth:`Schema.problems`, which skips a check then)."""
+    return all(k in v for k in keys)
+
+
+# --------------------------------------------------------------------------------------------
+# Reading YAML
+# --------------------------------------------------------------------------------------------
+
+M = TypeVar("M", bound=BaseModel)
+
+#: Keys whose values name other config files, and the ``configs/`` folder a bare name (``SY250``)
+#: is looked up in. Paths resolve relative to the referring file, then to the project root.
+PATH_KEYS = {
+    "reference_airframe": "airframes",
+    "airframe": "airframes",
+    "track": "tracks",
+    "controller": "controllers",
+    "reference": "references",
+}
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """SafeLoader that rejects a key given twice in one mapping (the second would win silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            try:
+                first = seen.setdefault(key, key_node.start_mark.line)
+            except TypeError:  # unhashable key: let SafeLoader report it
+                continue
+            if first != key_node.start_mark.line:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key '{key}' (first given on line {first + 1})",
+                    key_node.start_mark,
+                )
+        return super().construct_mapping(node, deep=deep)
+
+
+def read_yaml(path: str | Path) -> dict[str, Any]:
+    """Read a YAML mapping; malformed YAML or a missing file raises ConfigError with the line."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError([f"{path}: file not found"])
+    try:
+        text = path.read_text(encoding="utf-8")
+        data = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader subclass)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError([f"{path}: cannot read: {exc}"]) from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc)
+        context, cmark = getattr(exc, "context", None), getattr(exc, "context_mark", None)
+        detail = problem
+        if context and "duplicate" not in problem:
+            started = f" started on line {cmark.line + 1}" if cmark and cmark is not mark else ""
+            detail += f" ({context}{started})"
+        raise ConfigError([f"{path}: {where}malformed YAML: {detail}"]) from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError([f"{path}: top level must be a mapping of keys to values"])
+    return data
+
+
+def parse_value(text: str) -> Any:
+    """Parse the value of a ``key=value`` override as YAML (numbers, lists, strings)."""
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+
+
+def apply_overrides(data: dict[str, Any], overrides: list[str] | None, source: str) -> dict:
+    """Apply ``dotted.key=value`` overrides to a nested dict (copy); bad syntax → ConfigError."""
+    data = copy.deepcopy(data)
+    errors = []
+    for item in overrides or []:
+        key, sep, value = item.partition("=")
+        parts = key.strip().split(".")
+        if not sep or not all(parts):
+            errors.append(f"{source}: override '{item}': expected key=value (e.g. alpha_deg=75)")
+            continue
+        node: Any = data
+        try:
+            for part in parts[:-1]:
+                if isinstance(node, list):  # list item by position: objectives.0.index=J3
+                    node = node[int(part)]
+                    continue
+                if not isinstance(node.get(part), dict | list):
+                    node[part] = {}
+                node = node[part]
+            if isinstance(node, list):
+                node[int(parts[-1])] = parse_value(value)
+            else:
+                node[parts[-1]] = parse_value(value)
+        except (ValueError, IndexError):
+            errors.append(f"{source}: override '{item}': {key.strip()}: no such list item")
+    if errors:
+        raise ConfigError(errors)
+    return data
+
+
+# --------------------------------------------------------------------------------------------
+# Error formatting
+# --------------------------------------------------------------------------------------------
+
+
+def _model_in(annotation: Any) -> type[BaseModel] | None:
+    """The pydantic model inside an annotation (``Model``, ``Model | None``), if any."""
+    for c in (annotation, *getattr(annotation, "__args__", ())):
+        if isinstance(c, type) and issubclass(c, BaseModel):
+            return c
+    return None
+
+
+def _fields_at(model: type[BaseModel], loc: tuple) -> list[str]:
+    """Field names of the (nested) model reached by ``loc``, for "did you mean" hints."""
+    current: type[BaseModel] | None = model
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        field = current.model_fields.get(part) if current else None
+        current = _model_in(field.annotation) if field else None
+        if current is None:
+            return []
+    return list(current.model_fields) if current else []
+
+
+def _unknown_key(model: type[BaseModel], loc: tuple) -> str:
+    known = _fields_at(model, loc[:-1])
+    close = difflib.get_close_matches(str(loc[-1]), known, n=1, cutoff=0.6)
+    if close:
+        return f"unknown key (did you mean '{close[0]}'?)"
+    return "unknown key" + (f"; known keys: {', '.join(known)}" if known else "")
+
+
+def _short(value: Any) -> str | None:
+    if isinstance(value, str | int | float | bool) or value is None:
+        text = repr(value)
+        return text if len(text) <= 40 else text[:37] + "..."
+    return None
+
+
+def error_pairs(exc: ValidationError, model: type[BaseModel]) -> list[tuple[str, str]]:
+    """(dotted key, message) for every error of a pydantic ValidationError."""
+    pairs = []
+    n_expected = {}  # tuple too short: one error per missing item; report the length once
+    for err in exc.errors():
+        loc = tuple(err["loc"])
+        if err["type"] == "missing" and loc and isinstance(loc[-1], int):
+            n_expected[loc[:-1]] = max(n_expected.get(loc[:-1], 0), loc[-1] + 1)
+    for err in exc.errors():
+        loc = tuple(err["loc"])
+        prefix = ".".join(str(p) for p in loc)
+        kind, msg = err["type"], err["msg"]
+        problems = (err.get("ctx") or {}).get("error")
+        if isinstance(problems, Problems):
+            pairs += [(f"{prefix}.{k}" if prefix else k, m) for k, m in problems.problems]
+            continue
+        if kind == "extra_forbidden":
+            msg = _unknown_key(model, loc)
+        elif kind == "missing" and loc and isinstance(loc[-1], int):
+            prefix = ".".join(str(p) for p in loc[:-1])
+            msg = f"expected {n_expected[loc[:-1]]} values, got {len(err['input'])}"
+        elif kind == "missing":
+            msg = "required key missing"
+        else:
+            msg = msg.removeprefix("Value error, ")
+            field, sep, rest = msg.partition(": ")
+            if kind == "value_error" and sep and field in _fields_at(model, loc):
+                prefix, msg = f"{prefix}.{field}" if prefix else field, rest  # "key: message"
+            got = _short(err.get("input"))
+            if got is not None and kind not in ("value_error", "assertion_error"):
+                msg += f" (got {got})"
+        pairs.append((prefix or "(top level)", msg))
+    return pairs
+
+
+def format_errors(exc: ValidationError, source: str, model: type[BaseModel]) -> list[str]:
+    """One ``FILE: dotted.key: message`` line per pydantic error."""
+    return list(dict.fromkeys(f"{source}: {k}: {m}" for k, m in error_pairs(exc, model)))
+
+
+@cache
+def _field_adapter(model: type[BaseModel], name: str) -> TypeAdapter:
+    field = model.model_fields[name]
+    if not field.metadata:
+        return TypeAdapter(field.annotation)
+    return TypeAdapter(Annotated[field.annotation, *field.metadata])
+
+
+def partial_problems(model: type[BaseModel], data: Any) -> list[tuple[str, str]]:
+    """Cross-field problems of ``data`` using only the fields that are valid on their own.
+
+    Pydantic skips a model's cross-field validator when any field fails; this runs it anyway so
+    that one load reports field errors and geometry errors together.
+    """
+    if not isinstance(data, dict) or not issubclass(model, Schema):
+        return []
+    values, found = {}, []
+    for name, field in model.model_fields.items():
+        if name not in data:
+            if not field.is_required():
+                values[name] = field.get_default(call_default_factory=True)
+            continue
+        try:
+            values[name] = _field_adapter(model, name).validate_python(data[name])
+        except ValidationError:
+            sub, value = _model_in(field.annotation), data[name]
+            if sub is None:
+                continue
+            items = enumerate(value) if isinstance(value, list) else [(None, value)]
+            for i, item in items:  # a nested model, or a list of them
+                at = name if i is None else f"{name}.{i}"
+                found += [(f"{at}.{k}", m) for k, m in partial_problems(sub, item)]
+    return found + model.problems(values)
+
+
+# --------------------------------------------------------------------------------------------
+# Loading and validating
+# --------------------------------------------------------------------------------------------
+
+
+def _resolve_reference(value: str, kind: str, base: Path) -> Path | None:
+    """A referenced config: a path (relative to ``base``, then the project root) or a bare name
+    of a file in ``configs/<kind>/``. None when nothing exists."""
+    p = Path(value)
+    candidates = [p] if p.is_absolute() else [base / p, ROOT / p]
+    if not p.suffix and len(p.parts) == 1:
+        candidates.append(CONFIG_DIR / kind / f"{value}.yaml")
+    return next((c for c in candidates if c.is_file()), None)
+
+
+def check_paths(data: dict[str, Any], base: Path, source: str) -> tuple[dict, list[str]]:
+    """Resolve path-valued keys relative to ``base``; name every referenced file that is missing."""
+    errors: list[str] = []
+
+    def walk(node: Any, prefix: str) -> Any:
+        if not isinstance(node, dict):
+            return node
+        out = {}
+        for k, v in node.items():
+            key = f"{prefix}.{k}" if prefix else str(k)
+            if k in PATH_KEYS and isinstance(v, str):
+                found = _resolve_reference(v, PATH_KEYS[k], base)
+                looks_like_path = v.endswith((".yaml", ".yml")) or "/" in v
+                if found is not None:
+                    out[k] = str(found)
+                    continue
+                if looks_like_path:
+                    errors.append(f"{source}: {key}: referenced file not found: {v}")
+                elif (CONFIG_DIR / PATH_KEYS[k]).is_dir():
+                    names = [f.stem for f in (CONFIG_DIR / PATH_KEYS[k]).glob("*.yaml")]
+                    close = difflib.get_close_matches(v, names, n=1, cutoff=0.6)
+                    hint = f" (did you mean '{close[0]}'?)" if close else ""
+                    errors.append(f"{source}: {key}: referenced file not found: {v} is neither a "
+                                  f"file nor a name in configs/{PATH_KEYS[k]}/{hint}")
+            out[k] = walk(v, key)
+        return out
+
+    return walk(data, ""), errors
+
+
+def validate_data(
+    model: type[M],
+    data: dict[str, Any],
+    source: str,
+    base: Path,
+    overrides: list[str] | None = None,
+) -> M:
+    """Validate a dict against ``model``, raising ConfigError listing every problem.
+
+    A problem whose key was set by a ``key=value`` override says so.
+    """
+    data, errors = check_paths(data, base, source)
+    try:
+        return_value = model.model_validate(data)
+        pairs = []
+    except ValidationError as exc:
+        pairs = error_pairs(exc, model) + partial_problems(model, data)
+        return_value = None
+    set_by = {o.partition("=")[0].strip(): o for o in overrides or [] if "=" in o}
+    for key, msg in dict.fromkeys(pairs):
+        origin = next((o for k, o in set_by.items() if key == k or key.startswith(k + ".")), None)
+        errors.append(f"{source}: {key}: {msg}" + (f" [override {origin}]" if origin else ""))
+    if errors:
+        raise ConfigError(errors)
+    return return_value
+
+
+def load(model: type[M], path: str | Path, overrides: list[str] | None = None) -> M:
+    """Load and validate a YAML file, with optional ``key=value`` overrides."""
+    path = Path(path)
+    data = apply_overrides(read_yaml(path), overrides, str(path))
+    return validate_data(model, data, str(path), path.parent, overrides)
+
+
+def resolve_config(name: str | Path, kind: str) -> Path:
+    """A path as given if it exists, else ``configs/<kind>/<name>.yaml`` (e.g. ``SY250``).
+
+    Raises ConfigError naming the known configs when neither exists.
+    """
+    p = Path(name)
+    for candidate in (p, ROOT / p):
+        if candidate.is_file():
+            return candidate
+    candidate = CONFIG_DIR / kind / f"{p.stem}.yaml"
+    if len(p.parts) == 1 and p.suffix in ("", ".yaml", ".yml") and candidate.is_file():
+        return candidate
+    if len(p.parts) > 1:
+        raise ConfigError([f"{name}: file not found"])
+    known = sorted(f.stem for f in (CONFIG_DIR / kind).glob("*.yaml"))
+    close = difflib.get_close_matches(p.stem, known, n=1, cutoff=0.6)
+    hint = f"did you mean '{close[0]}'? " if close else ""
+    raise ConfigError([f"{name}: file not found, and no configs/{kind}/{p.stem}.yaml "
+                       f"({hint}known: {', '.join(known) or 'none'})"])

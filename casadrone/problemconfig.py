@@ -1,0 +1,208 @@
+"""Optimisation problems (``problems/*.yaml``, DESIGN.md §9): what varies, what is flown, what
+is optimised, and with which algorithm and backend.
+
+Schemas like those of :mod:`casadrone.config` (frozen, unknown keys rejected), re-exported there;
+this module imports no other schema module at load time, so :mod:`casadrone.config` can.
+"""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import Field
+
+from casadrone.configio import ROOT, Schema, has_keys, load
+
+
+class VariableConfig(Schema):
+    """A decision variable: an airframe config key (with its unit) and its bounds."""
+
+    name: str
+    lower: float
+    upper: float
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        from casadrone.config import AirframeConfig
+
+        found = []
+        if has_keys(v, "lower", "upper") and not v["lower"] < v["upper"]:
+            found.append(("lower", f"lower bound {v['lower']} is not below upper bound "
+                          f"{v['upper']}"))
+        if "name" in v and v["name"] not in AirframeConfig.model_fields:
+            close = difflib.get_close_matches(v["name"], list(AirframeConfig.model_fields), 1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            found.append(("name", f"'{v['name']}' is not an airframe key{hint}"))
+        return found
+
+
+def _table1_variables() -> list[VariableConfig]:
+    from casadrone.airframe import TABLE1_BOUNDS
+
+    return [VariableConfig(name=k, lower=lo, upper=hi) for k, (lo, hi) in TABLE1_BOUNDS.items()]
+
+
+class ObjectiveConfig(Schema):
+    """An objective: a registered index and its sense (default: the index's own)."""
+
+    index: str
+    sense: Literal["min", "max"] | None = None
+
+
+class ConstraintConfig(Schema):
+    """A limit on an index (the lap-completed constraint is always on)."""
+
+    index: str
+    min: float | None = None
+    max: float | None = None
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        if v.get("min") is None and v.get("max") is None:
+            return [("max", "give min or max (or both)")]
+        if v.get("min") is not None and v.get("max") is not None and v["min"] > v["max"]:
+            return [("min", f"min {v['min']} is above max {v['max']}")]
+        return []
+
+
+class AlgorithmConfig(Schema):
+    """The optimiser: ``evmoga`` or any pymoo algorithm by name, with its settings."""
+
+    name: str = "evmoga"
+    population: int = Field(100, ge=2, description="ev-MOGA n_ind_p / pymoo pop_size")
+    generations: int = Field(50, ge=1, description="generations after the initial population")
+    settings: dict[str, Any] = Field(default_factory=dict, description="algorithm keywords")
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        if "name" not in v:
+            return []
+        from casadrone.optimise.algorithms import ALGORITHM_NAMES as ALGORITHMS
+
+        if v["name"].strip().lower() not in ALGORITHMS:
+            close = difflib.get_close_matches(v["name"], list(ALGORITHMS), 1)
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            return [("name", f"unknown algorithm '{v['name']}' ({hint}known: "
+                     f"{', '.join(ALGORITHMS)})")]
+        return []
+
+
+class BackendConfig(Schema):
+    """Where candidates are evaluated: this process, a process pool, or a Dask cluster."""
+
+    name: Literal["serial", "processes", "dask"] = "serial"
+    workers: int = Field(1, ge=1, description="processes (or LocalCluster workers)")
+    scheduler: str | None = Field(None, description="Dask scheduler address; None: LocalCluster")
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        import importlib.util
+
+        if v.get("name") == "dask" and importlib.util.find_spec("distributed") is None:
+            return [("name", "backend 'dask' needs the dask extra: pip install 'casadrone[dask]'")]
+        return []
+
+
+class PymooProblemConfig(Schema):
+    """A pymoo test problem with a known front, to check algorithm settings."""
+
+    name: Literal["zdt1", "zdt2", "zdt3", "dtlz2"]
+    n_var: int = Field(4, ge=2)
+    n_obj: int = Field(3, ge=2, description="dtlz2 only")
+
+
+class ProblemConfig(Schema):
+    """An optimisation problem (DESIGN.md §9): what varies, what is flown, what is optimised."""
+
+    name: str
+    description: str = ""
+    airframe: Path | None = Field(None, description="template airframe YAML (fixed parameters)")
+    variables: list[VariableConfig] = Field(default_factory=_table1_variables, min_length=1)
+    fixed: dict[str, Any] = Field(default_factory=dict, description="airframe key overrides")
+    track: Path | None = None
+    controller: Path | None = None
+    integrator: Literal["rk4", "cvodes", "idas"] = "rk4"
+    objectives: list[ObjectiveConfig] = Field(default_factory=list)
+    constraints: list[ConstraintConfig] = Field(default_factory=list)
+    algorithm: AlgorithmConfig = Field(default_factory=AlgorithmConfig)
+    seed: int = 1
+    backend: BackendConfig = Field(default_factory=BackendConfig)
+    test_problem: PymooProblemConfig | None = None
+    plugins: list[str] = Field(
+        default_factory=list,
+        description="modules or .py files imported in every process before evaluation "
+        "(e.g. to register custom indices)",
+    )
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        found: list[tuple[str, str]] = []
+        for i, plugin in enumerate(v.get("plugins") or []):
+            try:
+                import_plugin(plugin)
+            except Exception as exc:  # noqa: BLE001 - any import failure is a config problem
+                found.append((f"plugins.{i}", f"cannot import '{plugin}': {exc}"))
+        test = v.get("test_problem")
+        if test is None:
+            if v.get("airframe", 0) is None:
+                found.append(("airframe", "required (or give test_problem)"))
+            if "objectives" in v and len(v["objectives"]) < 1:
+                found.append(("objectives", "give at least one objective"))
+            from casadrone.config import AirframeConfig
+            from casadrone.indices import INDICES
+
+            for group in ("objectives", "constraints"):
+                for i, o in enumerate(v.get(group) or []):
+                    if o.index not in INDICES:
+                        close = difflib.get_close_matches(o.index, list(INDICES), 1)
+                        hint = f"did you mean '{close[0]}'? " if close else ""
+                        found.append((f"{group}.{i}.index", f"unknown index '{o.index}' ({hint}"
+                                      f"known: {', '.join(INDICES)})"))
+            names = [o.index for o in v.get("objectives") or []]
+            for dup in sorted({n for n in names if names.count(n) > 1}):
+                found.append(("objectives", f"objective '{dup}' is listed twice"))
+            vnames = [x.name for x in v.get("variables") or []]
+            for dup in sorted({n for n in vnames if vnames.count(n) > 1}):
+                found.append(("variables", f"variable '{dup}' is listed twice"))
+            for key in v.get("fixed") or {}:
+                if key not in AirframeConfig.model_fields:
+                    found.append((f"fixed.{key}", "not an airframe key"))
+        return found
+
+
+_PLUGINS: dict[str, Any] = {}
+
+
+def import_plugin(plugin: str) -> Any:
+    """Import a plugin once per process: a module name, or a path to a ``.py`` file (relative
+    paths from the working directory, then the project root)."""
+    import importlib
+    import importlib.util
+
+    if plugin in _PLUGINS:
+        return _PLUGINS[plugin]
+    if plugin.endswith(".py"):
+        path = Path(plugin)
+        if not path.is_file():
+            path = ROOT / plugin
+        if not path.is_file():
+            raise FileNotFoundError(f"no such file: {plugin}")
+        name = f"casadrone_plugin_{path.stem}"
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        _PLUGINS[plugin] = module  # before exec: a failing plugin is not imported twice
+        try:
+            spec.loader.exec_module(module)
+        except Exception:
+            del _PLUGINS[plugin]
+            raise
+    else:
+        _PLUGINS[plugin] = importlib.import_module(plugin)
+    return _PLUGINS[plugin]
+
+
+def load_problem(path: str | Path, overrides: list[str] | None = None) -> ProblemConfig:
+    """Load a problem YAML with ``dotted.key=value`` overrides (``algorithm.generations=20``)."""
+    return load(ProblemConfig, path, overrides)

@@ -1,0 +1,48 @@
+"""Assemble benchmarks/RESULTS.md from the per-benchmark result files.
+
+Each benchmark writes its own ``RESULTS-<name>.md`` (machine, date, command, tables); this script
+puts them into one file in the order of the chain. Run after the benchmarks:
+``python benchmarks/collect.py``.
+"""
+
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ORDER = [
+    ("design", "Trim, linearisation and LQR-I per candidate (issue: foundation)",
+     "python benchmarks/bench_design.py"),
+    ("lap", "One complete evaluation and the closed-loop lap; rotorpy comparison",
+     "python benchmarks/bench_lap.py"),
+    ("sensitivity", "Geometry must matter: index sensitivity around SY250",
+     "python benchmarks/sensitivity.py"),
+    ("optimise", "Optimisation throughput and ev-MOGA vs NSGA-II on paper-run1",
+     "python benchmarks/bench_optimise.py"),
+    ("evmoga", "ev-MOGA and NSGA-II on ZDT1, ZDT2, DTLZ2 (known fronts)",
+     "python benchmarks/bench_evmoga_zdt.py"),
+]
+
+
+def main() -> None:
+    parts = ["# casadrone benchmark results", "",
+             "Collected by `python benchmarks/collect.py` from the files each benchmark writes. "
+             "Each section names its machine, date, revision and command. The machine has 2 cores "
+             "shared with nothing else unless the load average says otherwise.", ""]
+    for name, title, command in ORDER:
+        path = HERE / f"RESULTS-{name}.md"
+        parts.append(f"## {title}")
+        parts.append("")
+        parts.append(f"Reproduce: `{command}` (raw file: `benchmarks/{path.name}`)")
+        parts.append("")
+        if path.exists():
+            body = path.read_text().strip().splitlines()
+            # demote the file's own headings by two levels
+            parts += [("##" + ln) if ln.startswith("#") else ln for ln in body]
+        else:
+            parts.append("_not run yet_")
+        parts.append("")
+    (HERE / "RESULTS.md").write_text("\n".join(parts) + "\n")
+    print(f"wrote {HERE / 'RESULTS.md'}")
+
+
+if __name__ == "__main__":
+    main()

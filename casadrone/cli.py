@@ -838,7 +838,7 @@ def decide_command(
     """
     from dataclasses import asdict
 
-    from casadrone.benchmark import run_candidates
+    from casadrone.compare import run_candidates
 
     require_run_dir(run_dir)
     open_problem(run_dir)
@@ -884,7 +884,7 @@ def compare(
     """
     from dataclasses import asdict
 
-    from casadrone.benchmark import compare_run, format_gains
+    from casadrone.compare import compare_run, format_gains
 
     require_run_dir(run_dir)
     open_problem(run_dir)

@@ -150,7 +150,7 @@ class Candidate:
 
 def choose_candidates(run: Run) -> list[Candidate]:
     """A (utopian), B (compromise) and C (extreme on the first objective) on the run's front, as
-    :func:`casadrone.benchmark.run_candidates` chooses them (which needs ``pareto.csv``; this
+    :func:`casadrone.compare.run_candidates` chooses them (which needs ``pareto.csv``; this
     also works on the front of an unfinished run), one entry per distinct design. Empty for an
     empty front."""
     from casadrone.decide import decide
@@ -595,7 +595,7 @@ def section_airframes(run: Run, cands: list[Candidate], references, figs: Figure
 
 
 def _index_gains(run: Run, cands: list[Candidate], cfg, ref: Evaluation) -> str:
-    from casadrone.benchmark import gain_pct
+    from casadrone.compare import gain_pct
 
     if not ref.completed:
         return note(f"{cfg.name} does not complete the lap ({ref.reason}): no gains.", "warn")
@@ -613,13 +613,13 @@ def _index_gains(run: Run, cands: list[Candidate], cfg, ref: Evaluation) -> str:
                                            for h in (c.label, f"{c.label} gain (%)")]
     return (f"<h4>Indices against {esc(cfg.name)} (paper Eq. 21)</h4>" + table(head, rows)
             + note(f"{cfg.name} flown now on the run's track, controller and integrator with its "
-                   "own airframe config. Gain (benchmark.gain_pct): (reference − candidate) / "
+                   "own airframe config. Gain (compare.gain_pct): (reference − candidate) / "
                    "reference × 100 for minimised indices, the opposite sign for maximised ones; "
                    "positive is better."))
 
 
 def _interval_gains(run: Run, references: tuple) -> str:
-    from casadrone.benchmark import compare_run
+    from casadrone.compare import compare_run
 
     rows = [[g.candidate, g.reference, g.basis, g.interval]
             + [cell(v, "+.1f") for v in (g.time_gain_pct, g.effort_gain_pct,

@@ -29,7 +29,7 @@ reference, rotorpy's default Hummingbird. Flights:
 Each is timed as the median of several runs in the same process as the casadrone timing, and the
 ratio rotorpy / casadrone is reported.
 
-Run: ``python benchmarks/bench_lap.py [--n 50] [--n-cvodes 10] [--n-rotorpy 5] [--seed 0]
+Run: ``python benchmarks/bench_lap.py [--n 50] [--n-cvodes 10] [--n-rotorpy 9] [--seed 0]
 [--no-write]``. Writes ``benchmarks/RESULTS-lap.md``.
 """
 
@@ -638,7 +638,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=50, help="rk4 evaluations per θ set")
     ap.add_argument("--n-cvodes", type=int, default=10, help="cvodes evaluations per θ set")
-    ap.add_argument("--n-rotorpy", type=int, default=5, help="rotorpy runs per flight")
+    ap.add_argument("--n-rotorpy", type=int, default=9, help="rotorpy runs per flight")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-write", action="store_true", help="print only, do not write RESULTS")
     args = ap.parse_args()

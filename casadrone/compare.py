@@ -53,6 +53,7 @@ def gain_pct(candidate, reference, sense: Literal["min", "max"] = "min"):
     gain = gain if sense == "min" else -gain
     return float(gain) if gain.ndim == 0 else gain
 
+
 # --------------------------------------------------------------------------------------------
 # A run's candidates against the reference airframes (paper Tables 9-11)
 # --------------------------------------------------------------------------------------------

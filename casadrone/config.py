@@ -52,6 +52,7 @@ Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
 Spin = Literal[-1, 1]
 
+
 # --------------------------------------------------------------------------------------------
 # Airframe
 # --------------------------------------------------------------------------------------------
@@ -227,7 +228,6 @@ class ControllerConfig(Schema):
         if v.get("gain_policy") == "frozen" and v.get("reference_airframe", 0) is None:
             return [("reference_airframe", "required when gain_policy is 'frozen'")]
         return []
-
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,0 +1,141 @@
+"""The HTML run report (DESIGN.md §9–10): one self-contained file that opens in any browser.
+
+:func:`write_report` reads a run directory (``config.yaml``, ``manifest.json``,
+``history.sqlite``, ``pareto.csv``) and writes ``report.html`` with seven sections: the resolved
+problem, convergence, the Pareto front, the A/B/C candidates (re-evaluated with their
+trajectories), the candidates over the reference airframes, failures and hover-trim statistics.
+Every figure is embedded as a base64 PNG and also saved, as PNG and SVG, under ``plots/`` next to
+the report; the page has inline CSS only: no script, font, stylesheet or image is fetched.
+
+Candidate labels follow the paper (Figs 13, 16, Table C1): **A** closest to the utopian point,
+**B** compromise (closest to the front's mean point), **C** extreme on the first objective
+(:mod:`casadrone.decide`).
+
+The package: :mod:`~casadrone.report.analysis` reads the run and computes what the report shows,
+:mod:`~casadrone.report.markup` holds the HTML building blocks, :mod:`~casadrone.report.sections`
+and :mod:`~casadrone.report.candidates` build the sections, and this module assembles the page.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from pathlib import Path
+
+from casadrone.report.analysis import (  # noqa: F401 (re-exported)
+    LABELS,
+    STAGES,
+    Candidate,
+    ConvergenceHistory,
+    Run,
+    choose_candidates,
+    convergence_history,
+    failure_groups,
+    feasible_front,
+    read_run,
+    reason_group,
+)
+from casadrone.report.candidates import (
+    evaluate_candidates,
+    section_airframes,
+    section_candidates,
+)
+from casadrone.report.markup import (  # noqa: F401 (re-exported)
+    PLOTS,
+    SYMBOL,
+    UNIT_SUFFIX,
+    Figures,
+    Html,
+    cell,
+    esc,
+    kv_table,
+    note,
+    num,
+    objective_label,
+    table,
+    unit_of,
+    variable_label,
+)
+from casadrone.report.sections import (
+    section_convergence,
+    section_failures,
+    section_pareto,
+    section_problem,
+    section_trim,
+)
+
+__all__ = ["Candidate", "choose_candidates", "convergence_history", "failure_groups",
+           "write_report"]
+
+REPORT = "report.html"
+
+
+CSS = """
+body { font-family: system-ui, -apple-system, "Segoe UI", Helvetica, Arial, sans-serif;
+       margin: 0 auto; max-width: 1200px; padding: 0 1.5em 3em; color: #1d1d1f; line-height: 1.4; }
+header { border-bottom: 2px solid #2a6ebb; margin-bottom: 1em; }
+h1 { margin-bottom: 0.2em; } h2 { border-bottom: 1px solid #ccc; padding-top: 0.6em; }
+nav a { margin-right: 1em; color: #2a6ebb; text-decoration: none; }
+table { border-collapse: collapse; margin: 0.6em 0; font-size: 0.86em; }
+th, td { border: 1px solid #d5d5d5; padding: 0.2em 0.55em; text-align: left; vertical-align: top; }
+th { background: #eef2f7; }
+tbody tr:nth-child(even) { background: #f8f8f8; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+table.wide { display: block; overflow-x: auto; max-width: 100%; }
+table.kv td:first-child { color: #555; white-space: nowrap; }
+figure { margin: 1em 0; } figure img { max-width: 100%; height: auto; border: 1px solid #eee; }
+figcaption { font-size: 0.85em; color: #444; } .file { color: #888; }
+p.note { color: #333; font-size: 0.9em; max-width: 70em; }
+p.warn { background: #fff4e0; border-left: 4px solid #e69500; padding: 0.5em 0.8em; }
+pre { background: #f6f6f6; padding: 0.8em; overflow-x: auto; font-size: 0.8em; }
+.row { display: flex; flex-wrap: wrap; gap: 2em; align-items: flex-start; }
+"""
+
+SECTIONS = (("problem", "Problem"), ("convergence", "Convergence"), ("pareto", "Pareto front"),
+            ("candidates", "Candidates A, B, C"), ("airframes", "Airframes"),
+            ("failures", "Failures"), ("trim", "Trim"))
+
+
+def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
+                 out: str | Path | None = None, trim_sample: int = 200) -> Path:
+    """Write the self-contained HTML report of a run and return its path.
+
+    Args:
+        run_dir: the run directory.
+        references: reference airframes (names in ``configs/airframes/`` or paths) drawn under
+            the candidates and used for the Eq. 21 gains.
+        out: the HTML file to write (default ``run_dir/report.html``); figures go to ``plots/``
+            beside it, as PNG and SVG.
+        trim_sample: at most this many evaluations are trimmed again for the trim section.
+    """
+    run = read_run(run_dir)
+    path = Path(out) if out is not None else run.store.path / REPORT
+    figs = Figures(path.parent / PLOTS)
+    cands = choose_candidates(run)
+    if not run.test_problem:
+        cands = evaluate_candidates(run, cands)
+    body = {
+        "problem": section_problem(run),
+        "convergence": section_convergence(run, figs),
+        "pareto": section_pareto(run, cands, figs),
+        "candidates": (section_candidates(run, cands, figs) if not run.test_problem
+                       else note("A pymoo test problem has no trajectories.")),
+        "airframes": section_airframes(run, cands, tuple(references), figs),
+        "failures": section_failures(run, figs),
+        "trim": section_trim(run, cands, figs, trim_sample),
+    }
+    m = run.manifest
+    stamp = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+    nav = "".join(f'<a href="#{k}">{esc(t)}</a>' for k, t in SECTIONS)
+    sections = "".join(f'<section id="{k}"><h2>{i}. {esc(t)}</h2>{body[k]}</section>'
+                       for i, (k, t) in enumerate(SECTIONS, start=1))
+    title = f"casadrone run report: {run.study.problem.name}"
+    page = (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
+            f'<meta name="viewport" content="width=device-width, initial-scale=1">'
+            f"<title>{esc(title)}</title><style>{CSS}</style></head><body><header>"
+            f"<h1>{esc(title)}</h1><p>Run directory <code>{esc(run.store.path.resolve())}</code>"
+            f" · status {esc(m.get('status'))} · {len(run.history)} evaluations · "
+            f"{len(run.F)} designs on the front · report written {esc(stamp)}</p>"
+            f"<nav>{nav}</nav></header>{sections}</body></html>")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(page, encoding="utf-8")
+    return path

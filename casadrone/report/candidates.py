@@ -1,0 +1,193 @@
+"""Report sections on the A/B/C candidates: each re-evaluated with its trajectory, and the
+candidates over the reference airframes with their Eq. 21 gains (:mod:`casadrone.compare`)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from casadrone import plots
+from casadrone.evaluate import Evaluation, evaluate, theta_of
+from casadrone.indices import INDICES
+from casadrone.optimise.store import PARETO, git_revision
+from casadrone.report.analysis import Candidate, Run
+from casadrone.report.markup import (
+    SYMBOL,
+    Figures,
+    Html,
+    cell,
+    empty_front,
+    esc,
+    kv_table,
+    note,
+    num,
+    table,
+    unit_of,
+)
+
+
+def evaluate_candidates(run: Run, cands: list[Candidate]) -> list[Candidate]:
+    """Fly each candidate again, keeping its trajectory (the chain is deterministic)."""
+    from casadrone.optimise.problem import study_setup
+
+    setup = study_setup(run.study)
+    return [replace(c, evaluation=evaluate(c.theta, setup, keep_trajectory=True)) for c in cands]
+
+
+def _reproduction(run: Run, cands: list[Candidate]) -> Html:
+    failed = [c.label for c in cands if not c.evaluation.completed]
+    diffs = [abs(c.evaluation.indices[n] - v) / max(abs(v), 1e-12) for c in cands
+             if c.evaluation.completed for n, v in c.objectives.items()]
+    worst = max(diffs, default=0.0)
+    if not failed and worst <= 1e-9:
+        return note(f"Re-evaluated now: every objective reproduces {PARETO} (largest relative "
+                    f"difference {worst:.1e}).")
+    what = (f"candidate(s) {', '.join(failed)} now fail" if failed else "")
+    what += ("; " if failed and diffs else "") + (
+        f"the largest relative difference of an objective is {worst:.3g}" if diffs else "")
+    return note(f"Re-evaluated now, the candidates do NOT reproduce {PARETO} ({what}): the code, "
+                "or a config file the run refers to (track, controller, airframe: config.yaml "
+                "stores their paths, not their contents), has changed since the run (run "
+                f"revision {run.manifest.get('git_revision')}, current {git_revision()}). The "
+                "figures and tables below show the re-evaluation; the stored values are beside "
+                "them.", "warn")
+
+
+def section_candidates(run: Run, cands: list[Candidate], figs: Figures) -> str:
+    if not cands:
+        return empty_front(run)
+    parts = [_reproduction(run, cands)]
+    flown = {c.title: c.evaluation.trajectory for c in cands
+             if c.evaluation.trajectory is not None}
+    if len(flown) > 1:
+        parts.append(figs.embed(plots.track_top_view(flown, title="Candidates, top view"),
+                                "candidates-track", "Ground tracks of the candidates."))
+        parts.append(figs.embed(plots.time_histories(flown, title="Candidates compared (paper "
+                                                     "Figs 21, 22)"),
+                                "candidates-time-histories",
+                                "Altitude, speed, roll effort and opposing-pair thrust of the "
+                                "candidates; dashed lines: waypoint split times."))
+    for c in cands:
+        parts.append(f'<h3 id="candidate-{c.label}">Candidate {esc(c.title)}</h3>')
+        parts.append(_candidate(run, c, figs))
+    return "".join(parts)
+
+
+def _candidate(run: Run, c: Candidate, figs: Figures) -> str:
+    from casadrone.airframe import family
+
+    s, ev = run.study, c.evaluation
+    lo, hi = s.bounds
+    geo = [[SYMBOL.get(n, n), n, unit_of(n), cell(c.theta[n], exact=True), a, b]
+           for n, a, b in zip(s.variable_names, lo, hi, strict=True)]
+    out = [f"<p>Row {c.row} of the front. Status of the re-evaluation: "
+           f"<b>{esc(ev.status)}</b>{esc(' — ' + ev.reason) if ev.reason else ''}.</p>",
+           '<div class="row"><div>',
+           table(["symbol", "variable", "unit", "value", "lower", "upper"], geo, "theta"),
+           ]
+    if not run.test_problem:
+        from casadrone.airframe import with_theta
+        from casadrone.optimise.problem import study_setup
+
+        cfg = with_theta(study_setup(s).template, c.theta)
+        out.append(kv_table([("family", family(cfg.alpha_deg, cfg.beta_deg)),
+                             ("diagonal λa + λb (mm)", num(cfg.lambda_a_mm + cfg.lambda_b_mm)),
+                             ("mass (kg, fixed)", num(cfg.mass_kg))]))
+    idx = [[n, INDICES[n].unit if n in INDICES else "–",
+            dict(zip(s.objective_names, s.senses, strict=True)).get(n, "(not an objective)"),
+            cell(c.objectives.get(n)), cell(ev.indices.get(n))]
+           for n in (list(INDICES) if not run.test_problem else s.objective_names)]
+    out += ["</div><div>", table(["index", "unit", "objective sense",
+                                  f"stored ({PARETO})", "re-evaluated"], idx), "</div></div>"]
+    if ev.intervals:
+        rows, prev = [], 0.0
+        for i in ev.intervals:
+            rows.append([i.waypoint, "straight" if i.straight else "curve", i.split_time_s,
+                         i.split_time_s - prev, cell(i.effort_V, ".3f"),
+                         cell(i.pair_thrust_max_N, ".3f"), cell(i.pair_thrust_min_N, ".3f"),
+                         i.n_samples])
+            prev = i.split_time_s
+        out.append("<h4>Per interval (paper Table 4)</h4>" + table(
+            ["to waypoint", "leg", "split time (s)", "interval time (s)", "mean roll effort (V)",
+             "pair thrust max (N)", "pair thrust min (N)", "samples"], rows))
+        out.append(note("Roll effort: left minus right ESC voltage, deviation from trim; pair "
+                        "thrust: (T_FL + T_RL) − (T_FR + T_RR). Interval 1 includes the climb."))
+    if ev.trajectory is not None:
+        tr = {c.title: ev.trajectory}
+        out.append(figs.embed(plots.track_top_view(tr, title=f"Candidate {c.label}, top view"),
+                              f"candidate-{c.label}-track", f"Candidate {c.label}: ground track."))
+        out.append(figs.embed(plots.time_histories(tr, title=f"Candidate {c.label}"),
+                              f"candidate-{c.label}-time-histories",
+                              f"Candidate {c.label}: altitude, speed, roll effort and "
+                              "opposing-pair thrust."))
+    return "".join(out)
+
+
+def section_airframes(run: Run, cands: list[Candidate], references, figs: Figures) -> str:
+    if run.test_problem:
+        return note("A pymoo test problem has no airframe.")
+    if not cands:
+        return empty_front(run)
+    from casadrone.airframe import build_airframe, with_theta
+    from casadrone.config import load_airframe
+    from casadrone.optimise.problem import study_setup
+
+    setup = study_setup(run.study)
+    frames = [build_airframe(with_theta(setup.template, c.theta, name=f"Candidate {c.label}"))
+              for c in cands]
+    parts = []
+    for ref in references:
+        cfg = load_airframe(ref)
+        fig = plots.airframe_top_view(frames, build_airframe(cfg),
+                                      setup.template.prop_diameter_mm / 1000.0,
+                                      title=f"Candidates over {cfg.name} (grey, dashed)")
+        parts.append(figs.embed(fig, f"airframes-{cfg.name}", f"Top view of each candidate "
+                                f"(nose up, mm) over the reference {cfg.name} (paper Figs 15, "
+                                "17, 19)."))
+        parts.append(_index_gains(run, cands, cfg, evaluate(theta_of(cfg),
+                                                            replace(setup, template=cfg))))
+    if run.front_source != PARETO:
+        return "".join(parts) + note("Per-interval gains need a finished run (pareto.csv).")
+    return "".join(parts) + _interval_gains(run, tuple(references))
+
+
+def _index_gains(run: Run, cands: list[Candidate], cfg, ref: Evaluation) -> str:
+    from casadrone.compare import gain_pct
+
+    if not ref.completed:
+        return note(f"{cfg.name} does not complete the lap ({ref.reason}): no gains.", "warn")
+    senses = dict(zip(run.study.objective_names, run.study.senses, strict=True))
+    rows = []
+    for n, index in INDICES.items():
+        sense, rv = senses.get(n, index.sense), ref.indices.get(n)
+        row = [f"{n} ({index.unit})", sense, cell(rv)]
+        for c in cands:
+            v = c.evaluation.indices.get(n)
+            row += [cell(v), cell(gain_pct(v, rv, sense) if v is not None and rv else None,
+                                  "+.1f")]
+        rows.append(row)
+    head = ["index", "sense", cfg.name] + [h for c in cands
+                                           for h in (c.label, f"{c.label} gain (%)")]
+    return (f"<h4>Indices against {esc(cfg.name)} (paper Eq. 21)</h4>" + table(head, rows)
+            + note(f"{cfg.name} flown now on the run's track, controller and integrator with its "
+                   "own airframe config. Gain (compare.gain_pct): (reference − candidate) / "
+                   "reference × 100 for minimised indices, the opposite sign for maximised ones; "
+                   "positive is better."))
+
+
+def _interval_gains(run: Run, references: tuple) -> str:
+    from casadrone.compare import compare_run
+
+    rows = [[g.candidate, g.reference, g.basis, g.interval]
+            + [cell(v, "+.1f") for v in (g.time_gain_pct, g.effort_gain_pct,
+                                         g.thrust_max_gain_pct, g.thrust_min_gain_pct)]
+            for g in compare_run(run.store.path, references)]
+    t = table(["candidate", "reference", "basis", "to waypoint", "split time gain (%)",
+               "roll effort gain (%)", "pair thrust max gain (%)", "pair thrust min gain (%)"],
+              rows)
+    return ("<h4>Per-interval gains (paper Tables 9–11, <code>casadrone compare</code>)</h4>"
+            + note("Positive is better: faster, less effort, smaller pair-thrust extremes (effort "
+                   "and thrust compared by magnitude). Basis 'simulated': the reference flown on "
+                   "the run's platform; 'measured': the paper's Table 4, a different time base, "
+                   "for orientation only. — where a gain is undefined (a zero reference).")
+            + (t if len(rows) <= 24 else
+               f"<details><summary>{len(rows)} rows</summary>{t}</details>"))

@@ -1,0 +1,358 @@
+"""Commands on one airframe, design layer of the chain: validate, trim, linearise, lqr."""
+
+from __future__ import annotations
+
+import importlib
+import math
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from casadrone.cli.common import (
+    EXIT_BAD_INPUT,
+    AirframeArg,
+    JsonOpt,
+    OverridesArg,
+    PlotOpt,
+    app,
+    bad_input,
+    check_plot_dir,
+    load_airframe_or_exit,
+    print_json,
+    reports_config_errors,
+    save_figures,
+)
+from casadrone.config import ConfigError
+
+
+class Condition(StrEnum):
+    hover = "hover"
+    forward = "forward"
+
+
+class TrimSolver(StrEnum):
+    ipopt = "ipopt"
+    nelder_mead = "nelder-mead"
+    newton = "newton"
+    all = "all"
+
+
+class LinMethod(StrEnum):
+    exact = "exact"
+    fd = "fd"
+    both = "both"
+
+
+def _matrix_text(M, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
+    width = 10
+    head = " " * 8 + "".join(f"{c:>{width}}" for c in cols)
+    body = [
+        f"{r:>8}" + "".join(f"{v:>{width}.4g}" for v in row)
+        for r, row in zip(rows, M, strict=True)
+    ]
+    return "\n".join([head, *body])
+
+
+# --------------------------------------------------------------------------------------------
+# validate
+# --------------------------------------------------------------------------------------------
+
+
+def _yaml_files(paths: list[Path]) -> list[Path]:
+    """The files given, with a folder expanded to every YAML below it (sorted)."""
+    out: list[Path] = []
+    for p in paths:
+        if p.is_dir():
+            out += sorted(f for f in p.rglob("*") if f.suffix in (".yaml", ".yml"))
+        else:
+            out.append(p)
+    return out
+
+
+@app.command()
+def validate(
+    files: Annotated[list[Path], typer.Argument(help="config YAML files or folders of them")],
+    as_json: JsonOpt = False,
+) -> None:
+    """Validate config files: exit 0 when all are valid, 2 otherwise (one line per problem)."""
+    from casadrone.config import validate_file
+
+    report = []
+    for path in _yaml_files(files):
+        try:
+            validate_file(path)
+            report.append({"file": str(path), "valid": True, "problems": []})
+        except ConfigError as exc:
+            report.append({"file": str(path), "valid": False, "problems": exc.lines})
+    n_bad = sum(not r["valid"] for r in report)
+    if as_json:
+        print_json({"valid": n_bad == 0, "files": report})
+    else:
+        for r in report:
+            if r["valid"]:
+                typer.echo(f"{r['file']}: ok")
+            for line in r["problems"]:
+                typer.echo(line, err=True)
+        if n_bad:
+            typer.echo(f"{n_bad} of {len(report)} file(s) invalid", err=True)
+    if n_bad or not report:
+        if not report:
+            typer.echo("no YAML files found", err=True)
+        raise typer.Exit(EXIT_BAD_INPUT)
+
+
+# --------------------------------------------------------------------------------------------
+# trim
+# --------------------------------------------------------------------------------------------
+
+
+@app.command()
+@reports_config_errors
+def trim(
+    airframe: AirframeArg,
+    overrides: OverridesArg = None,
+    condition: Annotated[Condition, typer.Option(help="operating point")] = Condition.hover,
+    speed: Annotated[
+        float | None, typer.Option(help="forward speed (m/s), required with forward")
+    ] = None,
+    solver: Annotated[
+        TrimSolver, typer.Option(help="trim solver, or all to compare them")
+    ] = TrimSolver.ipopt,
+    as_json: JsonOpt = False,
+) -> None:
+    """Trim an airframe in hover or level forward flight; --solver all compares the solvers."""
+    speed_mps = _check_speed(condition.value, speed)
+    cfg, frame = load_airframe_or_exit(airframe, overrides)
+    # the module, not the package attribute: ``casadrone.trim`` is also the public function
+    trim_mod = importlib.import_module("casadrone.trim")
+
+    if solver is TrimSolver.all:
+        points = trim_mod.trim_all(frame, condition.value, speed_mps)
+    else:
+        points = [trim_mod.trim(frame, condition.value, speed_mps, solver.value)]
+    result = {
+        "airframe": frame.name,
+        "condition": condition.value,
+        "speed_mps": speed_mps,
+        "mass_kg": frame.mass,
+        "kappa_m": frame.kappa,
+        "rotor_positions_m": frame.rotor_positions,
+        "rotor_spins": frame.rotor_spins.astype(int),
+        "results": [_trim_result(tp) for tp in points],
+    }
+    if as_json:
+        print_json(result)
+    else:
+        typer.echo(_trim_table(result))
+
+
+def _check_speed(condition: str, speed: float | None) -> float:
+    if speed is not None and not math.isfinite(speed):
+        raise bad_input([f"--speed: must be a finite number (got {speed})"])
+    if condition == "hover":
+        if speed not in (None, 0.0):
+            raise bad_input([f"--speed: hover has no speed (got {speed}); use --condition forward"])
+        return 0.0
+    if speed is None:
+        raise bad_input(["--speed: required with --condition forward (m/s)"])
+    return float(speed)
+
+
+def _trim_result(tp) -> dict:
+    return {
+        "solver": tp.solver,
+        "success": tp.success,
+        "residual_norm": tp.residual_norm,
+        "iterations": tp.iterations,
+        "wall_time_s": tp.wall_time_s,
+        "message": tp.message,
+        "x0": dict(zip(tp.state_names, (float(v) for v in tp.x0), strict=True)),
+        "u0": tp.u0,
+        "thrusts_N": tp.thrusts,
+    }
+
+
+def _trim_table(r: dict) -> str:
+    import numpy as np
+
+    pos = np.asarray(r["rotor_positions_m"]) * 1000
+    rotors = zip(("FR", "FL", "RL", "RR"), pos, strict=True)
+    lines = [
+        f"{r['airframe']}: {r['condition']}"
+        + (f" at {r['speed_mps']:g} m/s" if r["condition"] == "forward" else "")
+        + f", mass {r['mass_kg']:.3f} kg, kappa {r['kappa_m']:.4f} m",
+        "rotors (mm, body x fwd, y left): "
+        + "  ".join(f"{n}({x:.1f}, {y:.1f})" for n, (x, y, _) in rotors),
+        "",
+        f"{'solver':<12}{'ok':<4}{'residual':>11}{'iter':>7}{'time (s)':>10}  "
+        f"{'theta (deg)':>11}  {'u0 (delta1..4)':<31}{'T (N)':<27}{'max|du0|':>9}",
+    ]
+    ok = [res for res in r["results"] if res["success"]]
+    ref = np.asarray(ok[0]["u0"]) if ok else None
+    for res in r["results"]:
+        u0 = np.asarray(res["u0"])
+        agree = f"{np.max(np.abs(u0 - ref)):9.1e}" if ref is not None else f"{'-':>9}"
+        lines.append(
+            f"{res['solver']:<12}{'yes' if res['success'] else 'NO':<4}"
+            f"{res['residual_norm']:>11.2e}{res['iterations']:>7d}{res['wall_time_s']:>10.4f}  "
+            f"{math.degrees(res['x0']['theta']):>11.4f}  "
+            + " ".join(f"{v:7.5f}" for v in u0) + "  "
+            + " ".join(f"{v:6.4f}" for v in res["thrusts_N"]) + f"{agree}"
+        )
+    if ref is not None and len(r["results"]) > 1:
+        lines.append(f"max|du0|: largest command difference from {ok[0]['solver']} "
+                     "(the first solver that succeeded)")
+    for res in r["results"]:
+        lines.append(f"{res['solver']}: {res['message']}")
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------------
+# linearise
+# --------------------------------------------------------------------------------------------
+
+
+@app.command()
+@reports_config_errors
+def linearise(
+    airframe: AirframeArg,
+    overrides: OverridesArg = None,
+    method: Annotated[
+        LinMethod, typer.Option(help="exact (AD), fd (finite differences) or both, compared")
+    ] = LinMethod.exact,
+    condition: Annotated[Condition, typer.Option(help="operating point")] = Condition.hover,
+    speed: Annotated[float | None, typer.Option(help="forward speed (m/s)")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Linearise about the (ipopt) trim point: E, A′, B′ and A, B with state and input names."""
+    speed_mps = _check_speed(condition.value, speed)
+    cfg, frame = load_airframe_or_exit(airframe, overrides)
+    lin_mod = importlib.import_module("casadrone.linearise")  # the module, as in trim
+    from casadrone.trim import trim as trim_fn
+
+    tp = trim_fn(frame, condition.value, speed_mps, "ipopt")
+    if not tp.success:
+        raise bad_input([f"{cfg.name}: trim: {tp.message}"])
+    first = "fd" if method is LinMethod.fd else "exact"
+    lm = lin_mod.linearise(frame, tp, first)
+    result = {
+        "airframe": frame.name,
+        "condition": condition.value,
+        "method": method.value,
+        "state_names": list(lm.state_names),
+        "input_names": list(lm.input_names),
+        "x0": lm.x0,
+        "u0": lm.u0,
+        "E": lm.E,
+        "A_prime": lm.A_prime,
+        "B_prime": lm.B_prime,
+        "A": lm.A,
+        "B": lm.B,
+    }
+    if method is LinMethod.both:
+        cmp = lin_mod.compare(lm, lin_mod.linearise(frame, tp, "fd"))
+        result |= {
+            "max_abs_diff_A": cmp.max_abs_diff_A,
+            "max_abs_diff_B": cmp.max_abs_diff_B,
+            "max_rel_diff": cmp.max_rel_diff,
+        }
+    if as_json:
+        print_json(result)
+        return
+    names, inputs = tuple(lm.state_names), tuple(lm.input_names)
+    typer.echo(f"{frame.name}: {condition.value} linearisation ({first})")
+    typer.echo("A =\n" + _matrix_text(lm.A, names, names))
+    typer.echo("B =\n" + _matrix_text(lm.B, names, inputs))
+    if method is LinMethod.both:
+        typer.echo(
+            f"exact vs fd: max|dA| = {result['max_abs_diff_A']:.3e}, "
+            f"max|dB| = {result['max_abs_diff_B']:.3e}, max relative = {result['max_rel_diff']:.3e}"
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# lqr
+# --------------------------------------------------------------------------------------------
+
+
+@app.command()
+@reports_config_errors
+def lqr(
+    airframe: AirframeArg,
+    overrides: OverridesArg = None,
+    controller: Annotated[
+        str | None,
+        typer.Option(help="controller YAML or name (default: configs/controllers/default.yaml)"),
+    ] = None,
+    ensemble: Annotated[
+        int | None, typer.Option(min=1, help="also apply the gain to N perturbed plants")
+    ] = None,
+    as_json: JsonOpt = False,
+    plot: PlotOpt = None,
+) -> None:
+    """Design the hover LQR-I gain and certify it (eigenvalues, Lyapunov P, optional ensemble).
+
+    --plot DIR saves the robustness figures (paper Figs B1, B2): the closed-loop eigenvalue
+    cloud and the hover disturbance responses of the nominal and perturbed plants. Without
+    --ensemble they use the controller's robustness.n_plants perturbed plants.
+    """
+    import numpy as np
+
+    from casadrone.config import load_controller
+
+    check_plot_dir(plot)
+    cfg, frame = load_airframe_or_exit(airframe, overrides)
+    ctrl = load_controller(controller)
+    from casadrone import control
+
+    reference = None
+    if ctrl.gain_policy == "frozen":
+        _, reference = load_airframe_or_exit(str(ctrl.reference_airframe), None)
+    design = control.design_for(frame, ctrl, reference)
+    eig = np.asarray(design.closed_loop_eigenvalues)
+    result = {
+        "airframe": frame.name,
+        "controller": ctrl.name,
+        "gain_policy": ctrl.gain_policy,
+        "sample_time_s": design.sample_time_s,
+        "state_names": list(design.state_names),
+        "K": design.K,
+        "closed_loop_eigenvalues": [[float(e.real), float(e.imag)] for e in eig],
+        "spectral_radius": float(np.max(np.abs(eig))),
+        "stable": design.stable,
+        "lyapunov_min_eig": design.lyapunov_min_eig,
+    }
+    ens = None
+    if ensemble is not None or plot is not None:
+        ens = control.robustness_ensemble(frame, design, ctrl, ensemble)
+        result |= {
+            "ensemble_n": ens.n,
+            "ensemble_stable": ens.stable,
+            "ensemble_n_stable": int(np.sum(ens.stable_each)),
+            "ensemble_max_spectral_radius": ens.max_spectral_radius,
+        }
+    if plot is not None:
+        from casadrone import plots
+
+        result["figures"] = save_figures({
+            "eigenvalue-cloud": plots.eigenvalue_cloud(design, ens),
+            "disturbance-responses": plots.disturbance_responses(design, ens),
+        }, plot)
+    if as_json:
+        print_json(result)
+        return
+    typer.echo(
+        f"{frame.name}: LQR-I ({ctrl.name}, {ctrl.gain_policy}, Ts = {design.sample_time_s:g} s)"
+    )
+    verdict = "stable" if design.stable else "UNSTABLE"
+    typer.echo(f"closed loop {verdict}: spectral radius {result['spectral_radius']:.6f}, "
+               f"Lyapunov min eig(P) {design.lyapunov_min_eig:.4g}")
+    typer.echo("K (rows delta1..4) =\n" + _matrix_text(design.K, ("d1", "d2", "d3", "d4"),
+                                                    tuple(design.state_names)))
+    if ens is not None:
+        typer.echo(f"ensemble: {result['ensemble_n_stable']} of {ens.n} perturbed plants stable, "
+                   f"max spectral radius {ens.max_spectral_radius:.6f}")
+    for path in result.get("figures", []):
+        typer.echo(f"figure: {path}")

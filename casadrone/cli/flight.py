@@ -1,0 +1,159 @@
+"""Commands that fly laps: simulate (one airframe), benchmark (the paper's reference airframes)."""
+
+from __future__ import annotations
+
+import math
+from enum import StrEnum
+from typing import Annotated
+
+import typer
+
+from casadrone.cli.common import (
+    AirframeArg,
+    JsonOpt,
+    OverridesArg,
+    PlotOpt,
+    app,
+    check_plot_dir,
+    load_airframe_or_exit,
+    print_json,
+    reports_config_errors,
+    save_figures,
+)
+
+
+class IntegratorName(StrEnum):
+    rk4 = "rk4"
+    cvodes = "cvodes"
+    idas = "idas"
+
+
+# --------------------------------------------------------------------------------------------
+# simulate
+# --------------------------------------------------------------------------------------------
+
+INTERVAL_KEYS = ("waypoint", "split_time_s", "effort_V", "pair_thrust_max_N", "pair_thrust_min_N")
+
+
+@app.command()
+@reports_config_errors
+def simulate(
+    airframe: AirframeArg,
+    overrides: OverridesArg = None,
+    track: Annotated[
+        str | None,
+        typer.Option(help="track YAML or name (default: configs/tracks/paper-rectangle.yaml)"),
+    ] = None,
+    controller: Annotated[
+        str | None,
+        typer.Option(help="controller YAML or name (default: configs/controllers/default.yaml)"),
+    ] = None,
+    integrator: Annotated[
+        IntegratorName, typer.Option(help="rk4 (fast, compiled) or cvodes/idas (reference)")
+    ] = IntegratorName.rk4,
+    as_json: JsonOpt = False,
+    plot: PlotOpt = None,
+) -> None:
+    """Fly one lap through the whole chain (trim, LQR-I, closed loop) and print its indices.
+
+    A lap that fails (the airframe too heavy to follow the track, diverged, timed out) is a
+    result, not an error: status "failed" with its stage and reason, exit code 0. An airframe
+    the config check rejects is bad input, exit code 2: e.g. SY250 with mass_kg=4 cannot hover
+    at all (its weight is above the full thrust of the four rotors), while mass_kg=3 hovers but
+    fails the lap (attitude beyond the track's limit).
+
+    --plot DIR saves the track top view, the 3-D track and the time histories (PNG and SVG).
+    """
+    check_plot_dir(plot)
+    cfg, _ = load_airframe_or_exit(airframe, overrides)
+    from casadrone.config import load, load_controller, resolve_config
+    from casadrone.evaluate import DEFAULT_TRACK, EvaluationSetup, evaluate, theta_of
+    from casadrone.guidance import TrackConfig
+    from casadrone.indices import INDICES
+
+    setup = EvaluationSetup(
+        template=cfg,
+        controller=load_controller(controller),
+        track=load(TrackConfig, resolve_config(track, "tracks") if track else DEFAULT_TRACK),
+        integrator=integrator.value,
+    )
+    ev = evaluate(theta_of(cfg), setup, keep_trajectory=True)
+    result = {
+        "airframe": cfg.name,
+        "track": setup.track.name,
+        "controller": setup.controller.name,
+        "integrator": integrator.value,
+        "status": ev.status,
+        "stage": ev.stage,
+        "reason": ev.reason,
+        "indices": ev.indices,
+        "index_units": {k: INDICES[k].unit for k in ev.indices},
+        "intervals": [{k: getattr(i, k) for k in INTERVAL_KEYS} for i in ev.intervals],
+        "wall_time_s": ev.wall_time_s,
+    }
+    if plot is not None:
+        if ev.trajectory is None:
+            typer.echo(f"--plot: nothing to plot, the evaluation failed before the lap "
+                       f"({ev.stage})", err=True)
+        else:
+            from casadrone import plots
+
+            flights = {cfg.name: ev.trajectory}
+            result["figures"] = save_figures({
+                "track-top-view": plots.track_top_view(flights),
+                "track-3d": plots.trajectory_3d(flights),
+                "time-histories": plots.time_histories(flights),
+            }, plot)
+    if as_json:
+        print_json(result)
+        return
+    typer.echo(_simulate_text(result))
+
+
+def _simulate_text(r: dict) -> str:
+    from casadrone.indices import INDICES
+
+    head = f"{r['airframe']}: track {r['track']}, controller {r['controller']}, {r['integrator']}"
+    if r["status"] != "completed":
+        lines = [f"{head}: lap FAILED at {r['stage']}: {r['reason']} "
+                 f"({r['wall_time_s']:.2f} s)"]
+    else:
+        lines = [f"{head}: lap completed in {r['indices'].get('J3', math.nan):.3f} s "
+                 f"({r['wall_time_s']:.2f} s wall time)"]
+        for name, value in r["indices"].items():
+            index = INDICES[name]
+            lines.append(f"  {name:<4}{value:>10.4f} {index.unit:<5} {index.description}")
+        lines.append(f"  {'interval':>8}{'split time (s)':>16}{'effort (V)':>12}"
+                     f"{'pair thrust max/min (N)':>26}")
+        for i in r["intervals"]:
+            lines.append(f"  {i['waypoint']:>8}{i['split_time_s']:>16.3f}{i['effort_V']:>12.4f}"
+                         f"{i['pair_thrust_max_N']:>15.3f} / {i['pair_thrust_min_N']:<8.3f}")
+    lines += [f"figure: {p}" for p in r.get("figures", [])]
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------------
+# benchmark
+# --------------------------------------------------------------------------------------------
+
+
+@app.command()
+@reports_config_errors
+def benchmark(
+    integrator: Annotated[
+        IntegratorName, typer.Option(help="rk4 (fast, compiled) or cvodes/idas (reference)")
+    ] = IntegratorName.rk4,
+    as_json: JsonOpt = False,
+) -> None:
+    """Fly the five reference airframes (paper Table 4): the Table-4-style table.
+
+    Per airframe and interval, the simulated split time, roll effort and opposing-pair thrust
+    beside the values the paper measured (a different time base: compare trends).
+    """
+    from casadrone.benchmark import format_table, run_benchmark, to_json
+
+    table = run_benchmark(integrator.value)
+    if as_json:
+        typer.echo(to_json(table))
+    else:
+        typer.echo(format_table(table), nl=False)

@@ -1,0 +1,363 @@
+"""Optimisation commands: run, resume, and on a run directory decide, compare and report."""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from casadrone.cli.common import (
+    JsonOpt,
+    app,
+    bad_input,
+    print_json,
+    reports_config_errors,
+)
+
+
+class BackendName(StrEnum):
+    serial = "serial"
+    processes = "processes"
+    dask = "dask"
+
+
+class DecideMethod(StrEnum):
+    utopian = "utopian"
+    compromise = "compromise"
+    extreme = "extreme"
+
+
+RunDirArg = Annotated[Path, typer.Argument(help="run directory (casadrone run --out DIR)")]
+BackendOpt = Annotated[
+    BackendName | None,
+    typer.Option("--backend", help="evaluation backend (default: the problem's)"),
+]
+WorkersOpt = Annotated[
+    int | None, typer.Option("-j", "--workers", min=1, help="worker processes")
+]
+SchedulerOpt = Annotated[
+    str | None,
+    typer.Option("--scheduler", help="Dask scheduler address (implies --backend dask)"),
+]
+QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="no progress lines")]
+ReferenceOpt = Annotated[
+    list[str] | None,
+    typer.Option("--reference", help="reference airframe (name or YAML); repeat for several "
+                 "[default: SY250]"),
+]
+
+
+# --------------------------------------------------------------------------------------------
+# run, resume
+# --------------------------------------------------------------------------------------------
+
+
+def backend_config(base, name: BackendName | None, workers: int | None,
+                   scheduler: str | None):
+    """The problem's backend section with the command-line choices applied (validated)."""
+    from casadrone.config import BackendConfig, validate_data
+
+    if scheduler is not None:
+        if name not in (None, BackendName.dask):
+            raise bad_input([f"--scheduler: only with --backend dask (got --backend {name})"])
+        name = BackendName.dask
+    data = base.model_dump()
+    if name is not None:
+        data["name"] = name.value
+        if name is not BackendName.dask:
+            data["scheduler"] = None
+        if name is BackendName.serial:
+            data["workers"] = 1
+    if workers is not None:
+        data["workers"] = workers
+    if scheduler is not None:
+        data["scheduler"] = scheduler
+    cfg = validate_data(BackendConfig, data, "--backend", Path.cwd())
+    if cfg.name == "serial" and workers not in (None, 1):
+        typer.echo(f"-j {workers}: ignored by the serial backend (use --backend processes)",
+                   err=True)
+    return cfg
+
+
+def require_run_dir(run_dir: Path) -> None:
+    """Exit 2 unless ``run_dir`` is a run directory (it has config.yaml and manifest.json)."""
+    from casadrone.optimise.store import CONFIG, MANIFEST
+
+    if not run_dir.exists():
+        raise bad_input([f"{run_dir}: no such run directory"])
+    if not run_dir.is_dir():
+        raise bad_input([f"{run_dir}: not a directory"])
+    missing = [f for f in (CONFIG, MANIFEST) if not (run_dir / f).is_file()]
+    if missing:
+        raise bad_input([f"{run_dir}: not a run directory (no {', '.join(missing)})"])
+
+
+def open_problem(run_dir: Path):
+    """The resolved problem of a run directory; an unreadable config.yaml is bad input."""
+    from casadrone.optimise.store import CONFIG, RunStore
+
+    try:
+        return RunStore(run_dir).problem()
+    except Exception as exc:  # noqa: BLE001 (yaml or pydantic: a damaged run directory)
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise bad_input([f"{run_dir / CONFIG}: not a valid resolved problem: {first}"]) from None
+
+
+def run_summary(run_dir: Path) -> list[str]:
+    """The run directory and a short summary of its front (from pareto.csv)."""
+    from casadrone.indices import INDICES
+    from casadrone.optimise.problem import Study
+    from casadrone.optimise.store import RunStore
+
+    store = RunStore(run_dir)
+    m = store.manifest
+    study = Study(store.problem())
+    header, rows = store.read_pareto()
+    n_var = len(header) - len(study.objective_names)
+    lines = [f"run directory: {run_dir}",
+             f"Pareto front: {len(rows)} design(s) from {m.get('n_evaluations')} evaluations "
+             f"(pareto.csv)"]
+    if not rows:
+        lines.append("  no feasible design: every evaluation failed or broke a constraint "
+                     "(see history.sqlite)")
+        return lines
+    for j, (name, sense) in enumerate(zip(study.objective_names, study.senses, strict=True)):
+        col = [r[n_var + j] for r in rows]
+        best = max(col) if sense == "max" else min(col)
+        unit = INDICES[name].unit if name in INDICES else ""
+        lines.append(f"  {name:<4} ({sense}) {min(col):>10.4g} … {max(col):<10.4g} {unit:<5} "
+                     f"best {best:.6g}")
+    lines.append(f"choose designs with: casadrone decide {run_dir}")
+    return lines
+
+
+def _failure_summary(run_dir: Path) -> list[str]:
+    from collections import Counter
+
+    from casadrone.optimise.store import RunStore
+
+    hist = RunStore(run_dir).history()
+    failed = [r for r in hist if r["status"] != "completed"]
+    stages = Counter(r["stage"] for r in failed)
+    lines = [f"{len(hist) - len(failed)} of {len(hist)} evaluations completed"]
+    for stage, n in stages.most_common():
+        example = next(r["reason"] for r in failed if r["stage"] == stage)
+        lines.append(f"  {n:>6} failed at {stage}, e.g. {example}")
+    return lines
+
+
+@app.command("run")
+@reports_config_errors
+def run_command(
+    problem: Annotated[Path, typer.Argument(help="problem YAML (problems/*.yaml)")],
+    overrides: Annotated[
+        list[str] | None,
+        typer.Argument(help="dotted problem overrides, e.g. algorithm.generations=20 "
+                       "objectives.0.index=J3"),
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", "-o", help="new run directory")] = ...,
+    backend: BackendOpt = None,
+    workers: WorkersOpt = None,
+    scheduler: SchedulerOpt = None,
+    quiet: QuietOpt = False,
+    verbose: Annotated[
+        bool, typer.Option("--verbose", "-v", help="also print the set-up and the failures")
+    ] = False,
+) -> None:
+    """Optimise: run a problem into a new run directory.
+
+    Progress is one line per generation on stderr (with a bar on a terminal); at the end the run
+    directory and a short summary of the Pareto front go to stdout. A killed run continues with
+    'casadrone resume DIR' and ends exactly as an uninterrupted one.
+    """
+    from casadrone.config import load_problem
+    from casadrone.optimise import runner
+    from casadrone.optimise.store import MANIFEST, RunInProgress
+
+    if quiet and verbose:
+        raise bad_input(["--quiet and --verbose: choose one"])
+    cfg = load_problem(problem, overrides or [])
+    be = backend_config(cfg.backend, backend, workers, scheduler)
+    if out.exists() and not out.is_dir():
+        raise bad_input([f"--out: {out}: exists and is not a directory"])
+    if (out / MANIFEST).exists():
+        raise bad_input([f"--out: {out}: already holds a run; resume it with "
+                         f"'casadrone resume {out}' or choose another --out"])
+    if verbose:
+        a = cfg.algorithm
+        objectives = ", ".join(f"{o.index} ({o.sense or 'default'})" for o in cfg.objectives)
+        typer.echo(f"problem {cfg.name}: {len(cfg.variables)} variables, objectives {objectives}; "
+                   f"{a.name}, population {a.population}, {a.generations} generations, seed "
+                   f"{cfg.seed}; backend {be.name} ({be.workers} worker(s)"
+                   f"{', scheduler ' + be.scheduler if be.scheduler else ''}) -> {out}", err=True)
+    try:
+        runner.run(cfg, out, be, quiet=quiet)
+    except RunInProgress as exc:
+        raise bad_input([str(exc)]) from None
+    except OSError as exc:
+        typer.echo(f"{out}: the run stopped: {exc}", err=True)
+        raise typer.Exit(1) from None
+    if verbose:
+        for line in _failure_summary(out):
+            typer.echo(line, err=True)
+    typer.echo("\n".join(run_summary(out)))
+
+
+@app.command()
+@reports_config_errors
+def resume(
+    run_dir: RunDirArg,
+    backend: BackendOpt = None,
+    workers: WorkersOpt = None,
+    scheduler: SchedulerOpt = None,
+    quiet: QuietOpt = False,
+) -> None:
+    """Continue a killed run from its last checkpoint (same end as an uninterrupted run).
+
+    A run that has already finished is reported as complete (exit code 0): resuming is
+    idempotent, so scripts may call it unconditionally.
+    """
+    from casadrone.optimise import runner
+    from casadrone.optimise.store import CHECKPOINT, PARETO, RunInProgress, RunStore
+
+    require_run_dir(run_dir)
+    problem = open_problem(run_dir)
+    manifest = RunStore(run_dir).manifest
+    if manifest.get("status") == "completed" and (run_dir / PARETO).is_file():
+        typer.echo(f"{run_dir}: the run is already complete (finished {manifest.get('finished')}); "
+                   "nothing to resume")
+        typer.echo("\n".join(run_summary(run_dir)))
+        return
+    if not (run_dir / CHECKPOINT).is_file():
+        raise bad_input([f"{run_dir}: no {CHECKPOINT}: killed before its first generation was "
+                         "stored; start it again with 'casadrone run' into a new --out"])
+    be = backend_config(problem.backend, backend, workers, scheduler)
+    try:
+        runner.resume(run_dir, be, quiet=quiet)
+    except RunInProgress as exc:
+        raise bad_input([str(exc)]) from None
+    except OSError as exc:
+        typer.echo(f"{run_dir}: the run stopped: {exc}", err=True)
+        raise typer.Exit(1) from None
+    typer.echo("\n".join(run_summary(run_dir)))
+
+
+# --------------------------------------------------------------------------------------------
+# decide, compare, report
+# --------------------------------------------------------------------------------------------
+
+
+def run_error(run_dir: Path, exc: Exception) -> typer.Exit:
+    """A run-directory problem (not finished, empty front, unknown objective) as bad input."""
+    text = str(exc)
+    return bad_input([text if text.startswith(str(run_dir)) else f"{run_dir}: {text}"])
+
+
+@app.command("decide")
+@reports_config_errors
+def decide_command(
+    run_dir: RunDirArg,
+    method: Annotated[
+        DecideMethod | None,
+        typer.Option(help="one method (default: all three, A utopian, B compromise, C extreme)"),
+    ] = None,
+    objective: Annotated[
+        str | None,
+        typer.Option(help="objective of the extreme decision (default: the problem's first)"),
+    ] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Choose designs on a finished run's front: A utopian, B compromise, C extreme.
+
+    Reads pareto.csv and the problem's objective senses. A is the design closest to the utopian
+    point, B the one closest to the front's mean point, C the best on --objective (default the
+    problem's first objective), all in normalised objective space.
+    """
+    from dataclasses import asdict
+
+    from casadrone.compare import run_candidates
+
+    require_run_dir(run_dir)
+    open_problem(run_dir)
+    try:
+        candidates = run_candidates(run_dir, (method.value,) if method else None, objective)
+    except (FileNotFoundError, ValueError) as exc:
+        raise run_error(run_dir, exc) from None
+    if as_json:
+        print_json([{"candidate": c.label, "method": c.method, "row": c.row,
+                     "distance": c.distance, "objective": c.objective, "theta": c.theta,
+                     "objectives": c.objectives} for c in candidates])
+        return
+    from casadrone.indices import INDICES
+
+    for c in map(asdict, candidates):
+        on = f" on {c['objective']}" if c["objective"] else ""
+        typer.echo(f"{c['label']} {c['method']}{on}: pareto.csv row {c['row']}, distance "
+                   f"{c['distance']:.4f} (normalised objective space)")
+        typer.echo("    theta: " + ", ".join(f"{k}={v:.6g}" for k, v in c["theta"].items()))
+        typer.echo("    objectives: " + ", ".join(
+            f"{k}={v:.6g}" + (f" {INDICES[k].unit}" if k in INDICES else "")
+            for k, v in c["objectives"].items()))
+
+
+@app.command()
+@reports_config_errors
+def compare(
+    run_dir: RunDirArg,
+    reference: ReferenceOpt = None,
+    objective: Annotated[
+        str | None,
+        typer.Option(help="objective of the extreme candidate C (default: the problem's first)"),
+    ] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Benchmark-relative gains (paper Eq. 21, Tables 9-11) of the run's A/B/C candidates.
+
+    Per candidate, reference airframe and interval: the % gain in split time, roll effort and
+    opposing-pair thrust max/min, positive = better (faster, less effort, smaller extremes;
+    effort and thrust by magnitude). basis "simulated": the reference flown on the run's track,
+    controller and integrator; basis "measured": against the paper's Table 4 (different time
+    base, orientation only).
+    """
+    from dataclasses import asdict
+
+    from casadrone.compare import compare_run, format_gains
+
+    require_run_dir(run_dir)
+    open_problem(run_dir)
+    try:
+        rows = compare_run(run_dir, tuple(reference or ("SY250",)), objective)
+    except (FileNotFoundError, ValueError) as exc:
+        raise run_error(run_dir, exc) from None
+    if as_json:
+        print_json([asdict(r) for r in rows])
+    else:
+        typer.echo(format_gains(rows), nl=False)
+
+
+@app.command()
+@reports_config_errors
+def report(
+    run_dir: RunDirArg,
+    reference: ReferenceOpt = None,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="report file (default: DIR/report.html)")
+    ] = None,
+) -> None:
+    """Write the HTML report of a run (front, candidates, gains over the references)."""
+    require_run_dir(run_dir)
+    open_problem(run_dir)
+    try:
+        from casadrone.report import write_report
+    except ModuleNotFoundError as exc:
+        if exc.name != "casadrone.report":
+            raise
+        typer.echo("report: casadrone.report is not available in this installation", err=True)
+        raise typer.Exit(1) from None
+    try:
+        path = write_report(run_dir, references=tuple(reference or ("SY250",)), out=out)
+    except (FileNotFoundError, ValueError) as exc:
+        raise run_error(run_dir, exc) from None
+    typer.echo(str(path))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -38,6 +39,30 @@ def _colours(n: int) -> list:
     return [f"C{i % 10}" for i in range(n)]
 
 
+def _colours_of(names: Sequence[str], colours: Mapping[str, Any] | None, skip: int = 0) -> list:
+    """A colour per name: from ``colours`` (name → colour), else the default cycle, whose first
+    ``skip`` colours are left out."""
+    default = _colours(len(names) + skip)[skip:]
+    return [(colours or {}).get(n, d) for n, d in zip(names, default, strict=True)]
+
+
+def candidate_colour(label: str) -> str:
+    """The colour of a candidate in every figure: A (utopian) → C1, B (compromise) → C2,
+    C (extreme) → C3, and so on to I → C9.
+
+    C0, the blue of the front and of nominal designs (:data:`NOMINAL`), is never a candidate's.
+    A design that two decisions picked ("A=C") takes the colour of its first label. Pass the
+    colours to a figure as a ``colours`` mapping (name in the figure → colour).
+
+    Raises:
+        ValueError: the label is not one letter A…I (or several joined by "=").
+    """
+    letter = label.split("=")[0].strip()
+    if len(letter) != 1 or not "A" <= letter <= "I":
+        raise ValueError(f"candidate label {label!r}: expected a letter A…I, e.g. 'A' or 'A=C'")
+    return f"C{ord(letter) - ord('A') + 1}"
+
+
 def _label(name: str, traj: Trajectory) -> str:
     if traj.completed:
         return f"{name} (lap {traj.lap_time:.2f} s)"
@@ -56,17 +81,21 @@ def _waypoints(trajectories: Mapping[str, Trajectory], waypoints) -> np.ndarray:
 
 
 def track_top_view(trajectories: Mapping[str, Trajectory], waypoints=None, *,
-                   ax: Axes | None = None, title: str | None = None) -> Figure:
+                   ax: Axes | None = None, title: str | None = None,
+                   colours: Mapping[str, Any] | None = None) -> Figure:
     """Ground track (x east, y north) of each flight, waypoints marked and numbered from 1.
 
     ``waypoints`` (W × 3, m) defaults to the first trajectory's. Equal aspect: the paper's track
     is 50 m × 2.5 m, so the figure is wide and the cross-track overshoot shows at true scale.
+    ``colours`` maps a flight's name to its colour (e.g. :func:`candidate_colour`); flights not
+    in it take the default colour cycle.
     """
     wp = _waypoints(trajectories, waypoints)
     pts = np.vstack([wp[:, :2]] + [tr.x[:, :2] for tr in trajectories.values()])
     span = np.ptp(pts, axis=0) + 4.0
     fig, ax = _figure_axes(ax, (10.0, float(np.clip(10.0 * span[1] / span[0] + 1.2, 3.0, 8.0))))
-    for (name, tr), c in zip(trajectories.items(), _colours(len(trajectories)), strict=True):
+    for (name, tr), c in zip(trajectories.items(), _colours_of(list(trajectories), colours),
+                             strict=True):
         ax.plot(tr.x[:, 0], tr.x[:, 1], color=c, lw=1.4, label=_label(name, tr),
                 gid=f"track:{name}")
         ax.plot(tr.x[0, 0], tr.x[0, 1], "o", color=c, mfc="white", ms=6)
@@ -85,16 +114,18 @@ def track_top_view(trajectories: Mapping[str, Trajectory], waypoints=None, *,
 
 
 def trajectory_3d(trajectories: Mapping[str, Trajectory], waypoints=None, *,
-                  title: str | None = None) -> Figure:
+                  title: str | None = None, colours: Mapping[str, Any] | None = None) -> Figure:
     """3-D flight paths (m) with numbered waypoints and their shadows on the ground.
 
     The axes are not to scale: each spans its data so the narrow paper track (50 m × 2.5 m at
-    20 m) reads as a loop; use :func:`track_top_view` for true proportions.
+    20 m) reads as a loop; use :func:`track_top_view` for true proportions. ``colours`` as in
+    :func:`track_top_view`.
     """
     wp = _waypoints(trajectories, waypoints)
     fig = Figure(figsize=(10.0, 6.0), layout="constrained")
     ax = fig.add_subplot(projection="3d")
-    for (name, tr), c in zip(trajectories.items(), _colours(len(trajectories)), strict=True):
+    for (name, tr), c in zip(trajectories.items(), _colours_of(list(trajectories), colours),
+                             strict=True):
         ax.plot(tr.x[:, 0], tr.x[:, 1], tr.x[:, 2], color=c, lw=1.4, label=_label(name, tr),
                 gid=f"track:{name}")
         ax.plot(tr.x[:, 0], tr.x[:, 1], np.zeros(len(tr.t)), color=c, lw=0.8, alpha=0.3)
@@ -118,13 +149,15 @@ def trajectory_3d(trajectories: Mapping[str, Trajectory], waypoints=None, *,
     return fig
 
 
-def time_histories(trajectories: Mapping[str, Trajectory], *, title: str | None = None) -> Figure:
+def time_histories(trajectories: Mapping[str, Trajectory], *, title: str | None = None,
+                   colours: Mapping[str, Any] | None = None) -> Figure:
     """Stacked altitude, speed, roll effort and left-minus-right thrust against time.
 
-    Waypoint split times are dashed vertical lines in each flight's colour. Roll effort and
-    thrust difference are the signals of the per-interval table (paper Table 4):
-    :func:`casadrone.indices.roll_effort_voltage` ((V2 + V3 − V1 − V4)/2 minus trim) and
-    :func:`casadrone.indices.pair_thrust_difference` ((T2 + T3) − (T1 + T4)).
+    Waypoint split times are dashed vertical lines in each flight's colour (``colours`` as in
+    :func:`track_top_view`). Roll effort and thrust difference are the signals of the
+    per-interval table (paper Table 4): :func:`casadrone.indices.roll_effort_voltage`
+    ((V2 + V3 − V1 − V4)/2 minus trim) and :func:`casadrone.indices.pair_thrust_difference`
+    ((T2 + T3) − (T1 + T4)).
     """
     fig = Figure(figsize=(10.0, 8.0), layout="constrained")
     axes = fig.subplots(4, 1, sharex=True)
@@ -134,7 +167,8 @@ def time_histories(trajectories: Mapping[str, Trajectory], *, title: str | None 
         ("roll effort (V)", roll_effort_voltage),
         ("thrust left − right (N)", pair_thrust_difference),
     ]
-    for (name, tr), c in zip(trajectories.items(), _colours(len(trajectories)), strict=True):
+    for (name, tr), c in zip(trajectories.items(), _colours_of(list(trajectories), colours),
+                             strict=True):
         for ax, (_, signal) in zip(axes, rows, strict=True):
             ax.plot(tr.t, signal(tr), color=c, lw=1.0, label=_label(name, tr), gid=f"signal:{name}")
             for ts in tr.split_times[np.isfinite(tr.split_times)]:
@@ -334,12 +368,14 @@ def _draw_airframe(ax: Axes, af: Airframe, colour, prop_mm: float, reference: bo
 
 def airframe_top_view(airframes: Sequence[Airframe], reference: Airframe | None = None,
                       prop_diameter_m: float = 0.127, *, overlay: bool = False,
-                      ax: Axes | None = None, title: str | None = None) -> Figure:
+                      ax: Axes | None = None, title: str | None = None,
+                      colours: Mapping[str, Any] | None = None) -> Figure:
     """Top view of candidate airframes, each over the reference in grey dashed (mm, nose up).
 
     Arms from the centre of mass (+) to the rotors (numbered 1 FR, 2 FL, 3 RL, 4 RR), prop discs of
     ``prop_diameter_m``, an arrow to the nose. One panel per airframe, or all in one
-    (``overlay=True``, or whenever ``ax`` is given).
+    (``overlay=True``, or whenever ``ax`` is given). ``colours`` maps an airframe's name to its
+    colour; airframes not in it take the default colour cycle.
     """
     airframes = list(airframes)
     prop_mm = 1000.0 * prop_diameter_m
@@ -354,12 +390,12 @@ def airframe_top_view(airframes: Sequence[Airframe], reference: Airframe | None 
     everything = airframes + ([reference] if reference is not None else [])
     reach = max(float(np.max(np.abs(top_view_xy(af.rotor_positions)))) for af in everything)
     lim = reach + prop_mm / 2 + 10.0
-    colours = _colours(len(airframes))
+    drawn_in = _colours_of([af.name for af in airframes], colours)
     for a, group in panels:
         if reference is not None:
             _draw_airframe(a, reference, ENSEMBLE, prop_mm, reference=True)
         for i, af in group:
-            _draw_airframe(a, af, colours[i], prop_mm, reference=False)
+            _draw_airframe(a, af, drawn_in[i], prop_mm, reference=False)
         a.set_xlim(-lim, lim)
         a.set_ylim(-lim, lim)
         a.set_aspect("equal")
@@ -385,13 +421,18 @@ def _objective_label(name: str, unit: str | None) -> str:
 
 
 def pareto_front(F: np.ndarray, names: Sequence[str], highlight: Mapping[str, int] | None = None,
-                 *, units: Sequence[str] | None = None, title: str | None = None) -> Figure:
+                 *, units: Sequence[str] | None = None, title: str | None = None,
+                 colours: Mapping[str, Any] | None = None,
+                 descriptions: Mapping[str, str] | None = None) -> Figure:
     """Objective values of a front: one scatter for 2 objectives, a lower-triangular scatter
     matrix (every pair once, m(m−1)/2 panels) for more.
 
     ``F`` (n × m) holds the objectives in their physical units and sense (not negated for
-    maximisation); ``units`` labels each axis. ``highlight`` maps a label (e.g. "utopian") to a
-    row of ``F``: those points are ringed and labelled.
+    maximisation); ``units`` labels each axis. ``highlight`` maps a short label (e.g. "A") to a
+    row of ``F``: those points are ringed and annotated with the label. ``descriptions`` maps a
+    label to its legend entry (default: the label itself, e.g. "A: closest to the utopian
+    point"); ``colours`` maps a label to its ring colour (e.g. :func:`candidate_colour`), labels
+    not in it taking the default cycle after the front's own C0.
     """
     F = np.atleast_2d(np.asarray(F, float))
     m = F.shape[1]
@@ -414,13 +455,14 @@ def pareto_front(F: np.ndarray, names: Sequence[str], highlight: Mapping[str, in
                     grid[r, c].remove()
                 else:
                     pairs.append((grid[r, c], c, r + 1))
-    colours = _colours(len(highlight) + 1)[1:]
+    ring = _colours_of(list(highlight), colours, skip=1)
+    legend = dict(descriptions or {})
     for a, i, j in pairs:
         a.scatter(F[:, i], F[:, j], s=14, color=NOMINAL, alpha=0.7, gid="front",
                   label="Pareto front")
-        for (name, k), c in zip(highlight.items(), colours, strict=True):
+        for (name, k), c in zip(highlight.items(), ring, strict=True):
             a.scatter(F[k, i], F[k, j], s=90, facecolor="none", edgecolor=c, lw=2.0, zorder=3,
-                      gid=f"highlight:{name}", label=name)
+                      gid=f"highlight:{name}", label=legend.get(name, name))
             a.annotate(name, (F[k, i], F[k, j]), xytext=(5, 5), textcoords="offset points",
                        fontsize=8, color=c, fontweight="bold")
         a.grid(True, alpha=0.3)

@@ -58,11 +58,13 @@ def section_candidates(run: Run, cands: list[Candidate], figs: Figures) -> str:
     parts = [_reproduction(run, cands)]
     flown = {c.title: c.evaluation.trajectory for c in cands
              if c.evaluation.trajectory is not None}
+    colours = {c.title: plots.candidate_colour(c.label) for c in cands}
     if len(flown) > 1:
-        parts.append(figs.embed(plots.track_top_view(flown, title="Candidates, top view"),
+        parts.append(figs.embed(plots.track_top_view(flown, title="Candidates, top view",
+                                                     colours=colours),
                                 "candidates-track", "Ground tracks of the candidates."))
         parts.append(figs.embed(plots.time_histories(flown, title="Candidates compared (paper "
-                                                     "Figs 21, 22)"),
+                                                     "Figs 21, 22)", colours=colours),
                                 "candidates-time-histories",
                                 "Altitude, speed, roll effort and opposing-pair thrust of the "
                                 "candidates; dashed lines: waypoint split times."))
@@ -112,10 +114,12 @@ def _candidate(run: Run, c: Candidate, figs: Figures) -> str:
         out.append(note("Roll effort: left minus right ESC voltage, deviation from trim; pair "
                         "thrust: (T_FL + T_RL) − (T_FR + T_RR). Interval 1 includes the climb."))
     if ev.trajectory is not None:
-        tr = {c.title: ev.trajectory}
-        out.append(figs.embed(plots.track_top_view(tr, title=f"Candidate {c.label}, top view"),
+        tr, colours = {c.title: ev.trajectory}, {c.title: plots.candidate_colour(c.label)}
+        out.append(figs.embed(plots.track_top_view(tr, title=f"Candidate {c.label}, top view",
+                                                   colours=colours),
                               f"candidate-{c.label}-track", f"Candidate {c.label}: ground track."))
-        out.append(figs.embed(plots.time_histories(tr, title=f"Candidate {c.label}"),
+        out.append(figs.embed(plots.time_histories(tr, title=f"Candidate {c.label}",
+                                                   colours=colours),
                               f"candidate-{c.label}-time-histories",
                               f"Candidate {c.label}: altitude, speed, roll effort and "
                               "opposing-pair thrust."))
@@ -134,12 +138,14 @@ def section_airframes(run: Run, cands: list[Candidate], references, figs: Figure
     setup = study_setup(run.study)
     frames = [build_airframe(with_theta(setup.template, c.theta, name=f"Candidate {c.label}"))
               for c in cands]
+    colours = {f.name: plots.candidate_colour(c.label) for f, c in zip(frames, cands, strict=True)}
     parts = []
     for ref in references:
         cfg = load_airframe(ref)
         fig = plots.airframe_top_view(frames, build_airframe(cfg),
                                       setup.template.prop_diameter_mm / 1000.0,
-                                      title=f"Candidates over {cfg.name} (grey, dashed)")
+                                      title=f"Candidates over {cfg.name} (grey, dashed)",
+                                      colours=colours)
         parts.append(figs.embed(fig, f"airframes-{cfg.name}", f"Top view of each candidate "
                                 f"(nose up, mm) over the reference {cfg.name} (paper Figs 15, "
                                 "17, 19)."))

@@ -125,7 +125,9 @@ def section_pareto(run: Run, cands: list[Candidate], figs: Figures) -> str:
     parts = []
     if len(names) >= 2:
         fig = plots.pareto_front(run.F, names, {c.label: c.row for c in cands},
-                                 units=[run.unit(n) for n in names])
+                                 units=[run.unit(n) for n in names],
+                                 colours={c.label: plots.candidate_colour(c.label) for c in cands},
+                                 descriptions={c.label: c.title for c in cands})
         key = "; ".join(c.title for c in cands)
         parts.append(figs.embed(fig, "pareto-front", "Pareto front, every pair of objectives, "
                                 f"in their own units and sense; the candidates are ringed ({key})."
@@ -155,8 +157,8 @@ def _pareto_set_figure(run: Run, cands: list[Candidate]) -> Figure:
     k = np.arange(Z.shape[1])
     for z in Z:
         ax.plot(k, z, color="0.7", lw=0.7)
-    for c, col in zip(cands, plots._colours(len(cands) + 1)[1:], strict=True):
-        ax.plot(k, Z[c.row], "o-", color=col, lw=2.0, label=c.title)
+    for c in cands:
+        ax.plot(k, Z[c.row], "o-", color=plots.candidate_colour(c.label), lw=2.0, label=c.title)
     ax.set_xticks(k, [variable_label(n) for n in run.study.variable_names], fontsize=9)
     ax.set_ylabel("position in bounds (–)")
     ax.set_ylim(-0.05, 1.05)

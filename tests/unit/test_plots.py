@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
@@ -234,6 +235,40 @@ def test_pareto_front_scatter_matrix_shows_every_pair_once():
     assert pairs == {(i, j) for i in range(4) for j in range(4) if i < j}
     with pytest.raises(ValueError, match="3 names for 4 objectives"):
         plots.pareto_front(F, names[:3])
+
+
+def test_a_candidate_has_one_colour_in_the_pareto_front_and_the_top_views(sy250):
+    F = np.array([[14.0, 5.0], [15.0, 7.0], [16.0, 8.5], [17.0, 9.0]])
+    rows = {"A": 1, "B": 2, "C": 0}
+    titles = {k: f"{k}: decision {k}" for k in rows}
+    front = plots.pareto_front(F, ["J3", "J1"], rows, units=["s", "m/s"],
+                               colours={k: plots.candidate_colour(k) for k in rows},
+                               descriptions=titles)
+    (ax,) = front.axes
+    # the points carry the short label, the legend the description
+    assert {t.get_text() for t in ax.texts} == set(rows)
+    assert {t.get_text() for t in ax.get_legend().get_texts()} == {"Pareto front", *titles.values()}
+    flights = {titles[k]: fake_trajectory(shift=i) for i, k in enumerate(rows)}
+    top = plots.track_top_view(flights, colours={titles[k]: plots.candidate_colour(k)
+                                                 for k in rows})
+    frames = [dataclasses.replace(sy250, name=f"Candidate {k}") for k in rows]
+    airframes = plots.airframe_top_view(frames, colours={f"Candidate {k}": plots.candidate_colour(k)
+                                                         for k in rows})
+    for k in rows:
+        ring = next(c for c in ax.collections if c.get_gid() == f"highlight:{k}")
+        (track,) = by_gid(top.axes[0], f"track:{titles[k]}")
+        (rotors,) = [line for a in airframes.axes for line in by_gid(a, f"rotors:Candidate {k}")]
+        colour = to_rgba(plots.candidate_colour(k))
+        assert tuple(ring.get_edgecolor()[0]) == colour
+        assert to_rgba(track.get_color()) == colour
+        assert to_rgba(rotors.get_color()) == colour
+    # one colour per candidate, never the front's own C0 (NOMINAL)
+    colours = [to_rgba(plots.candidate_colour(k)) for k in rows]
+    assert len(set(colours)) == 3 and to_rgba(plots.NOMINAL) not in colours
+    assert plots.candidate_colour("A=C") == plots.candidate_colour("A")
+    for bad in ("utopian", "extreme", "Z"):
+        with pytest.raises(ValueError, match="expected a letter"):
+            plots.candidate_colour(bad)
 
 
 def test_convergence_plots_hypervolume_and_archive_size():

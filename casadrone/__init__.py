@@ -50,11 +50,11 @@ __all__ = sorted(_WHERE)
 
 # Stage functions named like their modules (casadrone.trim.trim …) are bound eagerly: importing a
 # submodule makes Python set the package attribute to the module, which would shadow a lazy name.
-from casadrone.decide import decide  # noqa: E402
-from casadrone.evaluate import evaluate  # noqa: E402
-from casadrone.linearise import linearise  # noqa: E402
-from casadrone.simulate import simulate  # noqa: E402
-from casadrone.trim import trim  # noqa: E402
+from casadrone.decide import decide as decide  # noqa: E402
+from casadrone.evaluate import evaluate as evaluate  # noqa: E402
+from casadrone.linearise import linearise as linearise  # noqa: E402
+from casadrone.simulate import simulate as simulate  # noqa: E402
+from casadrone.trim import trim as trim  # noqa: E402
 
 
 def __getattr__(name: str):

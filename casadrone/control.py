@@ -228,7 +228,7 @@ def robustness_ensemble(
 
 def disturbance_response(Aa: np.ndarray, Ba: np.ndarray, K: np.ndarray, dx0: np.ndarray,
                          steps: int) -> np.ndarray:
-    """Linear closed-loop response δx[k] (steps × 20) from an initial deviation ``dx0`` (Fig. B1)."""
+    """Linear closed-loop response δx[k] (steps × 20) from a deviation ``dx0`` (Fig. B1)."""
     Acl = Aa - Ba @ K
     out = np.empty((steps, Aa.shape[0]))
     x = np.asarray(dx0, float)

@@ -30,7 +30,9 @@ from casadrone.guidance import TrackConfig
 from casadrone.simulate import SimOptions, Trajectory, simulate
 from casadrone.trim import trim
 
-DEFAULT_TRACK = Path(__file__).resolve().parent.parent / "configs" / "tracks" / "paper-rectangle.yaml"
+DEFAULT_TRACK = (
+    Path(__file__).resolve().parent.parent / "configs" / "tracks" / "paper-rectangle.yaml"
+)
 
 
 @dataclass(frozen=True)

@@ -86,10 +86,11 @@ class JacobianComparison:
 def compare(a: LinearModel, b: LinearModel) -> JacobianComparison:
     """Max absolute differences of A and B, and the largest difference of any of E, A′, B′
     relative to that matrix's largest entry."""
-    rel = max(
-        float(np.max(np.abs(getattr(a, k) - getattr(b, k))) / max(np.max(np.abs(getattr(a, k))), 1e-300))
-        for k in ("E", "A_prime", "B_prime", "A", "B")
-    )
+    def rel_diff(k: str) -> float:
+        Ma, Mb = getattr(a, k), getattr(b, k)
+        return float(np.max(np.abs(Ma - Mb)) / max(np.max(np.abs(Ma)), 1e-300))
+
+    rel = max(rel_diff(k) for k in ("E", "A_prime", "B_prime", "A", "B"))
     return JacobianComparison(
         max_abs_diff_A=float(np.max(np.abs(a.A - b.A))),
         max_abs_diff_B=float(np.max(np.abs(a.B - b.B))),

@@ -92,7 +92,9 @@ def implicit_residual(xdot, x, u, p):
     thrust_force = ca.sum1(T) * ez
     gravity_body = R.T @ ca.vertcat(0, 0, -m * grav)
     drag = -0.5 * rho * cda * ca.fabs(vel) * vel
-    torque = sum((ca.cross(r[i], T[i] * ez) + s[i] * kappa * T[i] * ez for i in range(4)), ca.DM.zeros(3))
+    torque = sum(
+        (ca.cross(r[i], T[i] * ez) + s[i] * kappa * T[i] * ez for i in range(4)), ca.DM.zeros(3)
+    )
 
     res_pos = xdot[POS] - R @ vel
     res_vel = m * xdot[VEL] + m * ca.cross(omega, vel) - thrust_force - gravity_body - drag

@@ -124,7 +124,9 @@ def _controller_expr(x, c, p, x0, u0, K, g, Ts: float, layout: GuidanceLayout):
 
     phi, theta, psi = x[9], x[10], x[11]
     cps, sps = ca.cos(psi), ca.sin(psi)
-    world_to_heading = ca.vertcat(ca.horzcat(cps, sps, 0), ca.horzcat(-sps, cps, 0), ca.horzcat(0, 0, 1))
+    world_to_heading = ca.vertcat(
+        ca.horzcat(cps, sps, 0), ca.horzcat(-sps, cps, 0), ca.horzcat(0, 0, 1)
+    )
     e_pos = ca.fmin(ca.fmax(world_to_heading @ (x[0:3] - p_ref), -max_pos), max_pos)
     R = rotation_matrix(phi, theta, psi)
     e_vel = x[3:6] - R.T @ vf_next
@@ -161,7 +163,9 @@ def controller_function(Ts: float, n_route: int) -> ca.Function:
     """``controller(x, c, p, x0, u0, K, g) -> (u, c_next, ref)`` for the SUNDIALS loops."""
     layout = GuidanceLayout(n_route)
     s = _symbols(layout)
-    u, c_next, ref = _controller_expr(s["x"], s["c"], s["p"], s["x0"], s["u0"], s["K"], s["g"], Ts, layout)
+    u, c_next, ref = _controller_expr(
+        s["x"], s["c"], s["p"], s["x0"], s["u0"], s["K"], s["g"], Ts, layout
+    )
     acc = _world_acceleration(s["x"], u, s["p"])
     names = ["x", "c", "p", "x0", "u0", "K", "g"]
     return ca.Function("controller", [s[n] for n in names], [u, c_next, ca.vertcat(ref, acc)],
@@ -169,7 +173,7 @@ def controller_function(Ts: float, n_route: int) -> ca.Function:
 
 
 def step_function(Ts: float, substeps: int, n_route: int) -> ca.Function:
-    """One sample of the closed loop with an RK4 plant: ``(x, c, …) -> (x_next, c_next, u, ref)``."""
+    """One sample of the closed loop with an RK4 plant: ``(x, c, …) -> (x_next, c_next, u, …)``."""
     layout = GuidanceLayout(n_route)
     s = _symbols(layout)
     x, p = s["x"], s["p"]
@@ -427,7 +431,7 @@ def split_times(t, x, seg, route, track: TrackConfig) -> np.ndarray:
         a, b = route[k_seg], route[k_seg + 1]
         L = np.linalg.norm(b - a)
 
-        def g(i):
+        def g(i, a=a, b=b, L=L):
             s = np.dot(x[i, :3] - a, (b - a) / L)
             return min(np.linalg.norm(x[i, :3] - b) - track.acceptance_radius_m, L - s)
 

@@ -27,7 +27,8 @@ def main() -> list:
     # the front/rear split from the pitch-moment balance, by hand
     x_front = 0.140 * np.cos(np.radians(45))
     x_rear = 0.110 * np.cos(np.radians(38))
-    print(f"\nhover front/rear thrust ratio: solver {rows[0][0].thrusts[0] / rows[0][0].thrusts[2]:.5f},"
+    ratio = rows[0][0].thrusts[0] / rows[0][0].thrusts[2]
+    print(f"\nhover front/rear thrust ratio: solver {ratio:.5f},"
           f" by hand x_rear/x_front = {x_rear / x_front:.5f}")
     return rows
 

@@ -146,7 +146,9 @@ def evaluate_rows(study: Study, X: np.ndarray) -> list[Record]:
     return records
 
 
-def objectives_and_constraints(study: Study, records: list[Record]) -> tuple[np.ndarray, np.ndarray]:
+def objectives_and_constraints(
+    study: Study, records: list[Record]
+) -> tuple[np.ndarray, np.ndarray]:
     """pymoo F (minimised) and G (≤ 0 feasible) of a batch of records."""
     cfg = study.problem
     names, senses = study.objective_names, study.senses

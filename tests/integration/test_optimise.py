@@ -158,7 +158,8 @@ def test_second_coordinator_is_refused_while_first_is_alive(uninterrupted):
     sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     try:
         (uninterrupted / "run.lock").write_text(str(sleeper.pid))
-        with pytest.raises(RuntimeError, match=f"run in progress \\(coordinator pid {sleeper.pid}\\)"):
+        expected = f"run in progress \\(coordinator pid {sleeper.pid}\\)"
+        with pytest.raises(RuntimeError, match=expected):
             store.acquire()
     finally:
         sleeper.kill()

@@ -54,4 +54,5 @@ def test_custom_index_is_optimised(tmp_path):
 def test_dask_cluster():
     pytest.importorskip("distributed")
     text = run_example("dask_cluster.py")
-    assert text.startswith("dask: 32 evaluations")
+    # 16 + 2 x 8 evaluations, whatever the cluster prints around it
+    assert "dask: 32 evaluations" in text, text

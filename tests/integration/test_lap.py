@@ -121,3 +121,37 @@ def test_attitude_limit_fails_same_way_on_both_integrators(integrator, track, ct
     a = build_airframe(load_airframe("SY250"))
     tr = simulate(a, design_for(a, ctrl), strict, integrator)
     assert tr.status == "failed" and "attitude beyond 20 deg" in tr.reason
+
+
+def test_compiled_lap_is_cached_on_disk_between_processes(tmp_path):
+    """The first process compiles the lap into $CASADRONE_CACHE; a second one loads that library
+    (same file, untouched) instead of compiling again."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("from casadrone.simulate import chunk_function; "
+            "f = chunk_function(0.01, 1, 6, 50); print(f.class_name())")
+    env = {**os.environ, "CASADRONE_CACHE": str(tmp_path)}
+    first = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert first.stdout.strip() == "External", first.stderr
+    libs = sorted(tmp_path.glob("*.so"))
+    assert len(libs) == 1
+    stamp = libs[0].stat().st_mtime_ns
+    env["CC"] = "/nonexistent-compiler"  # a second compile would fail and fall back to the VM
+    second = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert second.stdout.strip() == "External", second.stderr
+    assert sorted(tmp_path.glob("*.so")) == libs and libs[0].stat().st_mtime_ns == stamp
+
+
+def test_without_a_c_compiler_the_lap_runs_on_casadis_virtual_machine(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    code = ("from casadrone.simulate import chunk_function; "
+            "f = chunk_function(0.01, 1, 6, 50); print(f.class_name())")
+    env = {**os.environ, "CASADRONE_CACHE": str(tmp_path), "CC": "/nonexistent-compiler"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() != "External" and not list(tmp_path.glob("*.so"))

@@ -36,8 +36,9 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from benchmarks.machine import describe  # noqa: E402
-from casadrone.airframe import TABLE1_BOUNDS, build_airframe, with_theta  # noqa: E402
-from casadrone.config import ConfigError, load_airframe, load_controller  # noqa: E402
+from casadrone import airframe  # noqa: E402
+from casadrone.airframe import build_airframe, with_theta  # noqa: E402
+from casadrone.config import load_airframe, load_controller  # noqa: E402
 from casadrone.control import design_lqri  # noqa: E402
 from casadrone.linearise import linearise  # noqa: E402
 from casadrone.trim import SOLVERS, trim  # noqa: E402
@@ -49,17 +50,7 @@ RESULTS = Path(__file__).resolve().parent / "RESULTS-design.md"
 
 def random_thetas(n: int, seed: int) -> list[dict[str, float]]:
     """``n`` decision vectors inside Table 1 whose rotors do not overlap."""
-    rng = np.random.default_rng(seed)
-    base = load_airframe("SY250")
-    out = []
-    while len(out) < n:
-        theta = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in TABLE1_BOUNDS.items()}
-        try:
-            with_theta(base, theta)
-        except ConfigError:
-            continue
-        out.append(theta)
-    return out
+    return airframe.random_thetas(load_airframe("SY250"), n, seed)[0]
 
 
 def timed(fn, *args, **kwargs):

@@ -57,8 +57,8 @@ import casadi  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy  # noqa: E402
 
-from casadrone.airframe import TABLE1_BOUNDS, build_airframe, with_theta  # noqa: E402
-from casadrone.config import ConfigError  # noqa: E402
+from casadrone import airframe  # noqa: E402
+from casadrone.airframe import build_airframe, with_theta  # noqa: E402
 from casadrone.control import design_lqri  # noqa: E402
 from casadrone.evaluate import default_setup, evaluate, theta_of  # noqa: E402
 from casadrone.indices import compute_indices, interval_table  # noqa: E402
@@ -79,17 +79,7 @@ TARGET_MS = 10.0
 
 def random_thetas(n: int, seed: int, template) -> tuple[list[dict[str, float]], int]:
     """``n`` decision vectors inside Table 1 with valid geometry, and the rejected draw count."""
-    rng = np.random.default_rng(seed)
-    out, rejected = [], 0
-    while len(out) < n:
-        theta = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in TABLE1_BOUNDS.items()}
-        try:
-            with_theta(template, theta)
-        except ConfigError:
-            rejected += 1
-            continue
-        out.append(theta)
-    return out, rejected
+    return airframe.random_thetas(template, n, seed)
 
 
 def time_evaluations(thetas, setup) -> list[tuple[float, object]]:

@@ -24,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from benchmarks.machine import markdown  # noqa: E402
-from casadrone.airframe import TABLE1_BOUNDS, THETA_KEYS, build_airframe, with_theta
+from casadrone.airframe import TABLE1_BOUNDS, THETA_KEYS, build_airframe, random_thetas, with_theta
 from casadrone.benchmark import DEFAULT_TRACK
 from casadrone.config import load, load_airframe, load_controller
 from casadrone.control import design_for
@@ -79,16 +79,8 @@ def perturbations(base) -> list[tuple[str, float, object]]:
 
 def spread(base, ctrl, track, n: int, seed: int) -> dict[str, dict[str, tuple[float, float]]]:
     """(min, max) of every index over n random Table 1 frames, per gain policy."""
-    from casadrone.config import ConfigError
-
-    rng = np.random.default_rng(seed)
-    frames = []
-    while len(frames) < n:
-        theta = {k: float(rng.uniform(*TABLE1_BOUNDS[k])) for k in THETA_KEYS}
-        try:
-            frames.append(with_theta(base, theta, name=f"random {len(frames)}"))
-        except ConfigError:  # overlapping rotors: draw again
-            continue
+    thetas, _ = random_thetas(base, n, seed)  # overlapping rotors are redrawn
+    frames = [with_theta(base, th, name=f"random {i}") for i, th in enumerate(thetas)]
     frozen = ctrl.model_copy(update={"gain_policy": "frozen"})
     ref = build_airframe(base)
     out = {}

@@ -169,3 +169,23 @@ def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = 
         return AirframeConfig.model_validate(data)
     except ValidationError as exc:
         raise ConfigError(format_errors(exc, name or cfg.name, AirframeConfig)) from None
+
+
+def random_thetas(
+    template: AirframeConfig, n: int, seed: int = 0, bounds: dict | None = None
+) -> tuple[list[dict[str, float]], int]:
+    """``n`` decision vectors drawn uniformly inside ``bounds`` (default: paper Table 1) whose
+    geometry is valid on ``template`` (rotors that overlap are redrawn), and the rejected count."""
+    rng = np.random.default_rng(seed)
+    bounds = TABLE1_BOUNDS if bounds is None else bounds
+    out: list[dict[str, float]] = []
+    rejected = 0
+    while len(out) < n:
+        theta = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in bounds.items()}
+        try:
+            with_theta(template, theta)
+        except ConfigError:
+            rejected += 1
+            continue
+        out.append(theta)
+    return out, rejected

@@ -60,3 +60,20 @@ def test_allocation_matrix_maps_thrusts_to_force_and_moments():
     np.testing.assert_allclose(frame.allocation_matrix @ T, [T.sum(), *moment], atol=1e-15)
     # diagonal rotors spin alike (FR with RL, FL with RR), the pairs oppositely
     assert s[0] == s[2] and s[1] == s[3] and s[0] == -s[1]
+
+
+def test_random_thetas_inside_table1_with_valid_geometry():
+    from casadrone.airframe import TABLE1_BOUNDS, random_thetas
+    from casadrone.config import min_rotor_gap_mm
+
+    base = load_airframe("SY250")
+    thetas, rejected = random_thetas(base, 40, seed=3)
+    assert len(thetas) == 40 and rejected > 0  # Table 1 contains overlapping-rotor frames
+    for th in thetas:
+        for k, (lo, hi) in TABLE1_BOUNDS.items():
+            assert lo <= th[k] <= hi
+        gap = min_rotor_gap_mm(th["lambda_a_mm"], th["lambda_b_mm"], th["alpha_deg"],
+                               th["beta_deg"])
+        assert gap >= base.prop_diameter_mm
+    assert random_thetas(base, 40, seed=3) == (thetas, rejected)
+    assert random_thetas(base, 40, seed=4)[0] != thetas

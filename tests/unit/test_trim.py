@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from casadrone.airframe import TABLE1_BOUNDS, build_airframe, with_theta
-from casadrone.config import ConfigError, load_airframe
+from casadrone.airframe import build_airframe, random_thetas, with_theta
+from casadrone.config import load_airframe
 from casadrone.model import STATE_NAMES
 from casadrone.trim import SOLVERS, TrimOptions, TrimPoint, initial_guess, trim, trim_all
 
@@ -129,16 +129,9 @@ def test_hover_thrusts_balance_weight_and_moments(frames, trims, name):
 
 def random_table1_frames(n: int, seed: int = 0):
     """``n`` random airframes inside paper Table 1; geometries with overlapping rotors resampled."""
-    rng = np.random.default_rng(seed)
     base = load_airframe("SY250")
-    out = []
-    while len(out) < n:
-        theta = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in TABLE1_BOUNDS.items()}
-        try:
-            out.append(build_airframe(with_theta(base, theta, name=f"rand{len(out)}")))
-        except ConfigError:
-            continue
-    return out
+    thetas, _ = random_thetas(base, n, seed)
+    return [build_airframe(with_theta(base, th, name=f"rand{i}")) for i, th in enumerate(thetas)]
 
 
 @pytest.mark.parametrize("solver", SOLVERS)

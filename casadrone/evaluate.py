@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -120,7 +120,7 @@ def evaluate(
     traj = simulate(airframe, design, setup.track, setup.integrator, setup.sim_options)
     if not traj.completed:
         ev = _failed(theta, "lap", traj.reason, start)
-        return ev if not keep_trajectory else _with(ev, trajectory=traj)
+        return replace(ev, trajectory=traj) if keep_trajectory else ev
     return Evaluation(
         theta=theta, status="completed", stage="", reason="",
         indices=compute_indices(traj, index_names), intervals=tuple(interval_table(traj)),
@@ -128,20 +128,7 @@ def evaluate(
     )
 
 
-def _with(ev: Evaluation, **changes) -> Evaluation:
-    from dataclasses import replace
-
-    return replace(ev, **changes)
-
-
 def theta_of(cfg: AirframeConfig) -> dict[str, float]:
     """The decision variables of an airframe config (Table 1 keys)."""
     return {k: float(getattr(cfg, k)) for k in THETA_KEYS}
 
-
-def evaluate_batch(
-    thetas: Sequence[Mapping[str, float]], setup: EvaluationSetup,
-    index_names: Sequence[str] | None = None,
-) -> list[Evaluation]:
-    """Evaluate candidates in this process, in order."""
-    return [evaluate(th, setup, index_names) for th in thetas]

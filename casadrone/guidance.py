@@ -101,7 +101,7 @@ class GuidanceLayout:
 
     @property
     def size(self) -> int:
-        return 3 * self.n_route + 3 * self.n_seg + 8
+        return 3 * self.n_route + 3 * self.n_seg + 6
 
 
 def track_vector(track: TrackConfig) -> np.ndarray:
@@ -122,8 +122,6 @@ def track_vector(track: TrackConfig) -> np.ndarray:
             [
                 track.acceptance_radius_m,
                 track.look_ahead_m,
-                track.speed_mps,
-                track.corner_speed_mps,
                 track.brake_mps2,
                 math.radians(track.max_yaw_error_deg),
                 track.max_position_error_m,
@@ -154,7 +152,7 @@ def guidance(pos, seg, g, layout: GuidanceLayout):
     heads = g[3 * n : 3 * n + ns]
     caps = g[3 * n + ns : 3 * n + 2 * ns]
     ends = g[3 * n + 2 * ns : 3 * n + 3 * ns]
-    r_acc, look, _speed, _v_corner, brake = (g[3 * n + 3 * ns + i] for i in range(5))
+    r_acc, look, brake = (g[3 * n + 3 * ns + i] for i in range(3))
 
     def active(seg_index):
         """Start, end, heading, speed cap and end speed of segment ``seg_index`` (the last one

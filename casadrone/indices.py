@@ -14,7 +14,7 @@ timed waypoints) once the last one has been reached.
   Interval 1 includes the climb.
 - **straight sector**: lap samples whose active waypoint's leg is straight
   (``Trajectory.straight``), *excluding the climb* (route segments before
-  ``extras["first_timed_segment"]``), so J1 measures the horizontal straights (the paper's 50 m
+  ``first_timed_segment``), so J1 measures the horizontal straights (the paper's 50 m
   legs), not the vertical take-off.
 - **curved sector**: lap samples whose active waypoint's leg is not straight.
 
@@ -95,7 +95,7 @@ def sector_mask(traj: Trajectory, straight: bool) -> np.ndarray:
     """Lap samples on straight (``straight=True``) or curved legs; the climb is in neither."""
     wi = traj.waypoint_index
     legs = np.array(traj.straight, dtype=bool)
-    on_leg = lap_mask(traj) & (traj.segment >= traj.extras.get("first_timed_segment", 0))
+    on_leg = lap_mask(traj) & (traj.segment >= traj.first_timed_segment)
     return on_leg & (legs[np.minimum(wi, len(legs) - 1)] == straight)
 
 

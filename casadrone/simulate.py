@@ -20,7 +20,7 @@ import shutil
 import subprocess
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import Literal
@@ -73,8 +73,8 @@ class Trajectory:
     waypoints: np.ndarray  # (W, 3) timed waypoints, m
     straight: tuple[bool, ...]  # leg ending at each waypoint is straight
     split_times: np.ndarray  # (W,) time each waypoint was reached (NaN if not), s
+    first_timed_segment: int = 0  # route segment ending at the first waypoint (after a climb)
     wall_time_s: float = 0.0
-    extras: dict = field(default_factory=dict)
 
     @property
     def completed(self) -> bool:
@@ -103,7 +103,7 @@ class Trajectory:
     @cached_property
     def waypoint_index(self) -> np.ndarray:
         """Index (0-based) of the waypoint being flown to at each sample; W once done."""
-        first = self.extras.get("first_timed_segment", 0)
+        first = self.first_timed_segment
         return np.clip(self.segment - first, 0, len(self.waypoints)).astype(int)
 
 
@@ -409,8 +409,8 @@ def simulate(
         p_ref=R_all[:, 0:3], v_ref=R_all[:, 3:6], psi_ref=R_all[:, 6], acceleration=R_all[:, 7:10],
         segment=seg, u0=np.asarray(design.u0), battery_voltage=airframe.battery_voltage,
         waypoints=np.array(track.waypoints_m, float), straight=tuple(track.straight),
-        split_times=splits, wall_time_s=time.perf_counter() - start,
-        extras={"first_timed_segment": track.first_timed_segment},
+        split_times=splits, first_timed_segment=track.first_timed_segment,
+        wall_time_s=time.perf_counter() - start,
     )
 
 

@@ -11,7 +11,7 @@ from casadrone.indices import INDICES, lap_mask, register_index
 
 def altitude_rms(traj) -> float:
     """RMS of (z − z_ref) over the lap after the climb (m)."""
-    first = traj.extras.get("first_timed_segment", 0)
+    first = traj.first_timed_segment
     mask = lap_mask(traj) & (traj.segment > first)
     dz = traj.x[mask, 2] - traj.p_ref[mask, 2]
     return float(np.sqrt(np.mean(dz**2)))

@@ -48,7 +48,7 @@ def make_traj(*, x=None, u=None, acc=None, seg=SEG, straight=(True, False, True,
         segment=np.asarray(seg), u0=U0, battery_voltage=V_BATT,
         waypoints=np.array([[50, 0, 20], [50, 2.5, 20], [0, 2.5, 20], [0, 0, 20]], float),
         straight=tuple(straight), split_times=np.asarray(splits, float),
-        extras={"first_timed_segment": 1},
+        first_timed_segment=1,
     )
 
 

@@ -114,7 +114,8 @@ class Airframe:
 
 
 def build_airframe(cfg: AirframeConfig) -> Airframe:
-    """Build the SI :class:`Airframe` of a validated config."""
+    """Build the SI :class:`Airframe` of a validated config (the schema has already checked the
+    geometry and that the inertia tensor is positive definite)."""
     r = np.array(rotor_positions_mm(cfg.lambda_a_mm, cfg.lambda_b_mm, cfg.alpha_deg, cfg.beta_deg))
     J = np.array(
         [
@@ -123,8 +124,6 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
             [cfg.ixz_kgm2, cfg.iyz_kgm2, cfg.izz_kgm2],
         ]
     )
-    if np.min(np.linalg.eigvalsh(J)) <= 0:
-        raise ConfigError([f"{cfg.name}: inertia tensor is not positive definite"])
     theta = np.array(
         [
             cfg.lambda_a_mm / 1000,

@@ -255,6 +255,12 @@ def run_error(run_dir: Path, exc: Exception) -> typer.Exit:
     return bad_input([text if text.startswith(str(run_dir)) else f"{run_dir}: {text}"])
 
 
+ObjectiveOpt = Annotated[
+    str | None,
+    typer.Option(help="objective of the extreme candidate C (default: the problem's first)"),
+]
+
+
 @app.command("decide")
 @reports_config_errors
 def decide_command(
@@ -263,10 +269,7 @@ def decide_command(
         DecideMethod | None,
         typer.Option(help="one method (default: all three, A utopian, B compromise, C extreme)"),
     ] = None,
-    objective: Annotated[
-        str | None,
-        typer.Option(help="objective of the extreme decision (default: the problem's first)"),
-    ] = None,
+    objective: ObjectiveOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Choose designs on a finished run's front: A utopian, B compromise, C extreme.
@@ -307,10 +310,7 @@ def decide_command(
 def compare(
     run_dir: RunDirArg,
     reference: ReferenceOpt = None,
-    objective: Annotated[
-        str | None,
-        typer.Option(help="objective of the extreme candidate C (default: the problem's first)"),
-    ] = None,
+    objective: ObjectiveOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Benchmark-relative gains (paper Eq. 21, Tables 9-11) of the run's A/B/C candidates.

@@ -13,14 +13,19 @@ from __future__ import annotations
 import copy
 import difflib
 from functools import cache
+from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
 import yaml
 from pydantic import BaseModel, ConfigDict, TypeAdapter, ValidationError, model_validator
 
+#: The checkout (or, installed, site-packages): relative paths in configs resolve here too.
 ROOT = Path(__file__).resolve().parent.parent
-CONFIG_DIR = ROOT / "configs"
+#: The shipped data (package data, so a non-editable install has it): ``configs/`` and
+#: ``problems/``. The checkout's top-level ``configs`` and ``problems`` are links into it.
+DATA_DIR = Path(str(resources.files("casadrone") / "data"))
+CONFIG_DIR = DATA_DIR / "configs"
 
 
 class ConfigError(Exception):
@@ -293,7 +298,7 @@ def _resolve_reference(value: str, kind: str, base: Path) -> Path | None:
     """A referenced config: a path (relative to ``base``, then the project root) or a bare name
     of a file in ``configs/<kind>/``. None when nothing exists."""
     p = Path(value)
-    candidates = [p] if p.is_absolute() else [base / p, ROOT / p]
+    candidates = [p] if p.is_absolute() else [base / p, ROOT / p, DATA_DIR / p]
     if not p.suffix and len(p.parts) == 1:
         candidates.append(CONFIG_DIR / kind / f"{value}.yaml")
     return next((c for c in candidates if c.is_file()), None)
@@ -363,22 +368,30 @@ def load(model: type[M], path: str | Path, overrides: list[str] | None = None) -
     return validate_data(model, data, str(path), path.parent, overrides)
 
 
+def kind_dir(kind: str) -> Path:
+    """The shipped folder of one kind of config: ``airframes`` … or ``problems``."""
+    return DATA_DIR / "problems" if kind == "problems" else CONFIG_DIR / kind
+
+
 def resolve_config(name: str | Path, kind: str) -> Path:
-    """A path as given if it exists, else ``configs/<kind>/<name>.yaml`` (e.g. ``SY250``).
+    """A path as given if it exists, else the shipped ``configs/<kind>/<name>.yaml`` (e.g.
+    ``SY250``; kind ``problems`` looks in the shipped ``problems/``, e.g. ``quick``).
 
     Raises ConfigError naming the known configs when neither exists.
     """
     p = Path(name)
-    for candidate in (p, ROOT / p):
+    for candidate in (p, ROOT / p, DATA_DIR / p):
         if candidate.is_file():
             return candidate
-    candidate = CONFIG_DIR / kind / f"{p.stem}.yaml"
+    folder = kind_dir(kind)
+    candidate = folder / f"{p.stem}.yaml"
     if len(p.parts) == 1 and p.suffix in ("", ".yaml", ".yml") and candidate.is_file():
         return candidate
     if len(p.parts) > 1:
         raise ConfigError([f"{name}: file not found"])
-    known = sorted(f.stem for f in (CONFIG_DIR / kind).glob("*.yaml"))
+    known = sorted(f.stem for f in folder.glob("*.yaml"))
     close = difflib.get_close_matches(p.stem, known, n=1, cutoff=0.6)
     hint = f"did you mean '{close[0]}'? " if close else ""
-    raise ConfigError([f"{name}: file not found, and no configs/{kind}/{p.stem}.yaml "
+    where = "problems" if kind == "problems" else f"configs/{kind}"
+    raise ConfigError([f"{name}: file not found, and no shipped {where}/{p.stem}.yaml "
                        f"({hint}known: {', '.join(known) or 'none'})"])

@@ -13,7 +13,7 @@ from typing import Any, Literal
 
 from pydantic import Field
 
-from casadrone.configio import ROOT, Schema, has_keys, load
+from casadrone.configio import ROOT, Schema, has_keys, load, resolve_config
 
 
 class VariableConfig(Schema):
@@ -204,5 +204,6 @@ def import_plugin(plugin: str) -> Any:
 
 
 def load_problem(path: str | Path, overrides: list[str] | None = None) -> ProblemConfig:
-    """Load a problem YAML with ``dotted.key=value`` overrides (``algorithm.generations=20``)."""
-    return load(ProblemConfig, path, overrides)
+    """Load a problem YAML (a path, or a shipped problem's name: ``quick``) with
+    ``dotted.key=value`` overrides (``algorithm.generations=20``)."""
+    return load(ProblemConfig, resolve_config(path, "problems"), overrides)

@@ -61,11 +61,18 @@ def _matrix_text(M, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
 
 
 def _yaml_files(paths: list[Path]) -> list[Path]:
-    """The files given, with a folder expanded to every YAML below it (sorted)."""
+    """The files given, with a folder expanded to every YAML below it (sorted), and a bare name
+    that is no file here (``SY250``, ``quick``) taken as the shipped config of that name."""
+    from casadrone.config import SCHEMAS_BY_FOLDER
+    from casadrone.configio import kind_dir
+
     out: list[Path] = []
     for p in paths:
         if p.is_dir():
             out += sorted(f for f in p.rglob("*") if f.suffix in (".yaml", ".yml"))
+        elif not p.exists() and len(p.parts) == 1 and p.suffix in ("", ".yaml", ".yml"):
+            shipped = [kind_dir(k) / f"{p.stem}.yaml" for k in SCHEMAS_BY_FOLDER]
+            out.append(next((f for f in shipped if f.is_file()), p))
         else:
             out.append(p)
     return out

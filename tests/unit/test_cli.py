@@ -14,10 +14,11 @@ import numpy as np
 import pytest
 
 from casadrone.cli import app
+from casadrone.configio import CONFIG_DIR
 
 ROOT = Path(__file__).resolve().parents[2]
 BAD = ROOT / "tests" / "data" / "bad"
-SY250_FILE = ROOT / "configs" / "airframes" / "SY250.yaml"
+SY250_FILE = CONFIG_DIR / "airframes" / "SY250.yaml"
 
 
 def run(cli_runner, *args: str):

@@ -20,6 +20,7 @@ from casadrone.config import (
     load_controller,
     validate_file,
 )
+from casadrone.configio import CONFIG_DIR
 
 ROOT = Path(__file__).resolve().parents[2]
 BAD = ROOT / "tests" / "data" / "bad"
@@ -288,7 +289,7 @@ def test_overrides_are_validated_like_the_file():
     assert cfg.thrust.time_constant_s == 0.060538  # sibling nested key kept
     with pytest.raises(ConfigError) as info:
         load_airframe("SY250", ["alpha_deg=200", "thrust.gainn=3", "mass_kg=x"])
-    src = str(ROOT / "configs/airframes/SY250.yaml")
+    src = str(CONFIG_DIR / "airframes/SY250.yaml")
     assert info.value.lines == [
         f"{src}: alpha_deg: Input should be less than 180 (got 200) [override alpha_deg=200]",
         f"{src}: mass_kg: Input should be a valid number, unable to parse string as a number "

@@ -81,7 +81,9 @@ class AirframeConfig(Schema):
     lambda_b_mm: float = Field(gt=0, le=MAX_ARM_MM, description="CoM to rear motors (mm)")
     alpha_deg: float = Field(gt=0, lt=180, description="angle between the nose arms (deg)")
     beta_deg: float = Field(gt=0, lt=180, description="angle between the tail arms (deg)")
-    ixx_kgm2: float = Field(gt=0, le=MAX_INERTIA, description="roll inertia, about the nose axis (kg·m²)")
+    ixx_kgm2: float = Field(
+        gt=0, le=MAX_INERTIA, description="roll inertia, about the nose axis (kg·m²)"
+    )
     iyy_kgm2: float = Field(gt=0, le=MAX_INERTIA, description="pitch inertia (kg·m²)")
     izz_kgm2: float = Field(gt=0, le=MAX_INERTIA, description="yaw inertia (kg·m²)")
     ixy_kgm2: float = Field(0.0, ge=-MAX_INERTIA, le=MAX_INERTIA)

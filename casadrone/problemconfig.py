@@ -223,8 +223,8 @@ def _input_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
     one of its corners (a box where neither holds would only give failed evaluations)."""
     import itertools
 
-    from casadrone.configio import ConfigError, error_pairs
     from casadrone.config import AirframeConfig, load_airframe, load_controller
+    from casadrone.configio import ConfigError, error_pairs
 
     found: list[tuple[str, str]] = []
     try:

@@ -79,6 +79,7 @@ def _yaml_files(paths: list[Path]) -> list[Path]:
 
 
 @app.command()
+@reports_config_errors
 def validate(
     files: Annotated[list[Path], typer.Argument(help="config YAML files or folders of them")],
     as_json: JsonOpt = False,

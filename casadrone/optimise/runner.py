@@ -4,11 +4,22 @@ The loop is pymoo's own ``Algorithm.next()`` (ask → evaluate the whole generat
 → tell), one generation at a time; after each generation the coordinator stores its evaluations
 and then checkpoints the algorithm (random state included). Resuming loads the checkpoint,
 re-attaches a backend and continues: the run ends exactly as an uninterrupted one would.
+
+When no checkpoint is usable (killed before the first one, or both damaged), resuming rebuilds
+the run from ``history.sqlite``: the algorithm starts again from its seed and each stored
+generation is served from the history instead of being evaluated (a replay, checked row by row
+against what the algorithm asks for), then the run continues live. SIGTERM (``timeout``, batch
+schedulers, ``docker stop``) and SIGINT (Ctrl-C) stop a run the same way: the manifest records
+``interrupted`` and :class:`Interrupted` carries the signal to the caller.
 """
 
 from __future__ import annotations
 
+import contextlib
+import signal
+import sqlite3
 import sys
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -18,8 +29,83 @@ import numpy as np
 
 from casadrone.config import BackendConfig, ProblemConfig
 from casadrone.optimise.backends import make_backend
-from casadrone.optimise.problem import CandidateProblem, Study
-from casadrone.optimise.store import RunStore, now
+from casadrone.optimise.problem import CandidateProblem, Record, Study
+from casadrone.optimise.store import RunDamaged, RunStore, now
+
+
+class Interrupted(KeyboardInterrupt):
+    """The run was stopped by a signal (SIGINT or SIGTERM); its state is recorded."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+        self.run_dir: Path | None = None  # the run to resume, once it has a directory
+
+
+@contextlib.contextmanager
+def _signals_interrupt():
+    """SIGTERM and SIGINT raise :class:`Interrupted` in the coordinator while the block runs
+    (only the main thread can take signals; elsewhere nothing changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise Interrupted(signum)
+
+    old = {s: signal.signal(s, handler) for s in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+class ReplayBackend:
+    """Serves a run's stored generations (``history.sqlite``) in order, then evaluates live."""
+
+    name = "replay"
+
+    def __init__(self, stored: list[list[Record]], live):
+        self.stored, self.live, self.generation = stored, live, 0
+
+    def evaluate(self, study: Study, X: np.ndarray) -> list[Record]:
+        if self.generation >= len(self.stored):
+            return self.live.evaluate(study, X)
+        records = self.stored[self.generation]
+        names = study.variable_names
+        X_stored = np.array([[r.theta[n] for n in names] for r in records], dtype=float)
+        if X_stored.shape != np.shape(X) or not np.array_equal(X_stored, X):
+            raise RunDamaged(f"history.sqlite does not match a replay of the run at generation "
+                             f"{self.generation} (different candidates): it cannot rebuild it")
+        self.generation += 1
+        return records
+
+    def close(self) -> None:
+        self.live.close()
+
+    def terminate(self) -> None:
+        getattr(self.live, "terminate", self.live.close)()
+
+
+def stored_generations(store: RunStore) -> list[list[Record]]:
+    """The complete generations of ``history.sqlite`` (0, 1, … without a gap) as records."""
+    m = store.manifest
+    try:
+        done = [g["generation"] for g in store.generations()]
+        rows = store.history()
+    except sqlite3.Error as exc:
+        raise RunDamaged(f"{store.path / 'history.sqlite'}: unreadable ({exc})") from None
+    n = next((i for i, g in enumerate(done) if g != i), len(done))
+    out: list[list[Record]] = [[] for _ in range(n)]
+    for r in rows:
+        if r["generation"] < n:
+            out[r["generation"]].append(Record(
+                theta={v: r[v] for v in m["variables"]}, status=r["status"],
+                stage=r["stage"] or "", reason=r["reason"] or "",
+                indices={k: float("nan") if r[k] is None else r[k] for k in m["indices"]},
+                wall_time_s=r["wall_time_s"] or 0.0))
+    return out
 
 
 @dataclass(frozen=True)
@@ -103,7 +189,18 @@ def _loop(store: RunStore, algorithm, study: Study, backend, elapsed0: float,
     problem.backend = backend
     store.acquire()
     try:
-        return _generations(store, algorithm, study, problem, elapsed0, progress, stop_after)
+        with _signals_interrupt():
+            return _generations(store, algorithm, study, problem, elapsed0, progress, stop_after)
+    except Interrupted as exc:
+        exc.run_dir = store.path
+        with contextlib.suppress(Exception):
+            store.update_manifest(status="interrupted", interrupted=now(), signal=str(exc))
+        raise
+    except Exception as exc:
+        with contextlib.suppress(Exception):
+            store.update_manifest(status="stopped", stopped=now(),
+                                  error=f"{type(exc).__name__}: {exc}"[:300])
+        raise
     finally:
         store.release()
 
@@ -146,10 +243,32 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
                      generations=int(algorithm.n_gen or 0))
 
 
+def _close(be, failed: bool) -> None:
+    """Close a backend; after a failure or a signal, kill its workers rather than wait."""
+    if failed and hasattr(be, "terminate"):
+        be.terminate()
+    else:
+        be.close()
+
+
+def _interruptible(fn):
+    """Signals interrupt ``fn`` (a run or resume) anywhere, not only inside the loop."""
+    import functools
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with _signals_interrupt():
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+@_interruptible
 def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None = None,
         quiet: bool = False, progress: Callable | None = None,
         stop_after: int | None = None) -> RunResult:
-    """Run ``problem`` into the new run directory ``out``.
+    """Run ``problem`` into the new run directory ``out`` (a new or empty folder; anything else
+    is refused untouched).
 
     ``backend`` overrides the problem's own; ``stop_after`` stops after that many generations
     (as if killed; resume continues it).
@@ -161,35 +280,72 @@ def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None =
     study = Study(problem)
     index_names = (study.objective_names if problem.test_problem is not None
                    else list(INDICES))
+    build_algorithm(problem, len(study.objective_names))  # refused here, before any file
     store = RunStore.create(out, problem, study.variable_names, index_names, backend_cfg.name)
-    study = Study(store.problem())  # the run's own copies of its input files
-    algorithm, termination = build_algorithm(problem, len(study.objective_names))
-    algorithm.setup(CandidateProblem(study), termination=termination, seed=problem.seed,
-                    verbose=False)
-    be = make_backend(backend_cfg)
+    try:
+        study = Study(store.problem())  # the run's own copies of its input files
+        algorithm, termination = build_algorithm(problem, len(study.objective_names))
+        algorithm.setup(CandidateProblem(study), termination=termination, seed=problem.seed,
+                        verbose=False)
+        be = make_backend(backend_cfg)
+    except BaseException as exc:
+        if isinstance(exc, Interrupted):
+            exc.run_dir = store.path
+        store.release()
+        raise
+    failed = True
     try:
         prog = progress or Progress(problem.algorithm.generations, quiet)
-        return _loop(store, algorithm, study, be, 0.0, prog, stop_after)
+        result = _loop(store, algorithm, study, be, 0.0, prog, stop_after)
+        failed = False
+        return result
     finally:
-        be.close()
+        _close(be, failed)
 
 
+@_interruptible
 def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = False,
            progress: Callable | None = None, stop_after: int | None = None) -> RunResult:
-    """Continue the run in ``out`` from its last checkpoint."""
+    """Continue the run in ``out`` from its last checkpoint (the previous one if the last is
+    damaged; with neither, rebuilt from ``history.sqlite``, which also restarts a run killed
+    before its first checkpoint). The lock is taken before anything is read or written."""
     store = RunStore(Path(out))
-    if not (store.path / "checkpoint.pkl").exists():
-        raise FileNotFoundError(f"{out}: no checkpoint.pkl: not a run directory, or killed "
-                                "before its first generation was stored (start it again)")
-    problem = store.problem()
-    state = store.load_checkpoint()
-    algorithm = state["algorithm"]
-    backend_cfg = backend or problem.backend
-    be = make_backend(backend_cfg)
-    store.update_manifest(status="running", resumed=now())
+    store.acquire()
     try:
+        problem = store.problem()  # from the run's own config.yaml and inputs/, wherever it is
+        study = Study(problem)
+        replay: list[list[Record]] | None = None
+        try:
+            state = store.load_checkpoint()
+            algorithm, elapsed0 = state["algorithm"], float(state["elapsed_s"])
+        except (FileNotFoundError, RunDamaged) as why:
+            try:
+                replay = stored_generations(store)
+            except RunDamaged as exc:
+                raise RunDamaged(f"{why}; and the history cannot rebuild it: {exc}") from None
+            algorithm, termination = build_algorithm(problem, len(study.objective_names))
+            algorithm.setup(CandidateProblem(study), termination=termination,
+                            seed=problem.seed, verbose=False)
+            elapsed0 = 0.0
+            if not quiet:
+                print(f"{out}: no usable checkpoint ({str(why).removeprefix(f'{out}: ')}); "
+                      f"rebuilding from history.sqlite ({len(replay)} stored generation(s))",
+                      file=sys.stderr, flush=True)
+        algorithm.problem.study = study  # never the original directory's inputs
+        be = make_backend(backend or problem.backend)
+        if replay is not None:
+            be = ReplayBackend(replay, be)
+    except BaseException as exc:
+        if isinstance(exc, Interrupted):
+            exc.run_dir = store.path
+        store.release()
+        raise
+    failed = True
+    try:
+        store.update_manifest(status="running", resumed=now())
         prog = progress or Progress(problem.algorithm.generations, quiet)
-        return _loop(store, algorithm, algorithm.problem.study, be, state["elapsed_s"], prog,
-                     stop_after)
+        result = _loop(store, algorithm, study, be, elapsed0, prog, stop_after)
+        failed = False
+        return result
     finally:
-        be.close()
+        _close(be, failed)

@@ -66,8 +66,9 @@ class ReplayBackend:
 
     name = "replay"
 
-    def __init__(self, stored: list[list[Record]], live):
+    def __init__(self, stored: list[list[Record]], live, why: str = ""):
         self.stored, self.live, self.generation = stored, live, 0
+        self.why = why  # why the run is being rebuilt, for the message if it cannot be
 
     def evaluate(self, study: Study, X: np.ndarray) -> list[Record]:
         if self.generation >= len(self.stored):
@@ -76,8 +77,9 @@ class ReplayBackend:
         names = study.variable_names
         X_stored = np.array([[r.theta[n] for n in names] for r in records], dtype=float)
         if X_stored.shape != np.shape(X) or not np.array_equal(X_stored, X):
-            raise RunDamaged(f"history.sqlite does not match a replay of the run at generation "
-                             f"{self.generation} (different candidates): it cannot rebuild it")
+            raise RunDamaged(f"{self.why}; and history.sqlite cannot rebuild the run: it does "
+                             f"not match a replay at generation {self.generation} (different "
+                             "candidates)")
         self.generation += 1
         return records
 
@@ -315,10 +317,12 @@ def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = 
         problem = store.problem()  # from the run's own config.yaml and inputs/, wherever it is
         study = Study(problem)
         replay: list[list[Record]] | None = None
+        reason = ""
         try:
             state = store.load_checkpoint()
             algorithm, elapsed0 = state["algorithm"], float(state["elapsed_s"])
         except (FileNotFoundError, RunDamaged) as why:
+            reason = str(why)
             try:
                 replay = stored_generations(store)
             except RunDamaged as exc:
@@ -334,7 +338,7 @@ def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = 
         algorithm.problem.study = study  # never the original directory's inputs
         be = make_backend(backend or problem.backend)
         if replay is not None:
-            be = ReplayBackend(replay, be)
+            be = ReplayBackend(replay, be, reason)
     except BaseException as exc:
         if isinstance(exc, Interrupted):
             exc.run_dir = store.path

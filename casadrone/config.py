@@ -206,7 +206,7 @@ class StateWeights(Schema):
 class RobustnessConfig(Schema):
     """Perturbed-plant ensemble of paper Appendix B."""
 
-    n_plants: int = Field(50, ge=1)
+    n_plants: int = Field(50, ge=1, le=10000)
     dynamics_pct: float = Field(30.0, ge=0, lt=100, description="mass, inertia, drag spread (%)")
     coupling_pct: float = Field(
         20.0, ge=0, lt=100, description="thrust gain, time constant, arm geometry, κ spread (%)"

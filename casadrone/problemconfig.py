@@ -106,7 +106,7 @@ class BackendConfig(Schema):
     """Where candidates are evaluated: this process, a process pool, or a Dask cluster."""
 
     name: Literal["serial", "processes", "dask"] = "serial"
-    workers: int = Field(1, ge=1, description="processes (or LocalCluster workers)")
+    workers: int = Field(1, ge=1, le=1024, description="processes (or LocalCluster workers)")
     scheduler: str | None = Field(None, description="Dask scheduler address; None: LocalCluster")
 
     @classmethod

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import contextlib
 import signal
-import sqlite3
 import sys
 import threading
 import time
@@ -90,14 +89,22 @@ class ReplayBackend:
         getattr(self.live, "terminate", self.live.close)()
 
 
+def _check_history(store: RunStore, generation: int) -> None:
+    """The history holds every generation up to the checkpoint's (else the run lost data)."""
+    done = {g["generation"] for g in store.generations()}
+    with store.database("read the evaluations") as db:
+        db.execute("SELECT generation, idx FROM evaluations LIMIT 1").fetchall()
+    missing = sorted(set(range(generation + 1)) - done)
+    if missing:
+        raise RunDamaged(f"{store.path / 'history.sqlite'}: generation {missing[0]} is missing "
+                         f"though the checkpoint is at generation {generation}")
+
+
 def stored_generations(store: RunStore) -> list[list[Record]]:
     """The complete generations of ``history.sqlite`` (0, 1, … without a gap) as records."""
     m = store.manifest
-    try:
-        done = [g["generation"] for g in store.generations()]
-        rows = store.history()
-    except sqlite3.Error as exc:
-        raise RunDamaged(f"{store.path / 'history.sqlite'}: unreadable ({exc})") from None
+    done = [g["generation"] for g in store.generations()]
+    rows = store.history()
     n = next((i for i, g in enumerate(done) if g != i), len(done))
     out: list[list[Record]] = [[] for _ in range(n)]
     for r in rows:
@@ -321,6 +328,7 @@ def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = 
         try:
             state = store.load_checkpoint()
             algorithm, elapsed0 = state["algorithm"], float(state["elapsed_s"])
+            _check_history(store, int(state["generation"]))
         except (FileNotFoundError, RunDamaged) as why:
             reason = str(why)
             try:

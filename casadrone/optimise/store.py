@@ -244,6 +244,15 @@ class RunStore:
 
     # -- history ----------------------------------------------------------------------------
 
+    @contextlib.contextmanager
+    def database(self, doing: str):
+        """The history database; its errors (damaged file, disk full) name the file."""
+        try:
+            with contextlib.closing(self.connect()) as db, db:
+                yield db
+        except sqlite3.Error as exc:
+            raise RunDamaged(f"{self.path / HISTORY}: cannot {doing} ({exc})") from None
+
     def write_generation(self, generation: int, records: list[Record], stats: dict) -> None:
         """Store one generation's evaluations and statistics in one transaction."""
         m = self.manifest
@@ -256,7 +265,7 @@ class RunStore:
              r.wall_time_s)
             for i, r in enumerate(records)
         ]
-        with self.connect() as db:
+        with self.database("write the generation") as db:
             db.execute("DELETE FROM evaluations WHERE generation >= ?", (generation,))
             db.execute("DELETE FROM generations WHERE generation >= ?", (generation,))
             db.executemany(f"INSERT INTO evaluations (generation, idx, {cols}, status, stage, "
@@ -267,13 +276,14 @@ class RunStore:
 
     def history(self) -> list[dict]:
         """All evaluations, ordered by generation and position."""
-        with self.connect() as db:
+        with self.database("read the evaluations") as db:
             db.row_factory = sqlite3.Row
             return [dict(r) for r in db.execute(
                 "SELECT * FROM evaluations ORDER BY generation, idx")]
 
     def generations(self) -> list[dict]:
-        with self.connect() as db:
+        """One row per stored generation (statistics), in order."""
+        with self.database("read the generations") as db:
             db.row_factory = sqlite3.Row
             return [dict(r) for r in db.execute("SELECT * FROM generations ORDER BY generation")]
 

@@ -311,3 +311,164 @@ def test_every_algorithm_runs_and_resumes_identically(tmp_path, name):
     same_run(tmp_path / "part", tmp_path / "whole")
     np.testing.assert_array_equal(RunStore(tmp_path / "part").read_pareto()[1],
                                   RunStore(tmp_path / "whole").read_pareto()[1])
+
+
+# --------------------------------------------------------------------------------------------
+# The command line: damaged run directories, expected failures, bugs
+# --------------------------------------------------------------------------------------------
+
+
+def cli(*args):
+    from typer.testing import CliRunner
+
+    from casadrone.cli import app
+
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def one_line_exit_2(result) -> str:
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, lines
+    return lines[0]
+
+
+FILE_DAMAGE = {"garbage": b"\x00\xffnot this file at all\n" * 20, "empty": b"",
+               "truncated": None}
+
+
+@pytest.mark.parametrize("target", ["manifest.json", "history.sqlite"])
+@pytest.mark.parametrize("damage", sorted(FILE_DAMAGE))
+@pytest.mark.parametrize("command", ["resume", "decide", "compare", "report"])
+def test_damaged_run_files_give_one_line_never_a_traceback(tmp_path, full, target, damage,
+                                                           command):
+    d = tmp_path / "run"
+    shutil.copytree(full, d)
+    if command == "resume":  # an unfinished run, so that resume has work to do
+        m = json.loads((d / "manifest.json").read_text())
+        (d / "manifest.json").write_text(json.dumps({**m, "status": "running"}))
+        (d / "pareto.csv").unlink()
+    f = d / target
+    f.write_bytes(FILE_DAMAGE[damage] if FILE_DAMAGE[damage] is not None
+                  else f.read_bytes()[: f.stat().st_size // 3])
+    result = cli(command, d)
+    if result.exit_code == 0:  # decide and compare read only config.yaml and pareto.csv
+        assert command in ("decide", "compare"), result.output
+        return
+    line = one_line_exit_2(result)
+    assert target in line or "history database" in line, line
+
+
+def test_resume_with_every_checkpoint_and_the_history_damaged_says_why(tmp_path, tiny):
+    d = tmp_path / "run"
+    run(tiny, d, SERIAL, quiet=True, stop_after=2)
+    for name in ("checkpoint.pkl", "checkpoint.prev.pkl", "history.sqlite"):
+        (d / name).write_bytes(b"garbage")
+    line = one_line_exit_2(cli("resume", d))
+    assert "checkpoint.pkl: damaged" in line and "history" in line and "cannot rebuild" in line
+
+
+def test_run_into_a_foreign_folder_from_the_cli_is_refused_untouched(tmp_path, monkeypatch):
+    d = tmp_path / "d"
+    d.mkdir()
+    (d / "config.yaml").write_text("notes\n")
+    line = one_line_exit_2(cli("run", QUICK, *TINY, "--backend", "serial", "--out", d))
+    assert line.startswith(f"--out: {d}: not empty (config.yaml)")
+    assert [p.name for p in d.iterdir()] == ["config.yaml"]
+    assert (d / "config.yaml").read_text() == "notes\n"
+    monkeypatch.chdir(d)  # --out . is the same folder
+    one_line_exit_2(cli("run", QUICK, *TINY, "--backend", "serial", "--out", "."))
+    assert [p.name for p in d.iterdir()] == ["config.yaml"]
+
+
+@pytest.mark.parametrize("override, key", [
+    ("fixed.mass_kg=-1", "fixed.mass_kg"),
+    ("fixed.mass_kg=true", "fixed.mass_kg"),
+    ("seed=-1", "seed"),
+    ("algorithm.settings.n_ind_ga=7", "algorithm.settings.n_ind_ga"),
+    ("algorithm.settings.n_div=0", "algorithm.settings.n_div"),
+    ("algorithm.settings.n_ind_gaa=6", "algorithm.settings.n_ind_gaa"),
+    ("algorithm.name=moead", "algorithm.name"),
+    ("variables=[{name: lambda_a_mm, lower: -2.0, upper: -1.0}]", "variables.0.lower"),
+    ("variables=[{name: name, lower: 0.0, upper: 1.0}]", "variables.0.name"),
+    ("algorithm.population=.inf", "algorithm.population"),
+    ("constraints.0.max=.nan", "constraints.0.max"),
+])
+def test_bad_run_values_exit_2_before_anything_is_written(tmp_path, override, key):
+    out = tmp_path / "never"
+    result = cli("run", QUICK, *TINY, override, "--backend", "serial", "--out", out)
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    assert any(f": {key}: " in ln for ln in result.stderr.splitlines()), result.stderr
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["trim", "SY250", "mass_kg=true"], "mass_kg: expected a number, got the boolean true"),
+    (["trim", "SY250", "ixx_kgm2=.inf"], "ixx_kgm2: expected a finite number"),
+    (["trim", "SY250", "lambda_a_mm=1e308"], "lambda_a_mm: 1e+308 is beyond"),
+    (["trim", "SY250", "--condition", "forward", "--speed", "1e308"], "--speed: forward flight"),
+    (["trim", "SY250", "--condition", "forward", "--speed", "-5"], "--speed: forward flight"),
+    (["simulate", "SY250", "drag_area_m2=[0.01, .nan, 0.02]"], "drag_area_m2: expected a finite"),
+])
+def test_bad_values_at_every_door_exit_2(args, fragment):
+    result = cli(*args)
+    assert result.exit_code == 2, result.output
+    assert fragment in result.stderr and "Traceback" not in result.output
+
+
+def test_report_out_naming_a_directory_exits_2_at_once(full, tmp_path):
+    import time
+
+    start = time.perf_counter()
+    line = one_line_exit_2(cli("report", full, "--out", tmp_path))
+    assert "is a directory" in line
+    assert time.perf_counter() - start < 5.0  # before any work (it used to take 19 s)
+
+
+def test_disk_full_in_the_history_write_is_one_line(tmp_path, monkeypatch):
+    import sqlite3
+
+    real = sqlite3.connect
+
+    class FullDisk:  # a connection whose inserts fail as on a full disk
+        def __init__(self, *args, **kwargs):
+            self.db = real(*args, **kwargs)
+
+        def __getattr__(self, name):
+            return getattr(self.db, name)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return self.db.__exit__(*exc)
+
+        def executemany(self, *args):
+            raise sqlite3.OperationalError("database or disk is full")
+
+    monkeypatch.setattr(sqlite3, "connect", FullDisk)
+    d = tmp_path / "run"
+    line = one_line_exit_2(cli("run", QUICK, *TINY, "--backend", "serial", "--quiet",
+                               "--out", d))
+    assert line == f"{d / 'history.sqlite'}: cannot write the generation (database or disk is full)"
+    m = json.loads((d / "manifest.json").read_text())
+    assert m["status"] == "stopped" and "disk is full" in m["error"]
+
+
+def test_an_unexpected_error_is_one_line_and_a_log_file(tmp_path, monkeypatch):
+    import casadrone.optimise.runner as runner_mod
+
+    monkeypatch.setenv("CASADRONE_CACHE", str(tmp_path / "cache"))
+
+    def bug(*args, **kwargs):
+        raise KeyError("a bug")
+
+    monkeypatch.setattr(runner_mod, "run", bug)
+    result = cli("run", QUICK, *TINY, "--backend", "serial", "--out", tmp_path / "run")
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("casadrone: internal error: KeyError: 'a bug' (traceback in ")
+    log = Path(line.rsplit("traceback in ", 1)[1].rstrip(")"))
+    assert log.is_file() and "Traceback" in log.read_text() and "a bug" in log.read_text()

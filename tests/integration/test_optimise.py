@@ -181,5 +181,5 @@ def test_run_keeps_its_own_copies_of_input_files(uninterrupted, tmp_path):
     from casadrone.config import load_controller
 
     ctrl = load_controller(problem.controller)
-    assert ctrl.gain_policy == "frozen"
+    assert ctrl.gain_policy == "frozen-wrench"
     assert ctrl.reference_airframe == inputs / "reference_airframe.yaml"

@@ -1,0 +1,48 @@
+"""frozen-wrench, the paper problems' controller: the same lap as frozen-command on the reference,
+every reference airframe flies, and geometry no longer pitches the frame through a foreign mixer."""
+
+import json
+
+import numpy as np
+import pytest
+
+from casadrone.airframe import random_thetas
+from casadrone.cli import app
+from casadrone.evaluate import default_setup, evaluate
+from casadrone.indices import BUILTIN_NAMES
+
+REFERENCES = ["SY250", "SY220", "HS200", "HS210", "NSY200"]
+WRENCH = "configs/controllers/frozen-wrench-sy250.yaml"
+
+
+def test_frozen_wrench_and_frozen_command_fly_the_same_lap_on_sy250():
+    laps = {c: evaluate({}, default_setup("SY250", c), keep_trajectory=True)
+            for c in ("frozen-sy250", "frozen-wrench-sy250")}
+    a, b = laps["frozen-sy250"], laps["frozen-wrench-sy250"]
+    assert a.completed and b.completed
+    np.testing.assert_allclose(a.trajectory.x, b.trajectory.x, rtol=0, atol=1e-9)
+    for name in BUILTIN_NAMES:
+        assert a.indices[name] == pytest.approx(b.indices[name], rel=1e-9, abs=1e-12)
+
+
+@pytest.mark.parametrize("name", REFERENCES)
+def test_simulate_every_reference_with_frozen_wrench(cli_runner, name):
+    result = cli_runner.invoke(app, ["simulate", name, "--controller", WRENCH, "--json"])
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.stdout)
+    assert out["status"] == "completed", out
+
+
+def test_jp_spread_below_one_percent_on_random_frames():
+    """Issue acceptance: over 20 random Table 1 frames the maximum pitch varies by < 1 % under
+    frozen-wrench, while frozen-command (every frame through SY250's mixer) spreads it by more
+    than 2 % (a collective correction pitches a frame with unequal arms)."""
+    spread = {}
+    for controller in ("frozen-wrench-sy250", "frozen-sy250"):
+        setup = default_setup("SY250", controller)
+        thetas, _ = random_thetas(setup.template, 20, seed=11)
+        jp = np.array([evaluate(t, setup, ["Jp"]).indices["Jp"] for t in thetas])
+        assert jp.size == 20
+        spread[controller] = (jp.max() - jp.min()) / jp.mean()
+    assert spread["frozen-wrench-sy250"] < 0.01, spread
+    assert spread["frozen-sy250"] > 0.02, spread

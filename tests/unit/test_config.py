@@ -11,6 +11,7 @@ import pytest
 from pydantic import ValidationError
 
 from casadrone import config as C
+from casadrone.airframe import TABLE1_BOUNDS
 from casadrone.config import (
     AirframeConfig,
     ConfigError,
@@ -449,3 +450,31 @@ def test_table1_box_is_partly_impossible():
     for x, y, z in grid:
         ok = not C.inertia_problems([[x, 0, 0], [0, y, 0], [0, 0, z]])
         assert ok == (z <= x + y)
+
+
+def test_components_problem_refuses_mass_and_inertia_variables(tmp_path):
+    problem = tmp_path / "p.yaml"
+    problem.write_text("name: p\nairframe: SY250-components\nobjectives: [{index: J3}]\n")
+    lines = problems_of_file(problem)
+    assert [ln.split(": ")[1] for ln in lines] == [
+        "variables.4.name", "variables.5.name", "variables.6.name"]
+    assert "computed from the parts" in lines[0]
+    problem.write_text(problem.read_text() + "variables:\n" + "".join(
+        f"  - {{name: {k}, lower: {lo}, upper: {hi}}}\n"
+        for k, (lo, hi) in list(TABLE1_BOUNDS.items())[:4]))
+    validate_file(problem)
+
+
+def test_components_mode_refuses_given_mass_and_needs_its_parts():
+    base = {k: v for k, v in SY250.items() if k not in C.MASS_KEYS}
+    lines = problems_of({**base, "mass_model": "components", "mass_kg": 0.3})
+    assert "f.yaml: components: required when mass_model is 'components'" in lines
+    assert any(ln.startswith("f.yaml: mass_kg: computed from the components") for ln in lines)
+    lines = problems_of(base)
+    assert [ln.split(": ")[1] for ln in lines] == ["mass_kg", "ixx_kgm2", "iyy_kgm2", "izz_kgm2"]
+
+
+def problems_of_file(path) -> list[str]:
+    with pytest.raises(ConfigError) as info:
+        validate_file(path)
+    return info.value.lines

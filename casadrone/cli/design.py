@@ -315,7 +315,7 @@ def lqr(
     from casadrone import control
 
     reference = None
-    if ctrl.gain_policy == "frozen":
+    if ctrl.frozen_gain:
         _, reference = load_airframe_or_exit(str(ctrl.reference_airframe), None)
     design = control.design_for(frame, ctrl, reference)
     eig = np.asarray(design.closed_loop_eigenvalues)

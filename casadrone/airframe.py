@@ -11,8 +11,9 @@ from typing import Literal
 
 import numpy as np
 
-from casadrone.config import AirframeConfig, rotor_positions_mm
+from casadrone.config import AirframeConfig
 from casadrone.configio import ConfigError
+from casadrone.massprops import rotor_positions_mm
 
 #: Names and order of the decision vector θ (paper Table 1) and their config keys.
 THETA_NAMES = ("lambda_a", "lambda_b", "alpha", "beta", "Ixx", "Iyy", "Izz")

@@ -172,7 +172,7 @@ def asymmetric(parts_cfg):
 
 
 def test_airframe_rotors_referred_to_the_centre_of_mass(parts_cfg, asymmetric):
-    from casadrone.config import rotor_positions_mm
+    from casadrone.massprops import rotor_positions_mm
 
     mp = mass_properties(parts_cfg, ASYMMETRIC)
     hub = np.array(rotor_positions_mm(*ASYMMETRIC.values())) / 1000

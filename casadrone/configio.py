@@ -63,21 +63,21 @@ class Problems(ValueError):
 MAX_MAGNITUDE = 1e9
 
 
-def _leaves(annotation: Any) -> set[Any]:
+def scalar_types(annotation: Any) -> set[Any]:
     """The scalar types an annotation admits (``tuple[float, float] | None`` → {float, None}),
     with Literal values as their types and models as themselves."""
     origin = typing.get_origin(annotation)
     if annotation is type(None):
         return {type(None)}
     if origin is Annotated:
-        return _leaves(typing.get_args(annotation)[0])
+        return scalar_types(typing.get_args(annotation)[0])
     if origin is Literal:
         return {type(a) for a in typing.get_args(annotation)}
     if origin in (typing.Union, types.UnionType, list, tuple, dict, set, frozenset):
         args = typing.get_args(annotation)
         if origin is dict:
             args = args[1:]
-        return set().union(*(_leaves(a) for a in args if a is not Ellipsis)) if args else {Any}
+        return set().union(*(scalar_types(a) for a in args if a is not Ellipsis)) if args else {Any}
     return {annotation}
 
 
@@ -131,7 +131,7 @@ class Schema(BaseModel):
     def _strict_numbers(cls, value: Any, info: ValidationInfo) -> Any:
         field = cls.model_fields.get(info.field_name)
         if field is not None:
-            problem = strict_scalar_problem(_leaves(field.annotation), value)
+            problem = strict_scalar_problem(scalar_types(field.annotation), value)
             if problem:
                 raise ValueError(problem)
         return value
@@ -349,10 +349,10 @@ def format_errors(exc: ValidationError, source: str, model: type[BaseModel]) -> 
 
 
 @cache
-def _field_adapter(model: type[BaseModel], name: str) -> TypeAdapter:
+def field_adapter(model: type[BaseModel], name: str) -> TypeAdapter:
     """Validates one field of ``model`` on its own, as strictly as the model does."""
     field = model.model_fields[name]
-    leaves = _leaves(field.annotation)
+    leaves = scalar_types(field.annotation)
 
     def strict(value: Any) -> Any:
         problem = strict_scalar_problem(leaves, value)
@@ -381,7 +381,7 @@ def partial_problems(model: type[BaseModel], data: Any) -> list[tuple[str, str]]
                 values[name] = field.get_default(call_default_factory=True)
             continue
         try:
-            values[name] = _field_adapter(model, name).validate_python(data[name])
+            values[name] = field_adapter(model, name).validate_python(data[name])
         except ValidationError:
             sub, value = _model_in(field.annotation), data[name]
             if sub is None:

@@ -1,8 +1,9 @@
 """Optimisation problems (``problems/*.yaml``, DESIGN.md §9): what varies, what is flown, what
 is optimised, and with which algorithm and backend.
 
-Schemas like those of :mod:`casadrone.config` (frozen, unknown keys rejected), re-exported there;
-this module imports no other schema module at load time, so :mod:`casadrone.config` can.
+Schemas like those of :mod:`casadrone.config` (frozen, unknown keys rejected); a problem names an
+airframe template, so this module sits above :mod:`casadrone.config` and below the chain stages it
+only names (their registries are imported when a problem is checked).
 """
 
 from __future__ import annotations
@@ -13,7 +14,16 @@ from typing import Any, Literal
 
 from pydantic import Field, ValidationError
 
-from casadrone.configio import ROOT, Schema, has_keys, load, resolve_config
+from casadrone.config import AirframeConfig
+from casadrone.configio import (
+    ROOT,
+    Schema,
+    field_adapter,
+    has_keys,
+    load,
+    resolve_config,
+    scalar_types,
+)
 
 
 class VariableConfig(Schema):
@@ -25,8 +35,6 @@ class VariableConfig(Schema):
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
-        from casadrone.config import AirframeConfig
-
         found = []
         if has_keys(v, "lower", "upper") and not v["lower"] < v["upper"]:
             found.append(("lower", f"lower bound {v['lower']} is not below upper bound "
@@ -35,16 +43,15 @@ class VariableConfig(Schema):
             close = difflib.get_close_matches(v["name"], list(AirframeConfig.model_fields), 1)
             hint = f" (did you mean '{close[0]}'?)" if close else ""
             found.append(("name", f"'{v['name']}' is not an airframe key{hint}"))
-        elif "name" in v and AirframeConfig.model_fields[v["name"]].annotation is not float:
+        elif "name" in v and scalar_types(AirframeConfig.model_fields[v["name"]].annotation) - {
+                type(None)} != {float}:
             found.append(("name", f"'{v['name']}' is not a number the search can vary"))
         elif "name" in v:  # each bound must itself be a value the airframe key accepts
-            from casadrone.configio import _field_adapter
-
             for bound in ("lower", "upper"):
                 if bound not in v:
                     continue
                 try:
-                    _field_adapter(AirframeConfig, v["name"]).validate_python(v[bound])
+                    field_adapter(AirframeConfig, v["name"]).validate_python(v[bound])
                 except ValidationError as exc:
                     msg = exc.errors()[0]["msg"].removeprefix("Value error, ")
                     found.append((bound, f"{v[bound]} is not a possible {v['name']}: {msg}"))
@@ -184,6 +191,7 @@ class ProblemConfig(Schema):
                     found.append((f"fixed.{key}", "not an airframe key"))
                 elif key in vnames:
                     found.append((f"fixed.{key}", "also a decision variable: fix it or vary it"))
+            found += _computed_variables(v)
             if not found and v.get("airframe") is not None:
                 found += _input_problems(v)
         found += _algorithm_problems(v)
@@ -270,6 +278,26 @@ def _load_track(path):
     from casadrone.guidance import TrackConfig
 
     return load(TrackConfig, path)
+
+
+def _computed_variables(v: dict[str, Any]) -> list[tuple[str, str]]:
+    """Decision variables that the airframe's mass model computes (mass and inertia keys under
+    ``mass_model: components``): refused, never silently ignored."""
+    from casadrone.config import MASS_KEYS
+    from casadrone.configio import ConfigError, read_yaml
+
+    if not v.get("airframe") or "variables" not in v:
+        return []
+    try:
+        template = {**read_yaml(v["airframe"]), **(v.get("fixed") or {})}
+    except ConfigError:
+        return []  # the airframe file's own problems are reported with it
+    if template.get("mass_model") != "components":
+        return []
+    return [(f"variables.{i}.name", f"'{x.name}' is computed from the parts with the airframe's "
+             "mass_model: components, so it cannot be a decision variable; list the geometry "
+             "variables (lambda_a_mm, lambda_b_mm, alpha_deg, beta_deg) under variables")
+            for i, x in enumerate(v["variables"]) if x.name in MASS_KEYS]
 
 
 _PLUGINS: dict[str, Any] = {}

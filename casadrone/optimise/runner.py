@@ -26,10 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-from casadrone.config import BackendConfig, ProblemConfig
 from casadrone.optimise.backends import make_backend
 from casadrone.optimise.problem import CandidateProblem, Record, Study
 from casadrone.optimise.store import RunDamaged, RunStore, now
+from casadrone.problemconfig import BackendConfig, ProblemConfig
 
 
 class Interrupted(KeyboardInterrupt):

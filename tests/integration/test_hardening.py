@@ -18,10 +18,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from casadrone.config import BackendConfig, ConfigError, ProblemConfig, load_problem
+from casadrone.configio import ConfigError
 from casadrone.optimise.algorithms import ALGORITHM_NAMES, REFUSED
 from casadrone.optimise.runner import resume, run
 from casadrone.optimise.store import NotARunDirectory, RunDamaged, RunInProgress, RunStore
+from casadrone.problemconfig import BackendConfig, ProblemConfig, load_problem
 
 QUICK = "problems/quick.yaml"
 TINY = ["algorithm.population=12", "algorithm.generations=3", "algorithm.settings.n_ind_ga=6"]

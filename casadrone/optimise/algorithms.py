@@ -6,8 +6,9 @@ ev-MOGA and pymoo's algorithms are compared on the same budget through the same 
 
 from __future__ import annotations
 
+import contextlib
 import importlib
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from math import comb
 from typing import Any
 
@@ -17,7 +18,7 @@ from pymoo.core.algorithm import Algorithm
 from casadrone.optimise.evmoga import EvMOGA
 
 __all__ = ["ALGORITHM_NAMES", "REFUSED", "make_algorithm", "reference_directions",
-           "settings_problems"]
+           "seeded_defaults", "settings_problems"]
 
 # name -> (module, class, takes reference directions, takes pop_size)
 _PYMOO: dict[str, tuple[str, str, bool, bool]] = {
@@ -127,6 +128,11 @@ def settings_problems(
             hint = f"did you mean '{close[0]}'? " if close else ""
             found.append((k, f"unknown setting of {key} ({hint}known: "
                           f"{', '.join(known) or 'none'})"))
+    if key == "spea2" and settings.get("eliminate_duplicates", True) is not False:
+        found.append(("eliminate_duplicates", "spea2 with duplicate elimination (pymoo's default) "
+                      "is not reproducible from its seed in pymoo 0.6.2 (the survivors' order "
+                      "varies between identical runs), so a run could neither be repeated nor "
+                      "resumed identically; set eliminate_duplicates: false"))
     if found:
         return found
     if key == "ctaea" and len(reference_directions(n_obj, population)) < 2:
@@ -196,3 +202,49 @@ def _merge_pop_size(kwargs: dict[str, Any], key: str, pop_size: int | None) -> N
     if key in kwargs and kwargs[key] != pop_size:
         raise ValueError(f"pop_size={pop_size} contradicts settings {key}={kwargs[key]}")
     kwargs[key] = pop_size
+
+
+class _SeededRandom:
+    """``numpy.random`` whose ``default_rng()`` (no seed) is one given generator."""
+
+    def __init__(self, generator: np.random.Generator):
+        self._generator = generator
+
+    def default_rng(self, seed=None):
+        return self._generator if seed is None else np.random.default_rng(seed)
+
+    def __getattr__(self, name: str):
+        return getattr(np.random, name)
+
+
+class _SeededNumpy:
+    def __init__(self, generator: np.random.Generator):
+        self.random = _SeededRandom(generator)
+
+    def __getattr__(self, name: str):
+        return getattr(np, name)
+
+
+@contextlib.contextmanager
+def seeded_defaults(algorithm: Algorithm) -> Iterator[None]:
+    """Make pymoo's unseeded random draws come from the algorithm's own generator.
+
+    pymoo 0.6.2 decorates its random functions with ``default_random_state``, which draws a
+    fresh, OS-seeded generator when a caller passes no ``random_state``; the tournament
+    tie-breaks of NSGA-III, U-NSGA-III, SMS-EMOA and SPEA2 do exactly that (equal constraint
+    violations, common when candidates fail at the same stage), so those runs were neither
+    reproducible from their seed nor resumable to the same end. Inside this block such draws
+    use ``algorithm.random_state`` (seeded, and saved in every checkpoint) instead.
+    """
+    import pymoo.util
+
+    generator = getattr(algorithm, "random_state", None)
+    if generator is None:
+        yield
+        return
+    saved = pymoo.util.np
+    pymoo.util.np = _SeededNumpy(generator)
+    try:
+        yield
+    finally:
+        pymoo.util.np = saved

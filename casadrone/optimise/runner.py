@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from casadrone.optimise.algorithms import seeded_defaults
 from casadrone.optimise.backends import make_backend
 from casadrone.optimise.problem import CandidateProblem, Record, Study
 from casadrone.optimise.store import RunDamaged, RunStore, now
@@ -218,7 +219,8 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
     start = time.perf_counter()
     steps = 0
     while algorithm.has_next():
-        algorithm.next()
+        with seeded_defaults(algorithm):
+            algorithm.next()
         # pymoo's n_gen is 2 after the initial population (generation 0 here), 3 after the next…
         gen = int(algorithm.n_gen) - 2
         records = problem.last_records

@@ -292,10 +292,41 @@ def test_refused_algorithms_are_refused_at_load():
     for name in REFUSED:
         with pytest.raises(ConfigError, match=f"algorithm.name: {name} cannot run"):
             load_problem(QUICK, [f"algorithm.name={name}", "algorithm.settings={}"])
+    with pytest.raises(ConfigError, match="eliminate_duplicates: spea2 with duplicate elim"):
+        load_problem(QUICK, ["algorithm.name=spea2", "algorithm.settings={}"])
+
+
+@pytest.mark.parametrize("name", ["nsga3", "unsga3", "smsemoa", "spea2"])
+def test_tie_breaks_draw_from_the_seeded_generator(name):
+    """pymoo 0.6.2 breaks tournament ties with an OS-seeded generator; under seeded_defaults
+    two identical runs on a problem full of ties (candidates infeasible alike) agree."""
+    from pymoo.core.problem import Problem
+
+    from casadrone.optimise.algorithms import make_algorithm, seeded_defaults
+
+    class AllFail(Problem):  # violations in three levels (failure stages): many exact ties
+        def __init__(self):
+            super().__init__(n_var=3, n_obj=2, n_ieq_constr=1, xl=0.0, xu=1.0)
+
+        def _evaluate(self, X, out, *args, **kwargs):
+            out["F"] = np.column_stack([X[:, 0], 1 - X[:, 0]])
+            out["G"] = np.floor(3 * X[:, 1:2]) + 1.0
+
+    def final_population():
+        settings = {"eliminate_duplicates": False} if name == "spea2" else {}
+        a = make_algorithm(name, settings, pop_size=8, n_obj=2)
+        a.setup(AllFail(), termination=("n_gen", 8), seed=3, verbose=False)
+        while a.has_next():
+            with seeded_defaults(a):
+                a.next()
+        return a.pop.get("X")
+
+    np.testing.assert_array_equal(final_population(), final_population())
 
 
 def algorithm_problem(name: str) -> ProblemConfig:
-    settings = "{n_ind_ga: 4, n_div: 5}" if name == "evmoga" else "{}"
+    settings = {"evmoga": "{n_ind_ga: 4, n_div: 5}",
+                "spea2": "{eliminate_duplicates: false}"}.get(name, "{}")
     return load_problem(QUICK, [f"algorithm.name={name}", "algorithm.population=8",
                                 "algorithm.generations=3", f"algorithm.settings={settings}",
                                 "objectives=[{index: J1}, {index: J3}]"])

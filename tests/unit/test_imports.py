@@ -23,7 +23,8 @@ STAGES: tuple[str, ...] = (
     "casadrone.guidance", "casadrone.simulate", "casadrone.indices", "casadrone.evaluate",
     "casadrone.decide", "casadrone.optimise.evmoga", "casadrone.optimise.algorithms",
     "casadrone.problemconfig", "casadrone.optimise.problem", "casadrone.optimise.lifeline",
-    "casadrone.optimise.backends", "casadrone.optimise.checkpoint", "casadrone.optimise.store", "casadrone.optimise.runner", "casadrone.optimise",
+    "casadrone.optimise.backends", "casadrone.optimise.checkpoint", "casadrone.optimise.store",
+    "casadrone.optimise.runner", "casadrone.optimise",
     "casadrone.benchmark", "casadrone.compare", "casadrone.validation", "casadrone.plots",
     "casadrone.export", "casadrone.report", "casadrone.cli",
 )

@@ -110,13 +110,16 @@ def run_summary(run_dir: Path) -> list[str]:
     """The run directory and a short summary of its front (from pareto.csv)."""
     from casadrone.indices import INDICES
     from casadrone.optimise.problem import Study
-    from casadrone.optimise.store import RunStore
+    from casadrone.optimise.store import RunDamaged, RunStore
 
     store = RunStore(run_dir)
     m = store.manifest
     study = Study(store.problem())
     header, rows = store.read_pareto()
     n_var = len(header) - len(study.objective_names)
+    if n_var < 0 or header[n_var:] != study.objective_names:
+        raise RunDamaged(f"{run_dir / 'pareto.csv'}: columns {header} do not end with the "
+                         f"objectives {study.objective_names}")
     lines = [f"run directory: {run_dir}",
              f"Pareto front: {len(rows)} design(s) from {m.get('n_evaluations')} evaluations "
              f"(pareto.csv)"]

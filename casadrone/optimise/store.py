@@ -371,6 +371,8 @@ class RunStore:
         try:
             with open(self.path / PARETO, newline="", encoding="utf-8") as fh:
                 rows = list(csv.reader(fh))
+            if any(len(r) != len(rows[0]) for r in rows[1:]):
+                raise ValueError("rows of different lengths")
             return rows[0], [[float(v) for v in r] for r in rows[1:]]
         except (IndexError, ValueError, UnicodeDecodeError, csv.Error) as exc:
             raise RunDamaged(f"{self.path / PARETO}: damaged ({exc})") from None

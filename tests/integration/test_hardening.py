@@ -509,3 +509,22 @@ def test_an_unexpected_error_is_one_line_and_a_log_file(tmp_path, monkeypatch):
     assert line.startswith("casadrone: internal error: KeyError: 'a bug' (traceback in ")
     log = Path(line.rsplit("traceback in ", 1)[1].rstrip(")"))
     assert log.is_file() and "Traceback" in log.read_text() and "a bug" in log.read_text()
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["run", "quick", "-j", "0", "--out", "x"], "casadrone run: Invalid value for '-j'"),
+    (["trim", "SY250", "--solver", "xyz"], "casadrone trim: Invalid value for '--solver'"),
+    (["nocommand"], "casadrone: No such command 'nocommand'"),
+])
+def test_bad_command_line_options_are_one_line_from_the_console(tmp_path, args, fragment):
+    import subprocess
+    import sys
+
+    exe = shutil.which("casadrone")
+    cmd = [exe] if exe else [sys.executable, "-c", "from casadrone.cli import app; app()"]
+    done = subprocess.run([*cmd, *args], capture_output=True, text=True, cwd=tmp_path,
+                          timeout=120)
+    assert done.returncode == 2
+    (line,) = done.stderr.strip().splitlines()
+    assert line.startswith(fragment) and line.endswith("--help')")
+    assert not (tmp_path / "x").exists()

@@ -528,3 +528,21 @@ def test_bad_command_line_options_are_one_line_from_the_console(tmp_path, args, 
     (line,) = done.stderr.strip().splitlines()
     assert line.startswith(fragment) and line.endswith("--help')")
     assert not (tmp_path / "x").exists()
+
+
+def test_a_failed_creation_leaves_no_half_run(tmp_path, tiny, monkeypatch):
+    import casadrone.optimise.store as store_mod
+
+    def no_space(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(store_mod, "versions", no_space)  # fails just before the manifest
+    with pytest.raises(OSError, match="No space"):
+        run(tiny, tmp_path / "new", SERIAL, quiet=True)
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(OSError, match="No space"):
+        run(tiny, tmp_path / "empty", SERIAL, quiet=True)
+    assert [p.name for p in (tmp_path / "empty").iterdir()] in ([], ["run.lock"])
+    monkeypatch.undo()
+    run(tiny, tmp_path / "empty", SERIAL, quiet=True, stop_after=1)  # usable afterwards

@@ -546,3 +546,10 @@ def test_a_failed_creation_leaves_no_half_run(tmp_path, tiny, monkeypatch):
     assert [p.name for p in (tmp_path / "empty").iterdir()] in ([], ["run.lock"])
     monkeypatch.undo()
     run(tiny, tmp_path / "empty", SERIAL, quiet=True, stop_after=1)  # usable afterwards
+
+
+def test_checkpoints_hold_no_path_of_the_run(tmp_path, tiny):
+    out = tmp_path / "somewhere-unique"
+    run(tiny, out, SERIAL, quiet=True, stop_after=2)
+    for name in ("checkpoint.pkl", "checkpoint.prev.pkl", "config.yaml", "manifest.json"):
+        assert b"somewhere-unique" not in (out / name).read_bytes(), name

@@ -18,15 +18,13 @@ import numpy as np
 
 from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
 from casadrone.config import AirframeConfig, ControllerConfig, load_airframe, load_controller
-from casadrone.configio import ConfigError, load
+from casadrone.configio import CONFIG_DIR, ConfigError, load
 from casadrone.control import design_for
 from casadrone.guidance import TrackConfig
 from casadrone.simulate import SimOptions, Trajectory, simulate
 from casadrone.trim import trim
 
-DEFAULT_TRACK = (
-    Path(__file__).resolve().parent.parent / "configs" / "tracks" / "paper-rectangle.yaml"
-)
+DEFAULT_TRACK = CONFIG_DIR / "tracks" / "paper-rectangle.yaml"
 
 
 @dataclass(frozen=True)

@@ -41,11 +41,26 @@ def make_run(path: Path, overrides: list[str]) -> Path:
     return path
 
 
+#: (figure, paths) of every figure the report fixture saved
+SAVED: list = []
+
+
 @pytest.fixture(scope="module")
 def report(tmp_path_factory) -> tuple[Path, str]:
-    """A tiny quick.yaml run and its report."""
+    """A tiny quick.yaml run and its report (every saved figure recorded in SAVED)."""
+    from casadrone import plots
+
     run_dir = make_run(tmp_path_factory.mktemp("run") / "quick", [])
-    path = write_report(run_dir)
+    save = plots.save_figure
+
+    def recording(fig, *args, **kwargs):
+        paths = save(fig, *args, **kwargs)
+        SAVED.append((fig, paths))
+        return paths
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(plots, "save_figure", recording)
+        path = write_report(run_dir)
     return run_dir, path.read_text(encoding="utf-8")
 
 
@@ -226,3 +241,48 @@ def test_report_of_a_test_problem_run(tmp_path):
         assert f'<section id="{name}">' in html
     assert "A pymoo test problem has no airframe" in section(html, "airframes")
     assert len(IMG.findall(section(html, "pareto"))) == 2
+
+
+def test_candidate_exports_are_linked_and_written(report):
+    run_dir, html = report
+    require_front(run_dir)
+    links = re.findall(r'<a href="exports/(candidate-([ABC]+)-(\w+)\.\w+)">', html)
+    assert {fmt for _, _, fmt in links} == {"betaflight", "px4", "urdf", "svg", "dxf"}
+    for name, label, _ in links:
+        text = (run_dir / "exports" / name).read_text(encoding="utf-8")
+        assert f"candidate: {'='.join(label)} (" in text and "casadrone" in text
+
+
+def test_measured_table4_gains_are_apart_and_collapsed(report):
+    run_dir, html = report
+    require_front(run_dir)
+    airframes = section(html, "airframes")
+    headline, _, rest = airframes.partition("<details><summary>Against the paper's measured")
+    assert rest, "the measured gains are in their own collapsed block"
+    assert "measured" not in headline.split("Per-interval gains")[1]
+
+
+def test_no_figure_is_clipped(report):
+    # Every figure's PNG covers the extent of everything drawn on it (its tight bounding box,
+    # labels and legends included) plus the pad: a bottom axis label can no longer fall off the
+    # image. And the PNG keeps a white margin on all four sides: no ink touches its border.
+    from matplotlib.image import imread
+
+    from casadrone.plots import PAD_INCHES
+
+    run_dir, _ = report
+    pngs = [paths[0] for _, paths in SAVED]
+    assert len(pngs) >= 3 and all(p.suffix == ".png" and p.parent == run_dir / "plots"
+                                  for p in pngs)
+    for fig, paths in SAVED:
+        img = imread(paths[0])
+        fig.set_dpi(150)  # text extents as rendered into the PNG
+        tight = fig.get_tightbbox()  # inches
+        content = np.array([tight.width, tight.height]) + 2 * PAD_INCHES
+        image = np.array(img.shape[1::-1]) / 150
+        assert np.all(image >= content - 0.1), (paths[0].name, image, content)
+    for png in pngs:
+        img = imread(png)[..., :3]
+        border = np.concatenate([img[:2].reshape(-1, 3), img[-2:].reshape(-1, 3),
+                                 img[:, :2].reshape(-1, 3), img[:, -2:].reshape(-1, 3)])
+        assert np.all(border > 0.99), f"{png.name}: ink touches the image border (clipped)"

@@ -219,7 +219,7 @@ def test_plate_outline_is_continuous_and_arm_width_exact():
     for (_, end), (start, _) in zip(pieces, pieces[1:] + pieces[:1], strict=True):
         np.testing.assert_allclose(end, start, atol=1e-9)
     for k in range(4):  # the two edges of arm k are 12 mm apart
-        (r0, r1), (l0, l1) = pieces[4 * k], pieces[4 * k + 2]
+        (r0, r1), (_, l1) = pieces[4 * k], pieces[4 * k + 2]
         u = (r1 - r0) / np.linalg.norm(r1 - r0)
         gap = l1 - r0
         assert abs(u[0] * gap[1] - u[1] * gap[0]) == pytest.approx(12.0, abs=1e-9)

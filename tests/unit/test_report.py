@@ -178,7 +178,21 @@ def test_convergence_is_monotone_and_ends_on_the_non_dominated_set(report):
     P = np.unique(F[ok], axis=0)  # brute-force oracle of the final non-dominated set
     dominated = [any(np.all(q <= p) and np.any(q < p) for q in P) for p in P]
     assert ch.n_non_dominated[-1] == len(P) - sum(dominated)
-    np.testing.assert_allclose(ch.ideal, P.min(axis=0), rtol=0, atol=0)
+    # the space is fixed by the first generation with a feasible evaluation (its
+    # non-dominated set's ideal and nadir) and stored in the manifest by the run
+    gen, _, _ = feasible_front(r.study, r.history)
+    first = P[:0]
+    for g in sorted(set(gen.tolist())):
+        if (ok & (gen == g)).any():
+            first = F[ok & (gen == g)]
+            break
+    nd = [p for p in first if not any(np.all(q <= p) and np.any(q < p) for q in first)]
+    np.testing.assert_allclose(ch.ideal, np.min(nd, axis=0), rtol=0, atol=0)
+    np.testing.assert_allclose(ch.nadir, np.max(nd, axis=0), rtol=0, atol=0)
+    assert r.manifest["hypervolume_space"] == {"ideal": list(ch.ideal), "nadir": list(ch.nadir)}
+    # the console and the history log show the same values as the report's curve
+    logged = [g["hypervolume"] for g in r.generations]
+    np.testing.assert_allclose(logged, ch.hypervolume, rtol=1e-12)
     sparse = convergence_history(r, max_points=1)  # 3 generations: first and last only
     assert np.isnan(sparse.hypervolume[1])
     np.testing.assert_allclose(sparse.hypervolume[[0, 2]], ch.hypervolume[[0, 2]], rtol=1e-12)

@@ -18,6 +18,7 @@ import numpy as np
 
 from casadrone.optimise.backends import make_backend
 from casadrone.optimise.hypervolume import HypervolumeState, advance
+from casadrone.optimise.mainguard import unguarded_main_call, unguarded_message
 from casadrone.optimise.problem import CandidateProblem, Study, objectives_and_constraints
 from casadrone.optimise.store import RunStore, now
 from casadrone.problemconfig import BackendConfig, ProblemConfig
@@ -149,17 +150,29 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
                      generations=int(algorithm.n_gen or 0))
 
 
+def _check_main_guard(backend: BackendConfig, what: str) -> bool:
+    """True when called from a script's unguarded top level (its workers must not import it);
+    RuntimeError (one line) when the backend cannot start workers that way (Dask LocalCluster)."""
+    where = unguarded_main_call()
+    if where and backend.name == "dask" and not backend.scheduler:
+        raise RuntimeError(unguarded_message(where, what))
+    return where is not None
+
+
 def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None = None,
         quiet: bool = False, progress: Callable | None = None,
         stop_after: int | None = None) -> RunResult:
     """Run ``problem`` into the new run directory ``out``.
 
     ``backend`` overrides the problem's own; ``stop_after`` stops after that many generations
-    (as if killed; resume continues it).
+    (as if killed; resume continues it). Safe from a script's top level without
+    ``if __name__ == "__main__":`` (:mod:`casadrone.optimise.mainguard`), except on a Dask
+    LocalCluster, where such a call raises RuntimeError before anything is created.
     """
     from casadrone.indices import INDICES
 
     backend_cfg = backend or problem.backend
+    unguarded = _check_main_guard(backend_cfg, "casadrone.run()")
     problem = problem.model_copy(update={"backend": backend_cfg})
     study = Study(problem)
     index_names = (study.objective_names if problem.test_problem is not None
@@ -169,7 +182,7 @@ def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None =
     algorithm, termination = build_algorithm(problem, len(study.objective_names))
     algorithm.setup(CandidateProblem(study), termination=termination, seed=problem.seed,
                     verbose=False)
-    be = make_backend(backend_cfg)
+    be = make_backend(backend_cfg, without_main=unguarded)
     try:
         prog = progress or Progress(problem.algorithm.generations, quiet)
         return _loop(store, algorithm, study, be, 0.0, prog, stop_after)
@@ -185,10 +198,11 @@ def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = 
         raise FileNotFoundError(f"{out}: no checkpoint.pkl: not a run directory, or killed "
                                 "before its first generation was stored (start it again)")
     problem = store.problem()
+    backend_cfg = backend or problem.backend
+    unguarded = _check_main_guard(backend_cfg, "casadrone.resume()")
     state = store.load_checkpoint()
     algorithm = state["algorithm"]
-    backend_cfg = backend or problem.backend
-    be = make_backend(backend_cfg)
+    be = make_backend(backend_cfg, without_main=unguarded)
     store.update_manifest(status="running", resumed=now())
     try:
         prog = progress or Progress(problem.algorithm.generations, quiet)

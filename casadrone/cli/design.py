@@ -62,12 +62,15 @@ def _matrix_text(M, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
 
 def _yaml_files(paths: list[Path]) -> list[Path]:
     """The files given, with a folder expanded to every YAML below it (sorted), and a bare name
-    that is no file here (``SY250``, ``quick``) taken as the shipped config of that name."""
-    from casadrone.configio import kind_dir
+    that is no file here taken as the shipped config of that name (``SY250``, ``quick``) or the
+    shipped folder (``configs``, ``problems``)."""
+    from casadrone.configio import DATA_DIR, kind_dir
     from casadrone.validation import SCHEMAS_BY_FOLDER
 
     out: list[Path] = []
     for p in paths:
+        if not p.exists() and str(p) in ("configs", "problems"):
+            p = DATA_DIR / p
         if p.is_dir():
             out += sorted(f for f in p.rglob("*") if f.suffix in (".yaml", ".yml"))
         elif not p.exists() and len(p.parts) == 1 and p.suffix in ("", ".yaml", ".yml"):
@@ -80,14 +83,17 @@ def _yaml_files(paths: list[Path]) -> list[Path]:
 
 @app.command()
 def validate(
-    files: Annotated[list[Path], typer.Argument(help="config YAML files or folders of them")],
+    files: Annotated[list[Path] | None, typer.Argument(
+        help="config YAML files or folders of them (default: every shipped config and problem)")
+    ] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Validate config files: exit 0 when all are valid, 2 otherwise (one line per problem)."""
+    from casadrone.configio import DATA_DIR
     from casadrone.validation import validate_file
 
     report = []
-    for path in _yaml_files(files):
+    for path in _yaml_files(files or [DATA_DIR]):
         try:
             validate_file(path)
             report.append({"file": str(path), "valid": True, "problems": []})

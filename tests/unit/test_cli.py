@@ -558,3 +558,22 @@ def test_report_without_the_report_module_exits_1(cli_runner, tmp_path, monkeypa
     result = run(cli_runner, "report", make_run_dir(tmp_path / "run"))
     assert result.exit_code == 1, result.output
     assert "casadrone.report is not available" in result.stderr
+
+
+def test_version(cli_runner):
+    from casadrone import __version__
+
+    result = run(cli_runner, "--version")
+    assert result.exit_code == 0 and result.stdout.strip() == f"casadrone {__version__}"
+
+
+def test_validate_without_arguments_checks_every_shipped_file(cli_runner, tmp_path, monkeypatch):
+    from casadrone.configio import DATA_DIR
+
+    monkeypatch.chdir(tmp_path)  # no configs/ or problems/ here: the shipped ones are meant
+    shipped = sorted(DATA_DIR.rglob("*.yaml"))
+    for args in ([], ["configs", "problems"]):
+        result = run(cli_runner, "validate", *args, "--json")
+        assert result.exit_code == 0, result.output
+        files = sorted(Path(f["file"]) for f in json.loads(result.stdout)["files"])
+        assert files == shipped

@@ -244,7 +244,9 @@ def main(argv: list[str] | None = None) -> int:
         "The paper problems keep the Table 1 bounds and refuse impossible bodies: a candidate "
         "outside the feasible part is a failed evaluation at stage `geometry` (infeasible, with "
         "its reason), exactly like overlapping props. The other two triangle inequalities "
-        "never bind inside the box (Ixx ≤ 0.0030 < Iyy + Izz ≥ 0.0039).",
+        "never bind inside the box (Ixx ≤ 0.0030 < 0.0039 ≤ Iyy + Izz, Iyy ≤ 0.0021 < 0.0041 ≤ "
+        "Ixx + Izz). A repaired parametrisation (e.g. Izz drawn as a fraction of Ixx + Iyy) "
+        "was not chosen: it would change the paper's decision variables and their bounds.",
         "",
         "## Jp spread over 20 random frames (issue acceptance: < 1 % under frozen-wrench)",
         "",

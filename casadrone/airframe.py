@@ -11,7 +11,8 @@ from typing import Literal
 
 import numpy as np
 
-from casadrone.config import AirframeConfig, ConfigError, rotor_positions_mm
+from casadrone.config import AirframeConfig, rotor_positions_mm
+from casadrone.configio import ConfigError
 
 #: Names and order of the decision vector θ (paper Table 1) and their config keys.
 THETA_NAMES = ("lambda_a", "lambda_b", "alpha", "beta", "Ixx", "Iyy", "Izz")
@@ -171,7 +172,7 @@ def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = 
     ``alpha_deg``), validated like a file: invalid geometry raises ConfigError."""
     from pydantic import ValidationError
 
-    from casadrone.config import format_errors
+    from casadrone.configio import format_errors
 
     data = cfg.model_dump()
     data.update(theta)

@@ -1,11 +1,10 @@
-"""YAML configuration: pydantic v2 schemas of airframes and controllers, their loaders, and the
-check of any config file (``casadrone validate``).
+"""YAML configuration of airframes and controllers: pydantic v2 schemas and their loaders.
 
 Every schema is frozen and forbids unknown keys; cross-field (geometry) checks report every problem
-at once. This is the one module to import configs from: it re-exports the file reading, overrides
-and ``FILE: dotted.key: message`` error reports of :mod:`casadrone.configio` and the problem
-schemas of :mod:`casadrone.problemconfig`. Numbers carry their unit in the key when it is not
-SI-obvious (``lambda_a_mm``, ``alpha_deg``).
+at once. File reading, ``key=value`` overrides and the ``FILE: dotted.key: message`` error reports
+live in :mod:`casadrone.configio`, the problem schemas in :mod:`casadrone.problemconfig`, the check
+of any config file (``casadrone validate``) in :mod:`casadrone.validation`. Numbers carry their unit
+in the key when it is not SI-obvious (``lambda_a_mm``, ``alpha_deg``).
 """
 
 from __future__ import annotations
@@ -14,39 +13,9 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field, field_validator
+from pydantic import Field, field_validator
 
-from casadrone.configio import (  # noqa: F401 (re-exported: casadrone.config is the public path)
-    CONFIG_DIR,
-    PATH_KEYS,
-    ROOT,
-    ConfigError,
-    M,
-    Problems,
-    Schema,
-    apply_overrides,
-    check_paths,
-    error_pairs,
-    format_errors,
-    has_keys,
-    load,
-    parse_value,
-    partial_problems,
-    read_yaml,
-    resolve_config,
-    validate_data,
-)
-from casadrone.problemconfig import (  # noqa: F401 (re-exported)
-    AlgorithmConfig,
-    BackendConfig,
-    ConstraintConfig,
-    ObjectiveConfig,
-    ProblemConfig,
-    PymooProblemConfig,
-    VariableConfig,
-    import_plugin,
-    load_problem,
-)
+from casadrone.configio import Schema, has_keys, load, resolve_config
 
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
@@ -384,7 +353,7 @@ class ControllerConfig(Schema):
 
 
 # --------------------------------------------------------------------------------------------
-# Loading by kind, and validating any config file
+# Loading by kind
 # --------------------------------------------------------------------------------------------
 
 
@@ -399,80 +368,3 @@ def load_controller(
 ) -> ControllerConfig:
     """Load a controller YAML or name; ``None`` gives ``configs/controllers/default.yaml``."""
     return load(ControllerConfig, resolve_config(path or "default", "controllers"), overrides)
-
-
-# Schemas by config folder name, for ``casadrone validate``; later layers register theirs. A
-# value is a schema class, or "module:Class" for a schema defined in a heavier module (imported
-# only when a file of that kind is validated).
-SCHEMAS_BY_FOLDER: dict[str, type[BaseModel] | str] = {
-    "airframes": AirframeConfig,
-    "controllers": ControllerConfig,
-    "tracks": "casadrone.guidance:TrackConfig",
-    "references": "casadrone.benchmark:Table4Reference",
-    "problems": ProblemConfig,
-}
-# Fallback when the folder says nothing: a key that only that schema has.
-SCHEMAS_BY_KEY: dict[str, type[BaseModel] | str] = {
-    "lambda_a_mm": AirframeConfig,
-    "sample_time_s": ControllerConfig,
-    "gain_policy": ControllerConfig,
-    "waypoints_m": "casadrone.guidance:TrackConfig",
-    "objectives": ProblemConfig,
-}
-
-
-def schema_class(entry: type[BaseModel] | str) -> type[BaseModel]:
-    """A registered schema: the class itself, or imported from its "module:Class" string."""
-    if isinstance(entry, str):
-        import importlib
-
-        module, _, name = entry.partition(":")
-        return getattr(importlib.import_module(module), name)
-    return entry
-
-
-def detect_schema(path: Path, data: dict[str, Any]) -> type[BaseModel] | None:
-    """The schema of a config file: from its folder (``airframes/`` …), else a telling key,
-    else the known schema sharing the most top-level keys (so misspelt files are still checked)."""
-    for part in reversed(Path(path).resolve().parts[:-1]):
-        if part in SCHEMAS_BY_FOLDER:
-            return schema_class(SCHEMAS_BY_FOLDER[part])
-    for key, entry in SCHEMAS_BY_KEY.items():
-        if key in data:
-            return schema_class(entry)
-    entries = dict.fromkeys(e for e in (*SCHEMAS_BY_FOLDER.values(), *SCHEMAS_BY_KEY.values())
-                            if not isinstance(e, str))  # never import heavy modules to guess
-    scored = sorted(((len(set(data) & set(m.model_fields)), m) for m in entries),
-                    key=lambda t: -t[0])
-    if scored and scored[0][0] > 0 and (len(scored) == 1 or scored[0][0] > scored[1][0]):
-        return scored[0][1]
-    return None
-
-
-def validate_file(path: str | Path) -> BaseModel:
-    """Validate any known config file, and the config files it references; ConfigError lists
-    every problem."""
-    path = Path(path)
-    data = read_yaml(path)
-    model = detect_schema(path, data)
-    if model is None:
-        kinds = ", ".join(SCHEMAS_BY_FOLDER)
-        raise ConfigError([f"{path}: (top level): cannot tell what kind of config this is; put it "
-                           f"in a folder named after its kind ({kinds})"])
-    errors: list[str] = []
-    try:
-        obj = validate_data(model, data, str(path), path.parent)
-    except ConfigError as exc:
-        errors += exc.lines
-        obj = None
-    resolved, _ = check_paths(data, path.parent, str(path))
-    for key, kind in PATH_KEYS.items():
-        ref = resolved.get(key)
-        if isinstance(ref, str) and Path(ref).is_file() and kind in SCHEMAS_BY_FOLDER:
-            try:
-                load(schema_class(SCHEMAS_BY_FOLDER[kind]), ref)
-            except ConfigError as exc:
-                errors += [f"{path}: {key}: referenced file is invalid"] + exc.lines
-    if errors:
-        raise ConfigError(errors)
-    return obj

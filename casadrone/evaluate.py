@@ -17,14 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from casadrone.airframe import Airframe, build_airframe, decision_keys, with_theta
-from casadrone.config import (
-    AirframeConfig,
-    ConfigError,
-    ControllerConfig,
-    load,
-    load_airframe,
-    load_controller,
-)
+from casadrone.config import AirframeConfig, ControllerConfig, load_airframe, load_controller
+from casadrone.configio import ConfigError, load
 from casadrone.control import design_for
 from casadrone.guidance import TrackConfig
 from casadrone.simulate import SimOptions, Trajectory, simulate

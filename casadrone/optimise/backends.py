@@ -12,8 +12,8 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from casadrone.config import BackendConfig
 from casadrone.optimise.problem import Record, Study, evaluate_rows
+from casadrone.problemconfig import BackendConfig
 
 
 def _chunks(X: np.ndarray, n: int) -> list[np.ndarray]:

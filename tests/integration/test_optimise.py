@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from casadrone.config import BackendConfig, ConfigError, load_problem
+from casadrone.configio import ConfigError
 from casadrone.optimise.runner import resume, run
 from casadrone.optimise.store import RunStore
+from casadrone.problemconfig import BackendConfig, load_problem
 
 QUICK = "problems/quick.yaml"
 TINY = ["algorithm.population=16", "algorithm.generations=3", "algorithm.settings.n_ind_ga=8"]

@@ -452,9 +452,9 @@ def test_dask_backend_without_extra_exits_2(cli_runner, tmp_path, monkeypatch):
 
 def make_run_dir(path: Path, finished: bool = True, checkpoint: bool = False) -> Path:
     """A run directory of the quick problem with a hand-made two-design front."""
-    from casadrone.config import load_problem
     from casadrone.optimise.problem import Study
     from casadrone.optimise.store import RunStore
+    from casadrone.problemconfig import load_problem
 
     problem = load_problem(QUICK, ["objectives=[{index: J3, sense: min}, {index: J4}]"])
     study = Study(problem)

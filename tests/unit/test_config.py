@@ -12,17 +12,10 @@ from pydantic import ValidationError
 
 from casadrone import config as C
 from casadrone.airframe import TABLE1_BOUNDS
-from casadrone.config import (
-    AirframeConfig,
-    ConfigError,
-    ControllerConfig,
-    Schema,
-    apply_overrides,
-    load_airframe,
-    load_controller,
-    validate_file,
-)
-from casadrone.configio import CONFIG_DIR
+from casadrone import problemconfig as P
+from casadrone.config import AirframeConfig, ControllerConfig, load_airframe, load_controller
+from casadrone.configio import CONFIG_DIR, ConfigError, Schema, apply_overrides, validate_data
+from casadrone.validation import validate_file
 
 ROOT = Path(__file__).resolve().parents[2]
 BAD = ROOT / "tests" / "data" / "bad"
@@ -44,7 +37,7 @@ SY250 = {
 def problems_of(data: dict, model=AirframeConfig, source: str = "f.yaml") -> list[str]:
     """The ConfigError lines of validating ``data``."""
     with pytest.raises(ConfigError) as info:
-        C.validate_data(model, data, source, Path("."))
+        validate_data(model, data, source, Path("."))
     return info.value.lines
 
 
@@ -249,7 +242,7 @@ def test_every_schema_is_frozen_and_forbids_extra_keys():
     schemas = [s for s in _all_schemas()
                if s.__module__ in ("casadrone.config", "casadrone.problemconfig")]
     assert {AirframeConfig, ControllerConfig, C.StateWeights, C.ThrustModelConfig,
-            C.ProblemConfig, C.VariableConfig, C.AlgorithmConfig} <= set(schemas)
+            P.ProblemConfig, P.VariableConfig, P.AlgorithmConfig} <= set(schemas)
     for s in schemas:
         assert s.model_config["frozen"] is True and s.model_config["extra"] == "forbid", s
 

@@ -66,6 +66,11 @@ class ComponentsConfig(Schema):
     battery_position_mm: tuple[float, float, float] = Field(
         description="centre of the battery from the hub (mm)")
 
+    def total_mass_kg(self, lambda_a_mm: float, lambda_b_mm: float) -> float:
+        """Mass of all the parts (kg) with front and rear arms λa, λb (mm): two arms of each."""
+        arms = self.arm_linear_density_kgpm * 2 * (lambda_a_mm + lambda_b_mm) / 1000
+        return self.body_mass_kg + self.battery_mass_kg + 4 * self.motor_mass_kg + arms
+
 
 class AirframeConfig(Schema):
     """An airframe: geometry θ = (λa, λb, α, β, Ixx, Iyy, Izz) plus mass, drag and propulsion.
@@ -125,11 +130,9 @@ class AirframeConfig(Schema):
         mass = v.get("mass_kg")
         if (v.get("mass_model") == "components" and v.get("components") is not None
                 and not mass_problems and geometry):
-            from casadrone.massprops import mass_properties_of
-
-            mp = mass_properties_of(v)
-            mass = mp.mass_kg
-            found += [("components", f"computed {m}") for _, m in inertia_problems(mp.inertia_kgm2)]
+            # the parts' tensor is a sum of rigid bodies, possible by construction (and checked
+            # again by casadrone.airframe.build_airframe); their mass decides whether it hovers
+            mass = v["components"].total_mass_kg(v["lambda_a_mm"], v["lambda_b_mm"])
         elif v.get("mass_model") == "free" and has_keys(v, *MASS_KEYS[1:]) and not mass_problems:
             found += inertia_problems(inertia_tensor(v))
         if mass is not None and has_keys(v, "gravity_mps2", "thrust"):

@@ -66,7 +66,7 @@ def components_mass_properties(parts: ComponentsConfig, rotors_m: np.ndarray) ->
     battery_at = np.asarray(parts.battery_position_mm, float) / 1000
     masses = [parts.body_mass_kg, parts.battery_mass_kg, *[parts.motor_mass_kg] * 4, *arms]
     centres = [body_at, battery_at, *rotors_m, *(rotors_m / 2)]
-    mass = float(sum(masses))
+    mass = float(sum(masses))  # = parts.total_mass_kg(λa, λb), the mass the schema checks
     com = sum(m * c for m, c in zip(masses, centres, strict=True)) / mass
     hub = (
         box_inertia(parts.body_mass_kg, np.asarray(parts.body_size_mm) / 1000)

@@ -11,8 +11,8 @@ import pytest
 from pydantic import ValidationError
 
 from casadrone import config as C
-from casadrone.airframe import TABLE1_BOUNDS
 from casadrone import problemconfig as P
+from casadrone.airframe import TABLE1_BOUNDS
 from casadrone.config import AirframeConfig, ControllerConfig, load_airframe, load_controller
 from casadrone.configio import CONFIG_DIR, ConfigError, Schema, apply_overrides, validate_data
 from casadrone.validation import validate_file

@@ -11,9 +11,9 @@ from typing import Literal
 
 import numpy as np
 
-from casadrone.config import AirframeConfig, inertia_problems, rotor_positions_mm
+from casadrone.config import AirframeConfig
 from casadrone.configio import ConfigError
-from casadrone.massprops import mass_properties
+from casadrone.massprops import rotor_positions_mm
 
 #: Names and order of the decision vector θ (paper Table 1) and their config keys.
 THETA_NAMES = ("lambda_a", "lambda_b", "alpha", "beta", "Ixx", "Iyy", "Izz")
@@ -127,10 +127,9 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
     or computed from the parts); the rotor positions are referred to the centre of mass
     (r_i − c), which is where the model's moments are taken.
     """
+    from casadrone.massprops import mass_properties
+
     mp = mass_properties(cfg)
-    bad = inertia_problems(mp.inertia_kgm2.tolist()) if mp.mass_model == "components" else []
-    if bad:  # impossible by construction (a sum of rigid parts): a bug if it ever fires
-        raise ConfigError([f"{cfg.name}: components: computed {m}" for _, m in bad])
     r = np.array(rotor_positions_mm(cfg.lambda_a_mm, cfg.lambda_b_mm, cfg.alpha_deg, cfg.beta_deg))
     J = mp.inertia_kgm2
     theta = np.array(

@@ -16,6 +16,7 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, field_validator
 
 from casadrone.configio import Schema, has_keys, load, resolve_config
+from casadrone.massprops import inertia_tensor, mass_properties_of, rotor_positions_mm
 
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
@@ -65,11 +66,6 @@ class ComponentsConfig(Schema):
         description="battery box along body x, y, z (mm)")
     battery_position_mm: tuple[float, float, float] = Field(
         description="centre of the battery from the hub (mm)")
-
-    def total_mass_kg(self, lambda_a_mm: float, lambda_b_mm: float) -> float:
-        """Mass of all the parts (kg) with front and rear arms λa, λb (mm): two arms of each."""
-        arms = self.arm_linear_density_kgpm * 2 * (lambda_a_mm + lambda_b_mm) / 1000
-        return self.body_mass_kg + self.battery_mass_kg + 4 * self.motor_mass_kg + arms
 
 
 class AirframeConfig(Schema):
@@ -130,9 +126,9 @@ class AirframeConfig(Schema):
         mass = v.get("mass_kg")
         if (v.get("mass_model") == "components" and v.get("components") is not None
                 and not mass_problems and geometry):
-            # the parts' tensor is a sum of rigid bodies, possible by construction (and checked
-            # again by casadrone.airframe.build_airframe); their mass decides whether it hovers
-            mass = v["components"].total_mass_kg(v["lambda_a_mm"], v["lambda_b_mm"])
+            mp = mass_properties_of(v)
+            mass = mp.mass_kg
+            found += [("components", f"computed {m}") for _, m in inertia_problems(mp.inertia_kgm2)]
         elif v.get("mass_model") == "free" and has_keys(v, *MASS_KEYS[1:]) and not mass_problems:
             found += inertia_problems(inertia_tensor(v))
         if mass is not None and has_keys(v, "gravity_mps2", "thrust"):
@@ -164,15 +160,6 @@ def _mass_model_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
                 found.append((key, "computed from the components with mass_model: components; "
                               "remove it"))
     return found
-
-
-def inertia_tensor(v: dict[str, Any]) -> list[list[float]]:
-    """The symmetric 3×3 tensor (kg·m²) of the ``i??_kgm2`` keys of an airframe's values."""
-    return [
-        [v["ixx_kgm2"], v["ixy_kgm2"], v["ixz_kgm2"]],
-        [v["ixy_kgm2"], v["iyy_kgm2"], v["iyz_kgm2"]],
-        [v["ixz_kgm2"], v["iyz_kgm2"], v["izz_kgm2"]],
-    ]
 
 
 #: Relative slack on the triangle inequalities (of the trace): a flat body meets Ixx + Iyy = Izz
@@ -259,19 +246,6 @@ def _positive_definite(J: list[list[float]]) -> bool:
         + J[0][2] * (J[1][0] * J[2][1] - J[1][1] * J[2][0])
     )
     return m1 > 0 and m2 > 0 and m3 > 0
-
-
-def rotor_positions_mm(
-    la: float, lb: float, alpha_deg: float, beta_deg: float
-) -> list[list[float]]:
-    """Rotor centres (mm) in the body frame (x nose, y left): FR, FL, RL, RR (DESIGN.md §4)."""
-    a, b = math.radians(alpha_deg) / 2, math.radians(beta_deg) / 2
-    return [
-        [la * math.cos(a), -la * math.sin(a), 0.0],
-        [la * math.cos(a), la * math.sin(a), 0.0],
-        [-lb * math.cos(b), lb * math.sin(b), 0.0],
-        [-lb * math.cos(b), -lb * math.sin(b), 0.0],
-    ]
 
 
 def min_rotor_gap_mm(la: float, lb: float, alpha_deg: float, beta_deg: float) -> float:

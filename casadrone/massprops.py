@@ -16,17 +16,42 @@ I_c = I_hub − m (|c|² I − c cᵀ)). The CoM moves along x when λa ≠ λb 
 on top); the rotor positions the model uses are referred to it (r_i − c, see
 :func:`casadrone.airframe.build_airframe`), so λa, λb place the rotors from the hub, not from the
 CoM, in this mode. Body axes: x nose, y left, z up; SI units out, config units (mm) in.
+
+This module sits below :mod:`casadrone.config` (whose schema checks call it), so it takes the
+configs as plain field values and imports nothing of casadrone's.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from casadrone.config import AirframeConfig, ComponentsConfig, inertia_tensor, rotor_positions_mm
+
+def rotor_positions_mm(
+    la: float, lb: float, alpha_deg: float, beta_deg: float
+) -> list[list[float]]:
+    """Rotor centres (mm) in the body frame (x nose, y left): FR, FL, RL, RR (DESIGN.md §4)."""
+    a, b = math.radians(alpha_deg) / 2, math.radians(beta_deg) / 2
+    return [
+        [la * math.cos(a), -la * math.sin(a), 0.0],
+        [la * math.cos(a), la * math.sin(a), 0.0],
+        [-lb * math.cos(b), lb * math.sin(b), 0.0],
+        [-lb * math.cos(b), -lb * math.sin(b), 0.0],
+    ]
+
+
+def inertia_tensor(v: dict[str, Any]) -> list[list[float]]:
+    """The symmetric 3×3 tensor (kg·m²) of the ``i??_kgm2`` keys of an airframe's values."""
+    return [
+        [v["ixx_kgm2"], v["ixy_kgm2"], v["ixz_kgm2"]],
+        [v["ixy_kgm2"], v["iyy_kgm2"], v["iyz_kgm2"]],
+        [v["ixz_kgm2"], v["iyz_kgm2"], v["izz_kgm2"]],
+    ]
+
 
 
 @dataclass(frozen=True)
@@ -58,15 +83,16 @@ def box_inertia(mass: float, size: np.ndarray) -> np.ndarray:
     return mass / 12.0 * np.diag([b + c, a + c, a + b])
 
 
-def components_mass_properties(parts: ComponentsConfig, rotors_m: np.ndarray) -> MassProperties:
-    """Mass properties of the parts with the rotors at ``rotors_m`` (4×3, m, from the hub)."""
+def components_mass_properties(parts: Any, rotors_m: np.ndarray) -> MassProperties:
+    """Mass properties of the parts (a :class:`casadrone.config.ComponentsConfig`) with the rotors
+    at ``rotors_m`` (4×3, m, from the hub)."""
     rotors_m = np.asarray(rotors_m, float)
     arms = parts.arm_linear_density_kgpm * np.linalg.norm(rotors_m, axis=1)
     body_at = np.asarray(parts.body_position_mm, float) / 1000
     battery_at = np.asarray(parts.battery_position_mm, float) / 1000
     masses = [parts.body_mass_kg, parts.battery_mass_kg, *[parts.motor_mass_kg] * 4, *arms]
     centres = [body_at, battery_at, *rotors_m, *(rotors_m / 2)]
-    mass = float(sum(masses))  # = parts.total_mass_kg(λa, λb), the mass the schema checks
+    mass = float(sum(masses))
     com = sum(m * c for m, c in zip(masses, centres, strict=True)) / mass
     hub = (
         box_inertia(parts.body_mass_kg, np.asarray(parts.body_size_mm) / 1000)
@@ -92,10 +118,9 @@ def mass_properties_of(values: Mapping[str, Any]) -> MassProperties:
                           inertia_kgm2=np.array(inertia_tensor(values), float), mass_model="free")
 
 
-def mass_properties(
-    config: AirframeConfig, theta: Mapping[str, float] | None = None
-) -> MassProperties:
-    """Mass properties of ``config`` with the decision variables ``theta`` (config keys, e.g.
+def mass_properties(config: Any, theta: Mapping[str, float] | None = None) -> MassProperties:
+    """Mass properties of ``config`` (a :class:`casadrone.config.AirframeConfig`) with the
+    decision variables ``theta`` (config keys, e.g.
     ``{"lambda_a_mm": 140}``) replaced; a pure function, no validation (see
     :func:`casadrone.airframe.with_theta` for that)."""
     return mass_properties_of({**dict(config), **dict(theta or {})})

@@ -17,9 +17,9 @@ PACKAGE = Path(__file__).resolve().parents[2] / "casadrone"
 #: The chain, earliest first (DESIGN.md §1). A module may import only from its own stage or an
 #: earlier one; a subpackage's modules share the stage given for their prefix unless listed.
 STAGES: tuple[str, ...] = (
-    "casadrone.data", "casadrone.configio", "casadrone.config", "casadrone.massprops",
-    "casadrone.airframe", "casadrone.model", "casadrone.trim", "casadrone.linearise",
-    "casadrone.control",
+    "casadrone.data", "casadrone.configio", "casadrone.massprops", "casadrone.config",
+    "casadrone.airframe",
+    "casadrone.model", "casadrone.trim", "casadrone.linearise", "casadrone.control",
     "casadrone.guidance", "casadrone.simulate", "casadrone.indices", "casadrone.evaluate",
     "casadrone.decide", "casadrone.optimise.evmoga", "casadrone.optimise.algorithms",
     "casadrone.problemconfig", "casadrone.optimise.problem", "casadrone.optimise.backends",

@@ -172,7 +172,7 @@ def asymmetric(parts_cfg):
 
 
 def test_airframe_rotors_referred_to_the_centre_of_mass(parts_cfg, asymmetric):
-    from casadrone.config import rotor_positions_mm
+    from casadrone.massprops import rotor_positions_mm
 
     mp = mass_properties(parts_cfg, ASYMMETRIC)
     hub = np.array(rotor_positions_mm(*ASYMMETRIC.values())) / 1000
@@ -232,12 +232,14 @@ def test_massprops_cli(cli_runner):
 
 
 def test_schema_mass_of_the_parts_is_the_mass_model_mass(parts_cfg):
-    """The schema's hover check sums the parts itself (ComponentsConfig.total_mass_kg); it must
-    be the mass the model gets, and a pack too heavy to lift is refused at load."""
+    """The mass is the sum of the parts (two arms of each length), and a pack too heavy to lift
+    is refused at load by the schema's hover check on that mass."""
+    c = parts_cfg.components
     rng = np.random.default_rng(2)
     for _ in range(20):
         theta = {k: rng.uniform(*TABLE1_BOUNDS[k]) for k in GEOMETRY_KEYS}
-        total = parts_cfg.components.total_mass_kg(theta["lambda_a_mm"], theta["lambda_b_mm"])
+        arms = c.arm_linear_density_kgpm * 2 * (theta["lambda_a_mm"] + theta["lambda_b_mm"]) / 1e3
+        total = c.body_mass_kg + c.battery_mass_kg + 4 * c.motor_mass_kg + arms
         assert mass_properties(parts_cfg, theta).mass_kg == pytest.approx(total, rel=1e-12)
     from casadrone.configio import ConfigError
 

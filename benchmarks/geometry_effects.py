@@ -211,8 +211,9 @@ def run_summary(run_dir: Path) -> tuple[list, str]:
     done = [r for r in store.history() if r["status"] == "completed"]
     flown = sum(impossible(r["ixx_kgm2"], r["iyy_kgm2"], r["izz_kgm2"]) for r in done)
     controller = read_yaml(store.problem().controller).get("name")
-    note = (f"controller `{controller}`; impossible bodies: {front} of {len(rows)} "
-            f"front designs, {flown} of {len(done)} completed evaluations")
+    revision = (store.manifest.get("git_revision") or "unknown")[:7]
+    note = (f"casadrone at {revision}, controller `{controller}`; impossible bodies: {front} of "
+            f"{len(rows)} front designs, {flown} of {len(done)} completed evaluations")
     return run_candidates(run_dir), note
 
 
@@ -321,7 +322,11 @@ def main(argv: list[str] | None = None) -> int:
     ]
     lines += READING
     if args.runs:
-        lines += ["## Winners of a quick.yaml run before and after (casadrone decide)", ""]
+        lines += ["## Winners of a quick.yaml run before and after (casadrone decide)", "",
+                  "Each run: `casadrone run problems/quick.yaml --out DIR` (full budget, seed 1, "
+                  "`-j 2`) with casadrone at the revision named (before: the last revision "
+                  "without issue 8's changes), then `python benchmarks/geometry_effects.py "
+                  "--runs BEFORE AFTER`.", ""]
         for tag, run_dir in zip(("before", "after"), args.runs, strict=True):
             winners, note = run_summary(run_dir)
             lines += [f"{tag}: `{run_dir}`, {note}", "", "| candidate | θ | objectives |",

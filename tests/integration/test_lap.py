@@ -171,7 +171,7 @@ def test_whole_lap_loop_equals_chunked_loop(name, overrides, track_update, endin
     way: completed, failed (same reason) or timed out (same number of samples)."""
     import importlib
 
-    sim = importlib.import_module("casadrone.simulate")  # the package exports a function of that name
+    sim = importlib.import_module("casadrone.simulate")  # the package exports a function too
     tr = track.model_copy(update=track_update)
     a = build_airframe(load_airframe(name, overrides))
     d = design_for(a, ctrl)

@@ -78,9 +78,22 @@ def _require_completed(traj: Trajectory) -> None:
         raise ValueError(f"indices are not defined for a failed lap ({traj.reason or 'failed'})")
 
 
+def _shared(traj: Trajectory, key: str, make: Callable[[], np.ndarray]) -> np.ndarray:
+    """A read-only array derived from ``traj``, computed once per trajectory and kept with it
+    (as ``functools.cached_property`` does), so the indices of one lap share their masks."""
+    slot = f"_indices_{key}"
+    value = traj.__dict__.get(slot)
+    if value is None:
+        value = make()
+        value.flags.writeable = False
+        traj.__dict__[slot] = value
+    return value
+
+
 def lap_mask(traj: Trajectory) -> np.ndarray:
-    """Samples of the lap: from t = 0 to the sample that reaches the last waypoint (excluded)."""
-    return traj.waypoint_index < len(traj.waypoints)
+    """Samples of the lap: from t = 0 to the sample that reaches the last waypoint (excluded).
+    Read-only (shared by every index of the lap)."""
+    return _shared(traj, "lap", lambda: traj.waypoint_index < len(traj.waypoints))
 
 
 def interval_mask(traj: Trajectory, waypoint: int) -> np.ndarray:
@@ -92,11 +105,15 @@ def interval_mask(traj: Trajectory, waypoint: int) -> np.ndarray:
 
 
 def sector_mask(traj: Trajectory, straight: bool) -> np.ndarray:
-    """Lap samples on straight (``straight=True``) or curved legs; the climb is in neither."""
-    wi = traj.waypoint_index
-    legs = np.array(traj.straight, dtype=bool)
-    on_leg = lap_mask(traj) & (traj.segment >= traj.first_timed_segment)
-    return on_leg & (legs[np.minimum(wi, len(legs) - 1)] == straight)
+    """Lap samples on straight (``straight=True``) or curved legs; the climb is in neither.
+    Read-only (shared by every index of the lap)."""
+    def make() -> np.ndarray:
+        wi = traj.waypoint_index
+        legs = np.array(traj.straight, dtype=bool)
+        on_leg = lap_mask(traj) & (traj.segment >= traj.first_timed_segment)
+        return on_leg & (legs[np.minimum(wi, len(legs) - 1)] == straight)
+
+    return _shared(traj, f"sector_{bool(straight)}", make)
 
 
 def roll_effort_voltage(traj: Trajectory) -> np.ndarray:

@@ -24,7 +24,7 @@ import casadi as ca
 import numpy as np
 
 from casadrone.airframe import Airframe
-from casadrone.codegen import compile_function
+from casadrone.codegen import ZeroCopyCall, compile_function
 from casadrone.control import LQRIDesign
 from casadrone.guidance import GuidanceLayout, TrackConfig, guidance, track_vector, wrap
 from casadrone.lapdriver import LapDriver
@@ -87,9 +87,9 @@ class Trajectory:
         """Rotor thrusts (N, 4), N."""
         return self.x[:, 12:16]
 
-    @property
+    @cached_property
     def speed(self) -> np.ndarray:
-        """Airspeed |v| (N,), m/s."""
+        """Airspeed |v| (N,), m/s (computed once)."""
         return np.linalg.norm(self.x[:, 3:6], axis=1)
 
     @property
@@ -194,32 +194,11 @@ def step_function(Ts: float, substeps: int, n_route: int) -> ca.Function:
                        names, ["x_next", "c_next", "u", "ref"], {"cse": True})
 
 
-class LapKernel:
-    """Zero-copy caller of a compiled chunk: numpy buffers bound once to the Function's memory
-    (``Function.buffer``), so a call costs no DM conversion. Outputs are overwritten per call."""
-
-    def __init__(self, fun: ca.Function):
-        self.fun = fun
-        self.buf, self.trigger = fun.buffer()
-        self.args = [np.zeros(fun.nnz_in(i)) for i in range(fun.n_in())]
-        self.outs = [np.zeros((fun.size2_out(i), fun.size1_out(i))) for i in range(fun.n_out())]
-        for i, a in enumerate(self.args):
-            self.buf.set_arg(i, memoryview(a))
-        for i, o in enumerate(self.outs):
-            self.buf.set_res(i, memoryview(o.reshape(-1)))
-
-    def __call__(self, *inputs) -> list[np.ndarray]:
-        """Evaluate; returns (columns × rows) arrays, i.e. one row per sample for chunk outputs."""
-        for dst, src in zip(self.args, inputs, strict=True):
-            dst[:] = np.asarray(src, float).ravel(order="F")
-        self.trigger()
-        return self.outs
-
-
 @lru_cache(maxsize=8)
-def lap_kernel(Ts: float, substeps: int, n_route: int, chunk: int) -> LapKernel:
-    """The compiled chunk of :func:`chunk_function` behind a zero-copy :class:`LapKernel`."""
-    return LapKernel(chunk_function(Ts, substeps, n_route, chunk))
+def lap_kernel(Ts: float, substeps: int, n_route: int, chunk: int) -> ZeroCopyCall:
+    """The chunk of :func:`chunk_function` behind a zero-copy caller (outputs: one row per
+    sample)."""
+    return ZeroCopyCall(chunk_function(Ts, substeps, n_route, chunk))
 
 
 @lru_cache(maxsize=8)
@@ -309,7 +288,7 @@ def _check(x: np.ndarray, t: np.ndarray, track: TrackConfig, margin: float,
     return k, _failure_reason(why, x[k], t[k], track), bool(up[-1])
 
 
-def _rk4_chunks(kernel: LapKernel, x, c, args):
+def _rk4_chunks(kernel: ZeroCopyCall, x, c, args):
     """Chunks (X, C, U, REF) of the compiled RK4 closed loop, without end."""
     while True:
         xs, cs, us, refs = kernel(x, c, *args)

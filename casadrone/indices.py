@@ -96,6 +96,24 @@ def lap_mask(traj: Trajectory) -> np.ndarray:
     return _shared(traj, "lap", lambda: traj.waypoint_index < len(traj.waypoints))
 
 
+def _rows(mask: np.ndarray) -> slice | np.ndarray:
+    """``mask`` as a slice when its samples are one contiguous run (the lap and each interval
+    are: the waypoint index never decreases), else the mask itself. Indexing with the slice
+    selects the same samples in the same order, without a copy."""
+    hits = np.flatnonzero(mask)
+    if hits.size and hits[-1] - hits[0] + 1 == hits.size:
+        return slice(int(hits[0]), int(hits[-1]) + 1)
+    return mask
+
+
+def _lap_rows(traj: Trajectory) -> slice | np.ndarray:
+    """The lap samples as a slice (or mask), computed once per lap."""
+    slot = "_indices_lap_rows"
+    if slot not in traj.__dict__:
+        traj.__dict__[slot] = _rows(lap_mask(traj))
+    return traj.__dict__[slot]
+
+
 def interval_mask(traj: Trajectory, waypoint: int) -> np.ndarray:
     """Samples of interval ``waypoint`` (1-based): flying to that waypoint (interval 1 includes
     the climb)."""
@@ -170,19 +188,19 @@ def lap_time(traj: Trajectory) -> float:
 def max_acceleration(traj: Trajectory) -> float:
     """J4: maximum over the lap samples of |a| (m/s²), a the world kinematic acceleration
     (d/dt of the world velocity, gravity not included: zero in hover)."""
-    return float(np.max(np.linalg.norm(traj.acceleration[lap_mask(traj)], axis=1)))
+    return float(np.max(np.linalg.norm(traj.acceleration[_lap_rows(traj)], axis=1)))
 
 
 def effort_rms(traj: Trajectory) -> float:
     """J5: RMS (V) of the ESC voltage deviation from trim, (δ_i − u0_i) V_batt, over the lap
     samples and the four motors."""
-    dv = (traj.u[lap_mask(traj)] - np.asarray(traj.u0)[None, :]) * traj.battery_voltage
+    dv = (traj.u[_lap_rows(traj)] - np.asarray(traj.u0)[None, :]) * traj.battery_voltage
     return float(np.sqrt(np.mean(dv**2)))
 
 
 def max_pitch(traj: Trajectory) -> float:
     """Jp: maximum |θ| (deg) over the lap samples, θ the ZYX Euler pitch angle."""
-    return float(np.degrees(np.max(np.abs(traj.x[lap_mask(traj), 10]))))
+    return float(np.degrees(np.max(np.abs(traj.x[_lap_rows(traj), 10]))))
 
 
 _BUILTIN = (
@@ -291,8 +309,8 @@ def interval_table(traj: Trajectory) -> list[Interval]:
     pair = pair_thrust_difference(traj)
     rows = []
     for j in range(1, len(traj.waypoints) + 1):
-        m = interval_mask(traj, j)
-        n = int(m.sum())
+        m = _rows(interval_mask(traj, j))
+        n = len(effort[m])
         rows.append(Interval(
             waypoint=j,
             split_time_s=float(traj.split_times[j - 1]),

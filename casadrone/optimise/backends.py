@@ -82,7 +82,14 @@ class ProcessBackend:
 
 class DaskBackend:
     """A Dask cluster: the scheduler at ``scheduler``, or a LocalCluster of ``workers``
-    single-threaded worker processes."""
+    single-threaded worker processes.
+
+    The study is scattered once (to every worker) and its future is held by the backend until
+    :meth:`close`, so back-to-back generations reuse one live key: scattering it again per call
+    raced with the previous call's release of the same content-hashed key
+    (``FutureCancelledError``). Tasks are pure functions of (study, rows): when a worker dies
+    mid-generation the scheduler re-runs its tasks on the others and the results are the same.
+    """
 
     name = "dask"
 
@@ -98,13 +105,17 @@ class DaskBackend:
             self.client = Client(self.cluster)
         self.workers = max(1, len(self.client.scheduler_info()["workers"]))
         self.warm_for: set[str] = set()
+        self.scattered: dict = {}  # study key -> future of the scattered study, kept alive
 
     def evaluate(self, study: Study, X: np.ndarray) -> list[Record]:
         if study.key not in self.warm_for:  # every worker builds the chain once, up front
             self.client.run(_warm, study)
             self.warm_for.add(study.key)
-        parts = _chunks(np.asarray(X), 4 * self.workers)
-        study_f = self.client.scatter(study, broadcast=True)
+        if study.key not in self.scattered:
+            self.scattered[study.key] = self.client.scatter(study, broadcast=True, hash=False)
+        study_f = self.scattered[study.key]
+        workers = max(1, len(self.client.scheduler_info()["workers"]))
+        parts = _chunks(np.asarray(X), 4 * workers)
         futures = self.client.map(evaluate_rows, [study_f] * len(parts), parts, pure=False)
         out: list[Record] = []
         for recs in self.client.gather(futures):
@@ -112,6 +123,7 @@ class DaskBackend:
         return out
 
     def close(self) -> None:
+        self.scattered.clear()
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()

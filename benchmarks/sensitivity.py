@@ -26,7 +26,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from benchmarks.machine import markdown  # noqa: E402
 from casadrone.airframe import TABLE1_BOUNDS, THETA_KEYS, build_airframe, random_thetas, with_theta
 from casadrone.benchmark import DEFAULT_TRACK
-from casadrone.config import load, load_airframe, load_controller
+from casadrone.config import load_airframe, load_controller
+from casadrone.configio import load
 from casadrone.control import design_for
 from casadrone.guidance import TrackConfig
 from casadrone.indices import BUILTIN_NAMES, INDICES, compute_indices, lap_mask

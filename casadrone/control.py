@@ -18,7 +18,7 @@ import scipy.linalg as sla
 from casadrone.airframe import Airframe
 from casadrone.config import ControllerConfig
 from casadrone.linearise import LinearModel, linearise
-from casadrone.model import IDX, NX, STATE_NAMES
+from casadrone.model import IDX, NX, STATE_NAMES, THR
 
 INTEGRATED = ("x", "y", "z", "psi")
 AUG_STATE_NAMES = STATE_NAMES + tuple(f"int_{n}" for n in INTEGRATED)
@@ -158,19 +158,24 @@ def design_for(
 
     ``operating_point`` (anything with ``x0``, ``u0``: a hover TrimPoint) defaults to the analytic
     :func:`hover_point`. ``redesign``: the gain comes from the airframe's own linearisation.
-    ``frozen``: from ``reference``'s (the controller's ``reference_airframe``), shared by every
-    candidate; the operating point (x0, u0) stays the candidate's own.
+    ``frozen-command``: ``reference``'s gain (the controller's ``reference_airframe``), shared by
+    every candidate as is. ``frozen-wrench``: the reference's gain mapped through the candidate's
+    own allocation (:func:`frozen_wrench_gain`). In both frozen policies the operating point
+    (x0, u0) stays the candidate's own and the closed loop is certified on its own plant.
     """
     op = operating_point if operating_point is not None else hover_point(airframe)
-    if ctrl.gain_policy == "frozen":
+    if ctrl.frozen_gain:
         if reference is None:
-            raise ValueError("gain_policy 'frozen' needs the reference airframe")
+            raise ValueError(f"gain_policy '{ctrl.gain_policy}' needs the reference airframe")
         ref = _frozen_gain(reference, ctrl)
+        K = ref.K
+        if ctrl.gain_policy == "frozen-wrench":
+            K = frozen_wrench_gain(ref.K, reference, airframe)
         Aa, Ba = plant(airframe, ctrl.sample_time_s, op)
-        eig, stable, lmin = certify(Aa - Ba @ ref.K, certificate)
-        return dataclasses.replace(ref, Ad=Aa, Bd=Ba, x0=np.asarray(op.x0), u0=np.asarray(op.u0),
-                                   closed_loop_eigenvalues=eig, stable=stable,
-                                   lyapunov_min_eig=lmin)
+        eig, stable, lmin = certify(Aa - Ba @ K, certificate)
+        return dataclasses.replace(ref, K=K, Ad=Aa, Bd=Ba, x0=np.asarray(op.x0),
+                                   u0=np.asarray(op.u0), closed_loop_eigenvalues=eig,
+                                   stable=stable, lyapunov_min_eig=lmin)
     return design_lqri(linearise(airframe, op), ctrl, certificate)
 
 
@@ -178,11 +183,43 @@ _FROZEN: dict[tuple, LQRIDesign] = {}
 
 
 def _frozen_gain(reference: Airframe, ctrl: ControllerConfig) -> LQRIDesign:
-    """The reference airframe's design, computed once per process for a (reference, controller)."""
-    key = (reference.name, tuple(reference.p), ctrl)
+    """The reference airframe's design, computed once per process for a (reference, weights)."""
+    key = (reference.name, tuple(reference.p), ctrl.model_copy(update={"gain_policy": "redesign"}))
     if key not in _FROZEN:
         _FROZEN[key] = design_lqri(linearise(reference, hover_point(reference)), ctrl)
     return _FROZEN[key]
+
+
+def frozen_wrench_gain(K_ref: np.ndarray, reference: Airframe, airframe: Airframe) -> np.ndarray:
+    """The reference's gain ``K_ref`` (4×20, commands from [δx; ξ]) frozen in wrench space and
+    mixed for ``airframe`` by its own allocation inverse: what a flight controller does when it
+    keeps its attitude and position gains and gets a per-frame mixer.
+
+    Derivation. A frame's allocation A (4×4, :attr:`Airframe.allocation_matrix`) maps rotor
+    thrusts T to the wrench W = A T = [collective thrust, roll, pitch, yaw torque]. With the thrust
+    lag τ Ṫ = K_g δ − T, the wrench obeys τ Ẇ = w_c − W with the commanded wrench w_c = K_g A δ:
+    in wrench coordinates every frame has the same actuator (a first-order lag from w_c to W) and
+    the same rigid-body input (W), and the allocation has disappeared. The reference law
+    δ = u0 − K_ref [δx_s; δT; ξ] (δx_s the 12 rigid-body errors, δT = T − T0 the thrust errors,
+    ξ the integrators) is therefore, in wrench space,
+
+        w_c − w_c0 = −K_g,ref A_ref [K_s δx_s + K_T A_ref⁻¹ δW + K_ξ ξ] = −K_w [δx_s; δW; ξ],
+
+    with δW = A_ref δT, K_ref = [K_s | K_T | K_ξ]. That K_w is the frozen gain: from state error
+    (the thrust states read as the wrench they produce) to the commanded wrench. A candidate
+    measures its own wrench error δW = A δT and turns the commanded wrench into its commands by
+    its own inverse, δ − u0 = A⁻¹ (w_c − w_c0) / K_g:
+
+        K = (K_g,ref / K_g) A⁻¹ A_ref [K_s | K_T A_ref⁻¹ A | K_ξ].
+
+    The mapping is exact (no linearisation), so the commanded wrench K_g A (δ − u0) equals the
+    reference controller's for the same rigid-body and wrench errors whatever the frame, and on
+    the reference itself K = K_ref. Cost per candidate: two 4×4 solves and a 4×20 product.
+    """
+    A_ref, A = reference.allocation_matrix, airframe.allocation_matrix
+    K = np.array(K_ref, float)
+    K[:, THR] = K[:, THR] @ np.linalg.solve(A_ref, A)
+    return (reference.thrust_gain / airframe.thrust_gain) * np.linalg.solve(A, A_ref @ K)
 
 
 def plant(airframe: Airframe, Ts: float, operating_point=None) -> tuple[np.ndarray, np.ndarray]:

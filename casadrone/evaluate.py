@@ -16,15 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
-from casadrone.config import (
-    AirframeConfig,
-    ConfigError,
-    ControllerConfig,
-    load,
-    load_airframe,
-    load_controller,
-)
+from casadrone.airframe import Airframe, build_airframe, decision_keys, with_theta
+from casadrone.config import AirframeConfig, ControllerConfig, load_airframe, load_controller
+from casadrone.configio import ConfigError, load
 from casadrone.control import design_for
 from casadrone.guidance import TrackConfig
 from casadrone.simulate import SimOptions, Trajectory, simulate
@@ -48,7 +42,7 @@ class EvaluationSetup:
 
     @cached_property
     def reference_airframe(self) -> Airframe | None:
-        """The airframe whose gain is frozen (gain_policy: frozen), else None."""
+        """The airframe whose gain is frozen (frozen-* gain policies), else None."""
         ref = self.controller.reference_airframe
         return build_airframe(load_airframe(ref)) if ref is not None else None
 
@@ -129,6 +123,7 @@ def evaluate(
 
 
 def theta_of(cfg: AirframeConfig) -> dict[str, float]:
-    """The decision variables of an airframe config (Table 1 keys)."""
-    return {k: float(getattr(cfg, k)) for k in THETA_KEYS}
+    """The decision variables of an airframe config (Table 1 keys; the four geometry keys with
+    ``mass_model: components``)."""
+    return {k: float(getattr(cfg, k)) for k in decision_keys(cfg)}
 

@@ -24,7 +24,7 @@ import casadi as ca
 import numpy as np
 from pydantic import Field, model_validator
 
-from casadrone.config import Schema
+from casadrone.configio import Schema
 
 Vec3 = tuple[float, float, float]
 

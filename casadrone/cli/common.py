@@ -11,7 +11,7 @@ from typing import Annotated, Any
 
 import typer
 
-from casadrone.config import ConfigError
+from casadrone.configio import ConfigError
 
 app = typer.Typer(
     name="casadrone",

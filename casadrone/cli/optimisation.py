@@ -57,7 +57,8 @@ ReferenceOpt = Annotated[
 def backend_config(base, name: BackendName | None, workers: int | None,
                    scheduler: str | None):
     """The problem's backend section with the command-line choices applied (validated)."""
-    from casadrone.config import BackendConfig, validate_data
+    from casadrone.configio import validate_data
+    from casadrone.problemconfig import BackendConfig
 
     if scheduler is not None:
         if name not in (None, BackendName.dask):
@@ -172,9 +173,9 @@ def run_command(
     directory and a short summary of the Pareto front go to stdout. A killed run continues with
     'casadrone resume DIR' and ends exactly as an uninterrupted one.
     """
-    from casadrone.config import load_problem
     from casadrone.optimise import runner
     from casadrone.optimise.store import MANIFEST, RunInProgress
+    from casadrone.problemconfig import load_problem
 
     if quiet and verbose:
         raise bad_input(["--quiet and --verbose: choose one"])

@@ -13,8 +13,8 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from casadrone.config import BackendConfig
 from casadrone.optimise.problem import Record, Study, evaluate_rows
+from casadrone.problemconfig import BackendConfig
 
 
 def guided_sizes(rows: int, workers: int) -> list[int]:

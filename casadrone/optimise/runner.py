@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from casadrone.config import BackendConfig, ProblemConfig
 from casadrone.optimise.backends import make_backend
 from casadrone.optimise.problem import CandidateProblem, Study
 from casadrone.optimise.store import RunStore, now
+from casadrone.problemconfig import BackendConfig, ProblemConfig
 
 
 @dataclass(frozen=True)

@@ -21,39 +21,20 @@ from __future__ import annotations
 import datetime as _dt
 from pathlib import Path
 
-from casadrone.report.analysis import (  # noqa: F401 (re-exported)
-    LABELS,
-    STAGES,
-    Candidate,
-    ConvergenceHistory,
-    Run,
+from casadrone.report.analysis import (
     choose_candidates,
-    convergence_history,
-    failure_groups,
-    feasible_front,
     read_run,
-    reason_group,
 )
 from casadrone.report.candidates import (
     evaluate_candidates,
     section_airframes,
     section_candidates,
 )
-from casadrone.report.markup import (  # noqa: F401 (re-exported)
+from casadrone.report.markup import (
     PLOTS,
-    SYMBOL,
-    UNIT_SUFFIX,
     Figures,
-    Html,
-    cell,
     esc,
-    kv_table,
     note,
-    num,
-    objective_label,
-    table,
-    unit_of,
-    variable_label,
 )
 from casadrone.report.sections import (
     section_convergence,

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from casadrone.airframe import build_airframe
-from casadrone.config import load, load_airframe, load_controller
+from casadrone.config import load_airframe, load_controller
+from casadrone.configio import load
 from casadrone.control import design_for
 from casadrone.guidance import TrackConfig
 from casadrone.simulate import chunk_function, simulate, step_function

@@ -125,7 +125,8 @@ def test_stability_without_certificate():
 
 
 def test_frozen_policy_uses_reference_gain_on_own_plant():
-    cfg = ControllerConfig(gain_policy="frozen", reference_airframe="configs/airframes/SY250.yaml")
+    cfg = ControllerConfig(gain_policy="frozen-command",
+                           reference_airframe="configs/airframes/SY250.yaml")
     ref = build_airframe(load_airframe("SY250"))
     cand = build_airframe(load_airframe("NSY200"))
     frozen = design_for(cand, cfg, reference=ref)
@@ -174,3 +175,71 @@ def test_doubling_dare_scalar_integrator():
     S = (q + np.sqrt(q**2 + 4 * q * r / b**2)) / 2
     S_num = solve_dare(np.eye(1), np.array([[b]]), np.array([[q]]), np.array([[r]]))
     assert S_num[0, 0] == pytest.approx(S, rel=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------
+# frozen-wrench: the reference gain in force/torque space, each frame mixed by its own allocation
+# ---------------------------------------------------------------------------------------------
+
+ASYMMETRIC = ["lambda_a_mm=145", "lambda_b_mm=105", "alpha_deg=70", "beta_deg=84"]
+
+
+def _frozen(policy: str) -> ControllerConfig:
+    return ControllerConfig(gain_policy=policy, reference_airframe="configs/airframes/SY250.yaml")
+
+
+def test_frozen_wrench_equals_frozen_command_on_the_reference():
+    ref = build_airframe(load_airframe("SY250"))
+    wrench = design_for(ref, _frozen("frozen-wrench"), reference=ref)
+    command = design_for(ref, _frozen("frozen-command"), reference=ref)
+    np.testing.assert_allclose(wrench.K, command.K, rtol=1e-12, atol=1e-14)
+
+
+def test_frozen_wrench_commands_the_reference_wrench_on_an_asymmetric_frame():
+    """Allocation round-trip: for any rigid-body error, thrust error and integrator state, the
+    wrench the asymmetric frame's commands produce in steady state, K_g A (δ − u0), equals the
+    wrench the reference controller demands for the same rigid-body errors and the same wrench
+    error A δT (read through the reference's allocation)."""
+    ref = build_airframe(load_airframe("SY250"))
+    cand = build_airframe(load_airframe("SY250", ASYMMETRIC))
+    design = design_for(cand, _frozen("frozen-wrench"), reference=ref)
+    K_ref = design_for(ref, _frozen("frozen-command"), reference=ref).K
+    A, A_ref = cand.allocation_matrix, ref.allocation_matrix
+    assert not np.allclose(A, A_ref)  # the frames really mix differently
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        z = rng.normal(size=20)
+        dT = z[12:16]
+        z_ref = z.copy()
+        z_ref[12:16] = np.linalg.solve(A_ref, A @ dT)  # same wrench error, reference's rotors
+        wrench = cand.thrust_gain * A @ (-design.K @ z)
+        wrench_ref = ref.thrust_gain * A_ref @ (-K_ref @ z_ref)
+        np.testing.assert_allclose(wrench, wrench_ref, rtol=1e-10, atol=1e-12)
+    # frozen-command flies the reference's mixer: the same commands, hence another wrench
+    command = design_for(cand, _frozen("frozen-command"), reference=ref)
+    z = rng.normal(size=20)
+    assert not np.allclose(A @ command.K @ z, A_ref @ K_ref @ z, rtol=1e-3)
+
+
+def test_frozen_wrench_collective_does_not_pitch_an_unequal_arm_frame():
+    """A pure altitude error asks for collective thrust only: with the frame's own mixer the
+    commanded pitch and roll torques are zero; through the SY250 mixer (frozen-command) a frame
+    with λa ≠ λb gets a pitch torque."""
+    ref = build_airframe(load_airframe("SY250"))
+    cand = build_airframe(load_airframe("SY250", ["lambda_a_mm=145", "lambda_b_mm=105"]))
+    z = np.zeros(20)
+    z[2] = -1.0  # 1 m below the reference
+    wrench = {p: cand.allocation_matrix @ design_for(cand, _frozen(p), reference=ref).K @ z
+              for p in ("frozen-wrench", "frozen-command")}
+    assert abs(wrench["frozen-wrench"][0]) > 0.1
+    np.testing.assert_allclose(wrench["frozen-wrench"][1:], 0.0, atol=1e-12)
+    assert abs(wrench["frozen-command"][2]) > 1e-3 * abs(wrench["frozen-command"][0])
+
+
+def test_frozen_wrench_scales_with_the_thrust_gain():
+    """A frame with stronger motors needs proportionally smaller commands for the same wrench."""
+    ref = build_airframe(load_airframe("SY250"))
+    strong = build_airframe(load_airframe("SY250", ["thrust.gain_n=18.1038"]))
+    K = design_for(strong, _frozen("frozen-wrench"), reference=ref).K
+    K_ref = design_for(ref, _frozen("frozen-command"), reference=ref).K
+    np.testing.assert_allclose(K, K_ref / 2, rtol=1e-12)

@@ -11,21 +11,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from casadrone.benchmark import run_candidates
-from casadrone.config import BackendConfig, load_problem
+from casadrone.compare import run_candidates
 from casadrone.decide import decide
 from casadrone.optimise.runner import run
 from casadrone.optimise.store import RunStore
-from casadrone.report import (
+from casadrone.problemconfig import BackendConfig, load_problem
+from casadrone.report import write_report
+from casadrone.report.analysis import (
     choose_candidates,
     convergence_history,
     failure_groups,
     feasible_front,
-    num,
     read_run,
     reason_group,
-    write_report,
 )
+from casadrone.report.markup import num
 
 ROOT = Path(__file__).resolve().parents[2]
 SECTIONS = ("problem", "convergence", "pareto", "candidates", "airframes", "failures", "trim")

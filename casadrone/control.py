@@ -180,13 +180,21 @@ def design_for(
 
 
 _FROZEN: dict[tuple, LQRIDesign] = {}
+_FROZEN_BY_ID: dict[tuple[int, int], tuple[Airframe, ControllerConfig, LQRIDesign]] = {}
 
 
 def _frozen_gain(reference: Airframe, ctrl: ControllerConfig) -> LQRIDesign:
-    """The reference airframe's design, computed once per process for a (reference, weights)."""
+    """The reference airframe's design, computed once per process for a (reference, weights);
+    the same two objects (one study's) find it again without rebuilding the key."""
+    hit = _FROZEN_BY_ID.get((id(reference), id(ctrl)))
+    if hit is not None and hit[0] is reference and hit[1] is ctrl:
+        return hit[2]
     key = (reference.name, tuple(reference.p), ctrl.model_copy(update={"gain_policy": "redesign"}))
     if key not in _FROZEN:
         _FROZEN[key] = design_lqri(linearise(reference, hover_point(reference)), ctrl)
+    if len(_FROZEN_BY_ID) > 64:
+        _FROZEN_BY_ID.clear()
+    _FROZEN_BY_ID[(id(reference), id(ctrl))] = (reference, ctrl, _FROZEN[key])  # holds both
     return _FROZEN[key]
 
 

@@ -39,7 +39,7 @@ from typing import Literal
 
 import numpy as np
 
-from casadrone.simulate import Trajectory
+from casadrone.simulate import Trajectory, row_norm
 
 Sense = Literal["min", "max"]
 IndexFunction = Callable[[Trajectory], float]
@@ -188,7 +188,7 @@ def lap_time(traj: Trajectory) -> float:
 def max_acceleration(traj: Trajectory) -> float:
     """J4: maximum over the lap samples of |a| (m/s²), a the world kinematic acceleration
     (d/dt of the world velocity, gravity not included: zero in hover)."""
-    return float(np.max(np.linalg.norm(traj.acceleration[_lap_rows(traj)], axis=1)))
+    return float(np.max(row_norm(traj.acceleration[_lap_rows(traj)])))
 
 
 def effort_rms(traj: Trajectory) -> float:
@@ -307,16 +307,22 @@ def interval_table(traj: Trajectory) -> list[Interval]:
     _require_completed(traj)
     effort = roll_effort_voltage(traj)
     pair = pair_thrust_difference(traj)
+    wi = traj.waypoint_index
+    W = len(traj.waypoints)
+    if np.all(wi[1:] >= wi[:-1]):  # as flown: each interval is one run of samples
+        edges = np.searchsorted(wi, np.arange(W + 1), side="left")
+        selections = [slice(int(edges[j]), int(edges[j + 1])) for j in range(W)]
+    else:
+        selections = [interval_mask(traj, j) for j in range(1, W + 1)]
     rows = []
-    for j in range(1, len(traj.waypoints) + 1):
-        m = _rows(interval_mask(traj, j))
+    for j, m in enumerate(selections, start=1):
         n = len(effort[m])
         rows.append(Interval(
             waypoint=j,
             split_time_s=float(traj.split_times[j - 1]),
-            effort_V=float(np.mean(effort[m])) if n else float("nan"),
-            pair_thrust_max_N=float(np.max(pair[m])) if n else float("nan"),
-            pair_thrust_min_N=float(np.min(pair[m])) if n else float("nan"),
+            effort_V=float(effort[m].sum() / n) if n else float("nan"),  # np.mean's sum / n
+            pair_thrust_max_N=float(pair[m].max()) if n else float("nan"),
+            pair_thrust_min_N=float(pair[m].min()) if n else float("nan"),
             straight=bool(traj.straight[j - 1]),
             n_samples=n,
         ))

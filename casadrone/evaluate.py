@@ -44,6 +44,11 @@ class EvaluationSetup:
         ref = self.controller.reference_airframe
         return build_airframe(load_airframe(ref)) if ref is not None else None
 
+    @cached_property
+    def template_data(self) -> dict:
+        """``template.model_dump()``, once per study (each candidate overrides its θ in it)."""
+        return self.template.model_dump()
+
 
 def default_setup(
     airframe: str | Path = "SY250",
@@ -125,7 +130,7 @@ def evaluate(
     start = time.perf_counter()
     theta = {k: float(v) for k, v in theta.items()}
     try:
-        airframe = build_airframe(with_theta(setup.template, theta))
+        airframe = build_airframe(with_theta(setup.template, theta, base=setup.template_data))
     except ConfigError as exc:
         return _failed(theta, "geometry", "; ".join(exc.lines), start)
     tp = trim(airframe, "hover", 0.0, solver=setup.trim_solver)

@@ -27,6 +27,7 @@ _API = {
     "casadrone.config": ["load_airframe", "load_controller", "AirframeConfig", "ControllerConfig"],
     "casadrone.problemconfig": ["load_problem", "ProblemConfig", "BackendConfig"],
     "casadrone.validation": ["validate_file"],
+    "casadrone.massprops": ["mass_properties", "MassProperties"],
     "casadrone.airframe": ["Airframe", "build_airframe", "with_theta", "TABLE1_BOUNDS",
                            "THETA_KEYS"],
     "casadrone.model": ["quadrotor_model", "STATE_NAMES", "INPUT_NAMES"],

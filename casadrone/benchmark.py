@@ -179,7 +179,7 @@ def run_benchmark(
         trk = load(TrackConfig, resolve_config(track, "tracks") if track else DEFAULT_TRACK)
     ref = reference if isinstance(reference, Table4Reference) else load_reference(reference)
     frozen_from = None
-    if ctrl.gain_policy == "frozen":
+    if ctrl.frozen_gain:
         frozen_from = build_airframe(load_airframe(ctrl.reference_airframe))
     rows = []
     for item in airframes:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
+from casadrone.airframe import Airframe, build_airframe, decision_keys, with_theta
 from casadrone.config import AirframeConfig, ControllerConfig, load_airframe, load_controller
 from casadrone.configio import CONFIG_DIR, ConfigError, load
 from casadrone.control import design_for
@@ -40,9 +40,14 @@ class EvaluationSetup:
 
     @cached_property
     def reference_airframe(self) -> Airframe | None:
-        """The airframe whose gain is frozen (gain_policy: frozen), else None."""
+        """The airframe whose gain is frozen (frozen-* gain policies), else None."""
         ref = self.controller.reference_airframe
         return build_airframe(load_airframe(ref)) if ref is not None else None
+
+    @cached_property
+    def template_data(self) -> dict:
+        """``template.model_dump()``, once per study (each candidate overrides its θ in it)."""
+        return self.template.model_dump()
 
 
 def default_setup(
@@ -125,7 +130,7 @@ def evaluate(
     start = time.perf_counter()
     theta = {k: float(v) for k, v in theta.items()}
     try:
-        airframe = build_airframe(with_theta(setup.template, theta))
+        airframe = build_airframe(with_theta(setup.template, theta, base=setup.template_data))
     except ConfigError as exc:
         return _failed(theta, "geometry", "; ".join(exc.lines), start)
     tp = trim(airframe, "hover", 0.0, solver=setup.trim_solver)
@@ -150,7 +155,7 @@ def evaluate(
 
 
 def theta_of(cfg: AirframeConfig) -> Theta:
-    """The decision variables of an airframe config (Table 1 keys), tagged with its name (see
-    :class:`Theta`)."""
-    return Theta({k: float(getattr(cfg, k)) for k in THETA_KEYS}, cfg.name)
+    """The decision variables of an airframe config (Table 1 keys; the four geometry keys with
+    ``mass_model: components``), tagged with its name (see :class:`Theta`)."""
+    return Theta({k: float(getattr(cfg, k)) for k in decision_keys(cfg)}, cfg.name)
 

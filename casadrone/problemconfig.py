@@ -14,8 +14,16 @@ from typing import Any, Literal
 
 from pydantic import Field
 
-from casadrone.config import AirframeConfig
-from casadrone.configio import ROOT, Schema, has_keys, load, resolve_config
+from casadrone.config import MASS_KEYS, AirframeConfig
+from casadrone.configio import (
+    ROOT,
+    ConfigError,
+    Schema,
+    has_keys,
+    load,
+    read_yaml,
+    resolve_config,
+)
 
 
 class VariableConfig(Schema):
@@ -169,7 +177,25 @@ class ProblemConfig(Schema):
             for key in v.get("fixed") or {}:
                 if key not in AirframeConfig.model_fields:
                     found.append((f"fixed.{key}", "not an airframe key"))
+            found += _computed_variables(v)
         return found
+
+
+def _computed_variables(v: dict[str, Any]) -> list[tuple[str, str]]:
+    """Decision variables that the airframe's mass model computes (mass and inertia keys under
+    ``mass_model: components``): refused, never silently ignored."""
+    if not v.get("airframe") or "variables" not in v:
+        return []
+    try:
+        template = {**read_yaml(v["airframe"]), **(v.get("fixed") or {})}
+    except ConfigError:
+        return []  # the airframe file's own problems are reported with it
+    if template.get("mass_model") != "components":
+        return []
+    return [(f"variables.{i}.name", f"'{x.name}' is computed from the parts with the airframe's "
+             "mass_model: components, so it cannot be a decision variable; list the geometry "
+             "variables (lambda_a_mm, lambda_b_mm, alpha_deg, beta_deg) under variables")
+            for i, x in enumerate(v["variables"]) if x.name in MASS_KEYS]
 
 
 _PLUGINS: dict[str, Any] = {}

@@ -83,17 +83,16 @@ def _yaml_files(paths: list[Path]) -> list[Path]:
 
 @app.command()
 def validate(
-    files: Annotated[list[Path] | None, typer.Argument(
-        help="config YAML files or folders of them (default: every shipped config and problem)")
-    ] = None,
+    files: Annotated[list[Path], typer.Argument(
+        help="config YAML files or folders of them; a shipped name (SY250, quick), or configs "
+        "and problems for every shipped file")],
     as_json: JsonOpt = False,
 ) -> None:
     """Validate config files: exit 0 when all are valid, 2 otherwise (one line per problem)."""
-    from casadrone.configio import DATA_DIR
     from casadrone.validation import validate_file
 
     report = []
-    for path in _yaml_files(files or [DATA_DIR]):
+    for path in _yaml_files(files):
         try:
             validate_file(path)
             report.append({"file": str(path), "valid": True, "problems": []})
@@ -321,7 +320,7 @@ def lqr(
     from casadrone import control
 
     reference = None
-    if ctrl.gain_policy == "frozen":
+    if ctrl.frozen_gain:
         _, reference = load_airframe_or_exit(str(ctrl.reference_airframe), None)
     design = control.design_for(frame, ctrl, reference)
     eig = np.asarray(design.closed_loop_eigenvalues)

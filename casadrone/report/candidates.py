@@ -119,12 +119,15 @@ def _candidate(run: Run, c: Candidate, figs: Figures) -> str:
            ]
     if not run.test_problem:
         from casadrone.airframe import with_theta
+        from casadrone.massprops import mass_properties
         from casadrone.optimise.problem import study_setup
 
         cfg = with_theta(study_setup(s).template, c.theta)
+        mp = mass_properties(cfg)
+        source = "fixed" if mp.mass_model == "free" else "from the parts"
         out.append(kv_table([("family", family(cfg.alpha_deg, cfg.beta_deg)),
                              ("diagonal λa + λb (mm)", num(cfg.lambda_a_mm + cfg.lambda_b_mm)),
-                             ("mass (kg, fixed)", num(cfg.mass_kg))]))
+                             (f"mass (kg, {source})", num(mp.mass_kg))]))
     idx = [[n, INDICES[n].unit if n in INDICES else "–",
             dict(zip(s.objective_names, s.senses, strict=True)).get(n, "(not an objective)"),
             cell(c.objectives.get(n)), cell(ev.indices.get(n))]

@@ -244,11 +244,11 @@ def test_lqr_without_ensemble_has_no_ensemble_keys(cli_runner):
 
 def test_lqr_frozen_gain_from_reference(cli_runner, tmp_path):
     ctrl = tmp_path / "frozen.yaml"
-    ctrl.write_text("name: frozen\ngain_policy: frozen\nreference_airframe: SY250\n")
+    ctrl.write_text("name: frozen\ngain_policy: frozen-command\nreference_airframe: SY250\n")
     frozen = run_json(cli_runner, "lqr", "HS200", "--controller", ctrl)
     reference = run_json(cli_runner, "lqr", "SY250", "--controller", ctrl)
     own = run_json(cli_runner, "lqr", "HS200")
-    assert frozen["gain_policy"] == "frozen" and own["gain_policy"] == "redesign"
+    assert frozen["gain_policy"] == "frozen-command" and own["gain_policy"] == "redesign"
     np.testing.assert_allclose(frozen["K"], reference["K"], rtol=1e-12)
     assert not np.allclose(frozen["K"], own["K"])
 
@@ -567,13 +567,41 @@ def test_version(cli_runner):
     assert result.exit_code == 0 and result.stdout.strip() == f"casadrone {__version__}"
 
 
-def test_validate_without_arguments_checks_every_shipped_file(cli_runner, tmp_path, monkeypatch):
+def test_validate_configs_problems_outside_the_checkout_checks_the_shipped_files(
+        cli_runner, tmp_path, monkeypatch):
     from casadrone.configio import DATA_DIR
 
     monkeypatch.chdir(tmp_path)  # no configs/ or problems/ here: the shipped ones are meant
     shipped = sorted(DATA_DIR.rglob("*.yaml"))
-    for args in ([], ["configs", "problems"]):
-        result = run(cli_runner, "validate", *args, "--json")
-        assert result.exit_code == 0, result.output
-        files = sorted(Path(f["file"]) for f in json.loads(result.stdout)["files"])
-        assert files == shipped
+    result = run(cli_runner, "validate", "configs", "problems", "--json")
+    assert result.exit_code == 0, result.output
+    files = sorted(Path(f["file"]) for f in json.loads(result.stdout)["files"])
+    assert files == shipped
+
+
+@pytest.mark.parametrize("command", ["validate", "trim", "simulate"])
+def test_impossible_inertia_is_bad_input(cli_runner, tmp_path, command):
+    """An airframe with Izz > Ixx + Iyy: exit 2 naming the triangle inequality, no traceback."""
+    frame = tmp_path / "impossible.yaml"
+    text = (ROOT / "configs" / "airframes" / "SY250.yaml").read_text()
+    frame.write_text(text.replace("izz_kgm2: 0.0036", "izz_kgm2: 0.0045"))
+    result = run(cli_runner, command, frame)
+    assert result.exit_code == 2, result.output
+    assert f"{frame}: izz_kgm2: Ixx + Iyy ≥ Izz violated" in result.stderr
+    assert "Traceback" not in result.output
+
+
+def test_impossible_inertia_override_is_bad_input(cli_runner):
+    result = run(cli_runner, "simulate", "SY250", "izz_kgm2=0.0045", "--json")
+    assert result.exit_code == 2
+    assert "izz_kgm2: Ixx + Iyy ≥ Izz violated" in result.stderr
+    assert "[override izz_kgm2=0.0045]" in result.stderr
+
+
+def test_impossible_inertia_is_a_failed_evaluation_at_geometry():
+    from casadrone.evaluate import default_setup, evaluate
+
+    ev = evaluate({"ixx_kgm2": 0.0014, "iyy_kgm2": 0.0012, "izz_kgm2": 0.0042},
+                  default_setup("SY250", "frozen-wrench-sy250"))
+    assert ev.status == "failed" and ev.stage == "geometry"
+    assert "Ixx + Iyy ≥ Izz violated" in ev.reason

@@ -140,7 +140,7 @@ def test_frd_conversion_is_a_proper_rotation():
     np.testing.assert_allclose(to_frd([0.1, 0.2, 0.3]), [0.1, -0.2, -0.3])
 
 
-@pytest.mark.parametrize("frame", FRAMES)
+@pytest.mark.parametrize("frame", [*FRAMES, "SY250-components"])
 def test_urdf_parsed_by_yourdfpy_round_trips(frame, tmp_path):
     yourdfpy = pytest.importorskip("yourdfpy")
     src = source_of(frame)
@@ -168,7 +168,7 @@ def test_urdf_is_well_formed_xml_with_header_comment():
     assert root.tag == "robot" and root.get("name") == "SY250"
 
 
-@pytest.mark.parametrize("frame", FRAMES)
+@pytest.mark.parametrize("frame", [*FRAMES, "SY250-components"])
 def test_dxf_read_back_by_ezdxf(frame):
     ezdxf = pytest.importorskip("ezdxf")
     src = source_of(frame)
@@ -176,10 +176,17 @@ def test_dxf_read_back_by_ezdxf(frame):
     assert doc.units == 4  # millimetres
     msp = doc.modelspace()
     points = [p.dxf.location for p in msp.query("POINT[layer=='MOTOR_CENTRES']")]
-    r = src.airframe.rotor_positions
+    # drawing origin at the hub: rotor positions are from the centre of mass, the CoM from the hub
+    r = src.airframe.rotor_positions + src.airframe.com
     expected = np.stack([-1000 * r[:, 1], 1000 * r[:, 0]], axis=1)  # X right, Y nose (mm)
     got = np.array([[p.x, p.y] for p in points])
     np.testing.assert_allclose(got, expected, atol=0.01)
+    if frame == "SY250":  # hand values: λ = 125 mm at 45°: (±88.388, ±88.388) mm
+        np.testing.assert_allclose(np.abs(got), 125 / math.sqrt(2), atol=0.01)
+    (com,) = msp.query("POINT[layer=='COM']")
+    c = src.airframe.com
+    np.testing.assert_allclose([com.dxf.location.x, com.dxf.location.y],
+                               [-1000 * c[1], 1000 * c[0]], atol=0.01)
     # centre holes on the same centres; 4 mounting holes per motor on the 16 × 19 mm pattern
     holes = [(c.dxf.center, c.dxf.radius) for c in msp.query("CIRCLE[layer=='HOLES']")]
     for m in expected:

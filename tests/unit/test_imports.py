@@ -17,16 +17,16 @@ PACKAGE = Path(__file__).resolve().parents[2] / "casadrone"
 #: The chain, earliest first (DESIGN.md §1). A module may import only from its own stage or an
 #: earlier one; a subpackage's modules share the stage given for their prefix unless listed.
 STAGES: tuple[str, ...] = (
-    "casadrone.data", "casadrone.configio", "casadrone.config", "casadrone.airframe",
-    "casadrone.model", "casadrone.trim", "casadrone.linearise", "casadrone.control",
-    "casadrone.guidance", "casadrone.simulate", "casadrone.indices", "casadrone.evaluate",
-    "casadrone.decide", "casadrone.optimise.evmoga", "casadrone.optimise.algorithms",
-    "casadrone.problemconfig", "casadrone.optimise.mainguard", "casadrone.optimise.problem",
-    "casadrone.optimise.hypervolume",
-    "casadrone.optimise.backends",
-    "casadrone.optimise.store", "casadrone.optimise.runner", "casadrone.optimise",
-    "casadrone.benchmark", "casadrone.compare", "casadrone.validation", "casadrone.plots",
-    "casadrone.export", "casadrone.report", "casadrone.cli",
+    "casadrone.data", "casadrone.codegen", "casadrone.configio", "casadrone.massprops",
+    "casadrone.config", "casadrone.airframe", "casadrone.model", "casadrone.trim",
+    "casadrone.linearise", "casadrone.control", "casadrone.guidance", "casadrone.lapdriver",
+    "casadrone.simulate", "casadrone.indices", "casadrone.evaluate", "casadrone.decide",
+    "casadrone.optimise.boxarchive", "casadrone.optimise.evmoga", "casadrone.optimise.algorithms",
+    "casadrone.problemconfig",
+    "casadrone.optimise.mainguard", "casadrone.optimise.problem", "casadrone.optimise.hypervolume",
+    "casadrone.optimise.backends", "casadrone.optimise.store", "casadrone.optimise.runner",
+    "casadrone.optimise", "casadrone.benchmark", "casadrone.compare", "casadrone.validation",
+    "casadrone.plots", "casadrone.export", "casadrone.report", "casadrone.cli",
 )
 #: The package itself is the public API facade, after every stage; the one name a module may take
 #: from it is ``__version__`` (set before the facade imports anything).

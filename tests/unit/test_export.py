@@ -259,3 +259,44 @@ def test_unknown_format_and_wrong_candidate():
         export(source_of("SY250"), "stl")
     with pytest.raises(ValueError, match="not a run directory"):
         source_of("SY250", candidate="A")
+
+
+def svg_arc_centres(d: str) -> list[tuple[float, float]]:
+    """Centres of the circular arcs of an SVG path, by the SVG spec's endpoint-to-centre
+    conversion (SVG 1.1 appendix F.6.5, rx = ry, no rotation)."""
+    tokens = re.findall(r"[MLAZ]|-?\d+(?:\.\d+)?", d)
+    centres, here, i = [], None, 0
+    while i < len(tokens):
+        t = tokens[i]
+        if t in "ML":
+            here = (float(tokens[i + 1]), float(tokens[i + 2]))
+            i += 3
+        elif t == "A":
+            r, large, sweep = float(tokens[i + 1]), int(tokens[i + 4]), int(tokens[i + 5])
+            end = (float(tokens[i + 6]), float(tokens[i + 7]))
+            x1p, y1p = (here[0] - end[0]) / 2, (here[1] - end[1]) / 2
+            coef = math.sqrt(max(0.0, (r ** 4 - r * r * (x1p ** 2 + y1p ** 2))
+                                 / (r * r * (x1p ** 2 + y1p ** 2))))
+            sign = -1.0 if large == sweep else 1.0
+            centres.append((sign * coef * y1p + (here[0] + end[0]) / 2,
+                            -sign * coef * x1p + (here[1] + end[1]) / 2))
+            here = end
+            i += 8
+        else:
+            i += 1
+    return centres
+
+
+@pytest.mark.parametrize("frame", FRAMES)
+def test_svg_outline_arcs_turn_about_the_motors_and_the_hub(frame):
+    src = source_of(frame)
+    root = ET.fromstring(export(src, "svg").encode())
+    (path,) = root.findall("{http://www.w3.org/2000/svg}path")
+    d = re.sub(r"([MLAZ])", r" \1 ", path.get("d")).replace(",", " ")
+    centres = np.array(svg_arc_centres(d))
+    r = src.airframe.rotor_positions + src.airframe.com
+    motors_svg = np.stack([-1000 * r[:, 1], -1000 * r[:, 0]], axis=1)  # page: X right, Y down
+    pads, hubs = centres[0::2], centres[1::2]
+    for m in motors_svg:  # each motor centre is the centre of exactly one pad arc
+        assert np.sum(np.linalg.norm(pads - m, axis=1) < 1e-3) == 1
+    np.testing.assert_allclose(hubs, 0.0, atol=1e-3)

@@ -300,3 +300,13 @@ def test_svg_outline_arcs_turn_about_the_motors_and_the_hub(frame):
     for m in motors_svg:  # each motor centre is the centre of exactly one pad arc
         assert np.sum(np.linalg.norm(pads - m, axis=1) < 1e-3) == 1
     np.testing.assert_allclose(hubs, 0.0, atol=1e-3)
+
+
+def test_px4_sy250_has_the_sign_pattern_of_px4s_own_quad_x():
+    # PX4's x500 airframe (ROMFS init.d-posix/airframes, gz_x500): rotor 0 (+0.13, +0.22) KM +0.05,
+    # 1 (-0.13, -0.20) +0.05, 2 (+0.13, -0.22) -0.05, 3 (-0.13, +0.20) -0.05 (FRD, KM > 0 = CCW)
+    x500 = [(1, 1, 1), (-1, -1, 1), (1, -1, -1), (-1, 1, -1)]
+    params = px4_params(export(source_of("SY250"), "px4"))
+    got = [tuple(int(np.sign(params[f"CA_ROTOR{n}_{k}"])) for k in ("PX", "PY", "KM"))
+           for n in range(4)]
+    assert got == x500

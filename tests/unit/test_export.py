@@ -130,7 +130,6 @@ def test_px4_positions_in_frd():
         ccw = src.airframe.rotor_spins[i] < 0
         assert params[f"CA_ROTOR{n}_KM"] == pytest.approx(
             (1 if ccw else -1) * src.airframe.kappa, abs=1e-6)
-    assert ("FR" in "FR") and src.airframe.rotor_spins[0] < 0  # PX4's motor 1 is CCW, as ours
 
 
 def test_frd_conversion_is_a_proper_rotation():

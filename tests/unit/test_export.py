@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 from casadrone import __version__
-from casadrone.export import FORMATS, export, source_of, write_export
+from casadrone.export import FORMATS, export, write_export
 from casadrone.export.mixers import BETAFLIGHT_ORDER, motor_mix, to_frd
 from casadrone.export.plate import PlateOptions, plate
+from casadrone.export.source import source_of
 
 FRAMES = ("SY250", "HS210", "NSY200")
 

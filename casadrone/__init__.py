@@ -7,7 +7,7 @@ The public API, one function per stage of the chain (DESIGN.md §1)::
     tp = cd.trim(frame, "hover", solver="newton")
     lin = cd.linearise(frame, tp)
     design = cd.design_lqri(lin, cd.load_controller())
-    ev = cd.evaluate(cd.theta_of(cd.load_airframe("HS210")), cd.default_setup())
+    ev = cd.evaluate(cd.theta_of(cd.load_airframe("HS210")), cd.default_setup("HS210"))
 
 Most names are imported lazily. casadrone's parallelism is one
 process per core; its linear algebra is on 20×20 matrices, where a multi-threaded BLAS is up to 5×

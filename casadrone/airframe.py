@@ -168,14 +168,16 @@ def decision_keys(cfg: AirframeConfig) -> tuple[str, ...]:
     return GEOMETRY_KEYS if cfg.mass_model == "components" else THETA_KEYS
 
 
-def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = None):
+def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = None,
+               base: dict | None = None):
     """A copy of ``cfg`` with decision variables replaced (keys as in the config, e.g.
-    ``alpha_deg``), validated like a file: invalid geometry raises ConfigError."""
+    ``alpha_deg``), validated like a file: invalid geometry raises ConfigError. ``base``:
+    ``cfg.model_dump()`` if the caller already has it (an optimiser keeps it per study)."""
     from pydantic import ValidationError
 
     from casadrone.configio import format_errors
 
-    data = cfg.model_dump()
+    data = dict(base) if base is not None else cfg.model_dump()
     data.update(theta)
     if name is not None:
         data["name"] = name

@@ -18,7 +18,8 @@ ROOT = Path(__file__).resolve().parents[2]
 def readme_python_block() -> str:
     blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(encoding="utf-8"),
                         re.S)
-    assert len(blocks) == 1, "the README has one Python block"
+    # The tour is the first Python block; later ones (the SLURM cluster recipe) need a cluster.
+    assert blocks and "import casadrone as cd" in blocks[0], "the README opens with the Python tour"
     return blocks[0]
 
 

@@ -82,6 +82,7 @@ def _yaml_files(paths: list[Path]) -> list[Path]:
 
 
 @app.command()
+@reports_config_errors
 def validate(
     files: Annotated[list[Path], typer.Argument(
         help="config YAML files or folders of them; a shipped name (SY250, quick), or configs "
@@ -169,7 +170,15 @@ def _check_speed(condition: str, speed: float | None) -> float:
         return 0.0
     if speed is None:
         raise bad_input(["--speed: required with --condition forward (m/s)"])
+    if not 0.0 < speed <= MAX_SPEED_MPS:
+        raise bad_input([f"--speed: forward flight needs 0 < speed <= {MAX_SPEED_MPS:g} m/s "
+                         f"(got {speed:g})"])
     return float(speed)
+
+
+#: Fastest forward flight trimmed (m/s): racing quadrotors fly below about 60 m/s; beyond this
+#: the quadratic drag model and the small-angle controller are meaningless.
+MAX_SPEED_MPS = 100.0
 
 
 def _trim_result(tp) -> dict:
@@ -299,7 +308,8 @@ def lqr(
         typer.Option(help="controller YAML or name (default: configs/controllers/default.yaml)"),
     ] = None,
     ensemble: Annotated[
-        int | None, typer.Option(min=1, help="also apply the gain to N perturbed plants")
+        int | None,
+        typer.Option(min=1, max=10000, help="also apply the gain to N perturbed plants"),
     ] = None,
     as_json: JsonOpt = False,
     plot: PlotOpt = None,

@@ -14,6 +14,7 @@ out is returned as a failed :class:`Trajectory` with a reason; it never raises.
 
 from __future__ import annotations
 
+import math
 import subprocess
 import time
 from dataclasses import dataclass
@@ -415,6 +416,11 @@ def _trajectory(X, C, U, R, status, reason, airframe, design, track, integrator,
     )
 
 
+def _norm(v: np.ndarray) -> float:
+    """|v| of a vector: √(v·v), what ``np.linalg.norm`` computes, without its overhead."""
+    return math.sqrt(v.dot(v))
+
+
 def split_times(t, x, seg, route, track: TrackConfig) -> np.ndarray:
     """Time each waypoint was reached, interpolated inside the sample where the segment switched.
 
@@ -430,11 +436,11 @@ def split_times(t, x, seg, route, track: TrackConfig) -> np.ndarray:
             continue
         k = int(hit[0])
         a, b = route[k_seg], route[k_seg + 1]
-        L = np.linalg.norm(b - a)
+        L = _norm(b - a)
 
         def g(i, a=a, b=b, L=L):
             s = np.dot(x[i, :3] - a, (b - a) / L)
-            return min(np.linalg.norm(x[i, :3] - b) - track.acceptance_radius_m, L - s)
+            return min(_norm(x[i, :3] - b) - track.acceptance_radius_m, L - s)
 
         if k == 0:
             out[j] = t[0]

@@ -18,9 +18,10 @@ PACKAGE = Path(__file__).resolve().parents[2] / "casadrone"
 #: earlier one; a subpackage's modules share the stage given for their prefix unless listed.
 STAGES: tuple[str, ...] = (
     "casadrone.data", "casadrone.configio", "casadrone.massprops", "casadrone.config",
-    "casadrone.airframe",
+    "casadrone.airframe", "casadrone.codegen",
     "casadrone.model", "casadrone.trim", "casadrone.linearise", "casadrone.control",
-    "casadrone.guidance", "casadrone.simulate", "casadrone.indices", "casadrone.evaluate",
+    "casadrone.guidance", "casadrone.lapdriver", "casadrone.simulate", "casadrone.indices",
+    "casadrone.evaluate",
     "casadrone.decide", "casadrone.optimise.evmoga", "casadrone.optimise.algorithms",
     "casadrone.problemconfig", "casadrone.optimise.problem", "casadrone.optimise.backends",
     "casadrone.optimise.store", "casadrone.optimise.runner", "casadrone.optimise",

@@ -15,6 +15,8 @@ ORDER = [
      "python benchmarks/bench_lap.py"),
     ("sensitivity", "Geometry must matter: index sensitivity around SY250",
      "python benchmarks/sensitivity.py"),
+    ("geometry", "What geometry changes, and why: spreads and rank correlations over random frames",
+     "python benchmarks/geometry_effects.py --runs BEFORE AFTER"),
     ("optimise", "Optimisation throughput and ev-MOGA vs NSGA-II on paper-run1",
      "python benchmarks/bench_optimise.py"),
     ("backends", "Process backend: a paper-run1 generation, pickling and IPC, 16-worker projection",

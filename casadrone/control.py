@@ -243,13 +243,14 @@ def plant(airframe: Airframe, Ts: float, operating_point=None) -> tuple[np.ndarr
 
 
 def perturb(airframe: Airframe, rng: np.random.Generator, dynamics: float, coupling: float):
-    """A perturbed airframe: mass, inertia and drag scaled by U(1 ± dynamics); thrust gain, time
-    constant, κ and each rotor's arm length by U(1 ± coupling)."""
+    """A perturbed airframe: mass, inertia and drag scaled by U(1 ± dynamics) (the inertia by
+    :func:`perturb_inertia`, so it stays a possible body); thrust gain, time constant, κ and each
+    rotor's arm length by U(1 ± coupling)."""
 
     def s(spread, size=None):
         return rng.uniform(1 - spread, 1 + spread, size)
 
-    J = airframe.inertia * np.sqrt(np.outer(d := s(dynamics, 3), d))
+    J = perturb_inertia(airframe.inertia, s(dynamics, 3))
     return dataclasses.replace(
         airframe,
         name=f"{airframe.name}-perturbed",
@@ -261,6 +262,19 @@ def perturb(airframe: Airframe, rng: np.random.Generator, dynamics: float, coupl
         kappa=airframe.kappa * s(coupling),
         rotor_positions=airframe.rotor_positions * s(coupling, (4, 1)),
     )
+
+
+def perturb_inertia(J: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """The inertia (kg·m²) of the body ``J`` with its second moments along body axes i, j scaled
+    by √(d_i d_j): S = Σ m r rᵀ = ½ tr(J) I − J, S' = S ∘ √(d dᵀ), J' = tr(S') I − S'.
+
+    S' is a congruence of S, so it stays positive semi-definite: J' is again a possible body (its
+    principal moments keep the triangle inequalities), which scaling J itself does not ensure.
+    Each diagonal moment moves by a factor inside [min d, max d].
+    """
+    S = 0.5 * np.trace(J) * np.eye(3) - J
+    S = S * np.sqrt(np.outer(d, d))
+    return np.trace(S) * np.eye(3) - S
 
 
 @dataclass(frozen=True)

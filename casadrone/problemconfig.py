@@ -14,8 +14,16 @@ from typing import Any, Literal
 
 from pydantic import Field
 
-from casadrone.config import AirframeConfig
-from casadrone.configio import ROOT, Schema, has_keys, load, resolve_config
+from casadrone.config import MASS_KEYS, AirframeConfig
+from casadrone.configio import (
+    ROOT,
+    ConfigError,
+    Schema,
+    has_keys,
+    load,
+    read_yaml,
+    resolve_config,
+)
 
 
 class VariableConfig(Schema):
@@ -176,9 +184,6 @@ class ProblemConfig(Schema):
 def _computed_variables(v: dict[str, Any]) -> list[tuple[str, str]]:
     """Decision variables that the airframe's mass model computes (mass and inertia keys under
     ``mass_model: components``): refused, never silently ignored."""
-    from casadrone.config import MASS_KEYS
-    from casadrone.configio import ConfigError, read_yaml
-
     if not v.get("airframe") or "variables" not in v:
         return []
     try:

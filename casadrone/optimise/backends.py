@@ -13,6 +13,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from casadrone.optimise.mainguard import SpawnWithoutMainContext
 from casadrone.optimise.problem import Record, Study, evaluate_rows
 from casadrone.problemconfig import BackendConfig
 
@@ -80,13 +81,18 @@ def _warm(study: Study, linger_s: float = 0.0) -> int:
 
 
 class ProcessBackend:
-    """A pool of ``workers`` spawned processes (no fork: CasADi and BLAS are not fork-safe)."""
+    """A pool of ``workers`` spawned processes (no fork: CasADi and BLAS are not fork-safe).
+
+    ``without_main``: the workers do not import the main script (for a script that starts the run
+    outside ``if __name__ == "__main__":``, :mod:`casadrone.optimise.mainguard`)."""
 
     name = "processes"
 
-    def __init__(self, workers: int):
+    def __init__(self, workers: int, without_main: bool = False):
         self.workers = workers
-        self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+        context = (SpawnWithoutMainContext() if without_main
+                   else multiprocessing.get_context("spawn"))
+        self.pool = ProcessPoolExecutor(workers, mp_context=context)
         self.warm_for: set[str] = set()
 
     def warm(self, study: Study) -> None:
@@ -164,10 +170,11 @@ class DaskBackend:
             self.cluster.close()
 
 
-def make_backend(cfg: BackendConfig):
-    """The backend a problem's ``backend`` section asks for."""
+def make_backend(cfg: BackendConfig, without_main: bool = False):
+    """The backend a problem's ``backend`` section asks for (``without_main``: see
+    :class:`ProcessBackend`)."""
     if cfg.name == "serial":
         return SerialBackend()
     if cfg.name == "processes":
-        return ProcessBackend(cfg.workers)
+        return ProcessBackend(cfg.workers, without_main)
     return DaskBackend(cfg.workers, cfg.scheduler)

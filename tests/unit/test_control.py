@@ -243,3 +243,22 @@ def test_frozen_wrench_scales_with_the_thrust_gain():
     K = design_for(strong, _frozen("frozen-wrench"), reference=ref).K
     K_ref = design_for(ref, _frozen("frozen-command"), reference=ref).K
     np.testing.assert_allclose(K, K_ref / 2, rtol=1e-12)
+
+
+def test_perturbed_inertia_stays_a_possible_body():
+    """Scaling Ixx, Iyy, Izz independently by ±30 % can break Izz ≤ Ixx + Iyy (SY250: 0.0036 ·
+    1.3 > 0.0039 · 0.7); the ensemble perturbs the body's second moments instead."""
+    from casadrone.config import inertia_problems
+    from casadrone.control import perturb_inertia
+
+    J = build_airframe(load_airframe("SY250")).inertia
+    d = np.array([0.7, 0.7, 1.3])
+    assert inertia_problems((J * np.sqrt(np.outer(d, d))).tolist())  # the naive scaling
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        d = rng.uniform(0.7, 1.3, 3)
+        Jp = perturb_inertia(J, d)
+        assert inertia_problems(Jp.tolist()) == []
+        ratio = np.diag(Jp) / np.diag(J)
+        assert np.all((ratio >= d.min() - 1e-12) & (ratio <= d.max() + 1e-12))
+    np.testing.assert_allclose(perturb_inertia(J, np.ones(3)), J, rtol=1e-12)

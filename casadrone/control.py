@@ -223,7 +223,10 @@ def frozen_wrench_gain(K_ref: np.ndarray, reference: Airframe, airframe: Airfram
 
     The mapping is exact (no linearisation), so the commanded wrench K_g A (δ − u0) equals the
     reference controller's for the same rigid-body and wrench errors whatever the frame, and on
-    the reference itself K = K_ref. Cost per candidate: two 4×4 solves and a 4×20 product.
+    the reference itself K = K_ref. Frames with equal mass, inertia, drag and thrust lag thus fly
+    the same rigid-body trajectory until a command is clipped to [0, 1] (clipping acts per motor,
+    after the mixer, so there the arms matter). Cost per candidate: two 4×4 solves and a 4×20
+    product.
     """
     A_ref, A = reference.allocation_matrix, airframe.allocation_matrix
     K = np.array(K_ref, float)

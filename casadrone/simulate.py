@@ -2,9 +2,13 @@
 
 Integrators:
 - ``rk4``: fixed-step RK4 with sub-steps; the controller, guidance and plant of one sample are one
-  symbolic step, chained with ``mapaccum`` into chunks of samples, generated as C, compiled once
-  and cached on disk (``$CASADRONE_CACHE`` or ``~/.cache/casadrone``). The airframe, trim point,
-  gain and track are inputs, so one compiled function serves every candidate.
+  symbolic step, generated as C with a C loop around it that flies the whole lap in one call and
+  checks after every sample how it ends (:mod:`casadrone.lapdriver`), compiled once and cached on
+  disk (:mod:`casadrone.codegen`). The airframe, trim point, gain and track are inputs, so one
+  compiled function serves every candidate. Without a C compiler the step is chained with
+  ``mapaccum`` into chunks of samples evaluated by CasADi's virtual machine and checked between
+  chunks in numpy (the chunked path, compiled, flies the whole-lap loop's lap to the bit; the
+  virtual machine agrees with the compiled code to 1e-10: both tested).
 - ``cvodes``: SUNDIALS CVODES on the explicit f, the same compiled-once controller per sample.
 - ``idas``: SUNDIALS IDAS on the implicit residual F(ẋ, x, u, p) = 0 (ẋ as algebraic unknowns).
 
@@ -42,7 +46,7 @@ class SimOptions:
     """Numerical settings of the closed loop (the controller period comes from the design)."""
 
     substeps: int = 1  # RK4 steps per controller sample (rk4 vs cvodes: indices agree to 1e-6)
-    chunk: int = 250  # samples per compiled chunk (lap checked for its end between chunks)
+    chunk: int = 250  # samples per chunk of the SUNDIALS loops and the no-compiler rk4 path
     rtol: float = 1e-8  # SUNDIALS tolerances
     atol: float = 1e-8
     ground_margin_m: float = 0.1

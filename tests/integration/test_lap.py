@@ -158,15 +158,16 @@ def test_without_a_c_compiler_the_lap_runs_on_casadis_virtual_machine(tmp_path):
     assert out.stdout.strip() != "External" and not list(tmp_path.glob("*.so"))
 
 
-@pytest.mark.parametrize(("name", "overrides", "track_update", "ending"), [
-    ("SY250", None, {}, "completed"),
-    ("NSY200", None, {}, "completed"),
-    ("SY250", ["mass_kg=3.0"], {}, "attitude beyond"),
-    ("SY250", None, {"max_tilt_deg": 20.0}, "attitude beyond 20 deg"),
-    ("HS210", None, {"time_limit_s": 3.37}, "time-out"),
+@pytest.mark.parametrize(("name", "overrides", "track_update", "ending", "substeps"), [
+    ("SY250", None, {}, "completed", 1),
+    ("NSY200", None, {}, "completed", 1),
+    ("HS210", None, {}, "completed", 2),
+    ("SY250", ["mass_kg=3.0"], {}, "attitude beyond", 1),
+    ("SY250", None, {"max_tilt_deg": 20.0}, "attitude beyond 20 deg", 1),
+    ("HS210", None, {"time_limit_s": 3.37}, "time-out", 1),
 ])
-def test_whole_lap_loop_equals_chunked_loop(name, overrides, track_update, ending, track, ctrl,
-                                            monkeypatch):
+def test_whole_lap_loop_equals_chunked_loop(name, overrides, track_update, ending, substeps,
+                                            track, ctrl, monkeypatch):
     """The compiled whole-lap loop (one C call, checks after every sample) flies exactly, to the
     last bit, the lap of the chunked mapaccum path with the checks in numpy, and ends the same
     way: completed, failed (same reason) or timed out (same number of samples)."""
@@ -176,10 +177,11 @@ def test_whole_lap_loop_equals_chunked_loop(name, overrides, track_update, endin
     tr = track.model_copy(update=track_update)
     a = build_airframe(load_airframe(name, overrides))
     d = design_for(a, ctrl)
-    assert sim.lap_driver(d.sample_time_s, 1, len(tr.route)) is not None, "no C compiler"
-    whole = simulate(a, d, tr, "rk4")
+    options = sim.SimOptions(substeps=substeps)
+    assert sim.lap_driver(d.sample_time_s, substeps, len(tr.route)) is not None, "no C compiler"
+    whole = simulate(a, d, tr, "rk4", options)
     monkeypatch.setattr(sim, "lap_driver", lambda *args: None)
-    chunked = simulate(a, d, tr, "rk4")
+    chunked = simulate(a, d, tr, "rk4", options)
     assert (whole.status, whole.reason) == (chunked.status, chunked.reason)
     assert ending in (whole.status + " " + whole.reason)
     for field in ("t", "x", "u", "acceleration", "p_ref", "v_ref", "segment"):

@@ -187,3 +187,30 @@ def test_whole_lap_loop_equals_chunked_loop(name, overrides, track_update, endin
     for field in ("t", "x", "u", "acceleration", "p_ref", "v_ref", "segment"):
         np.testing.assert_array_equal(getattr(whole, field), getattr(chunked, field), field)
     np.testing.assert_array_equal(whole.split_times, chunked.split_times)
+
+
+def test_evaluations_in_threads_equal_serial():
+    """A Dask worker may run several threads: evaluations in 4 threads at once (zero-copy trim
+    and linearisation buffers per thread, the lap loop's arrays per call) equal serial ones."""
+    import threading
+
+    from casadrone.airframe import random_thetas
+    from casadrone.evaluate import default_setup, evaluate
+
+    setup = default_setup(controller="frozen-wrench-sy250")
+    thetas, _ = random_thetas(setup.template, 12, seed=5)
+    serial = [evaluate(th, setup) for th in thetas]
+    got: dict[int, object] = {}
+
+    def work(idx):
+        for _ in range(3):
+            for i in idx:
+                got[i] = evaluate(thetas[i], setup)
+
+    threads = [threading.Thread(target=work, args=(range(k, 12, 4),)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for i, ev in enumerate(serial):
+        assert (got[i].status, got[i].reason, got[i].indices) == (ev.status, ev.reason, ev.indices)

@@ -52,10 +52,11 @@ def discretise(A: np.ndarray, B: np.ndarray, Ts: float) -> tuple[np.ndarray, np.
 def augment(Ad: np.ndarray, Bd: np.ndarray, Ts: float) -> tuple[np.ndarray, np.ndarray]:
     """Append the four integrators of (x, y, z, ψ) to a discrete plant."""
     n, m = Bd.shape
-    C = np.zeros((len(INTEGRATED), n))
-    C[np.arange(len(INTEGRATED)), [IDX[k] for k in INTEGRATED]] = 1.0
-    Aa = np.block([[Ad, np.zeros((n, 4))], [Ts * C, np.eye(4)]])
-    Ba = np.vstack([Bd, np.zeros((4, m))])
+    k = len(INTEGRATED)
+    Aa, Ba = np.zeros((n + k, n + k)), np.zeros((n + k, m))
+    Aa[:n, :n], Ba[:n] = Ad, Bd
+    Aa[n + np.arange(k), [IDX[name] for name in INTEGRATED]] = Ts
+    Aa[n:, n:] = np.eye(k)
     return Aa, Ba
 
 

@@ -15,8 +15,12 @@ ORDER = [
      "python benchmarks/bench_lap.py"),
     ("sensitivity", "Geometry must matter: index sensitivity around SY250",
      "python benchmarks/sensitivity.py"),
+    ("geometry", "What geometry changes, and why: spreads and rank correlations over random frames",
+     "python benchmarks/geometry_effects.py --runs BEFORE AFTER"),
     ("optimise", "Optimisation throughput and ev-MOGA vs NSGA-II on paper-run1",
      "python benchmarks/bench_optimise.py"),
+    ("backends", "Process backend: a paper-run1 generation, pickling and IPC, 16-worker projection",
+     "python benchmarks/bench_backends.py"),
     ("evmoga", "ev-MOGA and NSGA-II on ZDT1, ZDT2, DTLZ2 (known fronts)",
      "python benchmarks/bench_evmoga_zdt.py"),
 ]

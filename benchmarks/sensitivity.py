@@ -82,7 +82,7 @@ def spread(base, ctrl, track, n: int, seed: int) -> dict[str, dict[str, tuple[fl
     """(min, max) of every index over n random Table 1 frames, per gain policy."""
     thetas, _ = random_thetas(base, n, seed)  # overlapping rotors are redrawn
     frames = [with_theta(base, th, name=f"random {i}") for i, th in enumerate(thetas)]
-    frozen = ctrl.model_copy(update={"gain_policy": "frozen"})
+    frozen = ctrl.model_copy(update={"gain_policy": "frozen-command"})
     ref = build_airframe(base)
     out = {}
     for policy, c in (("redesign", ctrl), ("frozen (SY250 gain)", frozen)):

@@ -7,7 +7,7 @@ The public API, one function per stage of the chain (DESIGN.md §1)::
     tp = cd.trim(frame, "hover", solver="newton")
     lin = cd.linearise(frame, tp)
     design = cd.design_lqri(lin, cd.load_controller())
-    ev = cd.evaluate(cd.theta_of(cd.load_airframe("HS210")), cd.default_setup())
+    ev = cd.evaluate(cd.theta_of(cd.load_airframe("HS210")), cd.default_setup("HS210"))
 
 Most names are imported lazily. casadrone's parallelism is one
 process per core; its linear algebra is on 20×20 matrices, where a multi-threaded BLAS is up to 5×
@@ -27,6 +27,7 @@ _API = {
     "casadrone.config": ["load_airframe", "load_controller", "AirframeConfig", "ControllerConfig"],
     "casadrone.problemconfig": ["load_problem", "ProblemConfig", "BackendConfig"],
     "casadrone.validation": ["validate_file"],
+    "casadrone.massprops": ["mass_properties", "MassProperties"],
     "casadrone.airframe": ["Airframe", "build_airframe", "with_theta", "TABLE1_BOUNDS",
                            "THETA_KEYS"],
     "casadrone.model": ["quadrotor_model", "STATE_NAMES", "INPUT_NAMES"],

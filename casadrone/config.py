@@ -186,6 +186,11 @@ def inertia_problems(J) -> list[tuple[str, str]]:
     Ixx, Iyy, Izz); a full one on its principal moments, reported on the body axis nearest the
     offending principal axis.
     """
+    keys = (("ixx_kgm2", "ixy_kgm2", "ixz_kgm2"), ("ixy_kgm2", "iyy_kgm2", "iyz_kgm2"),
+            ("ixz_kgm2", "iyz_kgm2", "izz_kgm2"))
+    for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)):
+        if not math.isfinite(J[i][j]):
+            return [(keys[i][j], f"inertia must be a finite number (got {J[i][j]})")]
     offdiag = (J[0][1], J[0][2], J[1][2])
     if not _positive_definite(J):
         if any(offdiag):

@@ -52,10 +52,11 @@ def discretise(A: np.ndarray, B: np.ndarray, Ts: float) -> tuple[np.ndarray, np.
 def augment(Ad: np.ndarray, Bd: np.ndarray, Ts: float) -> tuple[np.ndarray, np.ndarray]:
     """Append the four integrators of (x, y, z, ψ) to a discrete plant."""
     n, m = Bd.shape
-    C = np.zeros((len(INTEGRATED), n))
-    C[np.arange(len(INTEGRATED)), [IDX[k] for k in INTEGRATED]] = 1.0
-    Aa = np.block([[Ad, np.zeros((n, 4))], [Ts * C, np.eye(4)]])
-    Ba = np.vstack([Bd, np.zeros((4, m))])
+    k = len(INTEGRATED)
+    Aa, Ba = np.zeros((n + k, n + k)), np.zeros((n + k, m))
+    Aa[:n, :n], Ba[:n] = Ad, Bd
+    Aa[n + np.arange(k), [IDX[name] for name in INTEGRATED]] = Ts
+    Aa[n:, n:] = np.eye(k)
     return Aa, Ba
 
 
@@ -64,6 +65,35 @@ def weights(ctrl: ControllerConfig) -> tuple[np.ndarray, np.ndarray]:
     q = ctrl.q
     diag = [*q.position, *q.velocity, *q.rates, *q.attitude, *q.thrust, *ctrl.q_integral]
     return np.diag(diag), np.diag(ctrl.r)
+
+
+def solve_dare(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray,
+               rtol: float = 1e-14, max_iter: int = 64) -> np.ndarray:
+    """Stabilising solution S of the discrete algebraic Riccati equation
+    S = AᵀSA − AᵀSB (R + BᵀSB)⁻¹ BᵀSA + Q, by the structure-preserving doubling algorithm
+    (Chu, Fan, Lin & Wang 2004: A₀ = A, G₀ = BR⁻¹Bᵀ, H₀ = Q; W = I + GH,
+    A⁺ = A W⁻¹A, G⁺ = G + A W⁻¹G Aᵀ, H⁺ = H + Aᵀ H W⁻¹A; H → S quadratically).
+
+    About 15 doublings for the LQR-I plants here, each a 20 × 20 solve and a few products: half
+    the time of scipy's QZ-based ``solve_discrete_are``, whose solution it matches to ~1e-12
+    (tested against it). Stops when H changes by less than ``rtol`` × max|H|; if it has not
+    converged after ``max_iter`` doublings it returns scipy's solution instead.
+    """
+    n = A.shape[0]
+    G = B @ np.linalg.solve(R, B.T)
+    H, Ak, eye = np.array(Q, float), np.array(A, float), np.eye(n)
+    for _ in range(max_iter):
+        V = np.linalg.solve(eye + G @ H, np.hstack([Ak, G]))
+        H_next = H + Ak.T @ H @ V[:, :n]
+        G = G + Ak @ V[:, n:] @ Ak.T
+        Ak = Ak @ V[:, :n]
+        if not np.all(np.isfinite(H_next)):
+            break
+        converged = np.max(np.abs(H_next - H)) <= rtol * np.max(np.abs(H_next))
+        H = H_next
+        if converged:
+            return 0.5 * (H + H.T)
+    return sla.solve_discrete_are(A, B, Q, R)
 
 
 @dataclass(frozen=True)
@@ -76,7 +106,7 @@ class LQRIDesign:
         closed_loop_eigenvalues: eigenvalues of Ad − Bd K (complex, 20).
         stable: all eigenvalues strictly inside the unit circle.
         lyapunov_min_eig: smallest eigenvalue of P solving A_clᵀ P A_cl − P = −I (> 0 ⇒ stable).
-        riccati: the DARE solution S.
+        riccati: the DARE solution S (:func:`solve_dare`).
     """
 
     K: np.ndarray
@@ -110,7 +140,7 @@ def design_lqri(linear_model: LinearModel, ctrl: ControllerConfig,
     Ts = ctrl.sample_time_s
     Aa, Ba = augment(*discretise(linear_model.A, linear_model.B, Ts), Ts)
     Q, R = weights(ctrl)
-    S = sla.solve_discrete_are(Aa, Ba, Q, R)
+    S = solve_dare(Aa, Ba, Q, R)
     K = np.linalg.solve(R + Ba.T @ S @ Ba, Ba.T @ S @ Aa)
     eig, stable, lmin = certify(Aa - Ba @ K, certificate)
     return LQRIDesign(K=K, Ad=Aa, Bd=Ba, sample_time_s=Ts, x0=linear_model.x0,
@@ -151,13 +181,21 @@ def design_for(
 
 
 _FROZEN: dict[tuple, LQRIDesign] = {}
+_FROZEN_BY_ID: dict[tuple[int, int], tuple[Airframe, ControllerConfig, LQRIDesign]] = {}
 
 
 def _frozen_gain(reference: Airframe, ctrl: ControllerConfig) -> LQRIDesign:
-    """The reference airframe's design, computed once per process for a (reference, weights)."""
+    """The reference airframe's design, computed once per process for a (reference, weights);
+    the same two objects (one study's) find it again without rebuilding the key."""
+    hit = _FROZEN_BY_ID.get((id(reference), id(ctrl)))
+    if hit is not None and hit[0] is reference and hit[1] is ctrl:
+        return hit[2]
     key = (reference.name, tuple(reference.p), ctrl.model_copy(update={"gain_policy": "redesign"}))
     if key not in _FROZEN:
         _FROZEN[key] = design_lqri(linearise(reference, hover_point(reference)), ctrl)
+    if len(_FROZEN_BY_ID) > 64:
+        _FROZEN_BY_ID.clear()
+    _FROZEN_BY_ID[(id(reference), id(ctrl))] = (reference, ctrl, _FROZEN[key])  # holds both
     return _FROZEN[key]
 
 
@@ -185,7 +223,10 @@ def frozen_wrench_gain(K_ref: np.ndarray, reference: Airframe, airframe: Airfram
 
     The mapping is exact (no linearisation), so the commanded wrench K_g A (δ − u0) equals the
     reference controller's for the same rigid-body and wrench errors whatever the frame, and on
-    the reference itself K = K_ref. Cost per candidate: two 4×4 solves and a 4×20 product.
+    the reference itself K = K_ref. Frames with equal mass, inertia, drag and thrust lag thus fly
+    the same rigid-body trajectory until a command is clipped to [0, 1] (clipping acts per motor,
+    after the mixer, so there the arms matter). Cost per candidate: two 4×4 solves and a 4×20
+    product.
     """
     A_ref, A = reference.allocation_matrix, airframe.allocation_matrix
     K = np.array(K_ref, float)
@@ -205,13 +246,14 @@ def plant(airframe: Airframe, Ts: float, operating_point=None) -> tuple[np.ndarr
 
 
 def perturb(airframe: Airframe, rng: np.random.Generator, dynamics: float, coupling: float):
-    """A perturbed airframe: mass, inertia and drag scaled by U(1 ± dynamics); thrust gain, time
-    constant, κ and each rotor's arm length by U(1 ± coupling)."""
+    """A perturbed airframe: mass, inertia and drag scaled by U(1 ± dynamics) (the inertia by
+    :func:`perturb_inertia`, so it stays a possible body); thrust gain, time constant, κ and each
+    rotor's arm length by U(1 ± coupling)."""
 
     def s(spread, size=None):
         return rng.uniform(1 - spread, 1 + spread, size)
 
-    J = airframe.inertia * np.sqrt(np.outer(d := s(dynamics, 3), d))
+    J = perturb_inertia(airframe.inertia, s(dynamics, 3))
     return dataclasses.replace(
         airframe,
         name=f"{airframe.name}-perturbed",
@@ -223,6 +265,19 @@ def perturb(airframe: Airframe, rng: np.random.Generator, dynamics: float, coupl
         kappa=airframe.kappa * s(coupling),
         rotor_positions=airframe.rotor_positions * s(coupling, (4, 1)),
     )
+
+
+def perturb_inertia(J: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """The inertia (kg·m²) of the body ``J`` with its second moments along body axes i, j scaled
+    by √(d_i d_j): S = Σ m r rᵀ = ½ tr(J) I − J, S' = S ∘ √(d dᵀ), J' = tr(S') I − S'.
+
+    S' is a congruence of S, so it stays positive semi-definite: J' is again a possible body (its
+    principal moments keep the triangle inequalities), which scaling J itself does not ensure.
+    Each diagonal moment moves by a factor inside [min d, max d].
+    """
+    S = 0.5 * np.trace(J) * np.eye(3) - J
+    S = S * np.sqrt(np.outer(d, d))
+    return np.trace(S) * np.eye(3) - S
 
 
 @dataclass(frozen=True)

@@ -14,13 +14,15 @@ from typing import Any, Literal
 
 from pydantic import Field, ValidationError
 
-from casadrone.config import AirframeConfig
+from casadrone.config import MASS_KEYS, AirframeConfig
 from casadrone.configio import (
     ROOT,
+    ConfigError,
     Schema,
     field_adapter,
     has_keys,
     load,
+    read_yaml,
     resolve_config,
     scalar_types,
 )
@@ -283,9 +285,6 @@ def _load_track(path):
 def _computed_variables(v: dict[str, Any]) -> list[tuple[str, str]]:
     """Decision variables that the airframe's mass model computes (mass and inertia keys under
     ``mass_model: components``): refused, never silently ignored."""
-    from casadrone.config import MASS_KEYS
-    from casadrone.configio import ConfigError, read_yaml
-
     if not v.get("airframe") or "variables" not in v:
         return []
     try:

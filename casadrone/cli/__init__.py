@@ -6,16 +6,23 @@ stderr and exits with code 2, without a traceback. Heavy modules (CasADi, the ch
 inside the commands, so ``casadrone validate`` stays fast.
 
 The commands are grouped by layer: :mod:`~casadrone.cli.design` (validate, trim, linearise, lqr),
-:mod:`~casadrone.cli.flight` (simulate, benchmark), :mod:`~casadrone.cli.massprops` (massprops)
-and :mod:`~casadrone.cli.optimisation` (run, resume, decide, compare, report), all registered on
-the one :data:`app` of :mod:`~casadrone.cli.common`, the console entry point ``casadrone.cli:app``.
+:mod:`~casadrone.cli.flight` (simulate, benchmark), :mod:`~casadrone.cli.massprops` (massprops),
+:mod:`~casadrone.cli.optimisation` (run, resume, decide, compare, report) and
+:mod:`~casadrone.cli.export` (export), all registered on the one :data:`app` of
+:mod:`~casadrone.cli.common`, the console entry point ``casadrone.cli:app``.
 """
 
 from __future__ import annotations
 
 # Importing the command modules registers their commands on ``app``; their order is the order of
 # ``casadrone --help``. Only ``app`` is public here: import anything else from its module.
-from casadrone.cli import design, flight, massprops, optimisation  # noqa: F401 (registers the commands)
+from casadrone.cli import (  # noqa: F401 (importing registers the commands)
+    design,
+    export,
+    flight,
+    massprops,
+    optimisation,
+)
 from casadrone.cli.common import app
 
 __all__ = ["app"]

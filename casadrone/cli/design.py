@@ -62,12 +62,15 @@ def _matrix_text(M, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
 
 def _yaml_files(paths: list[Path]) -> list[Path]:
     """The files given, with a folder expanded to every YAML below it (sorted), and a bare name
-    that is no file here (``SY250``, ``quick``) taken as the shipped config of that name."""
-    from casadrone.configio import kind_dir
+    that is no file here taken as the shipped config of that name (``SY250``, ``quick``) or the
+    shipped folder (``configs``, ``problems``)."""
+    from casadrone.configio import DATA_DIR, kind_dir
     from casadrone.validation import SCHEMAS_BY_FOLDER
 
     out: list[Path] = []
     for p in paths:
+        if not p.exists() and str(p) in ("configs", "problems"):
+            p = DATA_DIR / p
         if p.is_dir():
             out += sorted(f for f in p.rglob("*") if f.suffix in (".yaml", ".yml"))
         elif not p.exists() and len(p.parts) == 1 and p.suffix in ("", ".yaml", ".yml"):
@@ -81,7 +84,9 @@ def _yaml_files(paths: list[Path]) -> list[Path]:
 @app.command()
 @reports_config_errors
 def validate(
-    files: Annotated[list[Path], typer.Argument(help="config YAML files or folders of them")],
+    files: Annotated[list[Path], typer.Argument(
+        help="config YAML files or folders of them; a shipped name (SY250, quick), or configs "
+        "and problems for every shipped file")],
     as_json: JsonOpt = False,
 ) -> None:
     """Validate config files: exit 0 when all are valid, 2 otherwise (one line per problem)."""

@@ -28,7 +28,9 @@ import numpy as np
 
 from casadrone.optimise.algorithms import seeded_defaults
 from casadrone.optimise.backends import make_backend
-from casadrone.optimise.problem import CandidateProblem, Record, Study
+from casadrone.optimise.hypervolume import HypervolumeState, advance
+from casadrone.optimise.mainguard import unguarded_main_call, unguarded_message
+from casadrone.optimise.problem import CandidateProblem, Record, Study, objectives_and_constraints
 from casadrone.optimise.store import RunDamaged, RunStore, now
 from casadrone.problemconfig import BackendConfig, ProblemConfig
 
@@ -156,17 +158,13 @@ def front(algorithm, study: Study) -> tuple[np.ndarray, np.ndarray]:
     return X[order], F[order] * sign
 
 
-def hypervolume(F_min: np.ndarray, test_problem: bool) -> float:
-    """Hypervolume of a (minimised) front: raw with reference 1.1 for test problems, else in the
-    front's own normalised space ([0, 1] per objective, reference 1.1)."""
-    from pymoo.indicators.hv import HV
-
-    if len(F_min) == 0:
-        return 0.0
-    if not test_problem:
-        lo, hi = F_min.min(axis=0), F_min.max(axis=0)
-        F_min = (F_min - lo) / np.where(hi > lo, hi - lo, 1.0)
-    return float(HV(ref_point=np.full(F_min.shape[1], 1.1))(F_min))
+def generation_hypervolume(study: Study, records, state: HypervolumeState | None
+                          ) -> tuple[HypervolumeState, float]:
+    """The hypervolume shown after a generation (:mod:`casadrone.optimise.hypervolume`): its
+    feasible evaluations join the non-dominated set so far, measured in the run's fixed space."""
+    F, G = objectives_and_constraints(study, records)
+    feasible = F[np.all(G <= 0, axis=1)] if len(records) else np.empty((0, F.shape[1]))
+    return advance(state, feasible, raw=study.problem.test_problem is not None)
 
 
 class Progress:
@@ -194,13 +192,15 @@ class Progress:
 
 
 def _loop(store: RunStore, algorithm, study: Study, backend, elapsed0: float,
-          progress: Callable[[int, dict], None] | None, stop_after: int | None = None) -> RunResult:
+          progress: Callable[[int, dict], None] | None, stop_after: int | None = None,
+          hv: HypervolumeState | None = None) -> RunResult:
     problem = algorithm.problem
     problem.backend = backend
     store.acquire()
     try:
         with _signals_interrupt():
-            return _generations(store, algorithm, study, problem, elapsed0, progress, stop_after)
+            return _generations(store, algorithm, study, problem, elapsed0, progress, stop_after,
+                                hv)
     except Interrupted as exc:
         exc.run_dir = store.path
         with contextlib.suppress(Exception):
@@ -215,7 +215,8 @@ def _loop(store: RunStore, algorithm, study: Study, backend, elapsed0: float,
         store.release()
 
 
-def _generations(store, algorithm, study, problem, elapsed0, progress, stop_after) -> RunResult:
+def _generations(store, algorithm, study, problem, elapsed0, progress, stop_after,
+                 hv) -> RunResult:
     start = time.perf_counter()
     steps = 0
     while algorithm.has_next():
@@ -224,20 +225,24 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
         # pymoo's n_gen is 2 after the initial population (generation 0 here), 3 after the next…
         gen = int(algorithm.n_gen) - 2
         records = problem.last_records
-        X_f, F_f = front(algorithm, study)
-        sign = np.array([-1.0 if s == "max" else 1.0 for s in study.senses])
+        X_f, _ = front(algorithm, study)
+        had_space = hv is not None and hv.space is not None
+        hv, hv_value = generation_hypervolume(study, records, hv)
+        if hv.space is not None and not had_space:  # the report measures in the same space
+            store.update_manifest(hypervolume_space={"ideal": hv.space.ideal.tolist(),
+                                                     "nadir": hv.space.nadir.tolist()})
         stats = {
             "n_evaluations": int(algorithm.evaluator.n_eval),
             "archive_size": len(X_f),
             "feasible_fraction": float(np.mean([r.status == "completed" for r in records]))
             if records else 0.0,
-            "hypervolume": hypervolume(F_f * sign, study.problem.test_problem is not None),
+            "hypervolume": hv_value,
             "elapsed_s": elapsed0 + time.perf_counter() - start,
         }
         store.write_generation(gen, records, stats)
         problem.last_records = []
         store.save_checkpoint({"algorithm": algorithm, "elapsed_s": stats["elapsed_s"],
-                               "generation": gen})
+                               "generation": gen, "hypervolume_state": hv})
         if progress:
             progress(gen, stats)
         steps += 1
@@ -275,6 +280,15 @@ def _interruptible(fn):
 
 
 @_interruptible
+def _check_main_guard(backend: BackendConfig, what: str) -> bool:
+    """True when called from a script's unguarded top level (its workers must not import it);
+    RuntimeError (one line) when the backend cannot start workers that way (Dask LocalCluster)."""
+    where = unguarded_main_call()
+    if where and backend.name == "dask" and not backend.scheduler:
+        raise RuntimeError(unguarded_message(where, what))
+    return where is not None
+
+
 def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None = None,
         quiet: bool = False, progress: Callable | None = None,
         stop_after: int | None = None) -> RunResult:
@@ -287,6 +301,7 @@ def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None =
     from casadrone.indices import INDICES
 
     backend_cfg = backend or problem.backend
+    unguarded = _check_main_guard(backend_cfg, "casadrone.run()")
     problem = problem.model_copy(update={"backend": backend_cfg})
     study = Study(problem)
     index_names = (study.objective_names if problem.test_problem is not None
@@ -298,7 +313,7 @@ def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None =
         algorithm, termination = build_algorithm(problem, len(study.objective_names))
         algorithm.setup(CandidateProblem(study), termination=termination, seed=problem.seed,
                         verbose=False)
-        be = make_backend(backend_cfg)
+        be = make_backend(backend_cfg, without_main=unguarded)
     except BaseException as exc:
         if isinstance(exc, Interrupted):
             exc.run_dir = store.path
@@ -346,7 +361,9 @@ def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = 
                       f"rebuilding from history.sqlite ({len(replay)} stored generation(s))",
                       file=sys.stderr, flush=True)
         algorithm.problem.study = study  # never the original directory's inputs
-        be = make_backend(backend or problem.backend)
+        backend_cfg = backend or problem.backend
+        be = make_backend(backend_cfg,
+                          without_main=_check_main_guard(backend_cfg, "casadrone.resume()"))
         if replay is not None:
             be = ReplayBackend(replay, be, reason)
     except BaseException as exc:
@@ -358,7 +375,8 @@ def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = 
     try:
         store.update_manifest(status="running", resumed=now())
         prog = progress or Progress(problem.algorithm.generations, quiet)
-        result = _loop(store, algorithm, study, be, elapsed0, prog, stop_after)
+        result = _loop(store, algorithm, study, be, elapsed0, prog, stop_after,
+                       None if replay is not None else state.get("hypervolume_state"))
         failed = False
         return result
     finally:

@@ -48,6 +48,7 @@ __all__ = ["Candidate", "choose_candidates", "convergence_history", "failure_gro
            "write_report"]
 
 REPORT = "report.html"
+EXPORTS = "exports"  # the candidates' exported files, beside the report
 
 
 CSS = """
@@ -103,7 +104,8 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
         "problem": section_problem(run),
         "convergence": section_convergence(run, figs),
         "pareto": section_pareto(run, cands, figs),
-        "candidates": (section_candidates(run, cands, figs) if not run.test_problem
+        "candidates": (section_candidates(run, cands, figs, path.parent / EXPORTS)
+                       if not run.test_problem
                        else note("A pymoo test problem has no trajectories.")),
         "airframes": section_airframes(run, cands, tuple(references), figs),
         "failures": section_failures(run, figs),

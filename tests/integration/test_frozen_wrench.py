@@ -71,3 +71,24 @@ def test_integrators_agree_on_an_asymmetric_parts_frame_under_frozen_wrench():
         for key, value in ref.items():
             assert other[key] == pytest.approx(value, rel=0.005 if key == "J3" else 0.01), key
             assert other[key] == pytest.approx(value, rel=1e-4), key
+
+
+def test_arm_geometry_acts_only_through_the_command_limits():
+    """In wrench coordinates every frame with the same mass, inertia, drag and thrust lag has the
+    same closed loop (see control.frozen_wrench_gain), so under frozen-wrench two frames that
+    differ only in their arms fly identical rigid-body trajectories until a motor command is
+    first clipped at 0 or 1; afterwards the clipped wrench differs and so does the flight."""
+    setup = default_setup("SY250", "frozen-wrench-sy250")
+    a = evaluate({}, setup, keep_trajectory=True).trajectory
+    b = evaluate({"lambda_a_mm": 140.0, "lambda_b_mm": 110.0, "alpha_deg": 80.0,
+                  "beta_deg": 86.0}, setup, keep_trajectory=True).trajectory
+
+    def first_clip(tr):
+        clipped = np.flatnonzero(np.any((tr.u <= 0.0) | (tr.u >= 1.0), axis=1))
+        return int(clipped[0]) if clipped.size else len(tr.t)
+
+    k = min(first_clip(a), first_clip(b))
+    assert 300 < k < min(len(a.t), len(b.t)) - 100  # seconds of flight, then clipping
+    np.testing.assert_allclose(a.x[:k, :12], b.x[:k, :12], rtol=0, atol=1e-9)
+    n = min(len(a.t), len(b.t))
+    assert np.max(np.abs(a.x[k:n, :12] - b.x[k:n, :12])) > 1e-3

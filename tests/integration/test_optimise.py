@@ -221,3 +221,21 @@ def test_no_impossible_body_is_completed_or_on_the_front(uninterrupted):
     col = {name: header.index(name) for name in ("ixx_kgm2", "iyy_kgm2", "izz_kgm2")}
     for row in rows:
         assert _possible(row[col["ixx_kgm2"]], row[col["iyy_kgm2"]], row[col["izz_kgm2"]])
+
+
+def test_components_study_optimises_the_geometry_only(tmp_path):
+    """mass_model: components end to end: four decision variables, mass and inertia from the
+    parts for every candidate, frozen-wrench on SY250-components."""
+    geometry = "[" + ", ".join(
+        f"{{name: {k}, lower: {lo}, upper: {hi}}}" for k, lo, hi in (
+            ("lambda_a_mm", 100, 150), ("lambda_b_mm", 100, 150), ("alpha_deg", 65, 90),
+            ("beta_deg", 65, 90))) + "]"
+    problem = load_problem(QUICK, TINY + ["airframe=SY250-components", f"variables={geometry}",
+                                          "controller=frozen-wrench-sy250-components"])
+    out = tmp_path / "run"
+    run(problem, out, BackendConfig(name="serial"), quiet=True)
+    store = RunStore(out)
+    header, rows = store.read_pareto()
+    assert header[:4] == ["lambda_a_mm", "lambda_b_mm", "alpha_deg", "beta_deg"] and rows
+    completed = [r for r in store.history() if r["status"] == "completed"]
+    assert len({r["lambda_a_mm"] for r in completed}) > 5

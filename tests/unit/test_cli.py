@@ -555,6 +555,25 @@ def test_report_without_the_report_module_exits_1(cli_runner, tmp_path, monkeypa
     assert "casadrone.report is not available" in result.stderr
 
 
+def test_version(cli_runner):
+    from casadrone import __version__
+
+    result = run(cli_runner, "--version")
+    assert result.exit_code == 0 and result.stdout.strip() == f"casadrone {__version__}"
+
+
+def test_validate_configs_problems_outside_the_checkout_checks_the_shipped_files(
+        cli_runner, tmp_path, monkeypatch):
+    from casadrone.configio import DATA_DIR
+
+    monkeypatch.chdir(tmp_path)  # no configs/ or problems/ here: the shipped ones are meant
+    shipped = sorted(DATA_DIR.rglob("*.yaml"))
+    result = run(cli_runner, "validate", "configs", "problems", "--json")
+    assert result.exit_code == 0, result.output
+    files = sorted(Path(f["file"]) for f in json.loads(result.stdout)["files"])
+    assert files == shipped
+
+
 @pytest.mark.parametrize("command", ["validate", "trim", "simulate"])
 def test_impossible_inertia_is_bad_input(cli_runner, tmp_path, command):
     """An airframe with Izz > Ixx + Iyy: exit 2 naming the triangle inequality, no traceback."""

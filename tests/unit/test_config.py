@@ -490,3 +490,9 @@ def problems_of_file(path) -> list[str]:
     with pytest.raises(ConfigError) as info:
         validate_file(path)
     return info.value.lines
+
+
+@pytest.mark.parametrize("key", ["izz_kgm2", "ixz_kgm2"])
+def test_non_finite_inertia_is_named(key):
+    (line,) = problems_of({**SY250, key: float("inf")})
+    assert line == f"f.yaml: {key}: inertia must be a finite number (got inf)"

@@ -229,3 +229,21 @@ def test_massprops_cli(cli_runner):
     bad = cli_runner.invoke(app, ["massprops", "SY250-components", "mass_kg=0.3"])
     assert bad.exit_code == 2
     assert "mass_kg: computed from the components" in bad.stderr
+
+
+def test_schema_mass_of_the_parts_is_the_mass_model_mass(parts_cfg):
+    """The mass is the sum of the parts (two arms of each length), and a pack too heavy to lift
+    is refused at load by the schema's hover check on that mass."""
+    c = parts_cfg.components
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        theta = {k: rng.uniform(*TABLE1_BOUNDS[k]) for k in GEOMETRY_KEYS}
+        arms = c.arm_linear_density_kgpm * 2 * (theta["lambda_a_mm"] + theta["lambda_b_mm"]) / 1e3
+        total = c.body_mass_kg + c.battery_mass_kg + 4 * c.motor_mass_kg + arms
+        assert mass_properties(parts_cfg, theta).mass_kg == pytest.approx(total, rel=1e-12)
+    from casadrone.configio import ConfigError
+
+    with pytest.raises(ConfigError) as info:
+        load_airframe("SY250-components", ["components.battery_mass_kg=4.0"])
+    (line,) = info.value.lines
+    assert ": components: cannot hover: weight" in line

@@ -1,9 +1,14 @@
 """Run an optimisation problem into a run directory, and resume a killed run.
 
-The loop is pymoo's own ``Algorithm.next()`` (ask → evaluate the whole generation on the backend
-→ tell), one generation at a time; after each generation the coordinator stores its evaluations
-and then checkpoints the algorithm (random state included). Resuming loads the checkpoint,
-re-attaches a backend and continues: the run ends exactly as an uninterrupted one would.
+The loop is pymoo's own ``Algorithm.next()`` spelled out (infill → evaluate the whole generation
+on the backend → advance), one generation at a time; after each generation the coordinator stores
+its evaluations and then checkpoints the algorithm (random state included). Resuming loads the
+checkpoint, re-attaches a backend and continues: the run ends exactly as an uninterrupted one would.
+Each step is timed into the run's ``timings.csv`` (:mod:`casadrone.optimise.timings`).
+
+Progress statistics stay cheap as the archive grows (:func:`progress_hypervolume`): the hypervolume
+is exact every generation for up to three objectives, and every ``HV_EVERY`` generations (and at
+the last) for four or more, where its cost grows steeply with the archive.
 """
 
 from __future__ import annotations
@@ -20,6 +25,13 @@ from casadrone.config import BackendConfig, ProblemConfig
 from casadrone.optimise.backends import make_backend
 from casadrone.optimise.problem import CandidateProblem, Study
 from casadrone.optimise.store import RunStore, now
+from casadrone.optimise.timings import append_timings
+
+#: With four or more objectives the progress hypervolume is computed every this many generations
+#: (and at the last one); in between the history stores NULL.
+HV_EVERY = 10
+#: Monte Carlo samples of the hypervolume estimate used from six objectives on.
+HV_SAMPLES = 4096
 
 
 @dataclass(frozen=True)
@@ -50,11 +62,17 @@ def build_algorithm(problem: ProblemConfig, n_obj: int):
 
 def front(algorithm, study: Study) -> tuple[np.ndarray, np.ndarray]:
     """Feasible non-dominated set of the algorithm's result (objectives back in their sense)."""
-    opt = algorithm.opt
-    if opt is None or len(opt) == 0:
-        return np.empty((0, len(study.variable_names))), np.empty((0, len(study.objective_names)))
-    feas = np.asarray(opt.get("CV")).ravel() <= 0
-    X, F = opt.get("X")[feas], opt.get("F")[feas]
+    archive = getattr(algorithm, "box_archive", None)  # ev-MOGA: its arrays, no Population
+    if archive is not None and len(archive):
+        X, F, CV = archive.rows["X"], archive.F, archive.rows["CV"]
+    else:
+        opt = algorithm.opt
+        if opt is None or len(opt) == 0:
+            return (np.empty((0, len(study.variable_names))),
+                    np.empty((0, len(study.objective_names))))
+        X, F, CV = opt.get("X"), opt.get("F"), opt.get("CV")
+    feas = np.asarray(CV).ravel() <= 0
+    X, F = X[feas], F[feas]
     sign = np.array([-1.0 if s == "max" else 1.0 for s in study.senses])
     order = np.lexsort(F.T[::-1])
     return X[order], F[order] * sign
@@ -70,7 +88,33 @@ def hypervolume(F_min: np.ndarray, test_problem: bool) -> float:
     if not test_problem:
         lo, hi = F_min.min(axis=0), F_min.max(axis=0)
         F_min = (F_min - lo) / np.where(hi > lo, hi - lo, 1.0)
-    return float(HV(ref_point=np.full(F_min.shape[1], 1.1))(F_min))
+    ref = np.full(F_min.shape[1], 1.1)
+    if F_min.shape[1] >= 6:  # exact: ~2 min for 5 000 points in 6 objectives
+        return hypervolume_estimate(F_min, ref)
+    return float(HV(ref_point=ref)(F_min))
+
+
+def hypervolume_estimate(F_min: np.ndarray, ref: np.ndarray, n_samples: int = HV_SAMPLES) -> float:
+    """Monte Carlo hypervolume: the fraction of ``n_samples`` fixed uniform points of the box
+    [min F, ref] that the front dominates, times the box volume (standard error below 0.8 % of the
+    box volume for 4096 samples); O(samples · points · objectives)."""
+    lo = np.minimum(F_min.min(axis=0), ref)
+    S = lo + np.random.default_rng(0).random((n_samples, len(ref))) * (ref - lo)
+    hit = np.zeros(n_samples, dtype=bool)
+    for k in range(0, len(F_min), 256):
+        hit |= (F_min[None, k:k + 256, :] <= S[:, None, :]).all(axis=2).any(axis=1)
+    return float(np.prod(ref - lo) * hit.mean())
+
+
+def progress_hypervolume(F_min: np.ndarray, test_problem: bool, generation: int,
+                         last: bool) -> float | None:
+    """The hypervolume shown and logged for a generation (see :func:`hypervolume`), or ``None``
+    where it is skipped to bound its cost: every generation for up to three objectives (exact,
+    O(n log n)), every ``HV_EVERY`` generations and at the last for four or more (exact up to five,
+    estimated from six)."""
+    if F_min.shape[1] <= 3 or last or generation % HV_EVERY == 0:
+        return hypervolume(F_min, test_problem)
+    return None
 
 
 class Progress:
@@ -86,9 +130,11 @@ class Progress:
             return
         done = (gen + 1) / (self.total + 1)
         eta = stats["elapsed_s"] * (1 - done) / done
+        hv = stats["hypervolume"]
         line = (f"gen {gen:>4}/{self.total}  evals {stats['n_evaluations']:>7}  "
                 f"archive {stats['archive_size']:>4}  feasible {stats['feasible_fraction']:6.1%}  "
-                f"HV {stats['hypervolume']:.5f}  elapsed {stats['elapsed_s']:7.1f} s  "
+                f"HV {'      -' if hv is None else format(hv, '.5f')}  "
+                f"elapsed {stats['elapsed_s']:7.1f} s  "
                 f"remaining {eta:7.1f} s")
         if self.tty:
             width = 24
@@ -111,27 +157,47 @@ def _loop(store: RunStore, algorithm, study: Study, backend, elapsed0: float,
 def _generations(store, algorithm, study, problem, elapsed0, progress, stop_after) -> RunResult:
     start = time.perf_counter()
     steps = 0
+    sign = np.array([-1.0 if s == "max" else 1.0 for s in study.senses])
     while algorithm.has_next():
-        algorithm.next()
+        t = [time.perf_counter()]
+        cpu = time.process_time()
+        infills = algorithm.infill()  # Algorithm.next(), one step at a time
+        t.append(time.perf_counter())
+        if infills is not None:
+            algorithm.evaluator.eval(algorithm.problem, infills, algorithm=algorithm)
+        t.append(time.perf_counter())
+        algorithm.advance(infills=infills)
+        t.append(time.perf_counter())
         # pymoo's n_gen is 2 after the initial population (generation 0 here), 3 after the next…
         gen = int(algorithm.n_gen) - 2
         records = problem.last_records
         X_f, F_f = front(algorithm, study)
-        sign = np.array([-1.0 if s == "max" else 1.0 for s in study.senses])
         stats = {
             "n_evaluations": int(algorithm.evaluator.n_eval),
             "archive_size": len(X_f),
             "feasible_fraction": float(np.mean([r.status == "completed" for r in records]))
             if records else 0.0,
-            "hypervolume": hypervolume(F_f * sign, study.problem.test_problem is not None),
+            "hypervolume": progress_hypervolume(F_f * sign, study.problem.test_problem is not None,
+                                                gen, not algorithm.has_next()),
             "elapsed_s": elapsed0 + time.perf_counter() - start,
         }
+        t.append(time.perf_counter())
         store.write_generation(gen, records, stats)
         problem.last_records = []
+        t.append(time.perf_counter())
         store.save_checkpoint({"algorithm": algorithm, "elapsed_s": stats["elapsed_s"],
                                "generation": gen})
+        t.append(time.perf_counter())
         if progress:
             progress(gen, stats)
+        t.append(time.perf_counter())
+        step = dict(zip(("ask_s", "evaluate_s", "advance_s", "statistics_s", "history_s",
+                         "checkpoint_s"), np.diff(t[:-1]).tolist(), strict=True))
+        append_timings(store.path, {
+            "generation": gen, "n_evaluations": stats["n_evaluations"],
+            "archive_size": stats["archive_size"], **step, "wall_s": t[-1] - t[0],
+            "cpu_s": time.process_time() - cpu, "coordinator_s": t[-1] - t[0] - step["evaluate_s"],
+            "finished": now()})
         steps += 1
         if stop_after is not None and steps >= stop_after:
             break

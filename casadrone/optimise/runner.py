@@ -154,20 +154,28 @@ def _loop(store: RunStore, algorithm, study: Study, backend, elapsed0: float,
         store.release()
 
 
+def _marker(t: list[float], cpu: list[float]) -> Callable[[], None]:
+    """A function appending the wall-clock and CPU time to ``t`` and ``cpu``."""
+    def mark() -> None:
+        t.append(time.perf_counter())
+        cpu.append(time.process_time())
+    return mark
+
+
 def _generations(store, algorithm, study, problem, elapsed0, progress, stop_after) -> RunResult:
     start = time.perf_counter()
     steps = 0
     sign = np.array([-1.0 if s == "max" else 1.0 for s in study.senses])
     while algorithm.has_next():
-        t = [time.perf_counter()]
-        cpu = time.process_time()
+        t, cpu = [time.perf_counter()], [time.process_time()]
+        mark = _marker(t, cpu)
         infills = algorithm.infill()  # Algorithm.next(), one step at a time
-        t.append(time.perf_counter())
+        mark()
         if infills is not None:
             algorithm.evaluator.eval(algorithm.problem, infills, algorithm=algorithm)
-        t.append(time.perf_counter())
+        mark()
         algorithm.advance(infills=infills)
-        t.append(time.perf_counter())
+        mark()
         # pymoo's n_gen is 2 after the initial population (generation 0 here), 3 after the next…
         gen = int(algorithm.n_gen) - 2
         records = problem.last_records
@@ -181,23 +189,22 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
                                                 gen, not algorithm.has_next()),
             "elapsed_s": elapsed0 + time.perf_counter() - start,
         }
-        t.append(time.perf_counter())
+        mark()
         store.write_generation(gen, records, stats)
         problem.last_records = []
-        t.append(time.perf_counter())
+        mark()
         store.save_checkpoint({"algorithm": algorithm, "elapsed_s": stats["elapsed_s"],
                                "generation": gen})
-        t.append(time.perf_counter())
-        if progress:
-            progress(gen, stats)
-        t.append(time.perf_counter())
+        mark()
         step = dict(zip(("ask_s", "evaluate_s", "advance_s", "statistics_s", "history_s",
-                         "checkpoint_s"), np.diff(t[:-1]).tolist(), strict=True))
+                         "checkpoint_s"), np.diff(t).tolist(), strict=True))
         append_timings(store.path, {
             "generation": gen, "n_evaluations": stats["n_evaluations"],
             "archive_size": stats["archive_size"], **step, "wall_s": t[-1] - t[0],
-            "cpu_s": time.process_time() - cpu, "coordinator_s": t[-1] - t[0] - step["evaluate_s"],
-            "finished": now()})
+            "cpu_s": cpu[-1] - cpu[0], "coordinator_s": t[-1] - t[0] - step["evaluate_s"],
+            "coordinator_cpu_s": cpu[-1] - cpu[0] - (cpu[2] - cpu[1]), "finished": now()})
+        if progress:
+            progress(gen, stats)
         steps += 1
         if stop_after is not None and steps >= stop_after:
             break

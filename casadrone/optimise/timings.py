@@ -13,10 +13,11 @@ Columns (seconds unless named otherwise):
 - ``statistics_s``: the progress statistics (front, hypervolume);
 - ``history_s``: writing the generation to ``history.sqlite``;
 - ``checkpoint_s``: pickling and writing the checkpoint;
-- ``wall_s``: the whole generation, progress line included;
+- ``wall_s``: the whole generation (the progress line after it is not included);
 - ``cpu_s``: CPU time of the coordinating process over the generation (with the serial backend it
   includes the evaluations);
-- ``coordinator_s``: ``wall_s - evaluate_s``.
+- ``coordinator_s``: ``wall_s - evaluate_s``;
+- ``coordinator_cpu_s``: ``cpu_s`` less the coordinator's CPU time during the evaluation step.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from pathlib import Path
 TIMINGS = "timings.csv"
 FIELDS = ("generation", "n_evaluations", "archive_size", "ask_s", "evaluate_s", "advance_s",
           "statistics_s", "history_s", "checkpoint_s", "wall_s", "cpu_s", "coordinator_s",
-          "finished")
+          "coordinator_cpu_s", "finished")
 
 
 def append_timings(run_dir: Path, row: dict) -> None:

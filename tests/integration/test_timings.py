@@ -1,0 +1,66 @@
+"""The runner's per-generation timings (timings.csv) and progress statistics."""
+
+import numpy as np
+import pytest
+from pymoo.indicators.hv import HV
+
+from casadrone.config import BackendConfig, load_problem
+from casadrone.optimise.runner import (
+    HV_EVERY,
+    hypervolume,
+    hypervolume_estimate,
+    progress_hypervolume,
+    resume,
+    run,
+)
+from casadrone.optimise.store import RunStore
+from casadrone.optimise.timings import FIELDS, read_timings
+
+TINY = ["algorithm.population=16", "algorithm.generations=3", "algorithm.settings.n_ind_ga=8"]
+STEPS = ("ask_s", "evaluate_s", "advance_s", "statistics_s", "history_s", "checkpoint_s")
+
+
+def test_timings_one_row_per_generation_across_a_resume(tmp_path):
+    out = tmp_path / "run"
+    run(load_problem("problems/quick.yaml", TINY), out, BackendConfig(name="serial"), quiet=True,
+        stop_after=2)
+    assert [r["generation"] for r in read_timings(out)] == [0, 1]
+    resume(out, quiet=True)
+    rows = read_timings(out)
+    generations = RunStore(out).generations()
+    assert [r["generation"] for r in rows] == [g["generation"] for g in generations] == [0, 1, 2, 3]
+    assert set(rows[0]) == set(FIELDS)
+    for row, gen in zip(rows, generations, strict=True):
+        assert row["n_evaluations"] == gen["n_evaluations"] == 16 + 8 * row["generation"]
+        assert row["archive_size"] == gen["archive_size"]
+        steps = [row[k] for k in STEPS]
+        assert min(steps) >= 0.0
+        assert sum(steps) <= row["wall_s"] + 1e-9
+        assert row["coordinator_s"] == pytest.approx(row["wall_s"] - row["evaluate_s"], abs=1e-9)
+        assert 0.0 <= row["coordinator_cpu_s"] <= row["cpu_s"] + 1e-9
+        assert row["evaluate_s"] > 0.0  # the serial backend flies 16 or 8 laps
+
+
+def test_progress_hypervolume_schedule():
+    rng = np.random.default_rng(0)
+    for m in (2, 3):
+        F = rng.random((40, m))
+        for gen in (1, 7, 13):
+            assert progress_hypervolume(F, True, gen, last=False) == hypervolume(F, True)
+    F = rng.random((40, 4))
+    assert progress_hypervolume(F, True, 3, last=False) is None
+    assert progress_hypervolume(F, True, HV_EVERY, last=False) == hypervolume(F, True)
+    assert progress_hypervolume(F, True, 3, last=True) == hypervolume(F, True)
+
+
+def test_hypervolume_estimate_agrees_with_the_exact_value():
+    rng = np.random.default_rng(1)
+    for m in (3, 6):
+        d = np.abs(rng.normal(size=(60, m)))
+        F = d / np.linalg.norm(d, axis=1, keepdims=True)
+        ref = np.full(m, 1.1)
+        exact = HV(ref_point=ref)(F)
+        box = np.prod(ref - F.min(axis=0))
+        p = exact / box
+        se = box * np.sqrt(p * (1 - p) / 4096)
+        assert hypervolume_estimate(F, ref) == pytest.approx(exact, abs=4 * se)

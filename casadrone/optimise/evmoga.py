@@ -298,10 +298,12 @@ class EvMOGA(Algorithm):
         xl, xu = self.problem.bounds()
         n_pairs, n_var = self.n_ind_ga // 2, self.problem.n_var
 
-        X_p = np.asarray(self.pop.get("X"), dtype=float)
-        X_2 = self.archive_X if len(self.box_archive) else X_p  # A empty: both parents from P
-        p1 = X_p[rs.integers(len(X_p), size=n_pairs)]
-        p2 = X_2[rs.integers(len(X_2), size=n_pairs)]
+        p1 = np.asarray(self.pop[rs.integers(len(self.pop), size=n_pairs)].get("X"), dtype=float)
+        if len(self.box_archive):
+            p2 = self.archive_X[rs.integers(len(self.box_archive), size=n_pairs)]
+        else:  # A empty: both parents from P
+            p2 = np.asarray(self.pop[rs.integers(len(self.pop), size=n_pairs)].get("X"),
+                            dtype=float)
         mutate = rs.random(n_pairs) < self.p_m
         beta = rs.uniform(-dd, 1.0 + dd, size=(n_pairs, 1))
         noise = rs.normal(0.0, 1.0, size=(2, n_pairs, n_var)) * (sigma / 100.0) * (xu - xl)

@@ -45,12 +45,30 @@ class EvaluationSetup:
     integrator: str = "rk4"
     trim_solver: str = "newton"
     sim_options: SimOptions = SimOptions()
+    limit: object | None = None  # LimitLapOptions: also compute the limit lap (J3_limit)
+    limit_references: tuple[dict[str, float], ...] = ()  # θ of the per-study warm starts
 
     @cached_property
     def reference_airframe(self) -> Airframe | None:
         """The airframe whose gain is frozen (gain_policy: frozen), else None."""
         ref = self.controller.reference_airframe
         return build_airframe(load_airframe(ref)) if ref is not None else None
+
+    @cached_property
+    def limit_warm_starts(self) -> tuple:
+        """The limit laps of ``limit_references``, solved once per process: every worker holds
+        the same ones (same inputs, deterministic IPOPT), so warm-starting a candidate from them
+        gives the same result on every backend and in any evaluation order."""
+        from casadrone.limitlap import limit_lap
+
+        laps = []
+        for theta in self.limit_references:
+            try:
+                cfg = with_theta(self.template, theta)
+            except ConfigError:  # a reference outside the valid geometries is skipped
+                continue
+            laps.append(limit_lap(cfg, self.track, self.limit))
+        return tuple(lap for lap in laps if lap.optimal)
 
 
 def default_setup(
@@ -99,7 +117,7 @@ def evaluate(
     keep_trajectory: bool = False,
 ) -> Evaluation:
     """Evaluate one candidate ``theta`` (config keys, e.g. ``{"alpha_deg": 80, …}``)."""
-    from casadrone.indices import compute_indices, interval_table
+    from casadrone.indices import compute_indices, interval_table, limit_indices
 
     start = time.perf_counter()
     theta = {k: float(v) for k, v in theta.items()}
@@ -121,11 +139,27 @@ def evaluate(
     if not traj.completed:
         ev = _failed(theta, "lap", traj.reason, start)
         return replace(ev, trajectory=traj) if keep_trajectory else ev
+    indices = compute_indices(traj, index_names)
+    if setup.limit is not None:
+        lap = evaluate_limit(with_theta(setup.template, theta), setup, traj)
+        if not lap.optimal:
+            return _failed(theta, "limit", lap.reason, start)
+        indices.update(limit_indices(lap, index_names))
     return Evaluation(
         theta=theta, status="completed", stage="", reason="",
-        indices=compute_indices(traj, index_names), intervals=tuple(interval_table(traj)),
+        indices=indices, intervals=tuple(interval_table(traj)),
         wall_time_s=time.perf_counter() - start, trajectory=traj if keep_trajectory else None,
     )
+
+
+def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory | None = None):
+    """The limit lap of a candidate under ``setup.limit``: its closed-loop lap as one start,
+    warm starts from the per-study references (:attr:`EvaluationSetup.limit_warm_starts`)."""
+    from casadrone.limitlap import limit_lap
+
+    options = replace(setup.limit, guess_trajectory=traj,
+                      warm_starts=setup.limit_warm_starts, sensitivities=False)
+    return limit_lap(cfg, setup.track, options)
 
 
 def theta_of(cfg: AirframeConfig) -> dict[str, float]:

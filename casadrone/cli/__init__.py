@@ -6,7 +6,7 @@ stderr and exits with code 2, without a traceback. Heavy modules (CasADi, the ch
 inside the commands, so ``casadrone validate`` stays fast.
 
 The commands are grouped by layer: :mod:`~casadrone.cli.design` (validate, trim, linearise, lqr),
-:mod:`~casadrone.cli.flight` (simulate, benchmark) and :mod:`~casadrone.cli.optimisation` (run,
+:mod:`~casadrone.cli.flight` (simulate, benchmark), :mod:`~casadrone.cli.limit` (limit-lap) and :mod:`~casadrone.cli.optimisation` (run,
 resume, decide, compare, report), all registered on the one :data:`app` of
 :mod:`~casadrone.cli.common`, the console entry point ``casadrone.cli:app``.
 """
@@ -39,6 +39,7 @@ from casadrone.cli.design import (  # noqa: F401 (re-exported)
     validate,
 )
 from casadrone.cli.flight import INTERVAL_KEYS, IntegratorName, benchmark, simulate  # noqa: F401
+from casadrone.cli.limit import LIMIT_KEYS, limit_lap_command  # noqa: F401
 from casadrone.cli.optimisation import (  # noqa: F401 (re-exported)
     BackendName,
     BackendOpt,

@@ -198,7 +198,9 @@ _BUILTIN = (
     Index("J3_limit", "s", "min", "limit lap: minimum-time lap of the airframe (optimal control, "
           "thrust and attitude limits)", limit_lap_time, source="limit"),
 )
-BUILTIN_NAMES: tuple[str, ...] = tuple(i.name for i in _BUILTIN)
+#: Built-in closed-loop indices (J1…Jp) and built-in limit-lap indices (J3_limit).
+BUILTIN_NAMES: tuple[str, ...] = tuple(i.name for i in _BUILTIN if i.source == "lap")
+BUILTIN_LIMIT_NAMES: tuple[str, ...] = tuple(i.name for i in _BUILTIN if i.source == "limit")
 
 _REGISTRY: dict[str, Index] = {i.name: i for i in _BUILTIN}
 #: Read-only view of the registry, in registration order (built-ins first).
@@ -232,7 +234,7 @@ def register_index(
 
 def unregister_index(name: str) -> None:
     """Remove a user index (built-in indices cannot be removed)."""
-    if name in BUILTIN_NAMES:
+    if name in BUILTIN_NAMES + BUILTIN_LIMIT_NAMES:
         raise ValueError(f"index {name!r} is built in and cannot be removed")
     get_index(name)
     del _REGISTRY[name]

@@ -128,14 +128,21 @@ class Nlp:
         if Z is None:
             tau = np.asarray(ca.collocation_points(self.layout.degree, "radau"))
             Z = X[:-1, None, :] + tau[None, :, None] * (X[1:] - X[:-1])[:, None, :]
-        return np.concatenate([np.ravel(T), X.ravel(), np.ravel(U), np.ravel(Z)])
+        h = np.repeat(np.asarray(T, float) / self.layout.intervals, self.layout.intervals)
+        parts = [np.column_stack([h, np.asarray(U, float).reshape(len(h), -1),
+                                  np.asarray(Z, float).reshape(len(h), -1), X[:-1]]).ravel(),
+                 X[-1]]
+        return np.concatenate(parts)
 
     def unpack(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(leg durations, node states (M+1, nx), commands (M, nu)) of a decision vector."""
-        L, M, nx, nu = self.layout.n_legs, self.layout.n_intervals, self.model.nx, self.model.nu
+        N, M, nx, nu = self.layout.intervals, self.layout.n_intervals, self.model.nx, \
+            self.model.nu
         w = np.asarray(w, float).ravel()
-        a, b = L + nx * (M + 1), L + nx * (M + 1) + nu * M
-        return w[:L], w[L:a].reshape(M + 1, nx), w[a:b].reshape(M, nu)
+        per = 1 + nu + nx * self.layout.degree + nx
+        blocks = w[:M * per].reshape(M, per)
+        X = np.vstack([blocks[:, per - nx:], w[M * per:][None, :]])
+        return N * blocks[::N, 0], X, blocks[:, 1:1 + nu]
 
 
 def collocation_interval(model: OcpModel, degree: int) -> ca.Function:
@@ -200,22 +207,25 @@ def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int 
         return _NLPS[key]
     L, N, M, nx, nu = layout.n_legs, layout.intervals, layout.n_intervals, model.nx, model.nu
     d = layout.degree
-    T = ca.SX.sym("T", L)
-    X = ca.SX.sym("X", nx, M + 1)
+    # per interval i: its length h_i, command, collocation states, start node; then the last
+    # node. h is one unknown per interval, equal within a leg (h_i = h_{i-1}): a leg's duration
+    # then couples neighbours only, and the KKT matrix stays banded for MUMPS.
+    h = ca.SX.sym("h", 1, M)
     U = ca.SX.sym("U", nu, M)
     Z = ca.SX.sym("Z", nx * d, M)
+    X = ca.SX.sym("X", nx, M + 1)
     p = ca.SX.sym("p", model.np)
     x_start = ca.SX.sym("x_start", nx)
     targets = ca.SX.sym("targets", TARGET_SIZE * L)
-    h = ca.vertcat(*[ca.repmat(T[k] / N, N, 1) for k in range(L)]).T
     interval = collocation_interval(model, d)
     res, x_end = [], []
     for i in range(M):
         r, e = interval(X[:, i], ca.reshape(Z[:, i], nx, d), U[:, i], p, h[i])
         res.append(r)
         x_end.append(X[:, i + 1] - e)
+    same = [h[i] - h[i - 1] for i in range(1, M) if i % N]
     rows = [(ca.vertcat(*res), 0.0, 0.0), (ca.vertcat(*x_end), 0.0, 0.0),
-            (X[:, 0] - x_start, 0.0, 0.0)]
+            (ca.vertcat(*same), 0.0, 0.0), (X[:, 0] - x_start, 0.0, 0.0)]
     for k, kind in enumerate(layout.kinds):
         xe = X[:, (k + 1) * N]
         rows += _target_rows(xe, model.world_velocity(xe),
@@ -225,8 +235,8 @@ def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int 
     g = ca.vertcat(*[r[0] for r in rows])
     lbg = np.concatenate([np.full(r[0].numel(), r[1]) for r in rows])
     ubg = np.concatenate([np.full(r[0].numel(), r[2]) for r in rows])
-    w = ca.vertcat(T, ca.vec(X), ca.vec(U), ca.vec(Z))
-    nlp = {"x": w, "p": ca.vertcat(p, x_start, targets), "f": ca.sum1(T), "g": g}
+    w = ca.vertcat(ca.vec(ca.vertcat(h, U, Z, X[:, :M])), X[:, M])
+    nlp = {"x": w, "p": ca.vertcat(p, x_start, targets), "f": N * ca.sum2(h[::N]), "g": g}
     name = f"limit_{model.name.replace('-', '_')}_{L}x{N}"
     built = Nlp(model=model, layout=layout,
                 cold=ca.nlpsol(name, "ipopt", nlp, ipopt_options(tol, max_iter, False)),

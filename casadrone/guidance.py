@@ -24,7 +24,7 @@ import casadi as ca
 import numpy as np
 from pydantic import Field, model_validator
 
-from casadrone.config import Schema
+from casadrone.configio import Schema
 
 Vec3 = tuple[float, float, float]
 
@@ -133,8 +133,24 @@ class GuidanceLayout:
         return 3 * self.n_route + 3 * self.n_seg + 6
 
 
+_VECTORS: dict[int, tuple[TrackConfig, np.ndarray]] = {}
+
+
 def track_vector(track: TrackConfig) -> np.ndarray:
-    """Numeric guidance parameter vector of a track (layout :class:`GuidanceLayout`)."""
+    """Numeric guidance parameter vector of a track (layout :class:`GuidanceLayout`), read-only;
+    computed once per track object (a study flies every candidate on the same one)."""
+    hit = _VECTORS.get(id(track))
+    if hit is not None and hit[0] is track:
+        return hit[1]
+    vector = _track_vector(track)
+    vector.flags.writeable = False
+    if len(_VECTORS) > 64:
+        _VECTORS.clear()
+    _VECTORS[id(track)] = (track, vector)  # holds the track: its id is not reused meanwhile
+    return vector
+
+
+def _track_vector(track: TrackConfig) -> np.ndarray:
     route = track.route
     heads = segment_headings(route, math.radians(track.start_yaw_deg))
     n_seg = len(route) - 1

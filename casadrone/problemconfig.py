@@ -1,8 +1,9 @@
 """Optimisation problems (``problems/*.yaml``, DESIGN.md §9): what varies, what is flown, what
 is optimised, and with which algorithm and backend.
 
-Schemas like those of :mod:`casadrone.config` (frozen, unknown keys rejected), re-exported there;
-this module imports no other schema module at load time, so :mod:`casadrone.config` can.
+Schemas like those of :mod:`casadrone.config` (frozen, unknown keys rejected); a problem names an
+airframe template, so this module sits above :mod:`casadrone.config` and below the chain stages it
+only names (their registries are imported when a problem is checked).
 """
 
 from __future__ import annotations
@@ -13,7 +14,16 @@ from typing import Any, Literal
 
 from pydantic import Field
 
-from casadrone.configio import ROOT, Schema, has_keys, load, resolve_config
+from casadrone.config import MASS_KEYS, AirframeConfig
+from casadrone.configio import (
+    ROOT,
+    ConfigError,
+    Schema,
+    has_keys,
+    load,
+    read_yaml,
+    resolve_config,
+)
 
 
 class VariableConfig(Schema):
@@ -25,8 +35,6 @@ class VariableConfig(Schema):
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
-        from casadrone.config import AirframeConfig
-
         found = []
         if has_keys(v, "lower", "upper") and not v["lower"] < v["upper"]:
             found.append(("lower", f"lower bound {v['lower']} is not below upper bound "
@@ -169,7 +177,25 @@ class ProblemConfig(Schema):
             for key in v.get("fixed") or {}:
                 if key not in AirframeConfig.model_fields:
                     found.append((f"fixed.{key}", "not an airframe key"))
+            found += _computed_variables(v)
         return found
+
+
+def _computed_variables(v: dict[str, Any]) -> list[tuple[str, str]]:
+    """Decision variables that the airframe's mass model computes (mass and inertia keys under
+    ``mass_model: components``): refused, never silently ignored."""
+    if not v.get("airframe") or "variables" not in v:
+        return []
+    try:
+        template = {**read_yaml(v["airframe"]), **(v.get("fixed") or {})}
+    except ConfigError:
+        return []  # the airframe file's own problems are reported with it
+    if template.get("mass_model") != "components":
+        return []
+    return [(f"variables.{i}.name", f"'{x.name}' is computed from the parts with the airframe's "
+             "mass_model: components, so it cannot be a decision variable; list the geometry "
+             "variables (lambda_a_mm, lambda_b_mm, alpha_deg, beta_deg) under variables")
+            for i, x in enumerate(v["variables"]) if x.name in MASS_KEYS]
 
 
 _PLUGINS: dict[str, Any] = {}

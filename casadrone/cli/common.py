@@ -11,7 +11,7 @@ from typing import Annotated, Any
 
 import typer
 
-from casadrone.config import ConfigError
+from casadrone.configio import ConfigError
 
 app = typer.Typer(
     name="casadrone",
@@ -23,6 +23,23 @@ app = typer.Typer(
 )
 
 EXIT_BAD_INPUT = 2
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        from casadrone import __version__
+
+        typer.echo(f"casadrone {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[bool, typer.Option(
+        "--version", callback=_print_version, is_eager=True,
+        help="print the casadrone version and exit")] = False,
+) -> None:
+    """Racing-drone airframe optimisation."""
 
 AirframeArg = Annotated[
     str, typer.Argument(help="airframe YAML, or a reference name (SY250, HS200, ...)")

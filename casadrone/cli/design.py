@@ -24,7 +24,7 @@ from casadrone.cli.common import (
     reports_config_errors,
     save_figures,
 )
-from casadrone.config import ConfigError
+from casadrone.configio import ConfigError
 
 
 class Condition(StrEnum):
@@ -63,8 +63,8 @@ def _matrix_text(M, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
 def _yaml_files(paths: list[Path]) -> list[Path]:
     """The files given, with a folder expanded to every YAML below it (sorted), and a bare name
     that is no file here (``SY250``, ``quick``) taken as the shipped config of that name."""
-    from casadrone.config import SCHEMAS_BY_FOLDER
     from casadrone.configio import kind_dir
+    from casadrone.validation import SCHEMAS_BY_FOLDER
 
     out: list[Path] = []
     for p in paths:
@@ -84,7 +84,7 @@ def validate(
     as_json: JsonOpt = False,
 ) -> None:
     """Validate config files: exit 0 when all are valid, 2 otherwise (one line per problem)."""
-    from casadrone.config import validate_file
+    from casadrone.validation import validate_file
 
     report = []
     for path in _yaml_files(files):
@@ -315,7 +315,7 @@ def lqr(
     from casadrone import control
 
     reference = None
-    if ctrl.gain_policy == "frozen":
+    if ctrl.frozen_gain:
         _, reference = load_airframe_or_exit(str(ctrl.reference_airframe), None)
     design = control.design_for(frame, ctrl, reference)
     eig = np.asarray(design.closed_loop_eigenvalues)

@@ -17,9 +17,12 @@ infeasible ones the smaller total violation wins. The violation is pymoo's ``CV`
 constraints: the sum of the positive ``G``); a solution with a non-finite objective is treated as
 infeasible with infinite violation. Only feasible solutions enter the archive.
 
-All state lives in numpy arrays and pymoo ``Population`` objects, and every random draw uses
+The archive lives in plain numpy arrays (:class:`~casadrone.optimise.boxarchive.BoxArchive`: its
+update costs O(|A|) numpy work per child, and a grid move one vectorised rebuild); a pymoo
+``Population`` of it is built only when pymoo or a caller asks for one (``opt``, ``archive_pop``).
+P is a pymoo ``Population`` (fixed size), pickled as arrays. Every random draw uses
 ``self.random_state`` (the ``numpy.random.Generator`` pymoo creates from ``seed`` in ``setup``),
-so the algorithm pickles (checkpoints) and the same seed reproduces the same archive.
+so the algorithm pickles (checkpoints) cheaply and the same seed reproduces the same archive.
 """
 
 from __future__ import annotations
@@ -29,7 +32,6 @@ from collections.abc import Sequence
 
 import numpy as np
 from pymoo.core.algorithm import Algorithm
-from pymoo.core.individual import Individual
 from pymoo.core.population import Population
 from pymoo.termination.max_eval import MaximumFunctionCallTermination
 from pymoo.termination.max_gen import MaximumGenerationTermination
@@ -37,25 +39,17 @@ from pymoo.util.display.multi import MultiObjectiveOutput
 from pymoo.util.nds.non_dominated_sorting import NonDominatedSorting
 from pymoo.util.optimum import filter_optimum
 
-__all__ = [
-    "EvMOGA",
-    "box_dominates",
-    "box_index",
-    "constrained_dominates",
-    "pareto_dominates",
-    "shrinking_schedule",
-]
+from casadrone.optimise.boxarchive import BoxArchive, pareto_dominates
+
+__all__ = ["EvMOGA", "constrained_dominates", "shrinking_schedule"]
+
+#: The row arrays the archive and the pickled P keep of each solution (pymoo's attributes).
+ROW_KEYS = ("X", "F", "G", "H", "CV")
 
 
 # ---------------------------------------------------------------------------------------------
-# dominance and boxes (pure functions; also used by the tests)
+# dominance and schedules (pure functions; also used by the tests)
 # ---------------------------------------------------------------------------------------------
-
-
-def pareto_dominates(f: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Whether ``f`` Pareto-dominates each row of ``F`` (minimisation)."""
-    F = np.atleast_2d(F)
-    return (f <= F).all(axis=1) & (f < F).any(axis=1)
 
 
 def constrained_dominates(f: np.ndarray, cv: float, F: np.ndarray, CV: np.ndarray) -> np.ndarray:
@@ -69,24 +63,6 @@ def constrained_dominates(f: np.ndarray, cv: float, F: np.ndarray, CV: np.ndarra
     if cv <= 0.0:
         return np.where(feasible, pareto_dominates(f, F), True)
     return np.where(feasible, False, cv < CV)
-
-
-def box_index(F: np.ndarray, f_min: np.ndarray, eps: np.ndarray) -> np.ndarray:
-    """ε-box indices ``ceil((f - min) / ε)`` per objective (0 where ε = 0), rows of ``F``.
-
-    The ratio is rounded to 1e-6 before the ceiling so that floating noise does not move a point
-    across a box edge.
-    """
-    F = np.atleast_2d(F)
-    positive = eps > 0.0
-    ratio = np.where(positive, (F - f_min) / np.where(positive, eps, 1.0), 0.0)
-    return np.ceil(np.round(ratio, 6)).astype(np.int64)
-
-
-def box_dominates(b: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Whether box ``b`` dominates each row of ``B`` (``b <= B`` componentwise, ``b != B``)."""
-    B = np.atleast_2d(B)
-    return (b <= B).all(axis=1) & (b != B).any(axis=1)
 
 
 def _violation(pop: Population) -> tuple[np.ndarray, np.ndarray]:
@@ -133,9 +109,10 @@ class EvMOGA(Algorithm):
     feasible solution yet) ``self.opt`` is the least infeasible member of P, as in pymoo, and the
     result's X / F are ``None`` unless ``return_least_infeasible=True``.
 
-    After ``setup`` the archive is exposed as ``archive_pop`` (Population), ``archive_F``
-    (objectives), ``archive_box`` (box indices), and the grid as ``grid_min``, ``grid_max``,
-    ``eps`` (``None`` until a feasible solution has been seen).
+    After ``setup`` the archive is ``box_archive`` (numpy arrays), also exposed as ``archive_X``,
+    ``archive_F`` (objectives), ``archive_box`` (box indices), ``archive_pop`` (a Population built
+    on each call), and the grid as ``grid_min``, ``grid_max``, ``eps`` (``None`` until a feasible
+    solution has been seen).
     """
 
     def __init__(
@@ -175,16 +152,70 @@ class EvMOGA(Algorithm):
         # resolved in _setup
         self.schedule_generations: int | None = None
         self.n_div: np.ndarray | None = None
-        # archive A and grid
-        self.archive_pop = Population.empty()
-        self.archive_F = np.empty((0, 0))
-        self.archive_box = np.empty((0, 0), dtype=np.int64)
-        self.grid_min: np.ndarray | None = None
-        self.grid_max: np.ndarray | None = None
-        self.eps: np.ndarray | None = None
+        self.box_archive: BoxArchive | None = None  # A and its grid
         # objectives and violation of P, kept in step with self.pop
         self.pop_F = np.empty((0, 0))
         self.pop_cv = np.empty(0)
+
+    # ---- the archive as pymoo and the tests see it ----------------------------------------------
+
+    @property
+    def archive_F(self) -> np.ndarray:
+        """Objectives (minimised) of the archive members, in archive order."""
+        return self.box_archive.F
+
+    @property
+    def archive_X(self) -> np.ndarray:
+        return self.box_archive.rows["X"]
+
+    @property
+    def archive_box(self) -> np.ndarray:
+        return self.box_archive.box
+
+    @property
+    def grid_min(self) -> np.ndarray | None:
+        return self.box_archive.grid_min
+
+    @property
+    def grid_max(self) -> np.ndarray | None:
+        return self.box_archive.grid_max
+
+    @property
+    def eps(self) -> np.ndarray | None:
+        return self.box_archive.eps
+
+    @property
+    def archive_pop(self) -> Population:
+        """The archive as a new pymoo ``Population`` (built on each call: O(|A|) objects)."""
+        return _population(self.box_archive.rows)
+
+    @property
+    def opt(self) -> Population | None:
+        """pymoo's optimum: the archive at the end of the last generation (built on demand)."""
+        if self._opt is None and self._opt_rows is not None:
+            self._opt = _population(self._opt_rows)
+        return self._opt
+
+    @opt.setter
+    def opt(self, value: Population | None) -> None:
+        self._opt, self._opt_rows = value, None
+
+    def __getstate__(self) -> dict:
+        """Pickle P and the last children as arrays and drop the built optimum (a checkpoint of
+        Individual objects costs ~0.05 ms per individual)."""
+        state = self.__dict__.copy()
+        if state.get("_opt_rows") is not None:
+            state["_opt"] = None
+        for key in ("pop", "off"):
+            if isinstance(state.get(key), Population) and len(state[key]):
+                state[key] = _rows(state[key], **self._widths())
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        for key in ("pop", "off"):
+            if isinstance(state.get(key), dict):
+                state[key] = _population(state[key])
+        self.__dict__.update(state)
 
     # ---- pymoo hooks --------------------------------------------------------------------------
 
@@ -198,8 +229,11 @@ class EvMOGA(Algorithm):
         if xl is None or xu is None or not (np.all(np.isfinite(xl)) and np.all(np.isfinite(xu))):
             raise ValueError("ev-MOGA needs finite lower and upper bounds on every variable")
         self.schedule_generations = self._resolve_generations()
-        self.archive_F = np.empty((0, m))
-        self.archive_box = np.empty((0, m), dtype=np.int64)
+        self.box_archive = BoxArchive(n_div, self._widths())
+
+    def _widths(self) -> dict[str, int]:
+        p = self.problem
+        return {"X": p.n_var, "F": p.n_obj, "G": p.n_ieq_constr, "H": p.n_eq_constr, "CV": 1}
 
     def _resolve_generations(self) -> int:
         if self.generations is not None:
@@ -228,9 +262,9 @@ class EvMOGA(Algorithm):
         nd = feasible[NonDominatedSorting().do(self.pop_F[feasible], only_non_dominated_front=True)]
         nd = np.sort(nd)
         F_nd = self.pop_F[nd]
-        self._set_grid(F_nd.min(axis=0), F_nd.max(axis=0))
-        for i in nd:
-            self._insert(infills[i], self.pop_F[i])
+        self.box_archive.set_grid(F_nd.min(axis=0), F_nd.max(axis=0))
+        rows = _rows(infills, **self._widths())
+        self.box_archive.fill({k: v[nd] for k, v in rows.items()})
 
     def _infill(self) -> Population:
         rs = self.random_state
@@ -240,9 +274,10 @@ class EvMOGA(Algorithm):
         xl, xu = self.problem.bounds()
         n_pairs, n_var = self.n_ind_ga // 2, self.problem.n_var
 
-        source_2 = self.archive_pop if len(self.archive_pop) else self.pop  # A empty: both from P
-        p1 = np.asarray(self.pop[rs.integers(len(self.pop), size=n_pairs)].get("X"), dtype=float)
-        p2 = np.asarray(source_2[rs.integers(len(source_2), size=n_pairs)].get("X"), dtype=float)
+        X_p = np.asarray(self.pop.get("X"), dtype=float)
+        X_2 = self.archive_X if len(self.box_archive) else X_p  # A empty: both parents from P
+        p1 = X_p[rs.integers(len(X_p), size=n_pairs)]
+        p2 = X_2[rs.integers(len(X_2), size=n_pairs)]
         mutate = rs.random(n_pairs) < self.p_m
         beta = rs.uniform(-dd, 1.0 + dd, size=(n_pairs, 1))
         noise = rs.normal(0.0, 1.0, size=(2, n_pairs, n_var)) * (sigma / 100.0) * (xu - xl)
@@ -254,114 +289,39 @@ class EvMOGA(Algorithm):
 
     def _advance(self, infills=None, **kwargs) -> None:
         F, cv = _violation(infills)
-        for i in range(len(infills)):
-            if cv[i] <= 0.0:
-                self._archive(infills[i], F[i])
+        rows = _rows(infills, **self._widths())
+        for i in np.flatnonzero(cv <= 0.0):
+            self.box_archive.offer({k: v[i] for k, v in rows.items()})
         n = len(self.pop)
         for i in range(len(infills)):
+            # scan P circularly from a random start: the first hit at or after it, else the first
             start = int(self.random_state.integers(n))
-            order = (start + np.arange(n)) % n
-            hit = np.flatnonzero(
-                constrained_dominates(F[i], cv[i], self.pop_F[order], self.pop_cv[order])
-            )
+            hit = np.flatnonzero(constrained_dominates(F[i], cv[i], self.pop_F, self.pop_cv))
             if len(hit):
-                j = order[hit[0]]
+                later = hit[hit >= start]
+                j = int(later[0] if len(later) else hit[0])
                 self.pop[j] = infills[i]
                 self.pop_F[j], self.pop_cv[j] = F[i], cv[i]
 
     def _set_optimum(self) -> None:
-        if len(self.archive_pop):
-            self.opt = self.archive_pop.copy()  # a snapshot: A is edited in place later
+        if len(self.box_archive):  # a snapshot: A is edited in place later
+            self._opt, self._opt_rows = None, {k: v.copy()
+                                               for k, v in self.box_archive.rows.items()}
         else:  # nothing feasible yet: pymoo's convention, the least infeasible member of P
             self.opt = filter_optimum(self.pop, least_infeasible=True)
 
-    # ---- archive ------------------------------------------------------------------------------
 
-    def _set_grid(self, f_min: np.ndarray, f_max: np.ndarray) -> None:
-        self.grid_min = np.array(f_min, dtype=float)
-        self.grid_max = np.array(f_max, dtype=float)
-        self.eps = (self.grid_max - self.grid_min) / self.n_div
-
-    def _set_archive(self, pop: Population, F: np.ndarray, box: np.ndarray) -> None:
-        self.archive_pop, self.archive_F, self.archive_box = pop, F, box
-
-    def _archive(self, ind: Individual, f: np.ndarray) -> None:
-        """Offer a feasible child to A, recomputing the grid when it moves the extremes."""
-        m = len(f)
-        if len(self.archive_pop) == 0 and self.grid_min is None:
-            self._set_grid(f, f)
-            self._set_archive(
-                Population.create(ind), f[None, :].copy(), np.zeros((1, m), dtype=np.int64)
-            )
-            return
-        a = int(np.sum(f >= self.grid_max))
-        b = int(np.sum(f <= self.grid_min))
-        if a == 0 and b == 0:
-            self._insert(ind, f)
-        elif a == m and b == 0:
-            return
-        elif a == 0 and b == m:
-            eps = self.eps
-            self._set_grid(f, f)
-            self.eps = eps
-            self._set_archive(
-                Population.create(ind), f[None, :].copy(), box_index(f, self.grid_min, self.eps)
-            )
-        else:
-            if np.any(pareto_dominates_rows(self.archive_F, f)):
-                return
-            keep = ~pareto_dominates(f, self.archive_F)
-            pop, F = self.archive_pop[keep], self.archive_F[keep]
-            both = np.vstack([F, f])
-            self._set_grid(both.min(axis=0), both.max(axis=0))
-            self._set_archive(Population.empty(), np.empty((0, m)), np.empty((0, m), np.int64))
-            for k in range(len(pop)):
-                self._insert(pop[k], F[k])
-            self._insert(ind, f)
-
-    def _insert(self, ind: Individual, f: np.ndarray) -> bool:
-        """Insert into A with the current grid (EVMOGA.md cases 1-4); return whether x entered."""
-        b = box_index(f, self.grid_min, self.eps)[0]
-        B = self.archive_box
-        if len(B) and np.any(box_dominates_rows(B, b)):
-            return False  # case 1: x's box is dominated
-        same = np.flatnonzero((B == b).all(axis=1)) if len(B) else np.empty(0, dtype=int)
-        if len(same):  # case 3 (the invariant leaves nothing for case 2 to delete)
-            k = int(same[0])
-            f_k = self.archive_F[k]
-            if pareto_dominates(f, f_k)[0]:
-                replace = True
-            elif pareto_dominates(f_k, f)[0] or np.array_equal(f, f_k):
-                replace = False
-            else:
-                replace = self._centre_distance(f, b) < self._centre_distance(f_k, b)
-            if replace:
-                self.archive_pop[k] = ind
-                self.archive_F[k] = f
-            return replace
-        keep = ~box_dominates(b, B) if len(B) else np.ones(0, dtype=bool)  # case 2
-        self._set_archive(  # case 4
-            Population.merge(self.archive_pop[keep], Population.create(ind)),
-            np.vstack([self.archive_F[keep], f]),
-            np.vstack([B[keep], b]),
-        )
-        return True
-
-    def _centre_distance(self, f: np.ndarray, b: np.ndarray) -> float:
-        """Distance from ``f`` to the centre of box ``b``, in units of ε (0 where ε = 0)."""
-        centre = self.grid_min + (b - 0.5) * self.eps
-        positive = self.eps > 0.0
-        d = np.where(positive, (f - centre) / np.where(positive, self.eps, 1.0), 0.0)
-        return float(np.linalg.norm(d))
+def _rows(pop: Population, X: int, F: int, G: int, H: int, CV: int = 1) -> dict[str, np.ndarray]:
+    """The row arrays of a population, each (len(pop), width) float."""
+    n = len(pop)
+    widths = {"X": X, "F": F, "G": G, "H": H, "CV": CV}
+    return {k: np.asarray(pop.get(k), dtype=float).reshape(n, widths[k]) for k in ROW_KEYS}
 
 
-def pareto_dominates_rows(F: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """Whether each row of ``F`` Pareto-dominates ``f`` (minimisation)."""
-    F = np.atleast_2d(F)
-    return (F <= f).all(axis=1) & (F < f).any(axis=1)
-
-
-def box_dominates_rows(B: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Whether each row of ``B`` box-dominates ``b``."""
-    B = np.atleast_2d(B)
-    return (B <= b).all(axis=1) & (B != b).any(axis=1)
+def _population(rows: dict[str, np.ndarray]) -> Population:
+    """A pymoo population of evaluated solutions from row arrays."""
+    args = [a for k in ROW_KEYS for a in (k, rows[k])]
+    pop = Population.new(*args)
+    for ind in pop:
+        ind.evaluated = {"F", "G", "H"}
+    return pop

@@ -16,10 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from casadrone.config import BackendConfig, ProblemConfig
 from casadrone.optimise.backends import make_backend
-from casadrone.optimise.problem import CandidateProblem, Study
+from casadrone.optimise.hypervolume import HypervolumeState, advance
+from casadrone.optimise.mainguard import unguarded_main_call, unguarded_message
+from casadrone.optimise.problem import CandidateProblem, Study, objectives_and_constraints
 from casadrone.optimise.store import RunStore, now
+from casadrone.problemconfig import BackendConfig, ProblemConfig
 
 
 @dataclass(frozen=True)
@@ -60,17 +62,13 @@ def front(algorithm, study: Study) -> tuple[np.ndarray, np.ndarray]:
     return X[order], F[order] * sign
 
 
-def hypervolume(F_min: np.ndarray, test_problem: bool) -> float:
-    """Hypervolume of a (minimised) front: raw with reference 1.1 for test problems, else in the
-    front's own normalised space ([0, 1] per objective, reference 1.1)."""
-    from pymoo.indicators.hv import HV
-
-    if len(F_min) == 0:
-        return 0.0
-    if not test_problem:
-        lo, hi = F_min.min(axis=0), F_min.max(axis=0)
-        F_min = (F_min - lo) / np.where(hi > lo, hi - lo, 1.0)
-    return float(HV(ref_point=np.full(F_min.shape[1], 1.1))(F_min))
+def generation_hypervolume(study: Study, records, state: HypervolumeState | None
+                          ) -> tuple[HypervolumeState, float]:
+    """The hypervolume shown after a generation (:mod:`casadrone.optimise.hypervolume`): its
+    feasible evaluations join the non-dominated set so far, measured in the run's fixed space."""
+    F, G = objectives_and_constraints(study, records)
+    feasible = F[np.all(G <= 0, axis=1)] if len(records) else np.empty((0, F.shape[1]))
+    return advance(state, feasible, raw=study.problem.test_problem is not None)
 
 
 class Progress:
@@ -98,17 +96,19 @@ class Progress:
 
 
 def _loop(store: RunStore, algorithm, study: Study, backend, elapsed0: float,
-          progress: Callable[[int, dict], None] | None, stop_after: int | None = None) -> RunResult:
+          progress: Callable[[int, dict], None] | None, stop_after: int | None = None,
+          hv: HypervolumeState | None = None) -> RunResult:
     problem = algorithm.problem
     problem.backend = backend
     store.acquire()
     try:
-        return _generations(store, algorithm, study, problem, elapsed0, progress, stop_after)
+        return _generations(store, algorithm, study, problem, elapsed0, progress, stop_after, hv)
     finally:
         store.release()
 
 
-def _generations(store, algorithm, study, problem, elapsed0, progress, stop_after) -> RunResult:
+def _generations(store, algorithm, study, problem, elapsed0, progress, stop_after,
+                 hv) -> RunResult:
     start = time.perf_counter()
     steps = 0
     while algorithm.has_next():
@@ -116,20 +116,24 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
         # pymoo's n_gen is 2 after the initial population (generation 0 here), 3 after the next…
         gen = int(algorithm.n_gen) - 2
         records = problem.last_records
-        X_f, F_f = front(algorithm, study)
-        sign = np.array([-1.0 if s == "max" else 1.0 for s in study.senses])
+        X_f, _ = front(algorithm, study)
+        had_space = hv is not None and hv.space is not None
+        hv, hv_value = generation_hypervolume(study, records, hv)
+        if hv.space is not None and not had_space:  # the report measures in the same space
+            store.update_manifest(hypervolume_space={"ideal": hv.space.ideal.tolist(),
+                                                     "nadir": hv.space.nadir.tolist()})
         stats = {
             "n_evaluations": int(algorithm.evaluator.n_eval),
             "archive_size": len(X_f),
             "feasible_fraction": float(np.mean([r.status == "completed" for r in records]))
             if records else 0.0,
-            "hypervolume": hypervolume(F_f * sign, study.problem.test_problem is not None),
+            "hypervolume": hv_value,
             "elapsed_s": elapsed0 + time.perf_counter() - start,
         }
         store.write_generation(gen, records, stats)
         problem.last_records = []
         store.save_checkpoint({"algorithm": algorithm, "elapsed_s": stats["elapsed_s"],
-                               "generation": gen})
+                               "generation": gen, "hypervolume_state": hv})
         if progress:
             progress(gen, stats)
         steps += 1
@@ -146,17 +150,29 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
                      generations=int(algorithm.n_gen or 0))
 
 
+def _check_main_guard(backend: BackendConfig, what: str) -> bool:
+    """True when called from a script's unguarded top level (its workers must not import it);
+    RuntimeError (one line) when the backend cannot start workers that way (Dask LocalCluster)."""
+    where = unguarded_main_call()
+    if where and backend.name == "dask" and not backend.scheduler:
+        raise RuntimeError(unguarded_message(where, what))
+    return where is not None
+
+
 def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None = None,
         quiet: bool = False, progress: Callable | None = None,
         stop_after: int | None = None) -> RunResult:
     """Run ``problem`` into the new run directory ``out``.
 
     ``backend`` overrides the problem's own; ``stop_after`` stops after that many generations
-    (as if killed; resume continues it).
+    (as if killed; resume continues it). Safe from a script's top level without
+    ``if __name__ == "__main__":`` (:mod:`casadrone.optimise.mainguard`), except on a Dask
+    LocalCluster, where such a call raises RuntimeError before anything is created.
     """
     from casadrone.indices import INDICES
 
     backend_cfg = backend or problem.backend
+    unguarded = _check_main_guard(backend_cfg, "casadrone.run()")
     problem = problem.model_copy(update={"backend": backend_cfg})
     study = Study(problem)
     index_names = (study.objective_names if problem.test_problem is not None
@@ -166,7 +182,7 @@ def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None =
     algorithm, termination = build_algorithm(problem, len(study.objective_names))
     algorithm.setup(CandidateProblem(study), termination=termination, seed=problem.seed,
                     verbose=False)
-    be = make_backend(backend_cfg)
+    be = make_backend(backend_cfg, without_main=unguarded)
     try:
         prog = progress or Progress(problem.algorithm.generations, quiet)
         return _loop(store, algorithm, study, be, 0.0, prog, stop_after)
@@ -182,14 +198,15 @@ def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = 
         raise FileNotFoundError(f"{out}: no checkpoint.pkl: not a run directory, or killed "
                                 "before its first generation was stored (start it again)")
     problem = store.problem()
+    backend_cfg = backend or problem.backend
+    unguarded = _check_main_guard(backend_cfg, "casadrone.resume()")
     state = store.load_checkpoint()
     algorithm = state["algorithm"]
-    backend_cfg = backend or problem.backend
-    be = make_backend(backend_cfg)
+    be = make_backend(backend_cfg, without_main=unguarded)
     store.update_manifest(status="running", resumed=now())
     try:
         prog = progress or Progress(problem.algorithm.generations, quiet)
         return _loop(store, algorithm, algorithm.problem.study, be, state["elapsed_s"], prog,
-                     stop_after)
+                     stop_after, state.get("hypervolume_state"))
     finally:
         be.close()

@@ -31,8 +31,8 @@ from pathlib import Path
 
 import yaml
 
-from casadrone.config import ProblemConfig
 from casadrone.optimise.problem import Record
+from casadrone.problemconfig import ProblemConfig
 
 CONFIG, MANIFEST, HISTORY, CHECKPOINT, PARETO = (
     "config.yaml", "manifest.json", "history.sqlite", "checkpoint.pkl", "pareto.csv")
@@ -76,9 +76,9 @@ def versions() -> dict[str, str]:
     import numpy
     import pymoo
 
-    import casadrone
+    from casadrone import __version__
 
-    return {"casadrone": casadrone.__version__, "casadi": casadi.__version__,
+    return {"casadrone": __version__, "casadi": casadi.__version__,
             "pymoo": pymoo.__version__, "numpy": numpy.__version__,
             "python": platform.python_version()}
 
@@ -89,7 +89,7 @@ def snapshot_inputs(problem: ProblemConfig, path: Path) -> ProblemConfig:
     resuming or reporting a run never depends on files edited after it started."""
     import shutil
 
-    from casadrone.config import CONFIG_DIR, read_yaml, resolve_config
+    from casadrone.configio import CONFIG_DIR, read_yaml, resolve_config
 
     if problem.test_problem is not None:
         return problem
@@ -180,7 +180,7 @@ class RunStore:
 
     def problem(self) -> ProblemConfig:
         """The resolved problem of this run (its input files from the run's own ``inputs/``)."""
-        from casadrone.config import load
+        from casadrone.configio import load
 
         return load(ProblemConfig, self.path / CONFIG)
 

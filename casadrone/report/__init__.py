@@ -21,39 +21,20 @@ from __future__ import annotations
 import datetime as _dt
 from pathlib import Path
 
-from casadrone.report.analysis import (  # noqa: F401 (re-exported)
-    LABELS,
-    STAGES,
-    Candidate,
-    ConvergenceHistory,
-    Run,
+from casadrone.report.analysis import (
     choose_candidates,
-    convergence_history,
-    failure_groups,
-    feasible_front,
     read_run,
-    reason_group,
 )
 from casadrone.report.candidates import (
     evaluate_candidates,
     section_airframes,
     section_candidates,
 )
-from casadrone.report.markup import (  # noqa: F401 (re-exported)
+from casadrone.report.markup import (
     PLOTS,
-    SYMBOL,
-    UNIT_SUFFIX,
     Figures,
-    Html,
-    cell,
     esc,
-    kv_table,
     note,
-    num,
-    objective_label,
-    table,
-    unit_of,
-    variable_label,
 )
 from casadrone.report.sections import (
     section_convergence,
@@ -67,6 +48,7 @@ __all__ = ["Candidate", "choose_candidates", "convergence_history", "failure_gro
            "write_report"]
 
 REPORT = "report.html"
+EXPORTS = "exports"  # the candidates' exported files, beside the report
 
 
 CSS = """
@@ -117,7 +99,8 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
         "problem": section_problem(run),
         "convergence": section_convergence(run, figs),
         "pareto": section_pareto(run, cands, figs),
-        "candidates": (section_candidates(run, cands, figs) if not run.test_problem
+        "candidates": (section_candidates(run, cands, figs, path.parent / EXPORTS)
+                       if not run.test_problem
                        else note("A pymoo test problem has no trajectories.")),
         "airframes": section_airframes(run, cands, tuple(references), figs),
         "failures": section_failures(run, figs),

@@ -125,14 +125,18 @@ GAIN_KEYS = {"candidate", "method", "reference", "basis", "interval", "time_gain
 
 def test_compare_json_rows(cli_runner, tiny_run):
     out, _ = tiny_run
-    result = invoke(cli_runner, "compare", out, "--json")
+    default = json.loads(invoke(cli_runner, "compare", out, "--json").stdout)
+    # off by default: the gains against the paper's measured Table 4 (another time base)
+    assert len(default) == 12 and {r["basis"] for r in default} == {"simulated"}
+    result = invoke(cli_runner, "compare", out, "--json", "--measured")
     assert result.exit_code == 0, result.output
     rows = json.loads(result.stdout)
-    # 3 candidates × SY250 × (4 simulated + 4 measured intervals)
+    # 3 candidates × SY250 × 4 simulated intervals, then the same × 4 measured, apart
     assert len(rows) == 24 and all(set(r) == GAIN_KEYS for r in rows)
+    assert rows[:12] == default
     assert {r["reference"] for r in rows} == {"SY250"}
-    assert [r["candidate"] for r in rows[::8]] == ["A", "B", "C"]
-    assert [(r["basis"], r["interval"]) for r in rows[:8]] == (
+    assert [r["candidate"] for r in rows[:12:4]] == ["A", "B", "C"]
+    assert [(r["basis"], r["interval"]) for r in rows[:4] + rows[12:16]] == (
         [("simulated", j) for j in (1, 2, 3, 4)] + [("measured", j) for j in (1, 2, 3, 4)])
     for r in rows:
         assert isinstance(r["time_gain_pct"], float)
@@ -164,7 +168,11 @@ def test_compare_text(cli_runner, tiny_run):
     result = invoke(cli_runner, "compare", out, "--reference", "SY250", "--reference", "HS200")
     assert result.exit_code == 0, result.output
     assert "paper Eq. 21: positive = better" in result.stdout
-    assert "HS200" in result.stdout and "measured" in result.stdout
+    assert "HS200" in result.stdout and " measured " not in result.stdout
+    both = invoke(cli_runner, "compare", out, "--reference", "HS200", "--measured").stdout
+    simulated_part, _, measured_part = both.partition("Against the paper's measured Table 4")
+    assert " simulated " in simulated_part and " measured " not in simulated_part
+    assert " measured " in measured_part and " simulated " not in measured_part
 
 
 def test_resume_of_the_finished_run_is_a_no_op(cli_runner, tiny_run):
@@ -292,3 +300,30 @@ def test_sigkilled_process_pool_run_resumes_to_the_serial_result(tmp_path):
                           cwd=ROOT, timeout=600)
     assert full.returncode == 0, full.stderr
     check_resumed_equals_uninterrupted(d1, d2)
+
+
+@pytest.mark.parametrize("fmt", ["betaflight", "px4", "urdf", "svg", "dxf"])
+def test_export_a_run_candidate(cli_runner, tiny_run, tmp_path, fmt):
+    out, _ = tiny_run
+    (a,) = json.loads(invoke(cli_runner, "decide", out, "--method", "utopian", "--json").stdout)
+    target = tmp_path / f"A.{fmt}"
+    result = invoke(cli_runner, "export", out, "--candidate", "A", "--format", fmt, "--out",
+                    target)
+    assert result.exit_code == 0, result.output
+    text = target.read_text(encoding="utf-8")
+    assert f"run {out}" in text and f"A (utopian, pareto.csv row {a['row']})" in text
+    # the candidate's own geometry, not the template's
+    assert f"lambda_a_mm={a['theta']['lambda_a_mm']:g}" in text
+    by_row = invoke(cli_runner, "export", out, "--candidate", str(a["row"]), "--format", fmt)
+    assert by_row.exit_code == 0, by_row.output
+    if fmt == "betaflight":  # the same mix whether named by letter or by row
+        mix = [line for line in text.splitlines() if line.startswith("mmix ")]
+        assert mix == [line for line in by_row.stdout.splitlines() if line.startswith("mmix ")]
+
+
+def test_export_bad_candidate_is_one_line_exit_2(cli_runner, tiny_run):
+    out, _ = tiny_run
+    for bad in (["--candidate", "Z"], ["--candidate", "9999"], []):
+        result = invoke(cli_runner, "export", out, "--format", "px4", *bad)
+        assert result.exit_code == 2, (bad, result.output)
+        assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.output

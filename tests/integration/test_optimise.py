@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from casadrone.config import BackendConfig, ConfigError, load_problem
+from casadrone.configio import ConfigError
 from casadrone.optimise.runner import resume, run
 from casadrone.optimise.store import RunStore
+from casadrone.problemconfig import BackendConfig, load_problem
 
 QUICK = "problems/quick.yaml"
 TINY = ["algorithm.population=16", "algorithm.generations=3", "algorithm.settings.n_ind_ga=8"]
@@ -181,5 +182,46 @@ def test_run_keeps_its_own_copies_of_input_files(uninterrupted, tmp_path):
     from casadrone.config import load_controller
 
     ctrl = load_controller(problem.controller)
-    assert ctrl.gain_policy == "frozen"
+    assert ctrl.gain_policy == "frozen-wrench"
     assert ctrl.reference_airframe == inputs / "reference_airframe.yaml"
+
+
+def _possible(ixx, iyy, izz):
+    return izz <= ixx + iyy and ixx <= iyy + izz and iyy <= ixx + izz
+
+
+def test_no_impossible_body_is_completed_or_on_the_front(uninterrupted):
+    """Issue acceptance: the quick problem keeps the Table 1 box, about 29 % of which violates
+    Izz ≤ Ixx + Iyy; those candidates fail at stage geometry, never fly, never reach the front."""
+    store = RunStore(uninterrupted)
+    hist = store.history()
+    for r in hist:
+        if r["status"] == "completed":
+            assert _possible(r["ixx_kgm2"], r["iyy_kgm2"], r["izz_kgm2"]), r
+    impossible = [r for r in hist if not _possible(r["ixx_kgm2"], r["iyy_kgm2"], r["izz_kgm2"])]
+    assert impossible, "the Table 1 box holds impossible bodies, some must have been drawn"
+    for r in impossible:
+        assert r["status"] == "failed" and r["stage"] == "geometry"
+        assert "violated" in r["reason"]
+    header, rows = store.read_pareto()
+    col = {name: header.index(name) for name in ("ixx_kgm2", "iyy_kgm2", "izz_kgm2")}
+    for row in rows:
+        assert _possible(row[col["ixx_kgm2"]], row[col["iyy_kgm2"]], row[col["izz_kgm2"]])
+
+
+def test_components_study_optimises_the_geometry_only(tmp_path):
+    """mass_model: components end to end: four decision variables, mass and inertia from the
+    parts for every candidate, frozen-wrench on SY250-components."""
+    geometry = "[" + ", ".join(
+        f"{{name: {k}, lower: {lo}, upper: {hi}}}" for k, lo, hi in (
+            ("lambda_a_mm", 100, 150), ("lambda_b_mm", 100, 150), ("alpha_deg", 65, 90),
+            ("beta_deg", 65, 90))) + "]"
+    problem = load_problem(QUICK, TINY + ["airframe=SY250-components", f"variables={geometry}",
+                                          "controller=frozen-wrench-sy250-components"])
+    out = tmp_path / "run"
+    run(problem, out, BackendConfig(name="serial"), quiet=True)
+    store = RunStore(out)
+    header, rows = store.read_pareto()
+    assert header[:4] == ["lambda_a_mm", "lambda_b_mm", "alpha_deg", "beta_deg"] and rows
+    completed = [r for r in store.history() if r["status"] == "completed"]
+    assert len({r["lambda_a_mm"] for r in completed}) > 5

@@ -244,11 +244,11 @@ def test_lqr_without_ensemble_has_no_ensemble_keys(cli_runner):
 
 def test_lqr_frozen_gain_from_reference(cli_runner, tmp_path):
     ctrl = tmp_path / "frozen.yaml"
-    ctrl.write_text("name: frozen\ngain_policy: frozen\nreference_airframe: SY250\n")
+    ctrl.write_text("name: frozen\ngain_policy: frozen-command\nreference_airframe: SY250\n")
     frozen = run_json(cli_runner, "lqr", "HS200", "--controller", ctrl)
     reference = run_json(cli_runner, "lqr", "SY250", "--controller", ctrl)
     own = run_json(cli_runner, "lqr", "HS200")
-    assert frozen["gain_policy"] == "frozen" and own["gain_policy"] == "redesign"
+    assert frozen["gain_policy"] == "frozen-command" and own["gain_policy"] == "redesign"
     np.testing.assert_allclose(frozen["K"], reference["K"], rtol=1e-12)
     assert not np.allclose(frozen["K"], own["K"])
 
@@ -452,9 +452,9 @@ def test_dask_backend_without_extra_exits_2(cli_runner, tmp_path, monkeypatch):
 
 def make_run_dir(path: Path, finished: bool = True, checkpoint: bool = False) -> Path:
     """A run directory of the quick problem with a hand-made two-design front."""
-    from casadrone.config import load_problem
     from casadrone.optimise.problem import Study
     from casadrone.optimise.store import RunStore
+    from casadrone.problemconfig import load_problem
 
     problem = load_problem(QUICK, ["objectives=[{index: J3, sense: min}, {index: J4}]"])
     study = Study(problem)
@@ -558,3 +558,31 @@ def test_report_without_the_report_module_exits_1(cli_runner, tmp_path, monkeypa
     result = run(cli_runner, "report", make_run_dir(tmp_path / "run"))
     assert result.exit_code == 1, result.output
     assert "casadrone.report is not available" in result.stderr
+
+
+@pytest.mark.parametrize("command", ["validate", "trim", "simulate"])
+def test_impossible_inertia_is_bad_input(cli_runner, tmp_path, command):
+    """An airframe with Izz > Ixx + Iyy: exit 2 naming the triangle inequality, no traceback."""
+    frame = tmp_path / "impossible.yaml"
+    text = (ROOT / "configs" / "airframes" / "SY250.yaml").read_text()
+    frame.write_text(text.replace("izz_kgm2: 0.0036", "izz_kgm2: 0.0045"))
+    result = run(cli_runner, command, frame)
+    assert result.exit_code == 2, result.output
+    assert f"{frame}: izz_kgm2: Ixx + Iyy ≥ Izz violated" in result.stderr
+    assert "Traceback" not in result.output
+
+
+def test_impossible_inertia_override_is_bad_input(cli_runner):
+    result = run(cli_runner, "simulate", "SY250", "izz_kgm2=0.0045", "--json")
+    assert result.exit_code == 2
+    assert "izz_kgm2: Ixx + Iyy ≥ Izz violated" in result.stderr
+    assert "[override izz_kgm2=0.0045]" in result.stderr
+
+
+def test_impossible_inertia_is_a_failed_evaluation_at_geometry():
+    from casadrone.evaluate import default_setup, evaluate
+
+    ev = evaluate({"ixx_kgm2": 0.0014, "iyy_kgm2": 0.0012, "izz_kgm2": 0.0042},
+                  default_setup("SY250", "frozen-wrench-sy250"))
+    assert ev.status == "failed" and ev.stage == "geometry"
+    assert "Ixx + Iyy ≥ Izz violated" in ev.reason

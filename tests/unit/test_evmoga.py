@@ -13,7 +13,6 @@ import pickle
 import numpy as np
 import pytest
 from pymoo.core.callback import Callback
-from pymoo.core.individual import Individual
 from pymoo.core.problem import Problem
 from pymoo.indicators.hv import HV
 from pymoo.indicators.igd import IGD
@@ -21,14 +20,8 @@ from pymoo.optimize import minimize
 from pymoo.problems import get_problem
 
 from casadrone.optimise.algorithms import ALGORITHM_NAMES, make_algorithm
-from casadrone.optimise.evmoga import (
-    EvMOGA,
-    box_dominates,
-    box_index,
-    constrained_dominates,
-    pareto_dominates,
-    shrinking_schedule,
-)
+from casadrone.optimise.boxarchive import BoxArchive, box_dominates, box_index, pareto_dominates
+from casadrone.optimise.evmoga import EvMOGA, constrained_dominates, shrinking_schedule
 
 ZDT1_HV = 1.21 - 1.0 / 3.0  # 0.876667, exact, reference point (1.1, 1.1)
 REF = np.array([1.1, 1.1])
@@ -52,14 +45,20 @@ def hv2d(F: np.ndarray, ref: np.ndarray) -> float:
     return volume
 
 
-def assert_archive_invariants(alg: EvMOGA) -> None:
+def assert_archive_invariants(alg: EvMOGA | BoxArchive) -> None:
     """EVMOGA.md invariants on the archive A of ``alg`` (any number of objectives)."""
-    A, F, B = alg.archive_pop, alg.archive_F, alg.archive_box
-    assert len(A) == len(F) == len(B)
-    if len(A) == 0:
+    if isinstance(alg, EvMOGA):
+        A = alg.archive_pop
+        assert len(A) == len(alg.archive_F)
+        if len(A):
+            np.testing.assert_array_equal(np.asarray(A.get("F"), dtype=float), alg.archive_F)
+            np.testing.assert_array_equal(np.asarray(A.get("X"), dtype=float), alg.archive_X)
+        alg = alg.box_archive
+    F, B = alg.F, alg.box
+    assert len(alg) == len(F) == len(B) == len(alg.rows["X"])
+    if len(F) == 0:
         return
-    np.testing.assert_array_equal(np.asarray(A.get("F"), dtype=float), F)
-    assert np.all(np.asarray(A.get("CV"), dtype=float) <= 0.0), "infeasible member in A"
+    assert np.all(alg.rows["CV"] <= 0.0), "infeasible member in A"
     assert np.all(np.isfinite(F))
     # stored boxes are the boxes of the members on the stored grid, inside [0, n_div]
     np.testing.assert_array_equal(B, box_index(F, alg.grid_min, alg.eps))
@@ -72,7 +71,7 @@ def assert_archive_invariants(alg: EvMOGA) -> None:
         assert not np.any(box_dominates(B[i], B[others])), "a member's box dominates another"
         assert not np.any(pareto_dominates(F[i], F[others])), "a member dominates another"
     if F.shape[1] == 2:
-        assert len(A) <= alg.n_div[0] + 1
+        assert len(F) <= alg.n_div[0] + 1
 
 
 class InvariantCheck(Callback):
@@ -98,20 +97,17 @@ def run(problem, seed: int, callback=None, **settings) -> tuple:
     return res, alg
 
 
-def individual(f) -> Individual:
+def individual(f) -> dict[str, np.ndarray]:
+    """An archive row: X = F = f, no constraints, feasible."""
     f = np.asarray(f, dtype=float)
-    ind = Individual(X=f.copy(), F=f, G=np.empty(0), H=np.empty(0))
-    return ind
+    return {"X": f.copy(), "F": f, "G": np.empty(0), "H": np.empty(0), "CV": np.zeros(1)}
 
 
-def bare_archive(n_div=10, f_min=(0.0, 0.0), f_max=(1.0, 1.0)) -> EvMOGA:
-    """An EvMOGA with an empty archive on a fixed grid, to drive _insert / _archive by hand."""
-    alg = EvMOGA(generations=1)
-    alg.n_div = np.array([n_div, n_div])
-    alg.archive_F = np.empty((0, 2))
-    alg.archive_box = np.empty((0, 2), dtype=np.int64)
-    alg._set_grid(np.array(f_min, float), np.array(f_max, float))
-    return alg
+def bare_archive(n_div=10, f_min=(0.0, 0.0), f_max=(1.0, 1.0)) -> BoxArchive:
+    """An empty archive on a fixed grid, to drive insert / offer by hand."""
+    arc = BoxArchive(np.array([n_div, n_div]), {"X": 2, "F": 2, "G": 0, "H": 0, "CV": 1})
+    arc.set_grid(np.array(f_min, float), np.array(f_max, float))
+    return arc
 
 
 class RecordingZDT1(Problem):
@@ -200,64 +196,64 @@ def test_hv2d_matches_hand_values_and_pymoo():
 
 def test_insertion_cases():
     alg = bare_archive()
-    assert alg._insert(individual([0.25, 0.75]), np.array([0.25, 0.75]))  # case 4, box (3, 8)
-    np.testing.assert_array_equal(alg.archive_box, [[3, 8]])
-    assert not alg._insert(individual([0.35, 0.85]), np.array([0.35, 0.85]))  # case 1, (4, 9)
-    assert alg._insert(individual([0.45, 0.15]), np.array([0.45, 0.15]))  # case 4, (5, 2)
-    assert alg._insert(individual([0.15, 0.55]), np.array([0.15, 0.55]))  # case 2: deletes (3, 8)
-    np.testing.assert_array_equal(alg.archive_box, [[5, 2], [2, 6]])
+    assert alg.insert(individual([0.25, 0.75]))  # case 4, box (3, 8)
+    np.testing.assert_array_equal(alg.box, [[3, 8]])
+    assert not alg.insert(individual([0.35, 0.85]))  # case 1, (4, 9)
+    assert alg.insert(individual([0.45, 0.15]))  # case 4, (5, 2)
+    assert alg.insert(individual([0.15, 0.55]))  # case 2: deletes (3, 8)
+    np.testing.assert_array_equal(alg.box, [[5, 2], [2, 6]])
     # case 3, box (2, 6), centre (0.15, 0.55)
-    member = alg.archive_pop[1]
-    assert not alg._insert(individual([0.12, 0.58]), np.array([0.12, 0.58]))  # farther: keep
-    assert not alg._insert(individual([0.15, 0.55]), np.array([0.15, 0.55]))  # equal: keep
-    assert alg.archive_pop[1] is member
-    assert alg._insert(individual([0.14, 0.54]), np.array([0.14, 0.54]))  # dominates: replace
-    np.testing.assert_allclose(alg.archive_F[1], [0.14, 0.54], rtol=0, atol=0)
-    assert not alg._insert(individual([0.145, 0.545]), np.array([0.145, 0.545]))  # dominated
+    member = alg.rows["X"][1].copy()
+    assert not alg.insert(individual([0.12, 0.58]))  # farther: keep
+    assert not alg.insert(individual([0.15, 0.55]))  # equal: keep
+    np.testing.assert_array_equal(alg.rows["X"][1], member)
+    assert alg.insert(individual([0.14, 0.54]))  # dominates: replace
+    np.testing.assert_allclose(alg.F[1], [0.14, 0.54], rtol=0, atol=0)
+    assert not alg.insert(individual([0.145, 0.545]))  # dominated
     # neither dominates: (0.11, 0.6) is 0.64 eps from the centre, (0.16, 0.52) 0.32 eps
     alg2 = bare_archive()
-    alg2._insert(individual([0.11, 0.6]), np.array([0.11, 0.6]))
-    assert alg2._insert(individual([0.16, 0.52]), np.array([0.16, 0.52]))
-    np.testing.assert_allclose(alg2.archive_F, [[0.16, 0.52]], rtol=0, atol=0)
+    alg2.insert(individual([0.11, 0.6]))
+    assert alg2.insert(individual([0.16, 0.52]))
+    np.testing.assert_allclose(alg2.F, [[0.16, 0.52]], rtol=0, atol=0)
     assert_archive_invariants(alg)
     assert_archive_invariants(alg2)
 
 
-def two_point_archive() -> EvMOGA:
+def two_point_archive() -> BoxArchive:
     alg = bare_archive()
     for f in ([0.0, 1.0], [1.0, 0.0]):
-        alg._insert(individual(f), np.array(f))
+        alg.insert(individual(f))
     return alg
 
 
 def test_extreme_value_cases():
     alg = two_point_archive()
-    alg._archive(individual([1.2, 1.2]), np.array([1.2, 1.2]))  # a = m, b = 0: reject
-    assert len(alg.archive_pop) == 2
-    alg._archive(individual([0.0, 1.5]), np.array([0.0, 1.5]))  # mixed, dominated: reject
-    assert len(alg.archive_pop) == 2
+    alg.offer(individual([1.2, 1.2]))  # a = m, b = 0: reject
+    assert len(alg) == 2
+    alg.offer(individual([0.0, 1.5]))  # mixed, dominated: reject
+    assert len(alg) == 2
     np.testing.assert_allclose(alg.grid_max, [1.0, 1.0], rtol=0, atol=0)
 
     # mixed (a = 1, b = 1), non-dominated: grid grows to min (-0.5, 0), max (1, 2), all kept
-    alg._archive(individual([-0.5, 2.0]), np.array([-0.5, 2.0]))
+    alg.offer(individual([-0.5, 2.0]))
     np.testing.assert_allclose(alg.grid_min, [-0.5, 0.0], rtol=0, atol=1e-15)
     np.testing.assert_allclose(alg.grid_max, [1.0, 2.0], rtol=0, atol=1e-15)
     np.testing.assert_allclose(alg.eps, [0.15, 0.2], rtol=1e-12)
-    assert len(alg.archive_pop) == 3
+    assert len(alg) == 3
     assert_archive_invariants(alg)
 
     # mixed (a = 0, b = 1), dominates (1, 0): it is deleted and the grid shrinks to A + child
     alg = two_point_archive()
-    alg._archive(individual([0.5, -0.2]), np.array([0.5, -0.2]))
-    np.testing.assert_allclose(alg.archive_F, [[0.0, 1.0], [0.5, -0.2]], rtol=0, atol=0)
+    alg.offer(individual([0.5, -0.2]))
+    np.testing.assert_allclose(alg.F, [[0.0, 1.0], [0.5, -0.2]], rtol=0, atol=0)
     np.testing.assert_allclose(alg.grid_min, [0.0, -0.2], rtol=0, atol=0)
     np.testing.assert_allclose(alg.grid_max, [0.5, 1.0], rtol=0, atol=0)
     assert_archive_invariants(alg)
 
     # a = 0, b = m: the child dominates everything, A = {child}, min = max = f, eps kept
     alg = two_point_archive()
-    alg._archive(individual([-0.1, -0.1]), np.array([-0.1, -0.1]))
-    np.testing.assert_allclose(alg.archive_F, [[-0.1, -0.1]], rtol=0, atol=0)
+    alg.offer(individual([-0.1, -0.1]))
+    np.testing.assert_allclose(alg.F, [[-0.1, -0.1]], rtol=0, atol=0)
     np.testing.assert_allclose(alg.grid_min, [-0.1, -0.1], rtol=0, atol=0)
     np.testing.assert_allclose(alg.grid_max, [-0.1, -0.1], rtol=0, atol=0)
     np.testing.assert_allclose(alg.eps, [0.1, 0.1], rtol=1e-12)
@@ -265,8 +261,8 @@ def test_extreme_value_cases():
 
     # interior child (a = b = 0) goes through the ordinary insertion
     alg = two_point_archive()
-    alg._archive(individual([0.5, 0.5]), np.array([0.5, 0.5]))
-    assert len(alg.archive_pop) == 3
+    alg.offer(individual([0.5, 0.5]))
+    assert len(alg) == 3
 
 
 # ---------------------------------------------------------------------------------------------
@@ -305,7 +301,7 @@ def test_crossover_children_lie_on_the_parent_line():
     alg.setup(problem, seed=3)
     for _ in range(5):
         alg.next()
-    X_p, X_a = alg.pop.get("X"), alg.archive_pop.get("X")
+    X_p, X_a = alg.pop.get("X"), alg.archive_X
     children = alg.ask()
     X = children.get("X")
     dd = shrinking_schedule(0.25, 0.1, alg.n_iter - 2, 20)

@@ -38,7 +38,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.machine import markdown  # noqa: E402
 from casadrone.airframe import TABLE1_BOUNDS, build_airframe, random_thetas, with_theta  # noqa: E402
-from casadrone.config import load, load_airframe  # noqa: E402
+from casadrone.config import load_airframe  # noqa: E402
+from casadrone.configio import load  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
 from casadrone.guidance import TrackConfig  # noqa: E402
 from casadrone.limitlap import LimitLapOptions, limit_lap  # noqa: E402

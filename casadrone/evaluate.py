@@ -179,12 +179,15 @@ def evaluate(
 
 
 def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory | None = None):
-    """The limit lap of a candidate under ``setup.limit``: its closed-loop lap as one start,
-    warm starts from the per-study references (:attr:`EvaluationSetup.limit_warm_starts`)."""
+    """The limit lap of a candidate under ``setup.limit``: the best of the primal-dual warm
+    starts from the per-study references (:attr:`EvaluationSetup.limit_warm_starts`, the same in
+    every worker, so the result does not depend on the backend or the evaluation order); from
+    its closed-loop lap when no reference solved."""
     from casadrone.limitlap import limit_lap
 
-    options = replace(setup.limit, guess_trajectory=traj,
-                      warm_starts=setup.limit_warm_starts, sensitivities=False)
+    warm = setup.limit_warm_starts
+    options = replace(setup.limit, guess_trajectory=traj, warm_starts=warm,
+                      starts=() if warm else ("closed-loop",), sensitivities=False)
     return limit_lap(cfg, setup.track, options)
 
 

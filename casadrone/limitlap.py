@@ -13,8 +13,8 @@ Robustness:
 - starts: ``closed-loop`` (casadrone's own closed-loop lap of the frame, sampled onto the grid: a
   dynamically consistent but slow guess) and ``point-mass`` (the lower-bound solution lifted to
   the full state: fast but not consistent); for each of ``options.warm_starts`` (neighbouring
-  LimitLaps on the same layout) also ``warm-i``, a primal-dual IPOPT warm start. The best converged start
-  wins; a single start can miss the best local optimum by a few per cent.
+  LimitLaps on the same layout) also ``warm-i``, a primal-dual IPOPT warm start. The best
+  converged start wins; a single start can miss the best local optimum by a few per cent.
 - every failure (no convergence, unflyable frame, unreachable target) is a result with status
   ``failed`` and a reason; :func:`limit_lap` does not raise for a bad airframe.
 
@@ -59,7 +59,9 @@ class LimitLapOptions:
     """Numerical and modelling settings of the limit lap (identical for every candidate)."""
 
     intervals: int = 30  # per leg
-    degree: int = 3  # Radau collocation points per interval
+    method: Literal["shooting", "collocation"] = "shooting"  # see casadrone.limitnlp
+    substeps: int = 2  # RK4 steps per interval (shooting)
+    degree: int = 3  # Radau collocation points per interval (collocation)
     starts: tuple[Start, ...] = ("closed-loop", "point-mass")
     warm_starts: tuple[LimitLap, ...] = ()  # neighbouring solutions on the same layout
     guess_trajectory: object | None = None  # the frame's closed-loop lap, if already flown
@@ -168,8 +170,8 @@ def track_targets(track: TrackConfig, options: LimitLapOptions) -> Targets:
 
 def check_inputs(track: TrackConfig, options: LimitLapOptions) -> str:
     """Why the problem cannot be posed (empty string when it can)."""
-    if options.intervals < 2 or not 1 <= options.degree <= 9:
-        return "intervals must be at least 2 and degree 1…9"
+    if options.intervals < 2 or not 1 <= options.degree <= 9 or options.substeps < 1:
+        return "intervals must be at least 2, degree 1…9 and substeps at least 1"
     if options.start_state is not None and len(options.start_state) != NX:
         return f"start_state needs {NX} values, got {len(options.start_state)}"
     for j, gate in enumerate(track.gates or []):
@@ -214,7 +216,7 @@ def _bounds(nlp: Nlp, airframe: Airframe, track: TrackConfig, options: LimitLapO
         x0 = start_state(airframe, track, options)
         zl, zu = xl.copy(), xu.copy()
         xl[0], xu[0] = x0, x0  # also an equality on the parameter; the bound helps IPOPT
-    d = nlp.layout.degree
+    d = nlp.layout.n_coll
     return (nlp.pack(t_lo, xl, ul, np.repeat(zl[1:, None, :], d, axis=1)),
             nlp.pack(t_hi, xu, uu, np.repeat(zu[1:, None, :], d, axis=1)))
 
@@ -350,7 +352,8 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
         return _failed(f"cannot hover: weight {weight:.2f} N is not below the full thrust "
                        f"{full_thrust:.2f} N", start)
     targets = track_targets(track, options)
-    layout = Layout(targets.kinds, options.intervals, options.degree)
+    layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
+                    options.substeps)
     full = build_nlp(quadrotor_ocp_model(), layout, options.tol, options.max_iter)
     pm = build_nlp(point_mass_ocp_model(), layout, options.tol, options.max_iter)
     x0 = start_state(frame, track, options)

@@ -51,7 +51,8 @@ def limit_lap_command(
     commands over time.
     """
     check_plot_dir(plot)
-    from casadrone.config import load, load_airframe, resolve_config
+    from casadrone.config import load_airframe
+    from casadrone.configio import load, resolve_config
     from casadrone.evaluate import DEFAULT_TRACK
     from casadrone.guidance import TrackConfig
     from casadrone.limitlap import LimitLapOptions, limit_lap

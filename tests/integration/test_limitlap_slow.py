@@ -9,7 +9,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from casadrone.config import load, load_airframe
+from casadrone.config import load_airframe
+from casadrone.configio import load
 from casadrone.evaluate import DEFAULT_TRACK, default_setup, evaluate, theta_of
 from casadrone.guidance import TrackConfig
 from casadrone.limitlap import LimitLapOptions, limit_lap

@@ -6,14 +6,14 @@ Solves of the 16-state model take seconds to minutes on a loaded machine: those 
 
 from __future__ import annotations
 
-import json
 import math
 
 import casadi as ca
 import numpy as np
 import pytest
 
-from casadrone.config import ConfigError, load, load_airframe
+from casadrone.config import load_airframe
+from casadrone.configio import ConfigError, load
 from casadrone.evaluate import DEFAULT_TRACK
 from casadrone.guidance import TrackConfig
 from casadrone.limitcheck import target_miss

@@ -60,7 +60,7 @@ class LimitLapOptions:
 
     intervals: int = 30  # per leg
     method: Literal["shooting", "collocation"] = "shooting"  # see casadrone.limitnlp
-    substeps: int = 2  # RK4 steps per interval (shooting)
+    substeps: int = 3  # RK4 steps per interval (shooting)
     degree: int = 3  # Radau collocation points per interval (collocation)
     starts: tuple[Start, ...] = ("closed-loop", "point-mass")
     warm_starts: tuple[LimitLap, ...] = ()  # neighbouring solutions on the same layout

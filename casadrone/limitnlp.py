@@ -100,7 +100,7 @@ class Layout:
     intervals: int = 30  # per leg
     degree: int = 3  # Radau collocation points per interval (collocation)
     method: Literal["shooting", "collocation"] = "shooting"
-    substeps: int = 2  # RK4 steps per interval (shooting)
+    substeps: int = 3  # RK4 steps per interval (shooting)
 
     @property
     def n_coll(self) -> int:

@@ -4,6 +4,7 @@ differences of re-solves, physical monotonicity and mirror symmetry."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -80,3 +81,29 @@ def test_unreachable_gate_is_a_failed_result():
     trk = load(TrackConfig, "configs/tracks/multigp-cdra-gates.yaml", ["time_limit_s=0.1"])
     lap = limit_lap(load_airframe("SY250"), trk, FAST)
     assert lap.status == "failed" and lap.reason
+
+
+def test_cli_json_keys_exactly(cli_runner):
+    from casadrone.cli import app
+    from casadrone.cli.limit import LIMIT_KEYS
+
+    r = cli_runner.invoke(app, ["limit-lap", "SY250", "--json"])
+    assert r.exit_code == 0, r.output
+    out = json.loads(r.stdout)
+    assert tuple(out) == LIMIT_KEYS
+    assert out["status"] == "optimal" and set(out["sensitivities"]) >= {"lambda_a_mm", "alpha_deg"}
+
+
+def test_optimisation_same_front_serial_and_processes(tmp_path):
+    """Same seed ⇒ same evaluations on both backends: every candidate warm-starts only from the
+    per-study references, which each worker solves identically."""
+    from casadrone.optimise.runner import run
+    from casadrone.problemconfig import load_problem
+
+    for backend in ("serial", "processes"):
+        problem = load_problem("limit-lap", ["algorithm.population=4", "algorithm.generations=1",
+                                             "algorithm.settings.n_ind_ga=2",
+                                             f"backend.name={backend}", "backend.workers=2"])
+        run(problem, tmp_path / backend, quiet=True)
+    a, b = ((tmp_path / k / "pareto.csv").read_text() for k in ("serial", "processes"))
+    assert a == b

@@ -103,3 +103,24 @@ def test_cli_bad_track_and_heavy_frame_exit_2(cli_runner, tmp_path):
     assert "straight" in r.stderr
     r = cli_runner.invoke(app, ["limit-lap", "SY250", "mass_kg=4", "--json"])
     assert r.exit_code == 2 and "cannot hover" in r.stderr and "Traceback" not in r.output
+
+
+def test_j3_limit_is_a_limit_index_outside_closed_loop_indices():
+    from casadrone.indices import BUILTIN_LIMIT_NAMES, INDICES, limit_index_names
+
+    assert BUILTIN_LIMIT_NAMES == ("J3_limit",)
+    assert INDICES["J3_limit"].source == "limit" and INDICES["J3_limit"].sense == "min"
+    assert limit_index_names(["J1", "J3_limit", "J5"]) == ("J3_limit",)
+
+
+def test_limit_lap_problem_sets_up_limit_options_and_references():
+    from casadrone.optimise.problem import limit_setup
+    from casadrone.problemconfig import load_problem
+
+    problem = load_problem("limit-lap")
+    template = load_airframe(problem.airframe)
+    extra = limit_setup(problem, template)
+    assert extra["limit"] is not None
+    assert len(extra["limit_references"]) == 2  # the template and the centre of the box
+    assert extra["limit_references"][1]["alpha_deg"] == pytest.approx(77.5)
+    assert limit_setup(load_problem("quick"), template) == {}

@@ -26,7 +26,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from benchmarks.machine import markdown  # noqa: E402
 from casadrone.airframe import TABLE1_BOUNDS, THETA_KEYS, build_airframe, random_thetas, with_theta
 from casadrone.benchmark import DEFAULT_TRACK
-from casadrone.config import load, load_airframe, load_controller
+from casadrone.config import load_airframe, load_controller
+from casadrone.configio import load
 from casadrone.control import design_for
 from casadrone.guidance import TrackConfig
 from casadrone.indices import BUILTIN_NAMES, INDICES, compute_indices, lap_mask
@@ -81,7 +82,7 @@ def spread(base, ctrl, track, n: int, seed: int) -> dict[str, dict[str, tuple[fl
     """(min, max) of every index over n random Table 1 frames, per gain policy."""
     thetas, _ = random_thetas(base, n, seed)  # overlapping rotors are redrawn
     frames = [with_theta(base, th, name=f"random {i}") for i, th in enumerate(thetas)]
-    frozen = ctrl.model_copy(update={"gain_policy": "frozen"})
+    frozen = ctrl.model_copy(update={"gain_policy": "frozen-command"})
     ref = build_airframe(base)
     out = {}
     for policy, c in (("redesign", ctrl), ("frozen (SY250 gain)", frozen)):

@@ -7,7 +7,7 @@ The public API, one function per stage of the chain (DESIGN.md §1)::
     tp = cd.trim(frame, "hover", solver="newton")
     lin = cd.linearise(frame, tp)
     design = cd.design_lqri(lin, cd.load_controller())
-    ev = cd.evaluate(cd.theta_of(cd.load_airframe("HS210")), cd.default_setup())
+    ev = cd.evaluate(cd.theta_of(cd.load_airframe("HS210")), cd.default_setup("HS210"))
 
 Most names are imported lazily. casadrone's parallelism is one
 process per core; its linear algebra is on 20×20 matrices, where a multi-threaded BLAS is up to 5×
@@ -23,9 +23,11 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 __version__ = "0.1.0"
 
 _API = {
-    "casadrone.config": ["ConfigError", "load", "load_airframe", "load_controller",
-                         "load_problem", "validate_file", "AirframeConfig", "ControllerConfig",
-                         "ProblemConfig", "BackendConfig"],
+    "casadrone.configio": ["ConfigError", "load"],
+    "casadrone.config": ["load_airframe", "load_controller", "AirframeConfig", "ControllerConfig"],
+    "casadrone.problemconfig": ["load_problem", "ProblemConfig", "BackendConfig"],
+    "casadrone.validation": ["validate_file"],
+    "casadrone.massprops": ["mass_properties", "MassProperties"],
     "casadrone.airframe": ["Airframe", "build_airframe", "with_theta", "TABLE1_BOUNDS",
                            "THETA_KEYS"],
     "casadrone.model": ["quadrotor_model", "STATE_NAMES", "INPUT_NAMES"],
@@ -42,7 +44,8 @@ _API = {
     "casadrone.optimise.runner": ["run", "resume", "RunResult"],
     "casadrone.optimise.store": ["RunStore"],
     "casadrone.decide": ["decide", "Decision"],
-    "casadrone.benchmark": ["run_benchmark", "gain_pct"],
+    "casadrone.benchmark": ["run_benchmark"],
+    "casadrone.compare": ["gain_pct"],
     "casadrone.report": ["write_report"],
 }
 _WHERE = {name: module for module, names in _API.items() for name in names}

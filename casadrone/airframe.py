@@ -6,12 +6,15 @@ draws the nose on body +y (x to the right): :func:`from_paper_frame` converts at
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
 
-from casadrone.config import AirframeConfig, ConfigError, rotor_positions_mm
+from casadrone.config import AirframeConfig
+from casadrone.configio import ConfigError
+from casadrone.massprops import rotor_positions_mm
 
 #: Names and order of the decision vector θ (paper Table 1) and their config keys.
 THETA_NAMES = ("lambda_a", "lambda_b", "alpha", "beta", "Ixx", "Iyy", "Izz")
@@ -24,6 +27,9 @@ THETA_KEYS = (
     "iyy_kgm2",
     "izz_kgm2",
 )
+#: The decision variables of ``mass_model: components``: the geometry alone (mass and inertia
+#: follow from the parts).
+GEOMETRY_KEYS = THETA_KEYS[:4]
 #: Paper Table 1 bounds, in config units (mm, deg, kg·m²).
 TABLE1_BOUNDS = {
     "lambda_a_mm": (100.0, 150.0),
@@ -80,12 +86,13 @@ class Airframe:
     battery_voltage: float  # V
     air_density: float  # kg/m³
     gravity: float  # m/s²
+    com: np.ndarray = field(default_factory=lambda: np.zeros(3))  # hub → CoM (m), body axes
 
-    @property
+    @cached_property
     def p(self) -> np.ndarray:
-        """Model parameter vector, ordered as :data:`PARAM_NAMES`."""
+        """Model parameter vector, ordered as :data:`PARAM_NAMES` (computed once, read-only)."""
         J = self.inertia
-        return np.concatenate(
+        p = np.concatenate(
             [
                 [self.mass, J[0, 0], J[1, 1], J[2, 2], J[0, 1], J[0, 2], J[1, 2]],
                 self.rotor_positions.ravel(),
@@ -95,6 +102,8 @@ class Airframe:
                 [self.air_density, self.thrust_gain, self.thrust_time_constant, self.gravity],
             ]
         ).astype(float)
+        p.flags.writeable = False
+        return p
 
     @property
     def allocation_matrix(self) -> np.ndarray:
@@ -115,33 +124,35 @@ class Airframe:
 
 def build_airframe(cfg: AirframeConfig) -> Airframe:
     """Build the SI :class:`Airframe` of a validated config (the schema has already checked the
-    geometry and that the inertia tensor is positive definite)."""
+    geometry and that the inertia tensor is a possible rigid body).
+
+    Mass, centre of mass and inertia come from :func:`casadrone.massprops.mass_properties` (given,
+    or computed from the parts); the rotor positions are referred to the centre of mass
+    (r_i − c), which is where the model's moments are taken.
+    """
+    from casadrone.massprops import mass_properties
+
+    mp = mass_properties(cfg)
     r = np.array(rotor_positions_mm(cfg.lambda_a_mm, cfg.lambda_b_mm, cfg.alpha_deg, cfg.beta_deg))
-    J = np.array(
-        [
-            [cfg.ixx_kgm2, cfg.ixy_kgm2, cfg.ixz_kgm2],
-            [cfg.ixy_kgm2, cfg.iyy_kgm2, cfg.iyz_kgm2],
-            [cfg.ixz_kgm2, cfg.iyz_kgm2, cfg.izz_kgm2],
-        ]
-    )
+    J = mp.inertia_kgm2
     theta = np.array(
         [
             cfg.lambda_a_mm / 1000,
             cfg.lambda_b_mm / 1000,
             np.radians(cfg.alpha_deg),
             np.radians(cfg.beta_deg),
-            cfg.ixx_kgm2,
-            cfg.iyy_kgm2,
-            cfg.izz_kgm2,
+            J[0, 0],
+            J[1, 1],
+            J[2, 2],
         ]
     )
     return Airframe(
         name=cfg.name,
         family=family(cfg.alpha_deg, cfg.beta_deg),
         theta=theta,
-        mass=cfg.mass_kg,
+        mass=mp.mass_kg,
         inertia=J,
-        rotor_positions=r / 1000.0,
+        rotor_positions=r / 1000.0 - mp.com_m,
         rotor_spins=np.array(cfg.rotor_spins, dtype=float),
         kappa=cfg.kappa_m,
         drag_area=np.array(cfg.drag_area_m2, dtype=float),
@@ -150,17 +161,26 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
         battery_voltage=cfg.battery_voltage_v,
         air_density=cfg.air_density_kgm3,
         gravity=cfg.gravity_mps2,
+        com=mp.com_m,
     )
 
 
-def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = None):
+def decision_keys(cfg: AirframeConfig) -> tuple[str, ...]:
+    """The decision variables of an airframe's mass model: the seven of paper Table 1
+    (``free``), or the four geometry keys (``components``: mass and inertia follow from them)."""
+    return GEOMETRY_KEYS if cfg.mass_model == "components" else THETA_KEYS
+
+
+def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = None,
+               base: dict | None = None):
     """A copy of ``cfg`` with decision variables replaced (keys as in the config, e.g.
-    ``alpha_deg``), validated like a file: invalid geometry raises ConfigError."""
+    ``alpha_deg``), validated like a file: invalid geometry raises ConfigError. ``base``:
+    ``cfg.model_dump()`` if the caller already has it (an optimiser keeps it per study)."""
     from pydantic import ValidationError
 
-    from casadrone.config import format_errors
+    from casadrone.configio import format_errors
 
-    data = cfg.model_dump()
+    data = dict(base) if base is not None else cfg.model_dump()
     data.update(theta)
     if name is not None:
         data["name"] = name
@@ -173,10 +193,12 @@ def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = 
 def random_thetas(
     template: AirframeConfig, n: int, seed: int = 0, bounds: dict | None = None
 ) -> tuple[list[dict[str, float]], int]:
-    """``n`` decision vectors drawn uniformly inside ``bounds`` (default: paper Table 1) whose
-    geometry is valid on ``template`` (rotors that overlap are redrawn), and the rejected count."""
+    """``n`` decision vectors drawn uniformly inside ``bounds`` (default: paper Table 1, for the
+    template's decision variables) that are valid on ``template`` (rotors that overlap, and
+    inertias no rigid body has, are redrawn), and the rejected count."""
     rng = np.random.default_rng(seed)
-    bounds = TABLE1_BOUNDS if bounds is None else bounds
+    if bounds is None:
+        bounds = {k: TABLE1_BOUNDS[k] for k in decision_keys(template)}
     out: list[dict[str, float]] = []
     rejected = 0
     while len(out) < n:

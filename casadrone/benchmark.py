@@ -22,16 +22,8 @@ import numpy as np
 from pydantic import Field
 
 from casadrone.airframe import build_airframe
-from casadrone.config import (
-    CONFIG_DIR,
-    AirframeConfig,
-    ControllerConfig,
-    Schema,
-    load,
-    load_airframe,
-    load_controller,
-    resolve_config,
-)
+from casadrone.config import AirframeConfig, ControllerConfig, load_airframe, load_controller
+from casadrone.configio import CONFIG_DIR, Schema, load, resolve_config
 from casadrone.control import design_for
 from casadrone.guidance import TrackConfig
 from casadrone.indices import INDICES, Interval, compute_indices, interval_table
@@ -187,7 +179,7 @@ def run_benchmark(
         trk = load(TrackConfig, resolve_config(track, "tracks") if track else DEFAULT_TRACK)
     ref = reference if isinstance(reference, Table4Reference) else load_reference(reference)
     frozen_from = None
-    if ctrl.gain_policy == "frozen":
+    if ctrl.frozen_gain:
         frozen_from = build_airframe(load_airframe(ctrl.reference_airframe))
     rows = []
     for item in airframes:
@@ -316,21 +308,3 @@ def as_dict(table: BenchmarkTable) -> dict[str, Any]:
 def to_json(table: BenchmarkTable, indent: int | None = 2) -> str:
     """The table as JSON (NaN written as null)."""
     return json.dumps(as_dict(table), indent=indent, ensure_ascii=False)
-
-
-# --------------------------------------------------------------------------------------------
-# Names that moved to casadrone.compare (the A/B/C candidates and Eq. 21 gains)
-# --------------------------------------------------------------------------------------------
-
-_MOVED_TO_COMPARE = ("gain_pct", "magnitude_gain_pct", "CANDIDATE_LABELS", "NUMERICAL_ZERO",
-                     "Candidate", "run_candidates", "GainRow", "compare_run", "format_gains")
-
-
-def __getattr__(name: str):
-    """``from casadrone.benchmark import compare_run`` (…) keeps working: the name is taken from
-    :mod:`casadrone.compare` on first use (compare imports this module, so not at load time)."""
-    if name in _MOVED_TO_COMPARE:
-        from casadrone import compare
-
-        return getattr(compare, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -4,8 +4,7 @@
 finished run's front; :func:`compare_run` flies them and the reference airframes on the run's
 platform and compares them interval by interval with :func:`gain_pct` (Eq. 21 as printed, for
 times) and :func:`magnitude_gain_pct` (Eq. 21 on magnitudes, for signed efforts and thrusts), also
-against the paper's measured Table 4 (:mod:`casadrone.benchmark`). Every name here is also
-importable from :mod:`casadrone.benchmark`, where it used to live.
+against the paper's measured Table 4 (:mod:`casadrone.benchmark`).
 """
 
 from __future__ import annotations

@@ -1,11 +1,10 @@
-"""YAML configuration: pydantic v2 schemas of airframes and controllers, their loaders, and the
-check of any config file (``casadrone validate``).
+"""YAML configuration of airframes and controllers: pydantic v2 schemas and their loaders.
 
 Every schema is frozen and forbids unknown keys; cross-field (geometry) checks report every problem
-at once. This is the one module to import configs from: it re-exports the file reading, overrides
-and ``FILE: dotted.key: message`` error reports of :mod:`casadrone.configio` and the problem
-schemas of :mod:`casadrone.problemconfig`. Numbers carry their unit in the key when it is not
-SI-obvious (``lambda_a_mm``, ``alpha_deg``).
+at once. File reading, ``key=value`` overrides and the ``FILE: dotted.key: message`` error reports
+live in :mod:`casadrone.configio`, the problem schemas in :mod:`casadrone.problemconfig`, the check
+of any config file (``casadrone validate``) in :mod:`casadrone.validation`. Numbers carry their unit
+in the key when it is not SI-obvious (``lambda_a_mm``, ``alpha_deg``).
 """
 
 from __future__ import annotations
@@ -14,43 +13,19 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import Field, field_validator
 
-from casadrone.configio import (  # noqa: F401 (re-exported: casadrone.config is the public path)
-    CONFIG_DIR,
-    PATH_KEYS,
-    ROOT,
-    ConfigError,
-    M,
-    Problems,
-    Schema,
-    apply_overrides,
-    check_paths,
-    error_pairs,
-    format_errors,
-    has_keys,
-    load,
-    parse_value,
-    partial_problems,
-    read_yaml,
-    resolve_config,
-    validate_data,
-)
-from casadrone.problemconfig import (  # noqa: F401 (re-exported)
-    AlgorithmConfig,
-    BackendConfig,
-    ConstraintConfig,
-    ObjectiveConfig,
-    ProblemConfig,
-    PymooProblemConfig,
-    VariableConfig,
-    import_plugin,
-    load_problem,
-)
+from casadrone.configio import Schema, has_keys, load, resolve_config
+from casadrone.massprops import inertia_tensor, mass_properties_of, rotor_positions_mm
 
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
 Spin = Literal[-1, 1]
+#: Physical ceilings of airframe values (generous: a heavy-lift multirotor stays far inside).
+#: Beyond them a number is a unit slip (m for mm) and the chain's numerics lose meaning.
+MAX_ARM_MM = 5000.0  # arm length or prop diameter (mm)
+MAX_INERTIA = 1000.0  # any inertia-tensor element (kg·m²)
+DragArea = Annotated[float, Field(ge=0, le=100)]  # C_d·A (m²)
 
 
 # --------------------------------------------------------------------------------------------
@@ -61,41 +36,88 @@ Spin = Literal[-1, 1]
 class ThrustModelConfig(Schema):
     """Identified first-order thrust model G(s) = K / (1 + tau s) per rotor (paper Table 6)."""
 
-    gain_n: float = Field(9.0519, gt=0, description="K, thrust per unit ESC command (N)")
-    time_constant_s: float = Field(0.060538, gt=0, description="tau (s)")
+    gain_n: float = Field(9.0519, gt=0, le=1e4, description="K, thrust per unit ESC command (N)")
+    time_constant_s: float = Field(0.060538, gt=0, le=10, description="tau (s)")
 
 
 ROTOR_LABELS = ("FR", "FL", "RL", "RR")
+#: The keys of an airframe's mass properties: given in ``mass_model: free``, computed from the
+#: ``components`` (:mod:`casadrone.massprops`) in ``mass_model: components``.
+MASS_KEYS = ("mass_kg", "ixx_kgm2", "iyy_kgm2", "izz_kgm2", "ixy_kgm2", "ixz_kgm2", "iyz_kgm2")
+INERTIA_KEYS = ("ixx_kgm2", "iyy_kgm2", "izz_kgm2")
+
+
+class ComponentsConfig(Schema):
+    """The parts of an airframe (``mass_model: components``, :mod:`casadrone.massprops`).
+
+    Positions are body axes (x nose, y left, z up) from the arm hub, the point where the arms meet
+    and from which λa, λb, α, β place the rotors; the rotor plane is z = 0. The centre of mass
+    follows from the parts (it moves forward when λa > λb).
+    """
+
+    body_mass_kg: float = Field(gt=0, description="central body: plates, standoffs, flight "
+                                "controller and ESC stack, camera, video transmitter, receiver, "
+                                "wiring (a uniform box)")
+    body_size_mm: tuple[Positive, Positive, Positive] = Field(
+        description="central body box along body x, y, z (mm)")
+    body_position_mm: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0), description="centre of the body box from the hub (mm)")
+    motor_mass_kg: float = Field(gt=0, description="one motor with its prop and screws, a point "
+                                 "mass at the rotor centre (kg)")
+    arm_linear_density_kgpm: float = Field(ge=0, description="arm mass per metre: a thin rod "
+                                           "from the hub to each rotor (kg/m)")
+    battery_mass_kg: float = Field(gt=0, description="battery pack, a uniform box (kg)")
+    battery_size_mm: tuple[Positive, Positive, Positive] = Field(
+        description="battery box along body x, y, z (mm)")
+    battery_position_mm: tuple[float, float, float] = Field(
+        description="centre of the battery from the hub (mm)")
 
 
 class AirframeConfig(Schema):
-    """An airframe: geometry θ = (λa, λb, α, β, Ixx, Iyy, Izz) plus mass, drag and propulsion."""
+    """An airframe: geometry θ = (λa, λb, α, β, Ixx, Iyy, Izz) plus mass, drag and propulsion.
+
+    ``mass_model: free`` (the paper's Table 1): mass and inertia are given (Ixx, Iyy, Izz are
+    decision variables). ``mass_model: components``: they are computed from ``components`` for
+    each geometry (:mod:`casadrone.massprops`) and must not be given. Either way the inertia tensor
+    must be a possible rigid body: positive definite and its principal moments obeying the
+    triangle inequalities.
+    """
 
     name: str
-    lambda_a_mm: float = Field(gt=0, description="CoM to front motors (mm)")
-    lambda_b_mm: float = Field(gt=0, description="CoM to rear motors (mm)")
+    lambda_a_mm: float = Field(gt=0, le=MAX_ARM_MM,
+                               description="hub (free: CoM) to front motors (mm)")
+    lambda_b_mm: float = Field(gt=0, le=MAX_ARM_MM,
+                               description="hub (free: CoM) to rear motors (mm)")
     alpha_deg: float = Field(gt=0, lt=180, description="angle between the nose arms (deg)")
     beta_deg: float = Field(gt=0, lt=180, description="angle between the tail arms (deg)")
-    ixx_kgm2: float = Field(gt=0, description="roll inertia, about the nose axis (kg·m²)")
-    iyy_kgm2: float = Field(gt=0, description="pitch inertia (kg·m²)")
-    izz_kgm2: float = Field(gt=0, description="yaw inertia (kg·m²)")
-    ixy_kgm2: float = 0.0
-    ixz_kgm2: float = 0.0
-    iyz_kgm2: float = 0.0
-    mass_kg: float = Field(gt=0)
-    drag_area_m2: tuple[NonNegative, NonNegative, NonNegative] = Field(
+    mass_model: Literal["free", "components"] = Field(
+        "free", description="free: mass and inertia given; components: computed from the parts")
+    ixx_kgm2: float | None = Field(None, gt=0, le=MAX_INERTIA,
+                                   description="roll inertia, about the nose axis "
+                                   "(kg·m²); mass_model free only")
+    iyy_kgm2: float | None = Field(None, gt=0, le=MAX_INERTIA,
+                                   description="pitch inertia (kg·m²); free only")
+    izz_kgm2: float | None = Field(None, gt=0, le=MAX_INERTIA,
+                                   description="yaw inertia (kg·m²); free only")
+    ixy_kgm2: float = Field(0.0, ge=-MAX_INERTIA, le=MAX_INERTIA)
+    ixz_kgm2: float = Field(0.0, ge=-MAX_INERTIA, le=MAX_INERTIA)
+    iyz_kgm2: float = Field(0.0, ge=-MAX_INERTIA, le=MAX_INERTIA)
+    mass_kg: float | None = Field(None, gt=0, le=1000, description="total mass (kg); free only")
+    components: ComponentsConfig | None = Field(
+        None, description="the parts (mass_model: components only)")
+    drag_area_m2: tuple[DragArea, DragArea, DragArea] = Field(
         (0.012, 0.012, 0.025), description="C_d·A along body x, y, z (m²)"
     )
-    kappa_m: float = Field(0.016, gt=0, description="rotor yaw torque per unit thrust (m)")
-    battery_voltage_v: float = Field(14.8, gt=0)
-    prop_diameter_mm: float = Field(127.0, gt=0)
+    kappa_m: float = Field(0.016, gt=0, le=1, description="rotor yaw torque per unit thrust (m)")
+    battery_voltage_v: float = Field(14.8, gt=0, le=1000)
+    prop_diameter_mm: float = Field(127.0, gt=0, le=MAX_ARM_MM)
     rotor_spins: tuple[Spin, Spin, Spin, Spin] = Field(
         (-1, 1, -1, 1),
         description="sign of each rotor's reaction yaw torque about body +z, rotors FR, FL, RL, RR",
     )
     thrust: ThrustModelConfig = ThrustModelConfig()
-    air_density_kgm3: float = Field(1.225, gt=0)
-    gravity_mps2: float = Field(9.81, gt=0)
+    air_density_kgm3: float = Field(1.225, gt=0, le=2)
+    gravity_mps2: float = Field(9.81, gt=0, le=30)
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
@@ -106,24 +128,103 @@ class AirframeConfig(Schema):
                 ("rotor_spins", "diagonal rotors must spin alike and the two pairs opposite "
                  f"(FR with RL, FL with RR), e.g. [-1, 1, -1, 1]; got {list(s)}")
             )
-        if has_keys(v, "lambda_a_mm", "lambda_b_mm", "alpha_deg", "beta_deg", "prop_diameter_mm"):
+        geometry = has_keys(v, "lambda_a_mm", "lambda_b_mm", "alpha_deg", "beta_deg")
+        if geometry and "prop_diameter_mm" in v:
             found += _overlaps(v)
-        if has_keys(v, "ixx_kgm2", "iyy_kgm2", "izz_kgm2", "ixy_kgm2", "ixz_kgm2", "iyz_kgm2"):
-            J = [
-                [v["ixx_kgm2"], v["ixy_kgm2"], v["ixz_kgm2"]],
-                [v["ixy_kgm2"], v["iyy_kgm2"], v["iyz_kgm2"]],
-                [v["ixz_kgm2"], v["iyz_kgm2"], v["izz_kgm2"]],
-            ]
-            if not _positive_definite(J):
-                key = next(k for k in ("ixy_kgm2", "ixz_kgm2", "iyz_kgm2") if v[k] != 0)
-                found.append((key, "inertia tensor is not positive definite: the products of "
-                              "inertia are too large for the principal moments"))
-        if has_keys(v, "mass_kg", "gravity_mps2", "thrust"):
-            weight, full = v["mass_kg"] * v["gravity_mps2"], 4 * v["thrust"].gain_n
+        mass_problems = _mass_model_problems(v)
+        found += mass_problems
+        mass = v.get("mass_kg")
+        if (v.get("mass_model") == "components" and v.get("components") is not None
+                and not mass_problems and geometry):
+            mp = mass_properties_of(v)
+            mass = mp.mass_kg
+            found += [("components", f"computed {m}") for _, m in inertia_problems(mp.inertia_kgm2)]
+        elif v.get("mass_model") == "free" and has_keys(v, *MASS_KEYS[1:]) and not mass_problems:
+            found += inertia_problems(inertia_tensor(v))
+        if mass is not None and has_keys(v, "gravity_mps2", "thrust"):
+            weight, full = mass * v["gravity_mps2"], 4 * v["thrust"].gain_n
             if weight >= full:
-                found.append(("mass_kg", f"cannot hover: weight {weight:.2f} N is not below the "
+                key = "mass_kg" if v.get("mass_model") == "free" else "components"
+                found.append((key, f"cannot hover: weight {weight:.2f} N is not below the "
                               f"full thrust of four rotors {full:.2f} N (4 × thrust.gain_n)"))
         return found
+
+
+def _mass_model_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
+    """Mass keys missing in ``mass_model: free``, given in ``components`` (or components absent)."""
+    model = v.get("mass_model")
+    found = []
+    if model == "free":
+        for key in ("mass_kg", *INERTIA_KEYS):
+            if key in v and v[key] is None:
+                found.append((key, "required key missing (mass_model: free; or set mass_model: "
+                              "components and give a components section)"))
+        if v.get("components") is not None:
+            found.append(("components", "only used with mass_model: components; remove it or "
+                          "set mass_model: components"))
+    elif model == "components":
+        if "components" in v and v["components"] is None:
+            found.append(("components", "required when mass_model is 'components'"))
+        for key in MASS_KEYS:
+            if v.get(key) not in (None, 0.0):
+                found.append((key, "computed from the components with mass_model: components; "
+                              "remove it"))
+    return found
+
+
+#: Relative slack on the triangle inequalities (of the trace): a flat body meets Ixx + Iyy = Izz
+#: exactly, which round-off must not turn into a refusal.
+TRIANGLE_RTOL = 1e-9
+
+
+def inertia_problems(J) -> list[tuple[str, str]]:
+    """Why a 3×3 inertia tensor (kg·m², about the CoM) is no rigid body, as (key, message).
+
+    A rigid body's tensor is positive definite and each principal moment is at most the sum of
+    the other two: Ixx + Iyy − Izz = 2 Σ m z² ≥ 0, and likewise about the other axes (equality for
+    a body flat in one plane). A diagonal tensor is checked on its own moments (the message names
+    Ixx, Iyy, Izz); a full one on its principal moments, reported on the body axis nearest the
+    offending principal axis.
+    """
+    keys = (("ixx_kgm2", "ixy_kgm2", "ixz_kgm2"), ("ixy_kgm2", "iyy_kgm2", "iyz_kgm2"),
+            ("ixz_kgm2", "iyz_kgm2", "izz_kgm2"))
+    for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)):
+        if not math.isfinite(J[i][j]):
+            return [(keys[i][j], f"inertia must be a finite number (got {J[i][j]})")]
+    offdiag = (J[0][1], J[0][2], J[1][2])
+    if not _positive_definite(J):
+        if any(offdiag):
+            key = ("ixy_kgm2", "ixz_kgm2", "iyz_kgm2")[[c != 0 for c in offdiag].index(True)]
+            return [(key, "inertia tensor is not positive definite: the products of inertia are "
+                     "too large for the principal moments")]
+        return [("ixx_kgm2", "inertia tensor is not positive definite")]
+    names = ("Ixx", "Iyy", "Izz")
+    if any(offdiag):
+        import numpy as np
+
+        moments, axes = np.linalg.eigh(np.asarray(J, float))
+        nearest = [int(np.argmax(np.abs(axes[:, i]))) for i in range(3)]
+        label = "principal moment"
+    else:
+        moments, nearest, label = [J[i][i] for i in range(3)], [0, 1, 2], ""
+    slack = TRIANGLE_RTOL * float(sum(moments))
+    found = []
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        others = float(moments[j] + moments[k])
+        if float(moments[i]) <= others + slack:
+            continue
+        if label:
+            what = (f"principal moments violate the triangle inequality: {float(moments[i]):.6g} "
+                    f"kg·m² (principal axis nearest body {'xyz'[nearest[i]]}) exceeds the sum of "
+                    f"the other two {others:.6g} kg·m²")
+        else:
+            a, b = sorted((names[j], names[k]))
+            what = (f"{a} + {b} ≥ {names[i]} violated: {names[i]} = {float(moments[i]):.6g} "
+                    f"kg·m² exceeds {a} + {b} = {others:.6g} kg·m²")
+        found.append((INERTIA_KEYS[nearest[i]], what + "; no rigid body has these moments (each "
+                      "principal moment is at most the sum of the other two)"))
+    return found
 
 
 def _overlaps(v: dict[str, Any]) -> list[tuple[str, str]]:
@@ -162,19 +263,6 @@ def _positive_definite(J: list[list[float]]) -> bool:
     return m1 > 0 and m2 > 0 and m3 > 0
 
 
-def rotor_positions_mm(
-    la: float, lb: float, alpha_deg: float, beta_deg: float
-) -> list[list[float]]:
-    """Rotor centres (mm) in the body frame (x nose, y left): FR, FL, RL, RR (DESIGN.md §4)."""
-    a, b = math.radians(alpha_deg) / 2, math.radians(beta_deg) / 2
-    return [
-        [la * math.cos(a), -la * math.sin(a), 0.0],
-        [la * math.cos(a), la * math.sin(a), 0.0],
-        [-lb * math.cos(b), lb * math.sin(b), 0.0],
-        [-lb * math.cos(b), -lb * math.sin(b), 0.0],
-    ]
-
-
 def min_rotor_gap_mm(la: float, lb: float, alpha_deg: float, beta_deg: float) -> float:
     """Smallest centre-to-centre distance between any two rotors (mm)."""
     r = rotor_positions_mm(la, lb, alpha_deg, beta_deg)
@@ -199,12 +287,21 @@ class StateWeights(Schema):
 class RobustnessConfig(Schema):
     """Perturbed-plant ensemble of paper Appendix B."""
 
-    n_plants: int = Field(50, ge=1)
+    n_plants: int = Field(50, ge=1, le=10000)
     dynamics_pct: float = Field(30.0, ge=0, lt=100, description="mass, inertia, drag spread (%)")
     coupling_pct: float = Field(
         20.0, ge=0, lt=100, description="thrust gain, time constant, arm geometry, κ spread (%)"
     )
     seed: int = 0
+
+
+#: Gain policies (DESIGN.md §6). ``redesign``: every candidate's own LQR-I gain. ``frozen-command``:
+#: the reference airframe's gain K (ESC commands from state error) flies every candidate as is, so
+#: each is mixed as the reference would be. ``frozen-wrench``: the reference's gain, re-expressed
+#: from state error to [collective thrust, roll, pitch, yaw torque] and mapped to each candidate's
+#: four commands by its own allocation inverse (:func:`casadrone.control.frozen_wrench_gain`).
+GainPolicy = Literal["redesign", "frozen-command", "frozen-wrench"]
+FROZEN_POLICIES = ("frozen-command", "frozen-wrench")
 
 
 class ControllerConfig(Schema):
@@ -217,21 +314,38 @@ class ControllerConfig(Schema):
         (0.05, 0.05, 0.1, 0.05), description="weights of ∫e for x, y, z, yaw"
     )
     r: tuple[Positive, Positive, Positive, Positive] = Field((10.0, 10.0, 10.0, 10.0))
-    gain_policy: Literal["redesign", "frozen"] = "redesign"
+    gain_policy: GainPolicy = Field("redesign", description="redesign: each candidate's own "
+                                    "gain; frozen-command / frozen-wrench: the reference's gain")
     reference_airframe: Path | None = Field(
-        None, description="airframe YAML whose gain is frozen for all (gain_policy: frozen)"
+        None, description="airframe YAML whose gain is frozen for all (frozen-* gain policies)"
     )
     robustness: RobustnessConfig = RobustnessConfig()
 
+    @field_validator("gain_policy", mode="before")
+    @classmethod
+    def _renamed_policy(cls, value: Any) -> Any:
+        if value == "frozen":
+            raise ValueError("'frozen' is now called 'frozen-command' (the reference gain frozen "
+                             "in ESC-command space, flown through the reference's mixer); or use "
+                             "'frozen-wrench' (frozen in thrust and torque space, each frame "
+                             "mixed by its own allocation)")
+        return value
+
+    @property
+    def frozen_gain(self) -> bool:
+        """True when one reference gain flies every candidate (a frozen-* gain policy)."""
+        return self.gain_policy in FROZEN_POLICIES
+
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
-        if v.get("gain_policy") == "frozen" and v.get("reference_airframe", 0) is None:
-            return [("reference_airframe", "required when gain_policy is 'frozen'")]
+        policy = v.get("gain_policy")
+        if policy in FROZEN_POLICIES and v.get("reference_airframe", 0) is None:
+            return [("reference_airframe", f"required when gain_policy is '{policy}'")]
         return []
 
 
 # --------------------------------------------------------------------------------------------
-# Loading by kind, and validating any config file
+# Loading by kind
 # --------------------------------------------------------------------------------------------
 
 
@@ -246,80 +360,3 @@ def load_controller(
 ) -> ControllerConfig:
     """Load a controller YAML or name; ``None`` gives ``configs/controllers/default.yaml``."""
     return load(ControllerConfig, resolve_config(path or "default", "controllers"), overrides)
-
-
-# Schemas by config folder name, for ``casadrone validate``; later layers register theirs. A
-# value is a schema class, or "module:Class" for a schema defined in a heavier module (imported
-# only when a file of that kind is validated).
-SCHEMAS_BY_FOLDER: dict[str, type[BaseModel] | str] = {
-    "airframes": AirframeConfig,
-    "controllers": ControllerConfig,
-    "tracks": "casadrone.guidance:TrackConfig",
-    "references": "casadrone.benchmark:Table4Reference",
-    "problems": ProblemConfig,
-}
-# Fallback when the folder says nothing: a key that only that schema has.
-SCHEMAS_BY_KEY: dict[str, type[BaseModel] | str] = {
-    "lambda_a_mm": AirframeConfig,
-    "sample_time_s": ControllerConfig,
-    "gain_policy": ControllerConfig,
-    "waypoints_m": "casadrone.guidance:TrackConfig",
-    "objectives": ProblemConfig,
-}
-
-
-def schema_class(entry: type[BaseModel] | str) -> type[BaseModel]:
-    """A registered schema: the class itself, or imported from its "module:Class" string."""
-    if isinstance(entry, str):
-        import importlib
-
-        module, _, name = entry.partition(":")
-        return getattr(importlib.import_module(module), name)
-    return entry
-
-
-def detect_schema(path: Path, data: dict[str, Any]) -> type[BaseModel] | None:
-    """The schema of a config file: from its folder (``airframes/`` …), else a telling key,
-    else the known schema sharing the most top-level keys (so misspelt files are still checked)."""
-    for part in reversed(Path(path).resolve().parts[:-1]):
-        if part in SCHEMAS_BY_FOLDER:
-            return schema_class(SCHEMAS_BY_FOLDER[part])
-    for key, entry in SCHEMAS_BY_KEY.items():
-        if key in data:
-            return schema_class(entry)
-    entries = dict.fromkeys(e for e in (*SCHEMAS_BY_FOLDER.values(), *SCHEMAS_BY_KEY.values())
-                            if not isinstance(e, str))  # never import heavy modules to guess
-    scored = sorted(((len(set(data) & set(m.model_fields)), m) for m in entries),
-                    key=lambda t: -t[0])
-    if scored and scored[0][0] > 0 and (len(scored) == 1 or scored[0][0] > scored[1][0]):
-        return scored[0][1]
-    return None
-
-
-def validate_file(path: str | Path) -> BaseModel:
-    """Validate any known config file, and the config files it references; ConfigError lists
-    every problem."""
-    path = Path(path)
-    data = read_yaml(path)
-    model = detect_schema(path, data)
-    if model is None:
-        kinds = ", ".join(SCHEMAS_BY_FOLDER)
-        raise ConfigError([f"{path}: (top level): cannot tell what kind of config this is; put it "
-                           f"in a folder named after its kind ({kinds})"])
-    errors: list[str] = []
-    try:
-        obj = validate_data(model, data, str(path), path.parent)
-    except ConfigError as exc:
-        errors += exc.lines
-        obj = None
-    resolved, _ = check_paths(data, path.parent, str(path))
-    for key, kind in PATH_KEYS.items():
-        ref = resolved.get(key)
-        if isinstance(ref, str) and Path(ref).is_file() and kind in SCHEMAS_BY_FOLDER:
-            try:
-                load(schema_class(SCHEMAS_BY_FOLDER[kind]), ref)
-            except ConfigError as exc:
-                errors += [f"{path}: {key}: referenced file is invalid"] + exc.lines
-    if errors:
-        raise ConfigError(errors)
-    return obj

@@ -16,23 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
-from casadrone.config import (
-    AirframeConfig,
-    ConfigError,
-    ControllerConfig,
-    load,
-    load_airframe,
-    load_controller,
-)
+from casadrone.airframe import Airframe, build_airframe, decision_keys, with_theta
+from casadrone.config import AirframeConfig, ControllerConfig, load_airframe, load_controller
+from casadrone.configio import CONFIG_DIR, ConfigError, load
 from casadrone.control import design_for
 from casadrone.guidance import TrackConfig
 from casadrone.simulate import SimOptions, Trajectory, simulate
 from casadrone.trim import trim
 
-DEFAULT_TRACK = (
-    Path(__file__).resolve().parent.parent / "configs" / "tracks" / "paper-rectangle.yaml"
-)
+DEFAULT_TRACK = CONFIG_DIR / "tracks" / "paper-rectangle.yaml"
 
 
 @dataclass(frozen=True)
@@ -48,9 +40,14 @@ class EvaluationSetup:
 
     @cached_property
     def reference_airframe(self) -> Airframe | None:
-        """The airframe whose gain is frozen (gain_policy: frozen), else None."""
+        """The airframe whose gain is frozen (frozen-* gain policies), else None."""
         ref = self.controller.reference_airframe
         return build_airframe(load_airframe(ref)) if ref is not None else None
+
+    @cached_property
+    def template_data(self) -> dict:
+        """``template.model_dump()``, once per study (each candidate overrides its θ in it)."""
+        return self.template.model_dump()
 
 
 def default_setup(
@@ -59,8 +56,9 @@ def default_setup(
     track: str | Path | None = None,
     integrator: str = "rk4",
 ) -> EvaluationSetup:
-    """A setup from config files (reference airframe name or path; defaults: paper track,
-    default controller)."""
+    """A setup from config files: ``airframe`` (reference name or path) is the template whose
+    mass, drag and propulsion every evaluated θ flies with (defaults: paper track, default
+    controller)."""
     return EvaluationSetup(
         template=load_airframe(airframe),
         controller=load_controller(controller),
@@ -92,19 +90,47 @@ def _failed(theta, stage, reason, start) -> Evaluation:
                       wall_time_s=time.perf_counter() - start)
 
 
+class Theta(dict):
+    """θ read from a named airframe config by :func:`theta_of`: a plain dict of config keys that
+    remembers the airframe, so :func:`evaluate` refuses to fly it on another airframe's template
+    by accident."""
+
+    def __init__(self, values: Mapping[str, float], airframe: str):
+        super().__init__(values)
+        self.airframe = airframe
+
+
 def evaluate(
     theta: Mapping[str, float],
     setup: EvaluationSetup,
     index_names: Sequence[str] | None = None,
     keep_trajectory: bool = False,
 ) -> Evaluation:
-    """Evaluate one candidate ``theta`` (config keys, e.g. ``{"alpha_deg": 80, …}``)."""
+    """Evaluate one candidate ``theta`` (config keys, e.g. ``{"alpha_deg": 80, …}``).
+
+    θ replaces only the decision variables of ``setup.template`` (λa, λb, α, β, Ixx, Iyy, Izz, or
+    whichever keys it holds); everything else flown (mass, drag areas, κ, propulsion, prop size,
+    rotor spins) is the template's. To fly a reference airframe, use its own setup:
+    ``evaluate(theta_of(cfg), default_setup("HS210"))``.
+
+    Raises:
+        ValueError: ``theta`` came from :func:`theta_of` of an airframe other than the template
+            (it would fly that airframe's geometry with the template's mass and drag); pass
+            ``dict(theta)`` to mean exactly that.
+    """
     from casadrone.indices import compute_indices, interval_table
 
+    source = getattr(theta, "airframe", None)
+    if source is not None and source != setup.template.name:
+        raise ValueError(
+            f"theta_of({source}) on a setup whose template is {setup.template.name}: this would "
+            f"fly {source}'s geometry with {setup.template.name}'s mass, drag and propulsion; use "
+            f"default_setup({source!r}) (or replace(setup, template=...)), or pass dict(theta) "
+            "to mean it")
     start = time.perf_counter()
     theta = {k: float(v) for k, v in theta.items()}
     try:
-        airframe = build_airframe(with_theta(setup.template, theta))
+        airframe = build_airframe(with_theta(setup.template, theta, base=setup.template_data))
     except ConfigError as exc:
         return _failed(theta, "geometry", "; ".join(exc.lines), start)
     tp = trim(airframe, "hover", 0.0, solver=setup.trim_solver)
@@ -128,7 +154,8 @@ def evaluate(
     )
 
 
-def theta_of(cfg: AirframeConfig) -> dict[str, float]:
-    """The decision variables of an airframe config (Table 1 keys)."""
-    return {k: float(getattr(cfg, k)) for k in THETA_KEYS}
+def theta_of(cfg: AirframeConfig) -> Theta:
+    """The decision variables of an airframe config (Table 1 keys; the four geometry keys with
+    ``mass_model: components``), tagged with its name (see :class:`Theta`)."""
+    return Theta({k: float(getattr(cfg, k)) for k in decision_keys(cfg)}, cfg.name)
 

@@ -24,9 +24,12 @@ import casadi as ca
 import numpy as np
 from pydantic import Field, model_validator
 
-from casadrone.config import Schema
+from casadrone.configio import Schema
 
 Vec3 = tuple[float, float, float]
+#: Shortest leg between consecutive route points (m): a waypoint on top of the previous one
+#: gives a segment with no direction, which the guidance cannot fly.
+MIN_LEG_M = 0.01
 
 
 class TrackConfig(Schema):
@@ -51,13 +54,23 @@ class TrackConfig(Schema):
     max_accel_mps2: float = Field(
         10.0, gt=0, description="rate limit of the velocity reference (reference shaping)"
     )
-    time_limit_s: float = Field(60.0, gt=0)
+    time_limit_s: float = Field(60.0, gt=0, le=3600, description="lap time limit (s); the "
+                                "compiled lap allocates every controller step up to it")
     max_tilt_deg: float = Field(80.0, gt=0, lt=90, description="attitude limit → failed lap")
 
     @model_validator(mode="after")
     def _consistent(self) -> TrackConfig:
         if len(self.straight) != len(self.waypoints_m):
             raise ValueError("straight: needs one entry per waypoint")
+        route = self.route
+        legs = np.linalg.norm(np.diff(route, axis=0), axis=1)
+        if np.any(legs < MIN_LEG_M):
+            k = int(np.argmin(legs))
+            name = "the climb point" if self.climb_to_m is not None and k == 0 else \
+                f"waypoint {k - self.first_timed_segment + 1}"
+            raise ValueError(f"waypoints_m: {name} is {legs[k]:.3g} m from the route point "
+                             f"before it (a leg needs at least {MIN_LEG_M} m; a zero-length leg "
+                             "has no direction to fly)")
         return self
 
     @property
@@ -104,8 +117,24 @@ class GuidanceLayout:
         return 3 * self.n_route + 3 * self.n_seg + 6
 
 
+_VECTORS: dict[int, tuple[TrackConfig, np.ndarray]] = {}
+
+
 def track_vector(track: TrackConfig) -> np.ndarray:
-    """Numeric guidance parameter vector of a track (layout :class:`GuidanceLayout`)."""
+    """Numeric guidance parameter vector of a track (layout :class:`GuidanceLayout`), read-only;
+    computed once per track object (a study flies every candidate on the same one)."""
+    hit = _VECTORS.get(id(track))
+    if hit is not None and hit[0] is track:
+        return hit[1]
+    vector = _track_vector(track)
+    vector.flags.writeable = False
+    if len(_VECTORS) > 64:
+        _VECTORS.clear()
+    _VECTORS[id(track)] = (track, vector)  # holds the track: its id is not reused meanwhile
+    return vector
+
+
+def _track_vector(track: TrackConfig) -> np.ndarray:
     route = track.route
     heads = segment_headings(route, math.radians(track.start_yaw_deg))
     n_seg = len(route) - 1

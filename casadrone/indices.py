@@ -39,7 +39,7 @@ from typing import Literal
 
 import numpy as np
 
-from casadrone.simulate import Trajectory
+from casadrone.simulate import Trajectory, row_norm
 
 Sense = Literal["min", "max"]
 IndexFunction = Callable[[Trajectory], float]
@@ -78,9 +78,40 @@ def _require_completed(traj: Trajectory) -> None:
         raise ValueError(f"indices are not defined for a failed lap ({traj.reason or 'failed'})")
 
 
+def _shared(traj: Trajectory, key: str, make: Callable[[], np.ndarray]) -> np.ndarray:
+    """A read-only array derived from ``traj``, computed once per trajectory and kept with it
+    (as ``functools.cached_property`` does), so the indices of one lap share their masks."""
+    slot = f"_indices_{key}"
+    value = traj.__dict__.get(slot)
+    if value is None:
+        value = make()
+        value.flags.writeable = False
+        traj.__dict__[slot] = value
+    return value
+
+
 def lap_mask(traj: Trajectory) -> np.ndarray:
-    """Samples of the lap: from t = 0 to the sample that reaches the last waypoint (excluded)."""
-    return traj.waypoint_index < len(traj.waypoints)
+    """Samples of the lap: from t = 0 to the sample that reaches the last waypoint (excluded).
+    Read-only (shared by every index of the lap)."""
+    return _shared(traj, "lap", lambda: traj.waypoint_index < len(traj.waypoints))
+
+
+def _rows(mask: np.ndarray) -> slice | np.ndarray:
+    """``mask`` as a slice when its samples are one contiguous run (the lap and each interval
+    are: the waypoint index never decreases), else the mask itself. Indexing with the slice
+    selects the same samples in the same order, without a copy."""
+    hits = np.flatnonzero(mask)
+    if hits.size and hits[-1] - hits[0] + 1 == hits.size:
+        return slice(int(hits[0]), int(hits[-1]) + 1)
+    return mask
+
+
+def _lap_rows(traj: Trajectory) -> slice | np.ndarray:
+    """The lap samples as a slice (or mask), computed once per lap."""
+    slot = "_indices_lap_rows"
+    if slot not in traj.__dict__:
+        traj.__dict__[slot] = _rows(lap_mask(traj))
+    return traj.__dict__[slot]
 
 
 def interval_mask(traj: Trajectory, waypoint: int) -> np.ndarray:
@@ -92,11 +123,15 @@ def interval_mask(traj: Trajectory, waypoint: int) -> np.ndarray:
 
 
 def sector_mask(traj: Trajectory, straight: bool) -> np.ndarray:
-    """Lap samples on straight (``straight=True``) or curved legs; the climb is in neither."""
-    wi = traj.waypoint_index
-    legs = np.array(traj.straight, dtype=bool)
-    on_leg = lap_mask(traj) & (traj.segment >= traj.first_timed_segment)
-    return on_leg & (legs[np.minimum(wi, len(legs) - 1)] == straight)
+    """Lap samples on straight (``straight=True``) or curved legs; the climb is in neither.
+    Read-only (shared by every index of the lap)."""
+    def make() -> np.ndarray:
+        wi = traj.waypoint_index
+        legs = np.array(traj.straight, dtype=bool)
+        on_leg = lap_mask(traj) & (traj.segment >= traj.first_timed_segment)
+        return on_leg & (legs[np.minimum(wi, len(legs) - 1)] == straight)
+
+    return _shared(traj, f"sector_{bool(straight)}", make)
 
 
 def roll_effort_voltage(traj: Trajectory) -> np.ndarray:
@@ -153,19 +188,19 @@ def lap_time(traj: Trajectory) -> float:
 def max_acceleration(traj: Trajectory) -> float:
     """J4: maximum over the lap samples of |a| (m/s²), a the world kinematic acceleration
     (d/dt of the world velocity, gravity not included: zero in hover)."""
-    return float(np.max(np.linalg.norm(traj.acceleration[lap_mask(traj)], axis=1)))
+    return float(np.max(row_norm(traj.acceleration[_lap_rows(traj)])))
 
 
 def effort_rms(traj: Trajectory) -> float:
     """J5: RMS (V) of the ESC voltage deviation from trim, (δ_i − u0_i) V_batt, over the lap
     samples and the four motors."""
-    dv = (traj.u[lap_mask(traj)] - np.asarray(traj.u0)[None, :]) * traj.battery_voltage
+    dv = (traj.u[_lap_rows(traj)] - np.asarray(traj.u0)[None, :]) * traj.battery_voltage
     return float(np.sqrt(np.mean(dv**2)))
 
 
 def max_pitch(traj: Trajectory) -> float:
     """Jp: maximum |θ| (deg) over the lap samples, θ the ZYX Euler pitch angle."""
-    return float(np.degrees(np.max(np.abs(traj.x[lap_mask(traj), 10]))))
+    return float(np.degrees(np.max(np.abs(traj.x[_lap_rows(traj), 10]))))
 
 
 _BUILTIN = (
@@ -272,16 +307,22 @@ def interval_table(traj: Trajectory) -> list[Interval]:
     _require_completed(traj)
     effort = roll_effort_voltage(traj)
     pair = pair_thrust_difference(traj)
+    wi = traj.waypoint_index
+    W = len(traj.waypoints)
+    if np.all(wi[1:] >= wi[:-1]):  # as flown: each interval is one run of samples
+        edges = np.searchsorted(wi, np.arange(W + 1), side="left")
+        selections = [slice(int(edges[j]), int(edges[j + 1])) for j in range(W)]
+    else:
+        selections = [interval_mask(traj, j) for j in range(1, W + 1)]
     rows = []
-    for j in range(1, len(traj.waypoints) + 1):
-        m = interval_mask(traj, j)
-        n = int(m.sum())
+    for j, m in enumerate(selections, start=1):
+        n = len(effort[m])
         rows.append(Interval(
             waypoint=j,
             split_time_s=float(traj.split_times[j - 1]),
-            effort_V=float(np.mean(effort[m])) if n else float("nan"),
-            pair_thrust_max_N=float(np.max(pair[m])) if n else float("nan"),
-            pair_thrust_min_N=float(np.min(pair[m])) if n else float("nan"),
+            effort_V=float(effort[m].sum() / n) if n else float("nan"),  # np.mean's sum / n
+            pair_thrust_max_N=float(pair[m].max()) if n else float("nan"),
+            pair_thrust_min_N=float(pair[m].min()) if n else float("nan"),
             straight=bool(traj.straight[j - 1]),
             n_samples=n,
         ))

@@ -14,6 +14,7 @@ import casadi as ca
 import numpy as np
 
 from casadrone.airframe import Airframe
+from casadrone.codegen import ZeroCopyCall
 from casadrone.model import INPUT_NAMES, NU, NX, STATE_NAMES, quadrotor_model
 
 Method = Literal["exact", "fd"]
@@ -55,19 +56,23 @@ def jacobians_fd(xdot0, x0, u0, p) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return D[:, :NX], D[:, NX : 2 * NX], D[:, 2 * NX :]
 
 
+@lru_cache(maxsize=1)
+def _linear_parts() -> ZeroCopyCall:
+    """ẋ0 and the exact E, A′, B′ in one zero-copy call (built once per process)."""
+    return ZeroCopyCall(quadrotor_model().linear_parts)
+
+
 def linearise(airframe: Airframe, trim_point, method: Method = "exact") -> LinearModel:
     """Linearise about ``trim_point`` (anything with ``x0`` and ``u0``)."""
-    model = quadrotor_model()
+    if method not in ("exact", "fd"):
+        raise ValueError(f"unknown linearisation method {method!r}; use 'exact' or 'fd'")
     p = airframe.p
     x0 = np.asarray(trim_point.x0, float)
     u0 = np.asarray(trim_point.u0, float)
-    xdot0 = np.array(model.f(x0, u0, p)).ravel()
-    if method == "exact":
-        E, Ap, Bp = (np.array(M) for M in model.jacobians(xdot0, x0, u0, p))
-    elif method == "fd":
+    xdot0, E, Ap, Bp = (np.array(M.T) for M in _linear_parts()(x0, u0, p))
+    xdot0 = xdot0.ravel()
+    if method == "fd":
         E, Ap, Bp = jacobians_fd(xdot0, x0, u0, p)
-    else:
-        raise ValueError(f"unknown linearisation method {method!r}; use 'exact' or 'fd'")
     A = -np.linalg.solve(E, Ap)
     B = -np.linalg.solve(E, Bp)
     return LinearModel(E=E, A_prime=Ap, B_prime=Bp, A=A, B=B, x0=x0, u0=u0, xdot0=xdot0,

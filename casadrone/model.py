@@ -71,11 +71,15 @@ class QuadrotorModel:
         F: implicit residual ``F(xdot, x, u, p) -> res`` (16).
         f: explicit dynamics ``f(x, u, p) -> xdot`` derived from F.
         jacobians: ``jacobians(xdot, x, u, p) -> (E, A_prime, B_prime)``, exact Jacobians of F.
+        linear_parts: ``linear_parts(x, u, p) -> (xdot, E, A_prime, B_prime)``, dense: ẋ = f and
+            the Jacobians of F there in one call (F is affine in ẋ with E(p), so A′ and B′ do
+            not depend on ẋ).
     """
 
     F: ca.Function
     f: ca.Function
     jacobians: ca.Function
+    linear_parts: ca.Function
     state_names: tuple[str, ...] = STATE_NAMES
     input_names: tuple[str, ...] = INPUT_NAMES
     param_names: tuple[str, ...] = PARAM_NAMES
@@ -129,4 +133,12 @@ def quadrotor_model() -> QuadrotorModel:
         ["xdot", "x", "u", "p"],
         ["E", "A_prime", "B_prime"],
     )
-    return QuadrotorModel(F=F, f=f, jacobians=jacobians)
+    xdot_at = f(x, u, p)
+    linear_parts = ca.Function(
+        "linear_parts",
+        [x, u, p],
+        [xdot_at, *(ca.densify(J) for J in jacobians(xdot_at, x, u, p))],
+        ["x", "u", "p"],
+        ["xdot", "E", "A_prime", "B_prime"],
+    )
+    return QuadrotorModel(F=F, f=f, jacobians=jacobians, linear_parts=linear_parts)

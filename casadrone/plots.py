@@ -495,14 +495,22 @@ def convergence(generations: Sequence[int], hypervolume: Sequence[float],
     return fig
 
 
+#: White margin (inches) around a figure saved with a tight bounding box.
+PAD_INCHES = 0.05
+
+
 def save_figure(fig: Figure, path_without_suffix: str | Path,
                 formats: Sequence[str] = ("png", "svg"), dpi: int = 150) -> list[Path]:
-    """Write ``fig`` once per format (parent folders created); returns the paths written."""
+    """Write ``fig`` once per format (parent folders created); returns the paths written.
+
+    The saved extent is the figure's tight bounding box plus :data:`PAD_INCHES`, so no label,
+    title or legend is clipped off the edge whatever the figure size or dpi."""
     base = Path(path_without_suffix)
     base.parent.mkdir(parents=True, exist_ok=True)
     paths = []
     for fmt in formats:
         path = base.with_name(f"{base.name}.{fmt.lstrip('.')}")
-        fig.savefig(path, format=fmt.lstrip("."), dpi=dpi)
+        fig.savefig(path, format=fmt.lstrip("."), dpi=dpi, bbox_inches="tight",
+                    pad_inches=PAD_INCHES)
         paths.append(path)
     return paths

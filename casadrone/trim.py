@@ -41,6 +41,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from casadrone.airframe import PARAM_NAMES, Airframe
+from casadrone.codegen import ZeroCopyCall
 from casadrone.model import (
     EUL,
     INPUT_NAMES,
@@ -149,6 +150,7 @@ class _TrimFunctions:
     residual: ca.Function  # residual(z, p, V) -> Q (6)
     cost: ca.Function  # cost(z, p, V, h) -> QᵀHQ
     residual_norm: ca.Function  # residual_norm(x, u, p) -> ‖f[3:16]‖₂
+    point: ZeroCopyCall  # point(z, p, V) -> (x, u, ‖f[3:16]‖₂) in one zero-copy call
 
 
 def _state_expr(z, p, V):
@@ -180,6 +182,10 @@ def _functions() -> _TrimFunctions:
         residual_norm=ca.Function(
             "trim_residual_norm", [xs, us, p], [ca.norm_2(rows)], ["x", "u", "p"], ["norm"]
         ),
+        point=ZeroCopyCall(ca.Function(
+            "trim_point", [z, p, V], [x, u, ca.norm_2(f(x, u, p)[3:])], ["z", "p", "V"],
+            ["x", "u", "norm"],
+        )),
     )
 
 
@@ -226,11 +232,16 @@ def _solve_ipopt(z0, p, V, o: TrimOptions):
     return np.asarray(sol["x"]).ravel(), int(st.get("iter_count", 0)), str(st["return_status"])
 
 
+@lru_cache(maxsize=8)
+def _newton_call(tol: float, max_iter: int) -> ZeroCopyCall:
+    return ZeroCopyCall(_newton(tol, max_iter))
+
+
 def _solve_newton(z0, p, V, o: TrimOptions):
-    rf = _newton(o.tolerance, o.max_iterations)
-    z = rf(z0, np.append(p, V))
+    rf = _newton_call(o.tolerance, o.max_iterations)
+    (z,) = rf(z0, np.append(p, V))
     st = rf.stats()
-    return np.asarray(z).ravel(), int(st.get("iter_count", 0)), str(st["return_status"])
+    return z.ravel().copy(), int(st.get("iter_count", 0)), str(st["return_status"])
 
 
 def _solve_nelder_mead(z0, p, V, o: TrimOptions):
@@ -327,9 +338,8 @@ def trim(
         error = None
     except Exception as exc:  # a solver crash is a failed trim, never an exception
         z, iterations, status, error = z0, 0, "", f"{type(exc).__name__}: {exc}"
-    x, u = fn.state(z, p, V)
-    x0, u0 = np.asarray(x).ravel(), np.asarray(u).ravel()
-    residual = float(fn.residual_norm(x0, u0, p))
+    x, u, norm = fn.point(z, p, V)
+    x0, u0, residual = x.ravel().copy(), u.ravel().copy(), float(norm[0, 0])
     wall = time.perf_counter() - start
 
     tol = o.nelder_mead_tolerance if solver == "nelder-mead" else o.tolerance

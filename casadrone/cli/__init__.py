@@ -6,57 +6,23 @@ stderr and exits with code 2, without a traceback. Heavy modules (CasADi, the ch
 inside the commands, so ``casadrone validate`` stays fast.
 
 The commands are grouped by layer: :mod:`~casadrone.cli.design` (validate, trim, linearise, lqr),
-:mod:`~casadrone.cli.flight` (simulate, benchmark) and :mod:`~casadrone.cli.optimisation` (run,
-resume, decide, compare, report), all registered on the one :data:`app` of
+:mod:`~casadrone.cli.flight` (simulate, benchmark), :mod:`~casadrone.cli.massprops` (massprops),
+:mod:`~casadrone.cli.optimisation` (run, resume, decide, compare, report) and
+:mod:`~casadrone.cli.export` (export), all registered on the one :data:`app` of
 :mod:`~casadrone.cli.common`, the console entry point ``casadrone.cli:app``.
 """
 
 from __future__ import annotations
 
-# The imports register the commands; their order is the order of ``casadrone --help``.
-from casadrone.cli.common import (  # noqa: F401 (re-exported)
-    EXIT_BAD_INPUT,
-    AirframeArg,
-    JsonOpt,
-    OverridesArg,
-    PlotOpt,
-    app,
-    bad_input,
-    check_plot_dir,
-    jsonable,
-    load_airframe_or_exit,
-    print_json,
-    reports_config_errors,
-    save_figures,
+# Importing the command modules registers their commands on ``app``; their order is the order of
+# ``casadrone --help``. Only ``app`` is public here: import anything else from its module.
+from casadrone.cli import (  # noqa: F401 (importing registers the commands)
+    design,
+    export,
+    flight,
+    massprops,
+    optimisation,
 )
-from casadrone.cli.design import (  # noqa: F401 (re-exported)
-    Condition,
-    LinMethod,
-    TrimSolver,
-    linearise,
-    lqr,
-    trim,
-    validate,
-)
-from casadrone.cli.flight import INTERVAL_KEYS, IntegratorName, benchmark, simulate  # noqa: F401
-from casadrone.cli.optimisation import (  # noqa: F401 (re-exported)
-    BackendName,
-    BackendOpt,
-    DecideMethod,
-    QuietOpt,
-    ReferenceOpt,
-    RunDirArg,
-    SchedulerOpt,
-    WorkersOpt,
-    backend_config,
-    compare,
-    decide_command,
-    open_problem,
-    report,
-    require_run_dir,
-    resume,
-    run_command,
-    run_error,
-    run_summary,
-)
-from casadrone.config import ConfigError  # noqa: F401 (re-exported)
+from casadrone.cli.common import app
+
+__all__ = ["app"]

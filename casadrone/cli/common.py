@@ -11,7 +11,7 @@ from typing import Annotated, Any
 
 import typer
 
-from casadrone.config import ConfigError
+from casadrone.configio import ConfigError
 
 app = typer.Typer(
     name="casadrone",
@@ -23,6 +23,23 @@ app = typer.Typer(
 )
 
 EXIT_BAD_INPUT = 2
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        from casadrone import __version__
+
+        typer.echo(f"casadrone {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[bool, typer.Option(
+        "--version", callback=_print_version, is_eager=True,
+        help="print the casadrone version and exit")] = False,
+) -> None:
+    """Racing-drone airframe optimisation."""
 
 AirframeArg = Annotated[
     str, typer.Argument(help="airframe YAML, or a reference name (SY250, HS200, ...)")
@@ -44,15 +61,86 @@ def bad_input(lines: list[str]) -> typer.Exit:
     return typer.Exit(EXIT_BAD_INPUT)
 
 
+#: Failures a command can meet on a good day (a full disk, a damaged run directory, a pickle or
+#: database that does not read, numerics that overflow): one line each, exit code 2.
+def _expected() -> tuple[type[BaseException], ...]:
+    import pickle
+    import sqlite3
+
+    import yaml
+
+    from casadrone.optimise.store import NotARunDirectory, RunDamaged, RunInProgress
+
+    return (OSError, sqlite3.Error, pickle.PickleError, EOFError, UnicodeDecodeError,
+            yaml.YAMLError, FloatingPointError, OverflowError, RunDamaged, RunInProgress,
+            NotARunDirectory)
+
+
+def one_line(exc: BaseException) -> str:
+    """An expected failure as one line: ``FILE: what`` where a file is known."""
+    import sqlite3
+
+    if isinstance(exc, OSError) and exc.strerror:
+        where = exc.filename or ""
+        return f"{where}: {exc.strerror}" if where else exc.strerror
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if isinstance(exc, sqlite3.Error):
+        return f"history database: {text}"
+    return text
+
+
+def log_traceback(exc: BaseException) -> Path | None:
+    """Write the traceback of an unexpected exception to a log file; its path (None if even
+    that fails)."""
+    import datetime as dt
+    import os
+    import traceback
+
+    root = Path(os.environ.get("CASADRONE_CACHE") or Path.home() / ".cache" / "casadrone")
+    try:
+        folder = root / "logs"
+        folder.mkdir(parents=True, exist_ok=True)
+        stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%S")
+        path = folder / f"error-{stamp}-{os.getpid()}.log"
+        path.write_text("".join(traceback.format_exception(exc)), encoding="utf-8")
+        return path
+    except OSError:
+        return None
+
+
 def reports_config_errors(command):
-    """Turn a ConfigError raised anywhere in ``command`` into its lines and exit code 2."""
+    """Every way ``command`` can fail, as lines on stderr and an exit code, never a traceback:
+    a ConfigError (one line per problem) or an expected failure (one line) exits 2; a signal
+    exits 128 + its number (130 Ctrl-C, 143 SIGTERM) saying how to resume a run; anything else
+    is a bug: one line naming a log file that holds the traceback, exit 1."""
 
     @wraps(command)
     def wrapper(*args, **kwargs):
+        import signal
+
+        import click
+
         try:
             return command(*args, **kwargs)
         except ConfigError as exc:
             raise bad_input(exc.lines) from None
+        except (typer.Exit, typer.Abort, click.exceptions.ClickException):
+            raise
+        except KeyboardInterrupt as exc:  # also the runner's Interrupted (SIGINT, SIGTERM)
+            signum = getattr(exc, "signum", signal.SIGINT)
+            run_dir = getattr(exc, "run_dir", None)
+            hint = (f"; state recorded, continue with: casadrone resume {run_dir}"
+                    if run_dir is not None else "")
+            typer.echo(f"interrupted ({signal.Signals(signum).name}){hint}", err=True)
+            raise typer.Exit(128 + signum) from None
+        except _expected() as exc:
+            raise bad_input([one_line(exc)]) from None
+        except Exception as exc:  # noqa: BLE001 (the last resort: a bug, not bad input)
+            log = log_traceback(exc)
+            where = f" (traceback in {log})" if log else ""
+            typer.echo(f"casadrone: internal error: {type(exc).__name__}: "
+                       f"{' '.join(str(exc).split())[:300]}{where}", err=True)
+            raise typer.Exit(1) from None
 
     return wrapper
 

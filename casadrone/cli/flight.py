@@ -66,7 +66,8 @@ def simulate(
     """
     check_plot_dir(plot)
     cfg, _ = load_airframe_or_exit(airframe, overrides)
-    from casadrone.config import load, load_controller, resolve_config
+    from casadrone.config import load_controller
+    from casadrone.configio import load, resolve_config
     from casadrone.evaluate import DEFAULT_TRACK, EvaluationSetup, evaluate, theta_of
     from casadrone.guidance import TrackConfig
     from casadrone.indices import INDICES

@@ -1,8 +1,8 @@
 """The pymoo problem over the evaluation chain (or over a pymoo test problem).
 
 A :class:`Study` is the picklable description shared by the coordinator and the workers: the
-resolved :class:`~casadrone.config.ProblemConfig`. Workers turn it into an evaluation setup once
-per process (:func:`study_setup`, cached), then evaluate rows of decision vectors into
+resolved :class:`~casadrone.problemconfig.ProblemConfig`. Workers turn it into an evaluation setup
+once per process (:func:`study_setup`, cached), then evaluate rows of decision vectors into
 :class:`Record` objects. :class:`CandidateProblem` maps records to pymoo's F (minimised) and G
 (≤ 0 feasible): a failed candidate is infeasible with its reason kept, never NaN in F.
 """
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from pymoo.core.problem import Problem
 
-from casadrone.config import ProblemConfig
+from casadrone.problemconfig import ProblemConfig
 
 #: Constraint violation of a failed candidate, by the stage where it failed: earlier failures are
 #: worse, so feasibility-first selection moves the search towards candidates that fly.
@@ -93,13 +93,14 @@ _SETUPS: dict[str, object] = {}
 def _setup(key: str, problem: ProblemConfig):
     """The evaluation setup of a problem, built once per process (the model and compiled lap are
     cached inside the chain's modules, so the first evaluation pays for them only once)."""
-    from casadrone.config import load, load_airframe, load_controller
+    from casadrone.config import load_airframe, load_controller
+    from casadrone.configio import load
     from casadrone.evaluate import DEFAULT_TRACK, EvaluationSetup
     from casadrone.guidance import TrackConfig
 
     if key in _SETUPS:
         return _SETUPS[key]
-    from casadrone.config import import_plugin
+    from casadrone.problemconfig import import_plugin
 
     for plugin in problem.plugins:  # workers start fresh: register custom indices here too
         import_plugin(plugin)

@@ -21,39 +21,20 @@ from __future__ import annotations
 import datetime as _dt
 from pathlib import Path
 
-from casadrone.report.analysis import (  # noqa: F401 (re-exported)
-    LABELS,
-    STAGES,
-    Candidate,
-    ConvergenceHistory,
-    Run,
+from casadrone.report.analysis import (
     choose_candidates,
-    convergence_history,
-    failure_groups,
-    feasible_front,
     read_run,
-    reason_group,
 )
 from casadrone.report.candidates import (
     evaluate_candidates,
     section_airframes,
     section_candidates,
 )
-from casadrone.report.markup import (  # noqa: F401 (re-exported)
+from casadrone.report.markup import (
     PLOTS,
-    SYMBOL,
-    UNIT_SUFFIX,
     Figures,
-    Html,
-    cell,
     esc,
-    kv_table,
     note,
-    num,
-    objective_label,
-    table,
-    unit_of,
-    variable_label,
 )
 from casadrone.report.sections import (
     section_convergence,
@@ -67,6 +48,7 @@ __all__ = ["Candidate", "choose_candidates", "convergence_history", "failure_gro
            "write_report"]
 
 REPORT = "report.html"
+EXPORTS = "exports"  # the candidates' exported files, beside the report
 
 
 CSS = """
@@ -107,8 +89,13 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
             beside it, as PNG and SVG.
         trim_sample: at most this many evaluations are trimmed again for the trim section.
     """
+    path = Path(out) if out is not None else Path(run_dir) / REPORT
+    if path.is_dir() or (path.exists() and not path.is_file()):
+        raise ValueError(f"--out: {path}: is a directory; give the report's file name "
+                         f"(e.g. {path / REPORT})")
+    if path.parent.exists() and not path.parent.is_dir():
+        raise ValueError(f"--out: {path.parent}: exists and is not a directory")
     run = read_run(run_dir)
-    path = Path(out) if out is not None else run.store.path / REPORT
     figs = Figures(path.parent / PLOTS)
     cands = choose_candidates(run)
     if not run.test_problem:
@@ -117,7 +104,8 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
         "problem": section_problem(run),
         "convergence": section_convergence(run, figs),
         "pareto": section_pareto(run, cands, figs),
-        "candidates": (section_candidates(run, cands, figs) if not run.test_problem
+        "candidates": (section_candidates(run, cands, figs, path.parent / EXPORTS)
+                       if not run.test_problem
                        else note("A pymoo test problem has no trajectories.")),
         "airframes": section_airframes(run, cands, tuple(references), figs),
         "failures": section_failures(run, figs),
@@ -136,6 +124,8 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
             f" · status {esc(m.get('status'))} · {len(run.history)} evaluations · "
             f"{len(run.F)} designs on the front · report written {esc(stamp)}</p>"
             f"<nav>{nav}</nav></header>{sections}</body></html>")
+    from casadrone.optimise.store import atomic_write
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(page, encoding="utf-8")
+    atomic_write(path, page)
     return path

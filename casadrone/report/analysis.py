@@ -14,6 +14,7 @@ import numpy as np
 
 from casadrone.evaluate import Evaluation
 from casadrone.indices import INDICES
+from casadrone.optimise.hypervolume import non_dominated
 from casadrone.optimise.problem import FAILURE_CV, Record, Study, objectives_and_constraints
 from casadrone.optimise.store import PARETO, RunStore
 
@@ -69,13 +70,6 @@ def feasible_front(study: Study, history: list[dict]) -> tuple[np.ndarray, np.nd
     return np.array([h["generation"] for h in history]), F, np.all(G <= 0, axis=1)
 
 
-def _non_dominated(F: np.ndarray) -> np.ndarray:
-    from pymoo.util.nds.non_dominated_sorting import NonDominatedSorting
-
-    F = np.unique(F, axis=0)
-    return F[NonDominatedSorting().do(F, only_non_dominated_front=True)] if len(F) > 1 else F
-
-
 def read_run(run_dir: str | Path) -> Run:
     """Read a run directory; without ``pareto.csv`` (an unfinished run) the front is the
     non-dominated feasible set of every evaluation stored so far."""
@@ -89,7 +83,7 @@ def read_run(run_dir: str | Path) -> Run:
         X, F, source = A[:, :nv], A[:, nv:], PARETO
     else:
         _, Fmin, ok = feasible_front(study, history)
-        best = _non_dominated(Fmin[ok]) if ok.any() else Fmin[:0]
+        best = non_dominated(Fmin[ok]) if ok.any() else Fmin[:0]
         keep = [i for i in np.flatnonzero(ok) if (best == Fmin[i]).all(axis=1).any()]
         keep = list({tuple(Fmin[i]): i for i in keep}.values())  # one design per point
         X = np.array([[history[i][n] for n in study.variable_names] for i in keep]).reshape(-1, nv)
@@ -151,8 +145,9 @@ def choose_candidates(run: Run) -> list[Candidate]:
 @dataclass(frozen=True)
 class ConvergenceHistory:
     """Per generation: hypervolume of the non-dominated feasible set of all evaluations so far,
-    in one normalised space fixed for the whole run (ideal and nadir of the final such set,
-    objectives minimised, scaled to [0, 1], reference point 1.1 per objective)."""
+    in one normalised space fixed for the whole run (ideal and nadir of the first feasible
+    generation's non-dominated set, objectives minimised, scaled to [0, 1], reference point 1.1
+    per objective; :mod:`casadrone.optimise.hypervolume`)."""
 
     generations: np.ndarray
     hypervolume: np.ndarray
@@ -162,33 +157,37 @@ class ConvergenceHistory:
 
 
 def convergence_history(run: Run, max_points: int = 60) -> ConvergenceHistory:
-    """Recompute the hypervolume per generation from the history (see ConvergenceHistory).
+    """Recompute the hypervolume per generation from the history (see ConvergenceHistory): the
+    value the run showed on the console and logged, in the same fixed space
+    (:mod:`casadrone.optimise.hypervolume`; the space stored in the manifest, else the one the
+    first feasible generation fixes).
 
     The archive is updated every generation; the hypervolume (whose cost grows fast with the
     archive in five objectives) is computed at no more than ``max_points`` evenly spaced
     generations, the last always included, and is NaN at the others.
     """
-    from pymoo.indicators.hv import HV
+    from casadrone.optimise.hypervolume import HypervolumeSpace, non_dominated
 
     gen, F, ok = feasible_front(run.study, run.history)
     gens = np.array(sorted({g["generation"] for g in run.generations} | set(gen.tolist())), int)
-    final = _non_dominated(F[ok]) if ok.any() else np.empty((0, F.shape[1]))
     m = F.shape[1]
-    lo = final.min(axis=0) if len(final) else np.full(m, np.nan)
-    hi = final.max(axis=0) if len(final) else np.full(m, np.nan)
-    span = np.where(hi > lo, hi - lo, 1.0)
-    indicator = HV(ref_point=np.full(m, 1.1))
+    stored = run.manifest.get("hypervolume_space")
+    space = (HypervolumeSpace(np.array(stored["ideal"]), np.array(stored["nadir"]))
+             if stored else None)
     every = max(1, math.ceil(len(gens) / max_points))
     archive, hv, size = np.empty((0, m)), [], []
     for k, g in enumerate(gens):
         new = F[ok & (gen == g)]
         if len(new):
-            archive = _non_dominated(np.vstack([archive, new]))
+            space = space or HypervolumeSpace.of(new, raw=run.test_problem)
+            archive = non_dominated(np.vstack([archive, new]))
         due = k % every == 0 or k == len(gens) - 1
-        hv.append(float(indicator((archive - lo) / span)) if due and len(archive) else
+        hv.append(space.hypervolume(archive) if due and space is not None else
                   0.0 if due else math.nan)
         size.append(len(archive))
-    return ConvergenceHistory(gens, np.array(hv), np.array(size, int), lo, hi)
+    nan = np.full(m, np.nan)
+    return ConvergenceHistory(gens, np.array(hv), np.array(size, int),
+                              space.ideal if space else nan, space.nadir if space else nan)
 
 
 _NUMBER = re.compile(r"(?<![A-Za-z_\d.])[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?")

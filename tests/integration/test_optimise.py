@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from casadrone.config import BackendConfig, ConfigError, load_problem
+from casadrone.configio import ConfigError
 from casadrone.optimise.runner import resume, run
 from casadrone.optimise.store import RunStore
+from casadrone.problemconfig import BackendConfig, load_problem
 
 QUICK = "problems/quick.yaml"
 TINY = ["algorithm.population=16", "algorithm.generations=3", "algorithm.settings.n_ind_ga=8"]
@@ -90,8 +91,12 @@ def test_dask_local_cluster_equals_serial(tmp_path, tiny, uninterrupted):
 
 
 def test_existing_run_directory_is_not_overwritten(uninterrupted, tiny):
-    with pytest.raises(FileExistsError, match="resume"):
+    from casadrone.optimise.store import NotARunDirectory
+
+    before = {p.name: p.stat().st_mtime_ns for p in uninterrupted.iterdir()}
+    with pytest.raises(NotARunDirectory, match="resume"):
         run(tiny, uninterrupted, BackendConfig(name="serial"), quiet=True)
+    assert {p.name: p.stat().st_mtime_ns for p in uninterrupted.iterdir()} == before
 
 
 def test_same_seed_same_front_different_seed_differs(tmp_path, tiny, uninterrupted):
@@ -155,9 +160,15 @@ def test_second_coordinator_is_refused_while_first_is_alive(uninterrupted):
     import sys
 
     store = RunStore(uninterrupted)
-    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    holder = ("import fcntl, os, sys, time\n"
+              "fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT)\n"
+              "fcntl.flock(fd, fcntl.LOCK_EX)\n"
+              "os.ftruncate(fd, 0); os.write(fd, str(os.getpid()).encode())\n"
+              "print('locked', flush=True); time.sleep(60)\n")
+    sleeper = subprocess.Popen([sys.executable, "-c", holder, str(uninterrupted / "run.lock")],
+                               stdout=subprocess.PIPE, text=True)
     try:
-        (uninterrupted / "run.lock").write_text(str(sleeper.pid))
+        assert sleeper.stdout.readline().strip() == "locked"
         expected = f"run in progress \\(coordinator pid {sleeper.pid}\\)"
         with pytest.raises(RuntimeError, match=expected):
             store.acquire()
@@ -166,8 +177,12 @@ def test_second_coordinator_is_refused_while_first_is_alive(uninterrupted):
         sleeper.wait()
     store.acquire()  # the dead coordinator's lock is taken over
     assert (uninterrupted / "run.lock").read_text() == str(os.getpid())
+    with pytest.raises(RuntimeError, match="run in progress"):
+        RunStore(uninterrupted).acquire()  # even from this same process
     store.release()
-    assert not (uninterrupted / "run.lock").exists()
+    other = RunStore(uninterrupted)
+    other.acquire()  # released: free again
+    other.release()
 
 
 def test_run_keeps_its_own_copies_of_input_files(uninterrupted, tmp_path):
@@ -181,5 +196,46 @@ def test_run_keeps_its_own_copies_of_input_files(uninterrupted, tmp_path):
     from casadrone.config import load_controller
 
     ctrl = load_controller(problem.controller)
-    assert ctrl.gain_policy == "frozen"
+    assert ctrl.gain_policy == "frozen-wrench"
     assert ctrl.reference_airframe == inputs / "reference_airframe.yaml"
+
+
+def _possible(ixx, iyy, izz):
+    return izz <= ixx + iyy and ixx <= iyy + izz and iyy <= ixx + izz
+
+
+def test_no_impossible_body_is_completed_or_on_the_front(uninterrupted):
+    """Issue acceptance: the quick problem keeps the Table 1 box, about 29 % of which violates
+    Izz ≤ Ixx + Iyy; those candidates fail at stage geometry, never fly, never reach the front."""
+    store = RunStore(uninterrupted)
+    hist = store.history()
+    for r in hist:
+        if r["status"] == "completed":
+            assert _possible(r["ixx_kgm2"], r["iyy_kgm2"], r["izz_kgm2"]), r
+    impossible = [r for r in hist if not _possible(r["ixx_kgm2"], r["iyy_kgm2"], r["izz_kgm2"])]
+    assert impossible, "the Table 1 box holds impossible bodies, some must have been drawn"
+    for r in impossible:
+        assert r["status"] == "failed" and r["stage"] == "geometry"
+        assert "violated" in r["reason"]
+    header, rows = store.read_pareto()
+    col = {name: header.index(name) for name in ("ixx_kgm2", "iyy_kgm2", "izz_kgm2")}
+    for row in rows:
+        assert _possible(row[col["ixx_kgm2"]], row[col["iyy_kgm2"]], row[col["izz_kgm2"]])
+
+
+def test_components_study_optimises_the_geometry_only(tmp_path):
+    """mass_model: components end to end: four decision variables, mass and inertia from the
+    parts for every candidate, frozen-wrench on SY250-components."""
+    geometry = "[" + ", ".join(
+        f"{{name: {k}, lower: {lo}, upper: {hi}}}" for k, lo, hi in (
+            ("lambda_a_mm", 100, 150), ("lambda_b_mm", 100, 150), ("alpha_deg", 65, 90),
+            ("beta_deg", 65, 90))) + "]"
+    problem = load_problem(QUICK, TINY + ["airframe=SY250-components", f"variables={geometry}",
+                                          "controller=frozen-wrench-sy250-components"])
+    out = tmp_path / "run"
+    run(problem, out, BackendConfig(name="serial"), quiet=True)
+    store = RunStore(out)
+    header, rows = store.read_pareto()
+    assert header[:4] == ["lambda_a_mm", "lambda_b_mm", "alpha_deg", "beta_deg"] and rows
+    completed = [r for r in store.history() if r["status"] == "completed"]
+    assert len({r["lambda_a_mm"] for r in completed}) > 5

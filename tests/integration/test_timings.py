@@ -4,17 +4,17 @@ import numpy as np
 import pytest
 from pymoo.indicators.hv import HV
 
-from casadrone.config import BackendConfig, load_problem
-from casadrone.optimise.runner import (
+from casadrone.optimise.hypervolume import (
     HV_EVERY,
-    hypervolume,
-    hypervolume_estimate,
-    progress_hypervolume,
-    resume,
-    run,
+    HypervolumeSpace,
+    advance,
+    dominated_fraction,
+    due,
 )
+from casadrone.optimise.runner import resume, run
 from casadrone.optimise.store import RunStore
 from casadrone.optimise.timings import FIELDS, read_timings
+from casadrone.problemconfig import BackendConfig, load_problem
 
 TINY = ["algorithm.population=16", "algorithm.generations=3", "algorithm.settings.n_ind_ga=8"]
 STEPS = ("ask_s", "evaluate_s", "advance_s", "statistics_s", "history_s", "checkpoint_s")
@@ -42,25 +42,36 @@ def test_timings_one_row_per_generation_across_a_resume(tmp_path):
 
 
 def test_progress_hypervolume_schedule():
+    assert all(due(m, gen, last=False) for m in (2, 3) for gen in (1, 7, 13))
+    assert not due(4, 3, last=False)
+    assert due(4, HV_EVERY, last=False) and due(5, 3, last=True)
+
+
+def test_buffered_generations_give_the_same_value_as_computing_every_one():
     rng = np.random.default_rng(0)
-    for m in (2, 3):
-        F = rng.random((40, m))
-        for gen in (1, 7, 13):
-            assert progress_hypervolume(F, True, gen, last=False) == hypervolume(F, True)
-    F = rng.random((40, 4))
-    assert progress_hypervolume(F, True, 3, last=False) is None
-    assert progress_hypervolume(F, True, HV_EVERY, last=False) == hypervolume(F, True)
-    assert progress_hypervolume(F, True, 3, last=True) == hypervolume(F, True)
+    batches = [rng.random((30, 4)) + 0.3 * (5 - k) for k in range(5)]
+    every, buffered = None, None
+    for k, F in enumerate(batches):
+        every, v_every = advance(every, F)
+        buffered, v_buffered = advance(buffered, F, compute=k == len(batches) - 1)
+        assert (v_buffered is None) == (k < len(batches) - 1)
+    assert v_buffered == v_every
+    np.testing.assert_array_equal(buffered.archive, every.archive)
 
 
-def test_hypervolume_estimate_agrees_with_the_exact_value():
+def test_hypervolume_estimate_agrees_with_the_exact_value_and_never_falls():
     rng = np.random.default_rng(1)
     for m in (3, 6):
         d = np.abs(rng.normal(size=(60, m)))
         F = d / np.linalg.norm(d, axis=1, keepdims=True)
-        ref = np.full(m, 1.1)
+        lo, ref = np.zeros(m), np.full(m, 1.1)
         exact = HV(ref_point=ref)(F)
-        box = np.prod(ref - F.min(axis=0))
+        box = np.prod(ref - lo)
         p = exact / box
         se = box * np.sqrt(p * (1 - p) / 4096)
-        assert hypervolume_estimate(F, ref) == pytest.approx(exact, abs=4 * se)
+        estimate = box * dominated_fraction(F, lo, ref)
+        assert estimate == pytest.approx(exact, abs=4 * se)
+        # fixed samples: adding points never lowers the estimate
+        assert box * dominated_fraction(np.vstack([F, 0.9 * F[:5]]), lo, ref) >= estimate
+    space = HypervolumeSpace(np.zeros(6), np.ones(6))
+    assert space.hypervolume(F) == pytest.approx(box * dominated_fraction(F, lo, ref))

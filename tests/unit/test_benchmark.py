@@ -15,13 +15,15 @@ from casadrone.benchmark import (
     REFERENCE_NAMES,
     Table4Reference,
     format_table,
-    gain_pct,
     load_reference,
     run_benchmark,
     to_json,
 )
-from casadrone.config import load, load_airframe, validate_file
+from casadrone.compare import gain_pct
+from casadrone.config import load_airframe
+from casadrone.configio import load
 from casadrone.guidance import TrackConfig
+from casadrone.validation import validate_file
 
 
 def test_eq21_on_hand_numbers():

@@ -54,7 +54,7 @@ def test_validate_folder(cli_runner):
 BAD_CASES = {
     "misspelt_key.yaml": ("mas_kg", "did you mean 'mass_kg'"),
     "misspelt_nested_key.yaml": ("thrust.gainn", "did you mean 'gain_n'"),
-    "wrong_type.yaml": ("mass_kg", "Input should be a valid number"),
+    "wrong_type.yaml": ("mass_kg", "expected a number, got the text 'heavy'"),
     "negative_mass.yaml": ("mass_kg", "Input should be greater than 0 (got -0.32)"),
     "angle_out_of_range.yaml": ("alpha_deg", "Input should be less than 180 (got 200.0)"),
     "missing_reference.yaml": ("reference_airframe",
@@ -244,11 +244,11 @@ def test_lqr_without_ensemble_has_no_ensemble_keys(cli_runner):
 
 def test_lqr_frozen_gain_from_reference(cli_runner, tmp_path):
     ctrl = tmp_path / "frozen.yaml"
-    ctrl.write_text("name: frozen\ngain_policy: frozen\nreference_airframe: SY250\n")
+    ctrl.write_text("name: frozen\ngain_policy: frozen-command\nreference_airframe: SY250\n")
     frozen = run_json(cli_runner, "lqr", "HS200", "--controller", ctrl)
     reference = run_json(cli_runner, "lqr", "SY250", "--controller", ctrl)
     own = run_json(cli_runner, "lqr", "HS200")
-    assert frozen["gain_policy"] == "frozen" and own["gain_policy"] == "redesign"
+    assert frozen["gain_policy"] == "frozen-command" and own["gain_policy"] == "redesign"
     np.testing.assert_allclose(frozen["K"], reference["K"], rtol=1e-12)
     assert not np.allclose(frozen["K"], own["K"])
 
@@ -452,9 +452,9 @@ def test_dask_backend_without_extra_exits_2(cli_runner, tmp_path, monkeypatch):
 
 def make_run_dir(path: Path, finished: bool = True, checkpoint: bool = False) -> Path:
     """A run directory of the quick problem with a hand-made two-design front."""
-    from casadrone.config import load_problem
     from casadrone.optimise.problem import Study
     from casadrone.optimise.store import RunStore
+    from casadrone.problemconfig import load_problem
 
     problem = load_problem(QUICK, ["objectives=[{index: J3, sense: min}, {index: J4}]"])
     study = Study(problem)
@@ -467,6 +467,7 @@ def make_run_dir(path: Path, finished: bool = True, checkpoint: bool = False) ->
         store.write_pareto(study.variable_names, study.objective_names, X,
                            np.array([[16.5, 14.0], [16.6, 15.0]]))
         store.update_manifest(status="completed", n_evaluations=2, finished="2026-01-01")
+    store.release()
     return path
 
 
@@ -493,12 +494,6 @@ def test_resume_of_a_finished_run_reports_it_complete(cli_runner, tmp_path):
     assert result.stdout.startswith(f"{d}: the run is already complete (finished 2026-01-01)")
     assert "Pareto front: 2 design(s) from 2 evaluations" in result.stdout
     assert (d / "manifest.json").read_text() == before  # untouched
-
-
-def test_resume_without_checkpoint_exits_2(cli_runner, tmp_path):
-    d = make_run_dir(tmp_path / "run", finished=False)
-    result = run(cli_runner, "resume", d)
-    assert result.exit_code == 2 and "no checkpoint.pkl" in result.stderr
 
 
 def test_decide_unfinished_run_and_unknown_objective_exit_2(cli_runner, tmp_path):
@@ -558,3 +553,50 @@ def test_report_without_the_report_module_exits_1(cli_runner, tmp_path, monkeypa
     result = run(cli_runner, "report", make_run_dir(tmp_path / "run"))
     assert result.exit_code == 1, result.output
     assert "casadrone.report is not available" in result.stderr
+
+
+def test_version(cli_runner):
+    from casadrone import __version__
+
+    result = run(cli_runner, "--version")
+    assert result.exit_code == 0 and result.stdout.strip() == f"casadrone {__version__}"
+
+
+def test_validate_configs_problems_outside_the_checkout_checks_the_shipped_files(
+        cli_runner, tmp_path, monkeypatch):
+    from casadrone.configio import DATA_DIR
+
+    monkeypatch.chdir(tmp_path)  # no configs/ or problems/ here: the shipped ones are meant
+    shipped = sorted(DATA_DIR.rglob("*.yaml"))
+    result = run(cli_runner, "validate", "configs", "problems", "--json")
+    assert result.exit_code == 0, result.output
+    files = sorted(Path(f["file"]) for f in json.loads(result.stdout)["files"])
+    assert files == shipped
+
+
+@pytest.mark.parametrize("command", ["validate", "trim", "simulate"])
+def test_impossible_inertia_is_bad_input(cli_runner, tmp_path, command):
+    """An airframe with Izz > Ixx + Iyy: exit 2 naming the triangle inequality, no traceback."""
+    frame = tmp_path / "impossible.yaml"
+    text = (ROOT / "configs" / "airframes" / "SY250.yaml").read_text()
+    frame.write_text(text.replace("izz_kgm2: 0.0036", "izz_kgm2: 0.0045"))
+    result = run(cli_runner, command, frame)
+    assert result.exit_code == 2, result.output
+    assert f"{frame}: izz_kgm2: Ixx + Iyy ≥ Izz violated" in result.stderr
+    assert "Traceback" not in result.output
+
+
+def test_impossible_inertia_override_is_bad_input(cli_runner):
+    result = run(cli_runner, "simulate", "SY250", "izz_kgm2=0.0045", "--json")
+    assert result.exit_code == 2
+    assert "izz_kgm2: Ixx + Iyy ≥ Izz violated" in result.stderr
+    assert "[override izz_kgm2=0.0045]" in result.stderr
+
+
+def test_impossible_inertia_is_a_failed_evaluation_at_geometry():
+    from casadrone.evaluate import default_setup, evaluate
+
+    ev = evaluate({"ixx_kgm2": 0.0014, "iyy_kgm2": 0.0012, "izz_kgm2": 0.0042},
+                  default_setup("SY250", "frozen-wrench-sy250"))
+    assert ev.status == "failed" and ev.stage == "geometry"
+    assert "Ixx + Iyy ≥ Izz violated" in ev.reason

@@ -6,21 +6,16 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from pydantic import ValidationError
 
 from casadrone import config as C
-from casadrone.config import (
-    AirframeConfig,
-    ConfigError,
-    ControllerConfig,
-    Schema,
-    apply_overrides,
-    load_airframe,
-    load_controller,
-    validate_file,
-)
-from casadrone.configio import CONFIG_DIR
+from casadrone import problemconfig as P
+from casadrone.airframe import TABLE1_BOUNDS
+from casadrone.config import AirframeConfig, ControllerConfig, load_airframe, load_controller
+from casadrone.configio import CONFIG_DIR, ConfigError, Schema, apply_overrides, validate_data
+from casadrone.validation import validate_file
 
 ROOT = Path(__file__).resolve().parents[2]
 BAD = ROOT / "tests" / "data" / "bad"
@@ -42,7 +37,7 @@ SY250 = {
 def problems_of(data: dict, model=AirframeConfig, source: str = "f.yaml") -> list[str]:
     """The ConfigError lines of validating ``data``."""
     with pytest.raises(ConfigError) as info:
-        C.validate_data(model, data, source, Path("."))
+        validate_data(model, data, source, Path("."))
     return info.value.lines
 
 
@@ -66,7 +61,27 @@ BAD_EXPECTED = {
     "misspelt_key.yaml": [("mas_kg", "unknown key (did you mean 'mass_kg'?)"),
                           ("mass_kg", "required key missing")],
     "misspelt_nested_key.yaml": [("thrust.gainn", "did you mean 'gain_n'")],
-    "wrong_type.yaml": [("mass_kg", "valid number")],
+    "wrong_type.yaml": [("mass_kg", "expected a number, got the text 'heavy'")],
+    "number_as_text.yaml": [("mass_kg", "expected a number, got the text '0.32'")],
+    "bool_as_number.yaml": [("mass_kg", "expected a number, got the boolean true")],
+    "infinite_inertia.yaml": [("ixx_kgm2", "finite"), ("drag_area_m2", "finite")],
+    "huge_arm.yaml": [("lambda_a_mm", "beyond any physical value")],
+    "controller_infinite_weight.yaml": [("r", "finite"), ("q_integral", "finite")],
+    "track_repeated_waypoint.yaml": [("waypoints_m", "waypoint 2 is 0 m from the route point")],
+    "track_infinite_waypoint.yaml": [("waypoints_m", "finite")],
+    "problem_fixed_negative_mass.yaml": [("fixed.mass_kg", "greater than 0")],
+    "problem_negative_seed.yaml": [("seed", "greater than or equal to 0")],
+    "problem_negative_arm_bounds.yaml": [("variables.0.lower", "not a possible lambda_a_mm"),
+                                         ("variables.0.upper", "not a possible lambda_a_mm")],
+    "problem_text_variable.yaml": [("variables.0.name", "not a number the search can vary")],
+    "problem_empty_box.yaml": [("variables", "cannot produce a valid airframe")],
+    "problem_bad_evmoga_settings.yaml": [("algorithm.settings.n_ind_ga", "must be even"),
+                                         ("algorithm.settings.n_div", "must be >= 1")],
+    "problem_misspelt_setting.yaml": [("algorithm.settings.eliminate_duplicate",
+                                       "did you mean 'eliminate_duplicates'")],
+    "problem_population_contradiction.yaml": [("algorithm.settings.n_ind_p",
+                                               "contradicts algorithm.population")],
+    "problem_moead.yaml": [("algorithm.name", "handles no constraints")],
     "negative_mass.yaml": [("mass_kg", "greater than 0")],
     "angle_out_of_range.yaml": [("alpha_deg", "less than 180")],
     "overlapping_rotors.yaml": [("alpha_deg", "rotors FR and FL overlap")],
@@ -247,7 +262,7 @@ def test_every_schema_is_frozen_and_forbids_extra_keys():
     schemas = [s for s in _all_schemas()
                if s.__module__ in ("casadrone.config", "casadrone.problemconfig")]
     assert {AirframeConfig, ControllerConfig, C.StateWeights, C.ThrustModelConfig,
-            C.ProblemConfig, C.VariableConfig, C.AlgorithmConfig} <= set(schemas)
+            P.ProblemConfig, P.VariableConfig, P.AlgorithmConfig} <= set(schemas)
     for s in schemas:
         assert s.model_config["frozen"] is True and s.model_config["extra"] == "forbid", s
 
@@ -292,8 +307,7 @@ def test_overrides_are_validated_like_the_file():
     src = str(CONFIG_DIR / "airframes/SY250.yaml")
     assert info.value.lines == [
         f"{src}: alpha_deg: Input should be less than 180 (got 200) [override alpha_deg=200]",
-        f"{src}: mass_kg: Input should be a valid number, unable to parse string as a number "
-        "(got 'x') [override mass_kg=x]",
+        f"{src}: mass_kg: expected a number, got the text 'x' [override mass_kg=x]",
         f"{src}: thrust.gainn: unknown key (did you mean 'gain_n'?) [override thrust.gainn=3]",
     ]
 
@@ -311,23 +325,32 @@ def test_frozen_gain_reference_by_name_and_relative_path(tmp_path):
         "\n".join(f"{k}: {v}" for k, v in SY250.items()) + "\n"
     )
     by_name = tmp_path / "by_name.yaml"
-    by_name.write_text("gain_policy: frozen\nreference_airframe: SY250\n")
-    assert validate_file(by_name).reference_airframe == ROOT / "configs/airframes/SY250.yaml"
+    by_name.write_text("gain_policy: frozen-command\nreference_airframe: SY250\n")
+    found = validate_file(by_name).reference_airframe
+    assert found.resolve() == (ROOT / "configs/airframes/SY250.yaml").resolve()
     rel = tmp_path / "rel.yaml"
-    rel.write_text("gain_policy: frozen\nreference_airframe: frame.yaml\n")
+    rel.write_text("gain_policy: frozen-command\nreference_airframe: frame.yaml\n")
     assert validate_file(rel).reference_airframe == tmp_path / "frame.yaml"
 
 
-def test_frozen_gain_without_reference():
-    assert problems_of({"gain_policy": "frozen"}, ControllerConfig) == [
-        "f.yaml: reference_airframe: required when gain_policy is 'frozen'"
+@pytest.mark.parametrize("policy", ["frozen-command", "frozen-wrench"])
+def test_frozen_gain_without_reference(policy):
+    assert problems_of({"gain_policy": policy}, ControllerConfig) == [
+        f"f.yaml: reference_airframe: required when gain_policy is '{policy}'"
     ]
+
+
+def test_old_frozen_policy_name_fails_with_the_new_names():
+    (line,) = problems_of({"gain_policy": "frozen", "reference_airframe": "SY250"},
+                          ControllerConfig)
+    assert line.startswith("f.yaml: gain_policy: 'frozen' is now called 'frozen-command'")
+    assert "'frozen-wrench'" in line
 
 
 def test_referenced_file_that_is_invalid_is_reported(tmp_path):
     (tmp_path / "frame.yaml").write_text("name: x\nlambda_a_mm: -1\n")
     ctrl = tmp_path / "ctrl.yaml"
-    ctrl.write_text("gain_policy: frozen\nreference_airframe: frame.yaml\n")
+    ctrl.write_text("gain_policy: frozen-command\nreference_airframe: frame.yaml\n")
     with pytest.raises(ConfigError) as info:
         validate_file(ctrl)
     lines = info.value.lines
@@ -338,7 +361,7 @@ def test_referenced_file_that_is_invalid_is_reported(tmp_path):
 
 def test_unknown_reference_name_suggests_one(tmp_path):
     ctrl = tmp_path / "ctrl.yaml"
-    ctrl.write_text("gain_policy: frozen\nreference_airframe: SY25\n")
+    ctrl.write_text("gain_policy: frozen-command\nreference_airframe: SY25\n")
     with pytest.raises(ConfigError) as info:
         validate_file(ctrl)
     (line,) = info.value.lines
@@ -368,3 +391,108 @@ def test_top_level_shape(tmp_path, text, message):
 def test_missing_file():
     with pytest.raises(ConfigError, match="no/such.yaml: file not found"):
         validate_file("no/such.yaml")
+
+
+# ---------------------------------------------------------------------------------------------
+# Possible rigid bodies only: positive definite, triangle inequalities on the principal moments
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("moments, key, inequality", [
+    ((0.0022, 0.0017, 0.0045), "izz_kgm2", "Ixx + Iyy ≥ Izz"),
+    ((0.0060, 0.0017, 0.0036), "ixx_kgm2", "Iyy + Izz ≥ Ixx"),
+    ((0.0012, 0.0060, 0.0036), "iyy_kgm2", "Ixx + Izz ≥ Iyy"),
+])
+def test_triangle_inequality_violations_name_the_inequality(moments, key, inequality):
+    data = {**SY250, **dict(zip(("ixx_kgm2", "iyy_kgm2", "izz_kgm2"), moments, strict=True))}
+    (line,) = problems_of(data)
+    assert line.startswith(f"f.yaml: {key}: {inequality} violated"), line
+
+
+def test_flat_body_meets_the_triangle_inequality_with_equality():
+    AirframeConfig.model_validate({**SY250, "izz_kgm2": 0.0022 + 0.0017})
+
+
+def test_full_tensor_checked_on_its_principal_moments():
+    """diag(1, 1, 3)·1e-3 (impossible) turned 10° about x: every diagonal entry is below the
+    sum of the other two in the naive check, yet the principal moments are the same."""
+    c, s = math.cos(math.radians(10)), math.sin(math.radians(10))
+    R = [[1, 0, 0], [0, c, -s], [0, s, c]]
+    D = [1e-3, 1e-3, 3e-3]
+    J = [[sum(R[i][k] * D[k] * R[j][k] for k in range(3)) for j in range(3)] for i in range(3)]
+    data = {**SY250, "ixx_kgm2": J[0][0], "iyy_kgm2": J[1][1], "izz_kgm2": J[2][2],
+            "iyz_kgm2": J[1][2]}
+    (line,) = problems_of(data)
+    assert line.startswith("f.yaml: izz_kgm2: principal moments violate the triangle inequality")
+
+
+def test_inertia_problems_agree_with_an_eigenvalue_oracle():
+    """Random symmetric positive-definite tensors: refused exactly when numpy's principal moments
+    break a triangle inequality; tensors of random point clouds (real bodies) never are."""
+    rng = np.random.default_rng(7)
+    refused = 0
+    for _ in range(300):
+        L = rng.normal(size=(3, 3))
+        J = L @ L.T + 0.05 * np.eye(3)
+        m = np.linalg.eigvalsh(J)
+        impossible = m[2] > m[0] + m[1] + 1e-12
+        refused += impossible
+        assert bool(C.inertia_problems(J.tolist())) == impossible
+        pts, w = rng.normal(size=(6, 3)), rng.uniform(0.1, 1, 6)
+        pts -= (w @ pts) / w.sum()
+        body = sum(wi * (p @ p * np.eye(3) - np.outer(p, p)) for wi, p in zip(w, pts, strict=True))
+        assert C.inertia_problems(body.tolist()) == []
+    assert 0 < refused < 300  # both outcomes were exercised
+
+
+def test_table1_box_is_partly_impossible():
+    """Izz ≤ Ixx + Iyy over the uniform Table 1 inertia box: by exact integration (the box
+    volume below the plane), and the schema agrees on a grid."""
+    from casadrone.airframe import TABLE1_BOUNDS as B
+
+    (x0, x1), (y0, y1), (z0, z1) = B["ixx_kgm2"], B["iyy_kgm2"], B["izz_kgm2"]
+    # P(Z ≤ X + Y): integrate the clipped length of [z0, min(z1, x + y)] over the x-y rectangle
+    n = 400
+    xs = x0 + (x1 - x0) * (np.arange(n) + 0.5) / n
+    ys = y0 + (y1 - y0) * (np.arange(n) + 0.5) / n
+    s = xs[:, None] + ys[None, :]
+    p_feasible = float(np.mean(np.clip(s - z0, 0, z1 - z0)) / (z1 - z0))
+    assert 0.68 < p_feasible < 0.74  # the issue's measurement: 29 % impossible
+    grid = [(x, y, z) for x in xs[::80] for y in ys[::80] for z in np.linspace(z0, z1, 5)]
+    for x, y, z in grid:
+        ok = not C.inertia_problems([[x, 0, 0], [0, y, 0], [0, 0, z]])
+        assert ok == (z <= x + y)
+
+
+def test_components_problem_refuses_mass_and_inertia_variables(tmp_path):
+    problem = tmp_path / "p.yaml"
+    problem.write_text("name: p\nairframe: SY250-components\nobjectives: [{index: J3}]\n")
+    lines = problems_of_file(problem)
+    assert [ln.split(": ")[1] for ln in lines] == [
+        "variables.4.name", "variables.5.name", "variables.6.name"]
+    assert "computed from the parts" in lines[0]
+    problem.write_text(problem.read_text() + "variables:\n" + "".join(
+        f"  - {{name: {k}, lower: {lo}, upper: {hi}}}\n"
+        for k, (lo, hi) in list(TABLE1_BOUNDS.items())[:4]))
+    validate_file(problem)
+
+
+def test_components_mode_refuses_given_mass_and_needs_its_parts():
+    base = {k: v for k, v in SY250.items() if k not in C.MASS_KEYS}
+    lines = problems_of({**base, "mass_model": "components", "mass_kg": 0.3})
+    assert "f.yaml: components: required when mass_model is 'components'" in lines
+    assert any(ln.startswith("f.yaml: mass_kg: computed from the components") for ln in lines)
+    lines = problems_of(base)
+    assert [ln.split(": ")[1] for ln in lines] == ["mass_kg", "ixx_kgm2", "iyy_kgm2", "izz_kgm2"]
+
+
+def problems_of_file(path) -> list[str]:
+    with pytest.raises(ConfigError) as info:
+        validate_file(path)
+    return info.value.lines
+
+
+@pytest.mark.parametrize("key", ["izz_kgm2", "ixz_kgm2"])
+def test_non_finite_inertia_is_named(key):
+    (line,) = problems_of({**SY250, key: float("inf")})
+    assert line == f"f.yaml: {key}: inertia must be a finite number (got inf)"

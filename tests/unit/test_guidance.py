@@ -6,7 +6,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from casadrone.config import load
+from casadrone.configio import load
 from casadrone.guidance import GuidanceLayout, TrackConfig, guidance, segment_headings, track_vector
 from casadrone.simulate import split_times
 

@@ -292,3 +292,27 @@ def test_save_figure_writes_png_and_svg(tmp_path):
     png, svg = (p.read_bytes() for p in paths)
     assert png.startswith(b"\x89PNG\r\n\x1a\n") and len(png) > 1000
     assert b"<svg" in svg[:1000] and svg.rstrip().endswith(b"</svg>")
+
+
+def test_save_figure_keeps_what_lies_outside_the_canvas(tmp_path):
+    # a label below the canvas (as a long x label can be at 150 dpi) is kept: the PNG grows to
+    # the tight bounding box instead of clipping it
+    from matplotlib.figure import Figure
+    from matplotlib.image import imread
+
+    from casadrone.plots import PAD_INCHES, save_figure
+
+    def ink(label: bool) -> tuple[np.ndarray, int]:
+        fig = Figure(figsize=(4.0, 3.0))
+        fig.add_subplot().plot([0, 1], [0, 1])
+        if label:
+            fig.text(0.5, -0.2, "a bottom label", ha="center", va="top", fontsize=14)
+        (png,) = save_figure(fig, tmp_path / f"f{label}", formats=("png",), dpi=100)
+        img = imread(png)[..., :3]
+        return img, int((img < 0.5).any(axis=2).sum())
+
+    img, with_label = ink(True)
+    _, without = ink(False)
+    assert with_label > without + 100  # the label's pixels are in the PNG
+    ink_rows = np.flatnonzero((img < 0.5).any(axis=(1, 2)))
+    assert img.shape[0] - 1 - ink_rows.max() >= PAD_INCHES * 100 - 2  # white pad below the label

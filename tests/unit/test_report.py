@@ -11,21 +11,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from casadrone.benchmark import run_candidates
-from casadrone.config import BackendConfig, load_problem
+from casadrone.compare import run_candidates
 from casadrone.decide import decide
 from casadrone.optimise.runner import run
 from casadrone.optimise.store import RunStore
-from casadrone.report import (
+from casadrone.problemconfig import BackendConfig, load_problem
+from casadrone.report import write_report
+from casadrone.report.analysis import (
     choose_candidates,
     convergence_history,
     failure_groups,
     feasible_front,
-    num,
     read_run,
     reason_group,
-    write_report,
 )
+from casadrone.report.markup import num
 
 ROOT = Path(__file__).resolve().parents[2]
 SECTIONS = ("problem", "convergence", "pareto", "candidates", "airframes", "failures", "trim")
@@ -41,11 +41,26 @@ def make_run(path: Path, overrides: list[str]) -> Path:
     return path
 
 
+#: (figure, paths) of every figure the report fixture saved
+SAVED: list = []
+
+
 @pytest.fixture(scope="module")
 def report(tmp_path_factory) -> tuple[Path, str]:
-    """A tiny quick.yaml run and its report."""
+    """A tiny quick.yaml run and its report (every saved figure recorded in SAVED)."""
+    from casadrone import plots
+
     run_dir = make_run(tmp_path_factory.mktemp("run") / "quick", [])
-    path = write_report(run_dir)
+    save = plots.save_figure
+
+    def recording(fig, *args, **kwargs):
+        paths = save(fig, *args, **kwargs)
+        SAVED.append((fig, paths))
+        return paths
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(plots, "save_figure", recording)
+        path = write_report(run_dir)
     return run_dir, path.read_text(encoding="utf-8")
 
 
@@ -163,7 +178,21 @@ def test_convergence_is_monotone_and_ends_on_the_non_dominated_set(report):
     P = np.unique(F[ok], axis=0)  # brute-force oracle of the final non-dominated set
     dominated = [any(np.all(q <= p) and np.any(q < p) for q in P) for p in P]
     assert ch.n_non_dominated[-1] == len(P) - sum(dominated)
-    np.testing.assert_allclose(ch.ideal, P.min(axis=0), rtol=0, atol=0)
+    # the space is fixed by the first generation with a feasible evaluation (its
+    # non-dominated set's ideal and nadir) and stored in the manifest by the run
+    gen, _, _ = feasible_front(r.study, r.history)
+    first = P[:0]
+    for g in sorted(set(gen.tolist())):
+        if (ok & (gen == g)).any():
+            first = F[ok & (gen == g)]
+            break
+    nd = [p for p in first if not any(np.all(q <= p) and np.any(q < p) for q in first)]
+    np.testing.assert_allclose(ch.ideal, np.min(nd, axis=0), rtol=0, atol=0)
+    np.testing.assert_allclose(ch.nadir, np.max(nd, axis=0), rtol=0, atol=0)
+    assert r.manifest["hypervolume_space"] == {"ideal": list(ch.ideal), "nadir": list(ch.nadir)}
+    # the console and the history log show the same values as the report's curve
+    logged = [g["hypervolume"] for g in r.generations]
+    np.testing.assert_allclose(logged, ch.hypervolume, rtol=1e-12)
     sparse = convergence_history(r, max_points=1)  # 3 generations: first and last only
     assert np.isnan(sparse.hypervolume[1])
     np.testing.assert_allclose(sparse.hypervolume[[0, 2]], ch.hypervolume[[0, 2]], rtol=1e-12)
@@ -226,3 +255,48 @@ def test_report_of_a_test_problem_run(tmp_path):
         assert f'<section id="{name}">' in html
     assert "A pymoo test problem has no airframe" in section(html, "airframes")
     assert len(IMG.findall(section(html, "pareto"))) == 2
+
+
+def test_candidate_exports_are_linked_and_written(report):
+    run_dir, html = report
+    require_front(run_dir)
+    links = re.findall(r'<a href="exports/(candidate-([ABC]+)-(\w+)\.\w+)">', html)
+    assert {fmt for _, _, fmt in links} == {"betaflight", "px4", "urdf", "svg", "dxf"}
+    for name, label, _ in links:
+        text = (run_dir / "exports" / name).read_text(encoding="utf-8")
+        assert f"candidate: {'='.join(label)} (" in text and "casadrone" in text
+
+
+def test_measured_table4_gains_are_apart_and_collapsed(report):
+    run_dir, html = report
+    require_front(run_dir)
+    airframes = section(html, "airframes")
+    headline, _, rest = airframes.partition("<details><summary>Against the paper's measured")
+    assert rest, "the measured gains are in their own collapsed block"
+    assert "measured" not in headline.split("Per-interval gains")[1]
+
+
+def test_no_figure_is_clipped(report):
+    # Every figure's PNG covers the extent of everything drawn on it (its tight bounding box,
+    # labels and legends included) plus the pad: a bottom axis label can no longer fall off the
+    # image. And the PNG keeps a white margin on all four sides: no ink touches its border.
+    from matplotlib.image import imread
+
+    from casadrone.plots import PAD_INCHES
+
+    run_dir, _ = report
+    pngs = [paths[0] for _, paths in SAVED]
+    assert len(pngs) >= 3 and all(p.suffix == ".png" and p.parent == run_dir / "plots"
+                                  for p in pngs)
+    for fig, paths in SAVED:
+        img = imread(paths[0])
+        fig.set_dpi(150)  # text extents as rendered into the PNG
+        tight = fig.get_tightbbox()  # inches
+        content = np.array([tight.width, tight.height]) + 2 * PAD_INCHES
+        image = np.array(img.shape[1::-1]) / 150
+        assert np.all(image >= content - 0.1), (paths[0].name, image, content)
+    for png in pngs:
+        img = imread(png)[..., :3]
+        border = np.concatenate([img[:2].reshape(-1, 3), img[-2:].reshape(-1, 3),
+                                 img[:, :2].reshape(-1, 3), img[:, -2:].reshape(-1, 3)])
+        assert np.all(border > 0.99), f"{png.name}: ink touches the image border (clipped)"

@@ -1,0 +1,68 @@
+"""``casadrone export``: an airframe or a run's candidate for a flight controller, a simulator or
+the cutter (:mod:`casadrone.export`)."""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from casadrone.cli.common import app, bad_input, reports_config_errors
+
+
+class ExportFormat(StrEnum):
+    betaflight = "betaflight"
+    px4 = "px4"
+    urdf = "urdf"
+    svg = "svg"
+    dxf = "dxf"
+
+
+class Pattern(StrEnum):
+    p16x16 = "16x16"
+    p16x19 = "16x19"
+
+
+@app.command("export")
+@reports_config_errors
+def export_command(
+    source: Annotated[str, typer.Argument(
+        help="airframe YAML or reference name (SY250, ...), or a run directory")],
+    overrides: Annotated[list[str] | None, typer.Argument(
+        help="key=value overrides of the airframe, e.g. alpha_deg=75")] = None,
+    fmt: Annotated[ExportFormat, typer.Option(
+        "--format", "-f", help="betaflight (mmix lines), px4 (param set lines), urdf, svg or "
+        "dxf (1:1 plate outline, mm)")] = ExportFormat.betaflight,
+    candidate: Annotated[str | None, typer.Option(
+        help="of a run directory: A (utopian), B (compromise), C (extreme) or a pareto.csv row "
+        "(0-based)")] = None,
+    out: Annotated[Path | None, typer.Option(
+        "--out", "-o", help="write to this file (default: print)")] = None,
+    arm_width: Annotated[float, typer.Option(
+        help="svg/dxf: arm width (mm)", min=1.0)] = 14.0,
+    pattern: Annotated[Pattern, typer.Option(
+        help="svg/dxf: motor mounting hole pattern (mm)")] = Pattern.p16x19,
+) -> None:
+    """Export an airframe or a run's candidate: Betaflight mix, PX4 parameters, URDF, 1:1 plate.
+
+    Betaflight custom mix (mmix lines), PX4 CA_ROTOR* parameters, URDF, or the frame plate as a 1:1
+    SVG/DXF. Every file names the casadrone version, the airframe or run and the candidate.
+    """
+    from casadrone.export import export, write_export
+    from casadrone.export.plate import PlateOptions
+    from casadrone.export.source import source_of
+
+    try:
+        src = source_of(source, candidate, overrides)
+    except (FileNotFoundError, ValueError) as exc:
+        raise bad_input([f"{source}: {exc}" if str(source) not in str(exc) else str(exc)]) from None
+    options = PlateOptions(arm_width_mm=arm_width, pattern=pattern.value)
+    try:
+        if out is None:
+            typer.echo(export(src, fmt.value, options), nl=False)
+        else:
+            typer.echo(f"wrote {write_export(src, fmt.value, out, options)}")
+    except (ValueError, RuntimeError) as exc:
+        raise bad_input([f"{source}: {exc}"]) from None

@@ -1,0 +1,188 @@
+"""The import graph of casadrone/: no circle, and no module imports from a later stage of the chain.
+
+The graph is read from the source with :mod:`ast` (every ``import`` and ``from … import``, at module
+level or inside a function: a lazy import that closes a circle is still a circle), so the test
+sees what the code says, not what an import order happened to execute.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[2] / "casadrone"
+
+#: The chain, earliest first (DESIGN.md §1). A module may import only from its own stage or an
+#: earlier one; a subpackage's modules share the stage given for their prefix unless listed.
+STAGES: tuple[str, ...] = (
+    "casadrone.data",
+    "casadrone.codegen",
+    "casadrone.configio",
+    "casadrone.massprops",
+    "casadrone.config",
+    "casadrone.airframe",
+    "casadrone.model",
+    "casadrone.trim",
+    "casadrone.linearise",
+    "casadrone.control",
+    "casadrone.guidance",
+    "casadrone.lapdriver",
+    "casadrone.simulate",
+    "casadrone.indices",
+    "casadrone.evaluate",
+    "casadrone.decide",
+    "casadrone.optimise.boxarchive",
+    "casadrone.optimise.evmoga",
+    "casadrone.optimise.algorithms",
+    "casadrone.problemconfig",
+    "casadrone.optimise.mainguard",
+    "casadrone.optimise.problem",
+    "casadrone.optimise.lifeline",
+    "casadrone.optimise.hypervolume",
+    "casadrone.optimise.backends",
+    "casadrone.optimise.checkpoint",
+    "casadrone.optimise.store",
+    "casadrone.optimise.runner",
+    "casadrone.optimise",
+    "casadrone.benchmark",
+    "casadrone.compare",
+    "casadrone.validation",
+    "casadrone.plots",
+    "casadrone.export",
+    "casadrone.report",
+    "casadrone.cli",
+)
+#: The package itself is the public API facade, after every stage; the one name a module may take
+#: from it is ``__version__`` (set before the facade imports anything).
+FACADE = "casadrone"
+
+
+def modules() -> dict[str, Path]:
+    found = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        found[".".join(parts)] = path
+    return found
+
+
+def import_graph() -> dict[str, dict[str, tuple[int, list[str]]]]:
+    """module → {imported casadrone module: (line, names taken)}."""
+    mods = modules()
+
+    def owner(name: str) -> str | None:
+        while name and name not in mods:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    graph: dict[str, dict[str, tuple[int, list[str]]]] = {}
+    for mod, path in mods.items():
+        package = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
+        edges: dict[str, tuple[int, list[str]]] = {}
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            pairs: list[tuple[str, str]] = []
+            if isinstance(node, ast.Import):
+                pairs = [(alias.name, "*") for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    parts = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    base = ".".join(parts + ([base] if base else []))
+                pairs = [(f"{base}.{a.name}" if f"{base}.{a.name}" in mods else base, a.name)
+                         for a in node.names]
+            for target, name in pairs:
+                dest = owner(target) if target.split(".")[0] == "casadrone" else None
+                if dest and dest != mod:
+                    line, names = edges.setdefault(dest, (node.lineno, []))
+                    names.append(name)
+        graph[mod] = edges
+    return graph
+
+
+def cycles(graph: dict[str, dict]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, {}):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def stage(mod: str) -> int:
+    best = None
+    for i, prefix in enumerate(STAGES):
+        if (mod == prefix or mod.startswith(prefix + ".")) and (
+                best is None or len(prefix) > len(STAGES[best])):
+            best = i
+    if best is None:
+        raise AssertionError(f"{mod} is in no stage of STAGES: add it where it belongs")
+    return best
+
+
+def test_cycle_finder_finds_a_planted_circle():
+    planted = {"a": {"b": 0}, "b": {"c": 0}, "c": {"a": 0}, "d": {"a": 0}}
+    assert cycles(planted) == [["a", "b", "c"]]
+    assert cycles({"a": {"b": 0}, "b": {}}) == []
+
+
+def test_graph_sees_lazy_and_relative_imports():
+    graph = import_graph()
+    assert "casadrone.config" in graph["casadrone.airframe"]  # module-level
+    assert "casadrone.indices" in graph["casadrone.problemconfig"]  # inside a function
+    assert "casadrone.cli.common" in graph["casadrone.cli"]
+
+
+def test_no_import_circle():
+    assert cycles(import_graph()) == []
+
+
+def test_no_module_imports_from_a_later_stage():
+    wrong = []
+    for mod, edges in import_graph().items():
+        if mod == FACADE:
+            continue
+        for dest, (line, names) in edges.items():
+            if dest == FACADE:
+                if set(names) != {"__version__"}:
+                    wrong.append(f"{mod}:{line} takes {names} from the package facade")
+                continue
+            if stage(dest) > stage(mod):
+                wrong.append(f"{mod}:{line} imports the later stage {dest}")
+    assert wrong == []
+
+
+@pytest.mark.parametrize("name", ["casadrone.config", "casadrone.benchmark", "casadrone.cli",
+                                  "casadrone.report"])
+def test_no_reexports(name):
+    # version 0.x: names are imported from the module where they are defined
+    path = modules()[name]
+    assert "re-export" not in path.read_text(encoding="utf-8")

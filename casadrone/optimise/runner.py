@@ -11,6 +11,8 @@ generation is served from the history instead of being evaluated (a replay, chec
 against what the algorithm asks for), then the run continues live. SIGTERM (``timeout``, batch
 schedulers, ``docker stop``) and SIGINT (Ctrl-C) stop a run the same way: the manifest records
 ``interrupted`` and :class:`Interrupted` carries the signal to the caller.
+Each step is timed into the run's ``timings.csv`` (:mod:`casadrone.optimise.timings`); the
+progress hypervolume stays cheap as the set grows (:mod:`casadrone.optimise.hypervolume`).
 """
 
 from __future__ import annotations
@@ -28,10 +30,11 @@ import numpy as np
 
 from casadrone.optimise.algorithms import seeded_defaults
 from casadrone.optimise.backends import make_backend
-from casadrone.optimise.hypervolume import HypervolumeState, advance
+from casadrone.optimise.hypervolume import HypervolumeState, advance, due
 from casadrone.optimise.mainguard import unguarded_main_call, unguarded_message
 from casadrone.optimise.problem import CandidateProblem, Record, Study, objectives_and_constraints
 from casadrone.optimise.store import RunDamaged, RunStore, now
+from casadrone.optimise.timings import append_timings
 from casadrone.problemconfig import BackendConfig, ProblemConfig
 
 
@@ -148,23 +151,32 @@ def build_algorithm(problem: ProblemConfig, n_obj: int):
 
 def front(algorithm, study: Study) -> tuple[np.ndarray, np.ndarray]:
     """Feasible non-dominated set of the algorithm's result (objectives back in their sense)."""
-    opt = algorithm.opt
-    if opt is None or len(opt) == 0:
-        return np.empty((0, len(study.variable_names))), np.empty((0, len(study.objective_names)))
-    feas = np.asarray(opt.get("CV")).ravel() <= 0
-    X, F = opt.get("X")[feas], opt.get("F")[feas]
+    archive = getattr(algorithm, "box_archive", None)  # ev-MOGA: its arrays, no Population
+    if archive is not None and len(archive):
+        X, F, CV = archive.rows["X"], archive.F, archive.rows["CV"]
+    else:
+        opt = algorithm.opt
+        if opt is None or len(opt) == 0:
+            return (np.empty((0, len(study.variable_names))),
+                    np.empty((0, len(study.objective_names))))
+        X, F, CV = opt.get("X"), opt.get("F"), opt.get("CV")
+    feas = np.asarray(CV).ravel() <= 0
+    X, F = X[feas], F[feas]
     sign = np.array([-1.0 if s == "max" else 1.0 for s in study.senses])
     order = np.lexsort(F.T[::-1])
     return X[order], F[order] * sign
 
 
-def generation_hypervolume(study: Study, records, state: HypervolumeState | None
-                          ) -> tuple[HypervolumeState, float]:
+def generation_hypervolume(study: Study, records, state: HypervolumeState | None,
+                          generation: int, last: bool) -> tuple[HypervolumeState, float | None]:
     """The hypervolume shown after a generation (:mod:`casadrone.optimise.hypervolume`): its
-    feasible evaluations join the non-dominated set so far, measured in the run's fixed space."""
+    feasible evaluations join the non-dominated set so far, measured in the run's fixed space
+    (None at the generations where it is not computed)."""
     F, G = objectives_and_constraints(study, records)
-    feasible = F[np.all(G <= 0, axis=1)] if len(records) else np.empty((0, F.shape[1]))
-    return advance(state, feasible, raw=study.problem.test_problem is not None)
+    m = len(study.objective_names)
+    feasible = F[np.all(G <= 0, axis=1)] if len(records) else np.empty((0, m))
+    return advance(state, feasible, raw=study.problem.test_problem is not None,
+                   compute=due(m, generation, last))
 
 
 class Progress:
@@ -180,9 +192,11 @@ class Progress:
             return
         done = (gen + 1) / (self.total + 1)
         eta = stats["elapsed_s"] * (1 - done) / done
+        hv = stats["hypervolume"]
         line = (f"gen {gen:>4}/{self.total}  evals {stats['n_evaluations']:>7}  "
                 f"archive {stats['archive_size']:>4}  feasible {stats['feasible_fraction']:6.1%}  "
-                f"HV {stats['hypervolume']:.5f}  elapsed {stats['elapsed_s']:7.1f} s  "
+                f"HV {'      -' if hv is None else format(hv, '.5f')}  "
+                f"elapsed {stats['elapsed_s']:7.1f} s  "
                 f"remaining {eta:7.1f} s")
         if self.tty:
             width = 24
@@ -215,19 +229,35 @@ def _loop(store: RunStore, algorithm, study: Study, backend, elapsed0: float,
         store.release()
 
 
+def _marker(t: list[float], cpu: list[float]) -> Callable[[], None]:
+    """A function appending the wall-clock and CPU time to ``t`` and ``cpu``."""
+    def mark() -> None:
+        t.append(time.perf_counter())
+        cpu.append(time.process_time())
+    return mark
+
+
 def _generations(store, algorithm, study, problem, elapsed0, progress, stop_after,
                  hv) -> RunResult:
     start = time.perf_counter()
     steps = 0
     while algorithm.has_next():
-        with seeded_defaults(algorithm):
-            algorithm.next()
+        t, cpu = [time.perf_counter()], [time.process_time()]
+        mark = _marker(t, cpu)
+        with seeded_defaults(algorithm):  # Algorithm.next(), one step at a time
+            infills = algorithm.infill()
+            mark()
+            if infills is not None:
+                algorithm.evaluator.eval(algorithm.problem, infills, algorithm=algorithm)
+            mark()
+            algorithm.advance(infills=infills)
+            mark()
         # pymoo's n_gen is 2 after the initial population (generation 0 here), 3 after the next…
         gen = int(algorithm.n_gen) - 2
         records = problem.last_records
         X_f, _ = front(algorithm, study)
         had_space = hv is not None and hv.space is not None
-        hv, hv_value = generation_hypervolume(study, records, hv)
+        hv, hv_value = generation_hypervolume(study, records, hv, gen, not algorithm.has_next())
         if hv.space is not None and not had_space:  # the report measures in the same space
             store.update_manifest(hypervolume_space={"ideal": hv.space.ideal.tolist(),
                                                      "nadir": hv.space.nadir.tolist()})
@@ -239,10 +269,20 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
             "hypervolume": hv_value,
             "elapsed_s": elapsed0 + time.perf_counter() - start,
         }
+        mark()
         store.write_generation(gen, records, stats)
         problem.last_records = []
+        mark()
         store.save_checkpoint({"algorithm": algorithm, "elapsed_s": stats["elapsed_s"],
                                "generation": gen, "hypervolume_state": hv})
+        mark()
+        step = dict(zip(("ask_s", "evaluate_s", "advance_s", "statistics_s", "history_s",
+                         "checkpoint_s"), np.diff(t).tolist(), strict=True))
+        append_timings(store.path, {
+            "generation": gen, "n_evaluations": stats["n_evaluations"],
+            "archive_size": stats["archive_size"], **step, "wall_s": t[-1] - t[0],
+            "cpu_s": cpu[-1] - cpu[0], "coordinator_s": t[-1] - t[0] - step["evaluate_s"],
+            "coordinator_cpu_s": cpu[-1] - cpu[0] - (cpu[2] - cpu[1]), "finished": now()})
         if progress:
             progress(gen, stats)
         steps += 1

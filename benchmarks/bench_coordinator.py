@@ -57,7 +57,7 @@ def problem(generations: int):
 
 
 def measure(run_dir: Path, archive: int, generations: int) -> tuple[list[dict], float]:
-    from casadrone.config import BackendConfig
+    from casadrone.problemconfig import BackendConfig
     from casadrone.optimise.runner import run
     from casadrone.optimise.timings import read_timings
 

@@ -117,7 +117,7 @@ class AirframeConfig(Schema):
     )
     thrust: ThrustModelConfig = ThrustModelConfig()
     air_density_kgm3: float = Field(1.225, gt=0, le=2)
-    gravity_mps2: float = Field(9.81, gt=0, le=30)
+    gravity_mps2: float = Field(9.81, ge=0.1, le=30)
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:

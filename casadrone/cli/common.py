@@ -13,7 +13,38 @@ import typer
 
 from casadrone.configio import ConfigError
 
-app = typer.Typer(
+
+class _App(typer.Typer):
+    """The typer app, run so that a bad command-line option is one line too: ``COMMAND:
+    message``, exit code 2 (click would print a usage block)."""
+
+    def __call__(self, *args, **kwargs):
+        import sys
+
+        if "standalone_mode" in kwargs:
+            return super().__call__(*args, **kwargs)
+        try:
+            code = super().__call__(*args, standalone_mode=False, **kwargs)
+        except _CLICK_ERROR as exc:
+            if isinstance(exc, _USAGE_ERROR) and type(exc).__name__ != "NoArgsIsHelpError":
+                where = exc.ctx.command_path if exc.ctx is not None else "casadrone"
+                message = " ".join(exc.format_message().split())
+                typer.echo(f"{where}: {message} (see '{where} --help')", err=True)
+                sys.exit(EXIT_BAD_INPUT)
+            exc.show()
+            sys.exit(exc.exit_code)
+        except typer.Abort:
+            typer.echo("interrupted", err=True)
+            sys.exit(130)
+        sys.exit(code if isinstance(code, int) else 0)
+
+
+# typer (>= 0.20) carries its own copy of click: its exception classes, found from typer's own.
+_USAGE_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
+_CLICK_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+
+
+app = _App(
     name="casadrone",
     help="Racing-drone airframe optimisation: validate configs, trim, linearise, design LQR-I, "
     "fly a lap, benchmark, optimise (run, resume), decide, compare and report.",
@@ -118,13 +149,11 @@ def reports_config_errors(command):
     def wrapper(*args, **kwargs):
         import signal
 
-        import click
-
         try:
             return command(*args, **kwargs)
         except ConfigError as exc:
             raise bad_input(exc.lines) from None
-        except (typer.Exit, typer.Abort, click.exceptions.ClickException):
+        except (typer.Exit, typer.Abort, _CLICK_ERROR):
             raise
         except KeyboardInterrupt as exc:  # also the runner's Interrupted (SIGINT, SIGTERM)
             signum = getattr(exc, "signum", signal.SIGINT)

@@ -168,18 +168,30 @@ class RunStore:
     def create(cls, path: str | Path, problem: ProblemConfig, variable_names: list[str],
                index_names: list[str], backend: str) -> RunStore:
         """Start a new run directory (refuses one that already holds a run)."""
+        import shutil
+
         path = Path(path)
-        check_new_run_dir(path)
+        check_new_run_dir(path, allow={LOCK})
         try:
             path.mkdir(parents=True)
+            created = True
         except FileExistsError:
-            pass
+            created = False
         store = cls(path)
         store.acquire()  # nothing is written before the lock is held
         try:
             check_new_run_dir(path, allow={LOCK})  # another run got here first?
-            store._populate(problem, variable_names, index_names, backend)
         except BaseException:
+            store.release()
+            raise
+        try:
+            store._populate(problem, variable_names, index_names, backend)
+        except BaseException:  # leave the folder as it was: new (gone) or empty
+            for entry in ([path] if created else [p for p in path.iterdir() if p.name != LOCK]):
+                if entry.is_dir():
+                    shutil.rmtree(entry, ignore_errors=True)
+                else:
+                    entry.unlink(missing_ok=True)
             store.release()
             raise
         return store

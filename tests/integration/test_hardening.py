@@ -509,3 +509,47 @@ def test_an_unexpected_error_is_one_line_and_a_log_file(tmp_path, monkeypatch):
     assert line.startswith("casadrone: internal error: KeyError: 'a bug' (traceback in ")
     log = Path(line.rsplit("traceback in ", 1)[1].rstrip(")"))
     assert log.is_file() and "Traceback" in log.read_text() and "a bug" in log.read_text()
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["run", "quick", "-j", "0", "--out", "x"], "casadrone run: Invalid value for '-j'"),
+    (["trim", "SY250", "--solver", "xyz"], "casadrone trim: Invalid value for '--solver'"),
+    (["nocommand"], "casadrone: No such command 'nocommand'"),
+])
+def test_bad_command_line_options_are_one_line_from_the_console(tmp_path, args, fragment):
+    import subprocess
+    import sys
+
+    exe = shutil.which("casadrone")
+    cmd = [exe] if exe else [sys.executable, "-c", "from casadrone.cli import app; app()"]
+    done = subprocess.run([*cmd, *args], capture_output=True, text=True, cwd=tmp_path,
+                          timeout=120)
+    assert done.returncode == 2
+    (line,) = done.stderr.strip().splitlines()
+    assert line.startswith(fragment) and line.endswith("--help')")
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_failed_creation_leaves_no_half_run(tmp_path, tiny, monkeypatch):
+    import casadrone.optimise.store as store_mod
+
+    def no_space(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(store_mod, "versions", no_space)  # fails just before the manifest
+    with pytest.raises(OSError, match="No space"):
+        run(tiny, tmp_path / "new", SERIAL, quiet=True)
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(OSError, match="No space"):
+        run(tiny, tmp_path / "empty", SERIAL, quiet=True)
+    assert [p.name for p in (tmp_path / "empty").iterdir()] in ([], ["run.lock"])
+    monkeypatch.undo()
+    run(tiny, tmp_path / "empty", SERIAL, quiet=True, stop_after=1)  # usable afterwards
+
+
+def test_checkpoints_hold_no_path_of_the_run(tmp_path, tiny):
+    out = tmp_path / "somewhere-unique"
+    run(tiny, out, SERIAL, quiet=True, stop_after=2)
+    for name in ("checkpoint.pkl", "checkpoint.prev.pkl", "config.yaml", "manifest.json"):
+        assert b"somewhere-unique" not in (out / name).read_bytes(), name

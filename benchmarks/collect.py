@@ -23,6 +23,12 @@ ORDER = [
      "python benchmarks/bench_backends.py"),
     ("evmoga", "ev-MOGA and NSGA-II on ZDT1, ZDT2, DTLZ2 (known fronts)",
      "python benchmarks/bench_evmoga_zdt.py"),
+    ("limitlap", "The limit lap over random Table 1 frames: solve time, success, spread",
+     "python benchmarks/bench_limitlap.py"),
+    ("coordinator", "ev-MOGA's coordinator alone against archive size (issue 10)",
+     "python benchmarks/bench_coordinator.py"),
+    ("paper-scale", "Paper-scale runs measured: paper-run1 and paper-run2 (issue 10)",
+     "python benchmarks/bench_paper_scale.py --run-root runs/paper-scale --workers 2"),
 ]
 
 

@@ -37,12 +37,30 @@ class EvaluationSetup:
     integrator: str = "rk4"
     trim_solver: str = "newton"
     sim_options: SimOptions = SimOptions()
+    limit: object | None = None  # LimitLapOptions: also compute the limit lap (J3_limit)
+    limit_references: tuple[dict[str, float], ...] = ()  # θ of the per-study warm starts
 
     @cached_property
     def reference_airframe(self) -> Airframe | None:
         """The airframe whose gain is frozen (frozen-* gain policies), else None."""
         ref = self.controller.reference_airframe
         return build_airframe(load_airframe(ref)) if ref is not None else None
+
+    @cached_property
+    def limit_warm_starts(self) -> tuple:
+        """The limit laps of ``limit_references``, solved once per process: every worker holds
+        the same ones (same inputs, deterministic IPOPT), so warm-starting a candidate from them
+        gives the same result on every backend and in any evaluation order."""
+        from casadrone.limitlap import limit_lap
+
+        laps = []
+        for theta in self.limit_references:
+            try:
+                cfg = with_theta(self.template, theta)
+            except ConfigError:  # a reference outside the valid geometries is skipped
+                continue
+            laps.append(limit_lap(cfg, self.track, self.limit))
+        return tuple(lap for lap in laps if lap.optimal)
 
     @cached_property
     def template_data(self) -> dict:
@@ -118,7 +136,7 @@ def evaluate(
             (it would fly that airframe's geometry with the template's mass and drag); pass
             ``dict(theta)`` to mean exactly that.
     """
-    from casadrone.indices import compute_indices, interval_table
+    from casadrone.indices import compute_indices, interval_table, limit_indices
 
     source = getattr(theta, "airframe", None)
     if source is not None and source != setup.template.name:
@@ -147,11 +165,30 @@ def evaluate(
     if not traj.completed:
         ev = _failed(theta, "lap", traj.reason, start)
         return replace(ev, trajectory=traj) if keep_trajectory else ev
+    indices = compute_indices(traj, index_names)
+    if setup.limit is not None:
+        lap = evaluate_limit(with_theta(setup.template, theta), setup, traj)
+        if not lap.optimal:
+            return _failed(theta, "limit", lap.reason, start)
+        indices.update(limit_indices(lap, index_names))
     return Evaluation(
         theta=theta, status="completed", stage="", reason="",
-        indices=compute_indices(traj, index_names), intervals=tuple(interval_table(traj)),
+        indices=indices, intervals=tuple(interval_table(traj)),
         wall_time_s=time.perf_counter() - start, trajectory=traj if keep_trajectory else None,
     )
+
+
+def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory | None = None):
+    """The limit lap of a candidate under ``setup.limit``: the best of the primal-dual warm
+    starts from the per-study references (:attr:`EvaluationSetup.limit_warm_starts`, the same in
+    every worker, so the result does not depend on the backend or the evaluation order); from
+    its closed-loop lap when no reference solved."""
+    from casadrone.limitlap import limit_lap
+
+    warm = setup.limit_warm_starts
+    options = replace(setup.limit, guess_trajectory=traj, warm_starts=warm,
+                      starts=() if warm else ("closed-loop",), sensitivities=False)
+    return limit_lap(cfg, setup.track, options)
 
 
 def theta_of(cfg: AirframeConfig) -> Theta:

@@ -27,6 +27,19 @@ from pydantic import Field, model_validator
 from casadrone.configio import Schema
 
 Vec3 = tuple[float, float, float]
+#: Shortest leg between consecutive route points (m): a waypoint on top of the previous one
+#: gives a segment with no direction, which the guidance cannot fly.
+MIN_LEG_M = 0.01
+
+
+class GateConfig(Schema):
+    """A race gate: a vertical rectangular opening, flown through along its heading."""
+
+    centre_m: Vec3 = Field(description="centre of the opening (world, m)")
+    heading_deg: float = Field(description="direction of travel through the gate (0 = east, "
+                               "counter-clockwise)")
+    width_m: float = Field(gt=0, description="inner width of the opening (m)")
+    height_m: float = Field(gt=0, description="inner height of the opening (m)")
 
 
 class TrackConfig(Schema):
@@ -39,7 +52,11 @@ class TrackConfig(Schema):
     climb_speed_mps: float = Field(
         5.0, gt=0, description="speed cap on the climb; the climb brakes to rest at its top"
     )
-    waypoints_m: list[Vec3] = Field(min_length=1, description="timed waypoints, in order")
+    waypoints_m: list[Vec3] = Field(
+        min_length=1, description="timed waypoints, in order (with gates: the gate centres)")
+    gates: list[GateConfig] | None = Field(
+        None, description="gates in order, instead of waypoints_m: closed-loop guidance flies "
+        "through their centres, the limit lap through their openings")
     straight: list[bool] = Field(description="leg ending at each waypoint is a straight sector")
     acceptance_radius_m: float = Field(1.0, gt=0)
     look_ahead_m: float = Field(3.0, gt=0)
@@ -51,13 +68,38 @@ class TrackConfig(Schema):
     max_accel_mps2: float = Field(
         10.0, gt=0, description="rate limit of the velocity reference (reference shaping)"
     )
-    time_limit_s: float = Field(60.0, gt=0)
+    time_limit_s: float = Field(60.0, gt=0, le=3600, description="lap time limit (s); the "
+                                "compiled lap allocates every controller step up to it")
     max_tilt_deg: float = Field(80.0, gt=0, lt=90, description="attitude limit → failed lap")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _gate_centres(cls, data):
+        """With ``gates:`` and no ``waypoints_m``, the waypoints are the gate centres."""
+        if isinstance(data, dict) and data.get("gates") and "waypoints_m" not in data:
+            gates = data["gates"]
+            if isinstance(gates, list) and all(isinstance(g, dict) for g in gates):
+                return {**data, "waypoints_m": [g.get("centre_m") for g in gates]}
+        return data
 
     @model_validator(mode="after")
     def _consistent(self) -> TrackConfig:
+        if self.gates is not None:
+            if not self.gates:
+                raise ValueError("gates: give at least one gate")
+            if [tuple(g.centre_m) for g in self.gates] != [tuple(w) for w in self.waypoints_m]:
+                raise ValueError("give gates or waypoints_m, not both")
         if len(self.straight) != len(self.waypoints_m):
-            raise ValueError("straight: needs one entry per waypoint")
+            raise ValueError("straight: needs one entry per waypoint (or gate)")
+        route = self.route
+        legs = np.linalg.norm(np.diff(route, axis=0), axis=1)
+        if np.any(legs < MIN_LEG_M):
+            k = int(np.argmin(legs))
+            name = "the climb point" if self.climb_to_m is not None and k == 0 else \
+                f"waypoint {k - self.first_timed_segment + 1}"
+            raise ValueError(f"waypoints_m: {name} is {legs[k]:.3g} m from the route point "
+                             f"before it (a leg needs at least {MIN_LEG_M} m; a zero-length leg "
+                             "has no direction to fly)")
         return self
 
     @property

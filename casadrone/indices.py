@@ -43,6 +43,9 @@ from casadrone.simulate import Trajectory, row_norm
 
 Sense = Literal["min", "max"]
 IndexFunction = Callable[[Trajectory], float]
+#: What an index is computed from: the closed-loop lap (a Trajectory) or the limit lap (a
+#: :class:`~casadrone.limitlap.LimitLap`, computed by the evaluation only when asked for).
+Source = Literal["lap", "limit"]
 
 
 @dataclass(frozen=True)
@@ -54,7 +57,9 @@ class Index:
         unit: unit of the value (``"m/s"``).
         sense: default optimisation sense, ``"min"`` or ``"max"``.
         description: one line saying exactly what is measured.
-        function: ``function(trajectory) -> float``, called on completed laps only.
+        function: ``function(trajectory) -> float``, called on completed laps only (for a
+            ``limit`` index: ``function(limit_lap) -> float``, on optimal limit laps only).
+        source: ``"lap"`` (the closed-loop lap) or ``"limit"`` (the limit lap).
     """
 
     name: str
@@ -62,10 +67,16 @@ class Index:
     sense: Sense
     description: str
     function: IndexFunction
+    source: Source = "lap"
 
-    def __call__(self, traj: Trajectory) -> float:
-        _require_completed(traj)
-        return float(self.function(traj))
+    def __call__(self, result) -> float:
+        if self.source == "limit":
+            if not result.optimal:
+                raise ValueError(f"{self.name} is not defined for a failed limit lap "
+                                 f"({result.reason or 'failed'})")
+        else:
+            _require_completed(result)
+        return float(self.function(result))
 
 
 # --------------------------------------------------------------------------------------------
@@ -203,6 +214,12 @@ def max_pitch(traj: Trajectory) -> float:
     return float(np.degrees(np.max(np.abs(traj.x[_lap_rows(traj), 10]))))
 
 
+def limit_lap_time(lap) -> float:
+    """J3_limit: the limit lap (s), the minimum time from the start to the last waypoint over
+    every command history the airframe can fly (:func:`casadrone.limitlap.limit_lap`)."""
+    return lap.lap_time_s
+
+
 _BUILTIN = (
     Index("J1", "m/s", "max", "mean speed on straight sectors (climb excluded)",
           mean_straight_speed),
@@ -213,8 +230,12 @@ _BUILTIN = (
     Index("J5", "V", "min", "RMS of ESC voltage deviation from trim over the lap and the four "
           "motors", effort_rms),
     Index("Jp", "deg", "min", "maximum pitch angle |θ| over the lap", max_pitch),
+    Index("J3_limit", "s", "min", "limit lap: minimum-time lap of the airframe (optimal control, "
+          "thrust and attitude limits)", limit_lap_time, source="limit"),
 )
-BUILTIN_NAMES: tuple[str, ...] = tuple(i.name for i in _BUILTIN)
+#: Built-in closed-loop indices (J1…Jp) and built-in limit-lap indices (J3_limit).
+BUILTIN_NAMES: tuple[str, ...] = tuple(i.name for i in _BUILTIN if i.source == "lap")
+BUILTIN_LIMIT_NAMES: tuple[str, ...] = tuple(i.name for i in _BUILTIN if i.source == "limit")
 
 _REGISTRY: dict[str, Index] = {i.name: i for i in _BUILTIN}
 #: Read-only view of the registry, in registration order (built-ins first).
@@ -248,7 +269,7 @@ def register_index(
 
 def unregister_index(name: str) -> None:
     """Remove a user index (built-in indices cannot be removed)."""
-    if name in BUILTIN_NAMES:
+    if name in BUILTIN_NAMES + BUILTIN_LIMIT_NAMES:
         raise ValueError(f"index {name!r} is built in and cannot be removed")
     get_index(name)
     del _REGISTRY[name]
@@ -264,14 +285,26 @@ def get_index(name: str) -> Index:
 
 def compute_indices(traj: Trajectory, names: list[str] | tuple[str, ...] | None = None
                     ) -> dict[str, float]:
-    """Values of the named indices (all registered ones by default) for a completed lap.
+    """Values of the named closed-loop indices (all registered ones by default) for a completed
+    lap; limit-lap indices are skipped (see :func:`limit_indices`).
 
     Raises:
         ValueError: the lap failed, or a name is not registered.
     """
     selected = [get_index(n) for n in (INDICES if names is None else names)]
     _require_completed(traj)
-    return {i.name: float(i.function(traj)) for i in selected}
+    return {i.name: float(i.function(traj)) for i in selected if i.source == "lap"}
+
+
+def limit_index_names(names) -> tuple[str, ...]:
+    """The limit-lap indices among ``names`` (registered names only)."""
+    return tuple(n for n in names if n in INDICES and INDICES[n].source == "limit")
+
+
+def limit_indices(lap, names: list[str] | tuple[str, ...] | None = None) -> dict[str, float]:
+    """Values of the named limit-lap indices (all of them by default) of an optimal limit lap."""
+    selected = [get_index(n) for n in (INDICES if names is None else names)]
+    return {i.name: i(lap) for i in selected if i.source == "limit"}
 
 
 # --------------------------------------------------------------------------------------------

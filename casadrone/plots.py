@@ -191,6 +191,58 @@ def time_histories(trajectories: Mapping[str, Trajectory], *, title: str | None 
 
 
 # --------------------------------------------------------------------------------------------
+# Limit lap
+# --------------------------------------------------------------------------------------------
+
+
+def limit_lap_trajectory(lap, waypoints) -> Trajectory:
+    """A limit lap (:class:`casadrone.limitlap.LimitLap`) as a Trajectory at its nodes, so the
+    track figures draw it beside closed-loop laps (commands repeated at the last node)."""
+    n = len(lap.t)
+    wp = np.atleast_2d(np.asarray(waypoints, float))
+    return Trajectory(
+        status="completed", reason="", integrator="limit lap", t=lap.t, x=lap.x,
+        u=np.vstack([lap.u, lap.u[-1:]]), p_ref=np.zeros((n, 3)), v_ref=np.zeros((n, 3)),
+        psi_ref=np.zeros(n), acceleration=np.zeros((n, 3)), segment=np.zeros(n, int),
+        u0=np.zeros(4), battery_voltage=1.0, waypoints=wp, straight=(True,) * len(wp),
+        split_times=np.asarray(lap.split_times_s, float),
+    )
+
+
+def limit_lap_figures(lap, closed_loop: Trajectory | None, waypoints) -> dict[str, Figure]:
+    """Top view and 3-D path of the limit lap beside the closed-loop lap, and the limit lap's
+    speed (with the closed loop's) and ESC commands over time."""
+    flights = {"limit lap": limit_lap_trajectory(lap, waypoints)}
+    if closed_loop is not None:
+        flights["closed loop"] = closed_loop
+    fig = Figure(figsize=(10.0, 6.0), layout="constrained")
+    ax_v, ax_u = fig.subplots(2, 1, sharex=True)
+    for (name, tr), c in zip(flights.items(), _colours(len(flights)), strict=True):
+        ax_v.plot(tr.t, tr.speed, color=c, lw=1.2, label=_label(name, tr))
+    for i in range(lap.u.shape[1]):
+        ax_u.step(lap.t[:-1], lap.u[:, i], where="post", lw=1.0, label=f"δ{i + 1}")
+    for ts in lap.split_times_s:
+        for ax in (ax_v, ax_u):
+            ax.axvline(ts, color="k", ls="--", lw=0.6, alpha=0.5)
+    ax_v.set_ylabel("speed |v| (m/s)")
+    ax_u.set_ylabel("ESC command δ (–)")
+    ax_u.set_xlabel("time t (s)")
+    ax_u.set_ylim(-0.05, 1.05)
+    for ax in (ax_v, ax_u):
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize=8)
+    fig.suptitle(f"Limit lap {lap.lap_time_s:.3f} s: speed and commands "
+                 f"(bang-bang fraction {lap.bang_bang_fraction:.2f})")
+    wp = flights["limit lap"].waypoints
+    return {
+        "limit-top-view": track_top_view(flights, wp, title="Limit lap and closed-loop lap, top "
+                                         "view"),
+        "limit-3d": trajectory_3d(flights, wp, title="Limit lap and closed-loop lap, 3-D"),
+        "limit-time-histories": fig,
+    }
+
+
+# --------------------------------------------------------------------------------------------
 # Robustness (paper Appendix B)
 # --------------------------------------------------------------------------------------------
 

@@ -6,7 +6,8 @@ stderr and exits with code 2, without a traceback. Heavy modules (CasADi, the ch
 inside the commands, so ``casadrone validate`` stays fast.
 
 The commands are grouped by layer: :mod:`~casadrone.cli.design` (validate, trim, linearise, lqr),
-:mod:`~casadrone.cli.flight` (simulate, benchmark), :mod:`~casadrone.cli.massprops` (massprops),
+:mod:`~casadrone.cli.flight` (simulate, benchmark), :mod:`~casadrone.cli.limit` (limit-lap),
+:mod:`~casadrone.cli.massprops` (massprops),
 :mod:`~casadrone.cli.optimisation` (run, resume, decide, compare, report) and
 :mod:`~casadrone.cli.export` (export), all registered on the one :data:`app` of
 :mod:`~casadrone.cli.common`, the console entry point ``casadrone.cli:app``.
@@ -20,6 +21,7 @@ from casadrone.cli import (  # noqa: F401 (importing registers the commands)
     design,
     export,
     flight,
+    limit,
     massprops,
     optimisation,
 )

@@ -8,11 +8,13 @@ the evaluation chain once per process (:func:`casadrone.optimise.problem.study_s
 from __future__ import annotations
 
 import multiprocessing
+import os
 import pickle
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from casadrone.optimise.lifeline import worker_init
 from casadrone.optimise.mainguard import SpawnWithoutMainContext
 from casadrone.optimise.problem import Record, Study, evaluate_rows
 from casadrone.problemconfig import BackendConfig
@@ -94,7 +96,8 @@ class ProcessBackend:
         self.workers = workers
         context = (SpawnWithoutMainContext() if without_main
                    else multiprocessing.get_context("spawn"))
-        self.pool = ProcessPoolExecutor(workers, mp_context=context)
+        self.pool = ProcessPoolExecutor(workers, mp_context=context, initializer=worker_init,
+                                        initargs=(os.getpid(),))
         self.warm_for: set[str] = set()
 
     def warm(self, study: Study) -> None:
@@ -121,6 +124,12 @@ class ProcessBackend:
 
     def close(self) -> None:
         self.pool.shutdown(cancel_futures=True)
+
+    def terminate(self) -> None:
+        """Stop now (the run was interrupted): kill the workers, do not wait for their tasks."""
+        for proc in list(getattr(self.pool, "_processes", {}).values()):
+            proc.kill()
+        self.pool.shutdown(wait=False, cancel_futures=True)
 
 
 class DaskBackend:

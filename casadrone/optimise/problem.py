@@ -20,7 +20,7 @@ from casadrone.problemconfig import ProblemConfig
 
 #: Constraint violation of a failed candidate, by the stage where it failed: earlier failures are
 #: worse, so feasibility-first selection moves the search towards candidates that fly.
-FAILURE_CV = {"geometry": 4.0, "trim": 3.0, "control": 2.0, "lap": 1.0}
+FAILURE_CV = {"geometry": 4.0, "trim": 3.0, "control": 2.0, "lap": 1.0, "limit": 0.5}
 #: Objective value stored for failed candidates (pymoo needs finite F; feasibility decides first).
 FAILED_F = 1e9
 
@@ -112,8 +112,29 @@ def _setup(key: str, problem: ProblemConfig):
         controller=load_controller(problem.controller),
         track=load(TrackConfig, problem.track or DEFAULT_TRACK),
         integrator=problem.integrator,
+        **limit_setup(problem, template),
     )
     return _SETUPS[key]
+
+
+def limit_setup(problem: ProblemConfig, template) -> dict:
+    """Limit-lap settings of a problem that optimises or constrains a limit-lap index: the
+    options, and the per-study warm-start references (the template and the centre of the
+    decision-variable box), identical in every worker."""
+    from casadrone.indices import limit_index_names
+
+    names = [o.index for o in problem.objectives] + [c.index for c in problem.constraints]
+    if not limit_index_names(names):
+        return {}
+    from casadrone.evaluate import theta_of
+    from casadrone.limitlap import LimitLapOptions
+
+    keys = [v.name for v in problem.variables]
+    centre = {v.name: 0.5 * (v.lower + v.upper) for v in problem.variables}
+    template_theta = {k: float(getattr(template, k)) for k in keys} if keys else theta_of(template)
+    return {"limit": LimitLapOptions(starts=("closed-loop",), lower_bound=False,
+                                     resimulate=False, sensitivities=False),
+            "limit_references": (template_theta, centre)}
 
 
 def study_setup(study: Study):
@@ -173,7 +194,9 @@ class CandidateProblem(Problem):
     """pymoo problem: a whole batch (one generation) goes to the backend at once.
 
     ``backend`` (an object with ``evaluate(study, X) -> list[Record]``) is attached by the runner
-    and dropped when pickled (checkpoints), as are the records of the last batch.
+    and dropped when pickled (checkpoints), as are the records of the last batch and the study
+    (its absolute input paths belong to where the run was: the runner attaches the study of the
+    run directory it resumes, so a moved or copied run never reads the original's inputs).
     """
 
     def __init__(self, study: Study, backend=None):
@@ -197,4 +220,5 @@ class CandidateProblem(Problem):
         state = self.__dict__.copy()
         state["backend"] = None
         state["last_records"] = []
+        state["study"] = None
         return state

@@ -100,9 +100,35 @@ def section_candidates(run: Run, cands: list[Candidate], figs: Figures,
     for c in cands:
         parts.append(f'<h3 id="candidate-{c.label}">Candidate {esc(c.title)}</h3>')
         parts.append(_candidate(run, c, figs))
+        parts.append(_limit_lap(run, c, figs))
         if exports is not None:
             parts.append(_exports(run, c, exports))
     return "".join(parts)
+
+
+def _limit_lap(run: Run, c: Candidate, figs: Figures) -> str:
+    """The candidate's limit lap beside its closed-loop lap, when the problem uses a limit-lap
+    index (J3_limit)."""
+    from casadrone.airframe import with_theta
+    from casadrone.evaluate import evaluate_limit
+    from casadrone.optimise.problem import study_setup
+
+    setup = study_setup(run.study)
+    if setup.limit is None or run.test_problem:
+        return ""
+    lap = evaluate_limit(with_theta(setup.template, c.theta), setup, c.evaluation.trajectory)
+    if not lap.optimal:
+        return note(f"Limit lap of {c.title} failed: {lap.reason}", "warn")
+    splits = ", ".join(f"{t:.3f}" for t in lap.split_times_s)
+    out = [f"<h4>Limit lap of {esc(c.title)}</h4>",
+           kv_table([("limit lap (s)", num(lap.lap_time_s)), ("split times (s)", splits),
+                     ("bang-bang fraction", num(lap.bang_bang_fraction)),
+                     ("winning start", lap.start), ("iterations", str(lap.iterations))])]
+    figures = plots.limit_lap_figures(lap, c.evaluation.trajectory, setup.track.waypoints_m)
+    for name in ("limit-top-view", "limit-time-histories"):
+        out.append(figs.embed(figures[name], f"{name}-{c.label}",
+                              f"Candidate {c.title}: limit lap beside its closed-loop lap."))
+    return "".join(out)
 
 
 def _candidate(run: Run, c: Candidate, figs: Figures) -> str:

@@ -1,0 +1,145 @@
+"""Benchmark: the limit lap over random Table 1 frames (solve time, success, spread, correlations).
+
+For ``--n`` random frames inside paper Table 1 (SY250 template, paper track, overlapping-rotor
+draws resampled), on one core:
+
+- **cold**: ``limit_lap`` with its default starts (closed-loop guess, point-mass guess, best of
+  both) plus the lower bound and the CVODES re-simulation: success rate, CPU time (process time,
+  single-threaded), iterations of the winning start, lap / lower bound, re-simulation miss;
+- **warm**: the same frame solved again from a primal-dual warm start of its nearest
+  neighbour (normalised θ distance) among the other frames: CPU time, iterations, and the
+  difference to the cold lap (negative: the warm start found a better local optimum);
+- **spread** of the limit lap over the frames and its Spearman rank correlation against thrust
+  balance (max/min hover thrust over the rotors), control effectiveness (smallest of roll and
+  pitch angular acceleration per newton of differential thrust, arm/inertia), mass (constant
+  under the paper's free mass model: reported as such) and inertia (Ixx + Iyy).
+
+Run: ``python benchmarks/bench_limitlap.py [--n 50] [--seed 0] [--intervals 20]``. Writes
+``benchmarks/RESULTS-limitlap.md``. Target: ≤ 1 s CPU per warm solve.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from dataclasses import replace  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+from scipy.stats import spearmanr  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from benchmarks.machine import markdown  # noqa: E402
+from casadrone.airframe import TABLE1_BOUNDS, build_airframe, random_thetas, with_theta  # noqa: E402
+from casadrone.config import load_airframe  # noqa: E402
+from casadrone.configio import load  # noqa: E402
+from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
+from casadrone.guidance import TrackConfig  # noqa: E402
+from casadrone.limitlap import LimitLapOptions, limit_lap  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+
+
+def features(frame) -> dict[str, float]:
+    """Frame properties the limit lap is correlated against."""
+    T = frame.hover_thrusts()
+    r = frame.rotor_positions
+    J = np.diag(frame.inertia)
+    roll = np.min(np.abs(r[:, 1])) / J[0]
+    pitch = np.min(np.abs(r[:, 0])) / J[1]
+    return {"thrust balance (max/min hover thrust)": float(T.max() / T.min()),
+            "control effectiveness (min arm/inertia, 1/(kg m))": float(min(roll, pitch)),
+            "mass (kg)": float(frame.mass), "inertia Ixx + Iyy (kg m²)": float(J[0] + J[1])}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=50)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--intervals", type=int, default=LimitLapOptions().intervals)
+    ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap.md")
+    args = ap.parse_args(argv)
+    template = load_airframe("SY250")
+    track = load(TrackConfig, DEFAULT_TRACK)
+    options = LimitLapOptions(intervals=args.intervals)
+    thetas, _ = random_thetas(template, args.n, args.seed)
+    lo = np.array([b[0] for b in TABLE1_BOUNDS.values()])
+    hi = np.array([b[1] for b in TABLE1_BOUNDS.values()])
+    unit = np.array([[(t[k] - a) / (b - a) for k, a, b in zip(TABLE1_BOUNDS, lo, hi,
+                                                              strict=True)] for t in thetas])
+    limit_lap(template, track, options)  # warm-up: builds the NLPs once
+    cold = []
+    for i, theta in enumerate(thetas):
+        cfg = with_theta(template, theta, name=f"frame{i}")
+        c0 = time.process_time()
+        lap = limit_lap(cfg, track, replace(options, sensitivities=False))
+        cold.append((cfg, lap, time.process_time() - c0))
+        print(f"{i}: {lap.status} {lap.lap_time_s:.4f} s (lb {lap.lower_bound_s:.4f}) "
+              f"{cold[-1][2]:.1f} s CPU {lap.reason}", flush=True)
+    ok = [i for i, (_, lap, _) in enumerate(cold) if lap.optimal]
+    warm = []
+    for i in ok:
+        others = [j for j in ok if j != i]
+        if not others:
+            break
+        j = min(others, key=lambda j: np.linalg.norm(unit[i] - unit[j]))
+        wopts = replace(options, starts=(), warm_starts=(cold[j][1],), lower_bound=False,
+                        resimulate=False, sensitivities=False)
+        c0 = time.process_time()
+        lap = limit_lap(cold[i][0], track, wopts)
+        warm.append((i, lap, time.process_time() - c0))
+    laps = np.array([cold[i][1].lap_time_s for i in ok])
+    lbs = np.array([cold[i][1].lower_bound_s for i in ok])
+    misses = np.array([cold[i][1].resimulation_miss_m for i in ok])
+    feats = [features(build_airframe(cold[i][0])) for i in ok]
+    med = np.median
+    lines = ["# Limit lap over random Table 1 frames", "", markdown(), "",
+             f"Command: `python benchmarks/bench_limitlap.py --n {args.n} --seed {args.seed} "
+             f"--intervals {args.intervals}` (SY250 template, paper track, one core).", "",
+             "| quantity | value |", "|---|---|",
+             f"| frames | {args.n} |",
+             f"| cold success | {len(ok)}/{args.n} |",
+             f"| cold CPU per frame (median, max; 2 starts + lower bound + re-simulation) | "
+             f"{med([c[2] for c in cold]):.1f} s, {max(c[2] for c in cold):.1f} s |",
+             f"| cold iterations of the winning start (median) | "
+             f"{med([cold[i][1].iterations for i in ok]) if ok else float('nan'):.0f} |"]
+    if warm:
+        wok = [w for w in warm if w[1].optimal]
+        diff = [w[1].lap_time_s - cold[w[0]][1].lap_time_s for w in wok]
+        lines += [f"| warm success (from nearest neighbour) | {len(wok)}/{len(warm)} |",
+                  f"| warm CPU per solve (median, max) | {med([w[2] for w in warm]):.2f} s, "
+                  f"{max(w[2] for w in warm):.2f} s |",
+                  f"| warm iterations (median) | {med([w[1].iterations for w in wok]):.0f} |",
+                  f"| warm lap − cold lap (median, min, max) | {med(diff):+.4f}, "
+                  f"{min(diff):+.4f}, {max(diff):+.4f} s |"]
+    if ok:
+        lines += [f"| limit lap (min, median, max) | {laps.min():.3f}, {med(laps):.3f}, "
+                  f"{laps.max():.3f} s |",
+                  f"| spread (max − min) / median | {100 * np.ptp(laps) / med(laps):.1f} % |",
+                  f"| lap / lower bound (min, median, max) | {np.nanmin(laps / lbs):.3f}, "
+                  f"{np.nanmedian(laps / lbs):.3f}, {np.nanmax(laps / lbs):.3f} |",
+                  f"| re-simulation miss (median, max) | {med(misses):.4f}, "
+                  f"{misses.max():.4f} m |", "",
+                  "Spearman rank correlation of the limit lap with:", "",
+                  "| feature | ρ | p |", "|---|---|---|"]
+        for name in feats[0]:
+            v = np.array([f[name] for f in feats])
+            if np.ptp(v) == 0:
+                lines.append(f"| {name} | – (constant: {v[0]:g}) | – |")
+                continue
+            rho, p = spearmanr(v, laps)
+            lines.append(f"| {name} | {rho:+.2f} | {p:.2g} |")
+    args.out.write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

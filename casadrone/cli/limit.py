@@ -1,0 +1,100 @@
+"""``casadrone limit-lap``: the time-optimal lap of one airframe (:mod:`casadrone.limitlap`)."""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated
+
+import typer
+
+from casadrone.cli.common import (
+    AirframeArg,
+    JsonOpt,
+    OverridesArg,
+    PlotOpt,
+    app,
+    check_plot_dir,
+    print_json,
+    reports_config_errors,
+    save_figures,
+)
+
+#: The keys of ``--json``, in order.
+LIMIT_KEYS = ("status", "reason", "lap_time_s", "lower_bound_s", "split_times_s",
+              "bang_bang_fraction", "resimulation_miss_m", "sensitivities", "iterations",
+              "wall_time_s")
+
+
+@app.command("limit-lap")
+@reports_config_errors
+def limit_lap_command(
+    airframe: AirframeArg,
+    overrides: OverridesArg = None,
+    track: Annotated[
+        str | None,
+        typer.Option(help="track YAML or name (default: configs/tracks/paper-rectangle.yaml)"),
+    ] = None,
+    intervals: Annotated[int, typer.Option(min=2, help="collocation intervals per leg")] = 30,
+    as_json: JsonOpt = False,
+    plot: PlotOpt = None,
+) -> None:
+    """Fly the limit lap: the minimum-time lap of the airframe through the track's waypoints
+    (or gates), with ESC commands in [0, 1], thrust lag and the track's tilt limit.
+
+    Prints the lap time, the lower bound (attitude dynamics removed), split times, the share of
+    saturated commands, the re-simulation miss and dT/dθ per decision variable (s per unit). A
+    lap the solver cannot find (an unreachable gate, no convergence) is a result with status
+    "failed" and a reason, exit code 0; a bad config (a malformed track, a frame too heavy to
+    hover) is bad input, exit code 2.
+
+    --plot DIR saves the limit lap beside the closed-loop lap (top view, 3-D) and its speed and
+    commands over time.
+    """
+    check_plot_dir(plot)
+    from casadrone.config import load_airframe
+    from casadrone.configio import load, resolve_config
+    from casadrone.evaluate import DEFAULT_TRACK
+    from casadrone.guidance import TrackConfig
+    from casadrone.limitlap import LimitLapOptions, limit_lap
+
+    cfg = load_airframe(airframe, overrides or [])
+    trk = load(TrackConfig, resolve_config(track, "tracks") if track else DEFAULT_TRACK)
+    lap = limit_lap(cfg, trk, LimitLapOptions(intervals=intervals))
+    result = {k: getattr(lap, k) for k in LIMIT_KEYS}
+    if plot is not None:
+        result["figures"] = _figures(cfg, trk, lap, plot)
+    if as_json:
+        print_json(result)
+        return
+    typer.echo(_text(cfg.name, trk.name, result))
+
+
+def _figures(cfg, trk, lap, folder) -> list[str]:
+    if not lap.optimal:
+        typer.echo("--plot: nothing to plot, the limit lap failed", err=True)
+        return []
+    from casadrone import plots
+    from casadrone.airframe import build_airframe
+    from casadrone.limitlap import closed_loop_lap
+
+    traj = closed_loop_lap(build_airframe(cfg), trk)
+    return save_figures(plots.limit_lap_figures(lap, traj, trk.waypoints_m), folder)
+
+
+def _text(name: str, track: str, r: dict) -> str:
+    if r["status"] != "optimal":
+        return f"{name} on {track}: limit lap FAILED: {r['reason']} ({r['wall_time_s']:.1f} s)"
+    splits = ", ".join(f"{t:.3f}" for t in r["split_times_s"])
+    lines = [
+        f"{name} on {track}: limit lap {r['lap_time_s']:.3f} s "
+        f"(lower bound {r['lower_bound_s']:.3f} s; {r['iterations']} iterations, "
+        f"{r['wall_time_s']:.1f} s wall time)",
+        f"  split times (s): {splits}",
+        f"  bang-bang fraction: {r['bang_bang_fraction']:.2f}; re-simulation miss: "
+        f"{r['resimulation_miss_m']:.4f} m",
+        "  sensitivity dT/dθ (s per unit):",
+    ]
+    lines += [f"    {k:<14}{v:>+12.4g}" for k, v in r["sensitivities"].items()
+              if math.isfinite(v)]
+    lines += [f"figure: {p}" for p in r.get("figures", [])]
+    return "\n".join(lines)

@@ -1,0 +1,109 @@
+"""Analysis of a limit-lap solution: bang-bang fraction, re-simulation with SUNDIALS, and the
+lap time's sensitivities to the decision variables (envelope theorem, no re-solve)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
+from casadrone.config import AirframeConfig
+from casadrone.configio import ConfigError
+from casadrone.limitnlp import TARGET_SIZE
+from casadrone.model import NP, NU, NX, quadrotor_model
+
+
+def bang_bang_fraction(u: np.ndarray, tol: float) -> float:
+    """Share of ESC commands within ``tol`` of 0 or 1 (over intervals and rotors)."""
+    u = np.asarray(u, float)
+    return float(np.mean((u <= tol) | (u >= 1 - tol))) if u.size else float("nan")
+
+
+@lru_cache(maxsize=2)
+def scaled_cvodes(rtol: float = 1e-10, atol: float = 1e-10) -> ca.Function:
+    """CVODES on ẋ = h f(x, u, p) over [0, 1]: one interval of length h with a held command
+    (the same explicit f and SUNDIALS integrator as the closed loop's reference, time-scaled so
+    that one Function serves every interval length)."""
+    x = ca.SX.sym("x", NX)
+    uph = ca.SX.sym("uph", NU + NP + 1)
+    u, p, h = uph[:NU], uph[NU:NU + NP], uph[NU + NP]
+    dae = {"x": x, "p": uph, "ode": h * quadrotor_model().f(x, u, p)}
+    return ca.integrator("limit_resim", "cvodes", dae, 0.0, 1.0, {"abstol": atol, "reltol": rtol})
+
+
+def target_miss(pos: np.ndarray, tp: np.ndarray, kind: str) -> float:
+    """Distance (m) from ``pos`` to a target: outside the ball, or off the gate's opening (off
+    its plane, or beyond its shrunk half width / half height)."""
+    c, n, hw, hh, r = tp[0:3], tp[3:5], tp[5], tp[6], tp[7]
+    d = pos - c
+    if kind == "ball":
+        return max(0.0, float(np.linalg.norm(d)) - r)
+    along = n[0] * d[0] + n[1] * d[1]
+    lateral = -n[1] * d[0] + n[0] * d[1]
+    return float(np.linalg.norm([along, max(0.0, abs(lateral) - hw), max(0.0, abs(d[2]) - hh)]))
+
+
+def resimulate(airframe: Airframe, lap) -> np.ndarray:
+    """Node states of the lap's commands integrated by CVODES from its start state."""
+    step = scaled_cvodes()
+    h = np.diff(lap.t)
+    X = np.zeros_like(lap.x)
+    X[0] = lap.x[0]
+    for i in range(len(lap.u)):
+        try:
+            X[i + 1] = np.array(step(x0=X[i], p=np.concatenate(
+                [lap.u[i], airframe.p, [h[i]]]))["xf"]).ravel()
+        except RuntimeError:
+            X[i + 1:] = np.nan
+            break
+    return X
+
+
+def resimulation_miss(airframe: Airframe, lap, targets: np.ndarray, kinds) -> float:
+    """Largest miss (m) of a ball or gate when the optimal commands are flown open loop."""
+    X = resimulate(airframe, lap)
+    N = lap.layout.intervals
+    misses = [target_miss(X[(k + 1) * N, 0:3], targets[TARGET_SIZE * k:TARGET_SIZE * (k + 1)],
+                          kind) for k, kind in enumerate(kinds)]
+    out = max(misses)
+    return out if np.isfinite(out) else float("inf")
+
+
+def theta_sensitivities(
+    cfg: AirframeConfig,
+    dT_dp: np.ndarray,
+    dT_dx0: np.ndarray,
+    start: Callable[[Airframe], np.ndarray],
+    keys: tuple[str, ...] = THETA_KEYS,
+    rel_step: float = 1e-5,
+) -> dict[str, float]:
+    """dT/dθ (s per unit of each key): the NLP's dT/dp and dT/dx_start chained with dp/dθ and
+    dx_start/dθ, differentiated through the same config → airframe build as the evaluation
+    (so a mass model that derives mass and inertia from θ is included). Central differences of
+    that cheap map (no re-solve); one-sided where a side leaves the valid configs (a bound)."""
+    def params(key: str, value: float) -> np.ndarray | None:
+        try:
+            frame = build_airframe(with_theta(cfg, {key: value}))
+        except ConfigError:
+            return None
+        return np.concatenate([frame.p, start(frame)])
+
+    grad = np.concatenate([dT_dp, dT_dx0])
+    out: dict[str, float] = {}
+    for key in keys:
+        v = float(getattr(cfg, key))
+        h = rel_step * max(abs(v), 1e-9)
+        hi, lo, mid = params(key, v + h), params(key, v - h), params(key, v)
+        if hi is not None and lo is not None:
+            d = (hi - lo) / (2 * h)
+        elif hi is not None:
+            d = (hi - mid) / h
+        elif lo is not None:
+            d = (mid - lo) / h
+        else:
+            d = np.zeros_like(grad)
+        out[key] = float(grad @ d)
+    return out

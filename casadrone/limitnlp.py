@@ -1,0 +1,341 @@
+"""Construction of the limit-lap NLP: a minimum-time problem through targets, built once per layout.
+
+Transcription: **direct multiple shooting with RK4** (``substeps`` steps per interval) and
+piecewise-constant commands, the default; Radau collocation (``method="collocation"``) is kept
+for comparison. Measured on SY250 (paper track): collocation (20 intervals per leg, degree 3) is
+cheaper per IPOPT iteration (the exact Hessian needs only f's second derivatives, not those of a
+composed integrator) but its optimum exploits the discretisation, with chattering bang-bang
+commands whose collocation states miss the true flow by up to 0.7 m/s per interval (checked
+with CVODES); RK4 shooting's intervals miss it by millimetres per second, so only shooting laps
+survive the re-simulation check. Commands are held over an interval, exactly what an ESC
+receives and what the re-simulation integrates.
+
+Phases: one per leg (route segment), each with its own free duration T_k and ``intervals``
+uniform intervals of length T_k / N. The end node of leg k must lie in target k: a **ball**
+(|p − c| ≤ r) or a **gate** (on the gate's vertical plane, inside its opening shrunk by a
+clearance, crossing it forwards). Objective: Σ T_k.
+
+Everything that varies between airframes or track geometries is an NLP *parameter*
+``P = [p (model parameters), x_start (start state), targets (8 per leg)]``; bounds (tilt,
+ground, command range) are solver inputs. So one NLP and one IPOPT instance serve every
+candidate on a track layout (number and kind of legs), and ``lam_p`` of the solution is
+∂(lap)/∂P by the envelope theorem.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal
+
+import casadi as ca
+import numpy as np
+
+from casadrone.model import NP, quadrotor_model, rotation_matrix, unpack_params
+
+TargetKind = Literal["ball", "gate"]
+#: Parameters per target: centre (3), unit normal in the horizontal plane (2), half width,
+#: half height (both already shrunk by the clearance), ball radius.
+TARGET_SIZE = 8
+
+
+@dataclass(frozen=True)
+class OcpModel:
+    """Dynamics ``f(x, u, p) -> xdot`` of an optimal-control model and how to read its state."""
+
+    name: str
+    f: ca.Function
+    world_velocity: Callable  # (x: SX) -> SX (3,), world-frame velocity (m/s)
+
+    @property
+    def nx(self) -> int:
+        return self.f.size1_in(0)
+
+    @property
+    def nu(self) -> int:
+        return self.f.size1_in(1)
+
+    @property
+    def np(self) -> int:
+        return self.f.size1_in(2)
+
+
+def quadrotor_ocp_model() -> OcpModel:
+    """The 16-state model of :mod:`casadrone.model` (thrust lag included)."""
+
+    def vw(x):
+        return rotation_matrix(x[9], x[10], x[11]) @ x[3:6]
+
+    return OcpModel("quadrotor", quadrotor_model().f, vw)
+
+
+def point_mass_ocp_model() -> OcpModel:
+    """Attitude dynamics removed: state (world position, world velocity), controls (φ, θ, ψ,
+    total thrust). The attitude and total thrust change instantly; mass, gravity and the *same*
+    body-axis quadratic drag (evaluated at the commanded attitude) act as in the full model.
+
+    Every flight of the full model is a flight of this one (take its attitude and Σ T_i as the
+    controls; Σ T_i ≤ 4K because each lagged thrust stays below K), so its minimum time is a
+    lower bound of the limit lap. Mass and drag do not depend on the arm geometry, so with the
+    paper's free mass model the bound is the same for every geometry.
+    """
+    x = ca.SX.sym("x", 6)
+    u = ca.SX.sym("u", 4)
+    p = ca.SX.sym("p", NP)
+    g, _, _, _, cda = unpack_params(p)
+    R = rotation_matrix(u[0], u[1], u[2])
+    vb = R.T @ x[3:6]
+    drag_b = -0.5 * g["rho"] * cda * ca.fabs(vb) * vb
+    acc = R @ (ca.vertcat(0, 0, u[3]) + drag_b) / g["mass"] - ca.vertcat(0, 0, g["g"])
+    f = ca.Function("f_point_mass", [x, u, p], [ca.vertcat(x[3:6], acc)],
+                    ["x", "u", "p"], ["xdot"])
+    return OcpModel("point-mass", f, lambda s: s[3:6])
+
+
+@dataclass(frozen=True)
+class Layout:
+    """What fixes the NLP's structure (everything else is a parameter or a bound)."""
+
+    kinds: tuple[TargetKind, ...]  # one target per leg
+    intervals: int = 30  # per leg
+    degree: int = 3  # Radau collocation points per interval (collocation)
+    method: Literal["shooting", "collocation"] = "shooting"
+    substeps: int = 3  # RK4 steps per interval (shooting)
+
+    @property
+    def n_coll(self) -> int:
+        """Collocation states per interval (none for shooting)."""
+        return self.degree if self.method == "collocation" else 0
+    end_at_rest: bool = False  # zero world velocity at the last target
+
+    @property
+    def n_legs(self) -> int:
+        return len(self.kinds)
+
+    @property
+    def n_intervals(self) -> int:
+        return self.n_legs * self.intervals
+
+
+@dataclass(frozen=True)
+class Nlp:
+    """A built NLP: the IPOPT solvers (cold and warm-start options), its sizes and bounds."""
+
+    model: OcpModel
+    layout: Layout
+    cold: ca.Function
+    warm: ca.Function
+    lbg: np.ndarray
+    ubg: np.ndarray
+
+    def pack(self, T: np.ndarray, X: np.ndarray, U: np.ndarray, Z: np.ndarray | None = None
+             ) -> np.ndarray:
+        """Decision vector from leg durations (L,), node states (M+1, nx), commands (M, nu) and
+        collocation states (M, degree, nx; default: linear between the nodes)."""
+        X = np.asarray(X, float)
+        if self.layout.n_coll == 0:
+            Z = np.zeros((len(X) - 1, 0))
+        elif Z is None:
+            tau = np.asarray(ca.collocation_points(self.layout.degree, "radau"))
+            Z = X[:-1, None, :] + tau[None, :, None] * (X[1:] - X[:-1])[:, None, :]
+        h = np.repeat(np.asarray(T, float), self.layout.intervals)
+        parts = [np.column_stack([h, np.asarray(U, float).reshape(len(h), -1),
+                                  np.asarray(Z, float).reshape(len(h), -1), X[:-1]]).ravel(),
+                 X[-1]]
+        return np.concatenate(parts)
+
+    def unpack(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(leg durations, node states (M+1, nx), commands (M, nu)) of a decision vector."""
+        N, M, nx, nu = self.layout.intervals, self.layout.n_intervals, self.model.nx, \
+            self.model.nu
+        w = np.asarray(w, float).ravel()
+        per = 1 + nu + nx * self.layout.n_coll + nx
+        blocks = w[:M * per].reshape(M, per)
+        X = np.vstack([blocks[:, per - nx:], w[M * per:][None, :]])
+        return blocks[::N, 0], X, blocks[:, 1:1 + nu]
+
+
+def rk4_step(model: OcpModel, substeps: int) -> ca.Function:
+    """``step(x, u, p, h) -> x_next``: ``substeps`` RK4 steps of total length h."""
+    x = ca.SX.sym("x", model.nx)
+    u = ca.SX.sym("u", model.nu)
+    p = ca.SX.sym("p", model.np)
+    h = ca.SX.sym("h")
+    dt = h / substeps
+    xk = x
+    for _ in range(substeps):
+        k1 = model.f(xk, u, p)
+        k2 = model.f(xk + dt / 2 * k1, u, p)
+        k3 = model.f(xk + dt / 2 * k2, u, p)
+        k4 = model.f(xk + dt * k3, u, p)
+        xk = xk + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return ca.Function("step", [x, u, p, h], [xk], ["x", "u", "p", "h"], ["x_next"])
+
+
+def collocation_interval(model: OcpModel, degree: int) -> ca.Function:
+    """``interval(x, z, u, p, h) -> (res, x_end)``: Radau collocation residuals of one interval
+    (x the start state, z the ``degree`` collocation states side by side, u held, length h)."""
+    tau = [0.0] + list(ca.collocation_points(degree, "radau"))
+    C = np.zeros((degree + 1, degree + 1))
+    for j in range(degree + 1):
+        poly = np.poly1d([1.0])
+        for r in range(degree + 1):
+            if r != j:
+                poly *= np.poly1d([1.0, -tau[r]]) / (tau[j] - tau[r])
+        dpoly = np.polyder(poly)
+        C[j] = [dpoly(t) for t in tau]
+    x = ca.SX.sym("x", model.nx)
+    z = ca.SX.sym("z", model.nx, degree)
+    u = ca.SX.sym("u", model.nu)
+    p = ca.SX.sym("p", model.np)
+    h = ca.SX.sym("h")
+    pts = [x] + [z[:, r] for r in range(degree)]
+    res = [sum(C[j, r] * pts[j] for j in range(degree + 1)) - h * model.f(pts[r], u, p)
+           for r in range(1, degree + 1)]
+    return ca.Function("interval", [x, z, u, p, h], [ca.vertcat(*res), z[:, -1]],
+                       ["x", "z", "u", "p", "h"], ["res", "x_end"])
+
+
+def _target_rows(x, vw, tp, kind: TargetKind):
+    """Constraint rows (expression, lower, upper) of passing target ``tp`` at node state x."""
+    c, n, hw, hh, r = tp[0:3], tp[3:5], tp[5], tp[6], tp[7]
+    d = x[0:3] - c
+    if kind == "ball":
+        return [(ca.sumsqr(d) - r**2, -np.inf, 0.0)]
+    along = n[0] * d[0] + n[1] * d[1]  # signed distance to the gate plane (m)
+    lateral = -n[1] * d[0] + n[0] * d[1]  # in the plane, left of the direction of travel (m)
+    return [
+        (along, 0.0, 0.0),
+        (lateral - hw, -np.inf, 0.0), (-lateral - hw, -np.inf, 0.0),
+        (d[2] - hh, -np.inf, 0.0), (-d[2] - hh, -np.inf, 0.0),
+        (n[0] * vw[0] + n[1] * vw[1], 0.0, np.inf),  # crossing forwards
+    ]
+
+
+def ipopt_options(tol: float, max_iter: int, warm: bool) -> dict:
+    """IPOPT settings (MUMPS, exact Hessian, quiet); ``warm`` adds primal-dual warm start."""
+    ipopt = {"tol": tol, "acceptable_tol": 1e3 * tol, "max_iter": max_iter, "print_level": 0,
+             "linear_solver": "mumps", "sb": "yes", "mu_strategy": "adaptive"}
+    if warm:
+        ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
+                      "warm_start_mult_bound_push": 1e-9, "warm_start_slack_bound_push": 1e-9,
+                      "mu_init": 1e-6})
+    return {"ipopt": ipopt, "print_time": False, "error_on_fail": False}
+
+
+_NLPS: dict[tuple, Nlp] = {}
+
+
+def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int = 1000) -> Nlp:
+    """The NLP of ``layout`` on ``model``, built once per process and cached (never per airframe).
+    """
+    key = (model.name, layout, tol, max_iter)
+    if key in _NLPS:
+        return _NLPS[key]
+    L, N, M, nx, nu = layout.n_legs, layout.intervals, layout.n_intervals, model.nx, model.nu
+    d = layout.n_coll
+    # per interval i: its leg's duration S_i (its length is S_i / N), command, collocation
+    # states, start node; then the last node. S is one unknown per interval, equal within a leg
+    # (S_i = S_{i-1}): a leg's duration then couples neighbours only, and the KKT matrix stays
+    # banded for MUMPS (one duration per leg would couple all of the leg's intervals).
+    S = ca.SX.sym("S", 1, M)
+    h = S / N
+    U = ca.SX.sym("U", nu, M)
+    Z = ca.SX.sym("Z", nx * d, M)
+    X = ca.SX.sym("X", nx, M + 1)
+    p = ca.SX.sym("p", model.np)
+    x_start = ca.SX.sym("x_start", nx)
+    targets = ca.SX.sym("targets", TARGET_SIZE * L)
+    res, x_end = [], []
+    if layout.method == "collocation":
+        interval = collocation_interval(model, d)
+        for i in range(M):
+            r, e = interval(X[:, i], ca.reshape(Z[:, i], nx, d), U[:, i], p, h[i])
+            res.append(r)
+            x_end.append(X[:, i + 1] - e)
+    else:
+        step = rk4_step(model, layout.substeps)
+        x_end = [X[:, i + 1] - step(X[:, i], U[:, i], p, h[i]) for i in range(M)]
+        res = [ca.SX(0, 1)]
+    same = [S[i] - S[i - 1] for i in range(1, M) if i % N]
+    rows = [(ca.vertcat(*res), 0.0, 0.0), (ca.vertcat(*x_end), 0.0, 0.0),
+            (ca.vertcat(*same), 0.0, 0.0), (X[:, 0] - x_start, 0.0, 0.0)]
+    for k, kind in enumerate(layout.kinds):
+        xe = X[:, (k + 1) * N]
+        rows += _target_rows(xe, model.world_velocity(xe),
+                             targets[TARGET_SIZE * k:TARGET_SIZE * (k + 1)], kind)
+    if layout.end_at_rest:
+        rows.append((model.world_velocity(X[:, M]), 0.0, 0.0))
+    g = ca.vertcat(*[r[0] for r in rows])
+    lbg = np.concatenate([np.full(r[0].numel(), r[1]) for r in rows])
+    ubg = np.concatenate([np.full(r[0].numel(), r[2]) for r in rows])
+    w = ca.vertcat(ca.vec(ca.vertcat(S, U, Z, X[:, :M])), X[:, M])
+    nlp = {"x": w, "p": ca.vertcat(p, x_start, targets), "f": ca.sum2(S[::N]), "g": g}
+    name = f"limit_{model.name.replace('-', '_')}_{L}x{N}"
+    built = Nlp(model=model, layout=layout,
+                cold=ca.nlpsol(name, "ipopt", nlp, ipopt_options(tol, max_iter, False)),
+                warm=ca.nlpsol(name + "_warm", "ipopt", nlp, ipopt_options(tol, max_iter, True)),
+                lbg=lbg, ubg=ubg)
+    _NLPS[key] = built
+    return built
+
+
+@dataclass(frozen=True)
+class NlpPoint:
+    """A primal-dual point of an NLP (a solution, kept for warm starts and sensitivities)."""
+
+    w: np.ndarray
+    lam_x: np.ndarray
+    lam_g: np.ndarray
+    lam_p: np.ndarray
+
+
+@dataclass(frozen=True)
+class NlpSolution:
+    """One IPOPT solve."""
+
+    success: bool
+    return_status: str
+    objective: float
+    point: NlpPoint
+    iterations: int
+    wall_time_s: float
+
+
+def solve(nlp: Nlp, w0: np.ndarray, P: np.ndarray, lbx: np.ndarray, ubx: np.ndarray,
+          warm: NlpPoint | None = None) -> NlpSolution:
+    """Solve from ``w0`` (or from a primal-dual ``warm`` point); never raises."""
+    import time
+
+    start = time.perf_counter()
+    args = dict(x0=np.clip(w0, lbx, ubx), p=P, lbx=lbx, ubx=ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+    solver = nlp.cold
+    if warm is not None:
+        solver = nlp.warm
+        args.update(x0=np.clip(warm.w, lbx, ubx), lam_x0=warm.lam_x, lam_g0=warm.lam_g)
+    try:
+        out = solver(**args)
+        stats = solver.stats()
+        status = str(stats.get("return_status", "unknown"))
+        success = bool(stats.get("success", False)) and np.isfinite(float(out["f"]))
+        point = NlpPoint(*(np.array(out[k]).ravel() for k in ("x", "lam_x", "lam_g", "lam_p")))
+        iters = int(stats.get("iter_count", 0))
+        f = float(out["f"])
+    except RuntimeError as exc:  # evaluation errors (NaN in the model) end as a failed solve
+        status, success, iters, f = f"error: {str(exc).splitlines()[-1][:100]}", False, 0, np.nan
+        point = NlpPoint(np.asarray(w0, float), np.zeros(len(lbx)), np.zeros(len(nlp.lbg)),
+                         np.zeros(len(P)))
+    return NlpSolution(success, status, f, point, iters, time.perf_counter() - start)
+
+
+def target_vector(centres: np.ndarray, kinds: tuple[TargetKind, ...], headings: np.ndarray,
+                  half_widths: np.ndarray, half_heights: np.ndarray, radius: float) -> np.ndarray:
+    """The ``targets`` part of P for legs ending at ``centres`` (L × 3, m)."""
+    out = np.zeros((len(kinds), TARGET_SIZE))
+    for k in range(len(kinds)):
+        out[k, 0:3] = centres[k]
+        out[k, 3:5] = np.cos(headings[k]), np.sin(headings[k])
+        out[k, 5:7] = half_widths[k], half_heights[k]
+        out[k, 7] = radius
+    return out.ravel()
+

@@ -1,0 +1,109 @@
+"""Limit lap on the 16-state model (slow: each solve takes seconds to minutes on a loaded
+2-core machine). Oracles: the point-mass relaxation, the closed-loop lap, CVODES, finite
+differences of re-solves, physical monotonicity and mirror symmetry."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from casadrone.config import load_airframe
+from casadrone.configio import load
+from casadrone.evaluate import DEFAULT_TRACK, default_setup, evaluate, theta_of
+from casadrone.guidance import TrackConfig
+from casadrone.limitlap import LimitLapOptions, limit_lap
+
+pytestmark = pytest.mark.slow
+TRACK = load(TrackConfig, DEFAULT_TRACK)
+REFERENCES = ("SY250", "SY220", "HS200", "HS210", "NSY200")
+FAST = LimitLapOptions(sensitivities=False)
+
+
+@pytest.fixture(scope="module")
+def laps():
+    return {name: limit_lap(load_airframe(name), TRACK, FAST) for name in REFERENCES}
+
+
+@pytest.mark.parametrize("name", REFERENCES)
+def test_reference_lap_between_bound_and_closed_loop(laps, name):
+    lap = laps[name]
+    assert lap.optimal, lap.reason
+    J3 = evaluate(theta_of(load_airframe(name)), default_setup(name)).indices["J3"]
+    assert lap.lower_bound_s <= lap.lap_time_s + 1e-6 <= J3
+    assert lap.resimulation_miss_m <= 0.05
+    assert 0.0 <= lap.bang_bang_fraction <= 1.0
+
+
+def test_grid_refinement_changes_the_lap_little(laps):
+    fine = limit_lap(load_airframe("SY250"), TRACK,
+                     replace(FAST, intervals=2 * FAST.intervals, starts=(),
+                             warm_starts=(), lower_bound=False))
+    # a finer grid from the coarse solution (interpolated) is a new solve
+    assert fine.optimal or fine.reason
+    if fine.optimal:
+        assert abs(fine.lap_time_s - laps["SY250"].lap_time_s) <= 1e-3 * laps["SY250"].lap_time_s
+
+
+def test_slower_lag_and_weaker_thrust_never_faster(laps):
+    base = laps["SY250"]
+    for override in (["thrust.time_constant_s=0.09"], ["thrust.gain_n=8.0"]):
+        cfg = load_airframe("SY250", override)
+        lap = limit_lap(cfg, TRACK, replace(FAST, warm_starts=(base,)))
+        assert lap.optimal, lap.reason
+        assert lap.lap_time_s >= base.lap_time_s - 1e-4, override
+
+
+def test_mirror_track_same_lap_on_symmetric_frame(laps):
+    mirror = TRACK.model_copy(update={"waypoints_m": [(x, -y, z) for x, y, z in
+                                                      TRACK.waypoints_m]})
+    lap = limit_lap(load_airframe("SY250"), mirror, FAST)
+    assert lap.optimal, lap.reason
+    np.testing.assert_allclose(lap.lap_time_s, laps["SY250"].lap_time_s, rtol=2e-3)
+
+
+def test_sensitivities_match_finite_differences_on_asymmetric_frame():
+    cfg = load_airframe("HS210")
+    lap = limit_lap(cfg, TRACK, LimitLapOptions())
+    assert lap.optimal, lap.reason
+    for key, step in (("lambda_a_mm", 2.0), ("ixx_kgm2", 1e-4)):
+        v = getattr(cfg, key)
+        T = [limit_lap(load_airframe("HS210", [f"{key}={v + s}"]), TRACK,
+                       replace(FAST, warm_starts=(lap,), starts=(), lower_bound=False,
+                               resimulate=False)).lap_time_s for s in (-step, step)]
+        fd = (T[1] - T[0]) / (2 * step)
+        assert lap.sensitivities[key] == pytest.approx(fd, rel=0.05, abs=1e-6), key
+
+
+def test_unreachable_gate_is_a_failed_result():
+    trk = load(TrackConfig, "configs/tracks/multigp-cdra-gates.yaml", ["time_limit_s=0.1"])
+    lap = limit_lap(load_airframe("SY250"), trk, FAST)
+    assert lap.status == "failed" and lap.reason
+
+
+def test_cli_json_keys_exactly(cli_runner):
+    from casadrone.cli import app
+    from casadrone.cli.limit import LIMIT_KEYS
+
+    r = cli_runner.invoke(app, ["limit-lap", "SY250", "--json"])
+    assert r.exit_code == 0, r.output
+    out = json.loads(r.stdout)
+    assert tuple(out) == LIMIT_KEYS
+    assert out["status"] == "optimal" and set(out["sensitivities"]) >= {"lambda_a_mm", "alpha_deg"}
+
+
+def test_optimisation_same_front_serial_and_processes(tmp_path):
+    """Same seed ⇒ same evaluations on both backends: every candidate warm-starts only from the
+    per-study references, which each worker solves identically."""
+    from casadrone.optimise.runner import run
+    from casadrone.problemconfig import load_problem
+
+    for backend in ("serial", "processes"):
+        problem = load_problem("limit-lap", ["algorithm.population=4", "algorithm.generations=1",
+                                             "algorithm.settings.n_ind_ga=2",
+                                             f"backend.name={backend}", "backend.workers=2"])
+        run(problem, tmp_path / backend, quiet=True)
+    a, b = ((tmp_path / k / "pareto.csv").read_text() for k in ("serial", "processes"))
+    assert a == b

@@ -1,0 +1,126 @@
+"""Limit lap: analytic oracle (double integrator), relaxation bound, re-simulation, gates, CLI.
+
+Solves of the 16-state model take seconds to minutes on a loaded machine: those tests are
+``slow``; the default run keeps the analytic oracle, the gate geometry and the CLI's bad input.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from casadrone.config import load_airframe
+from casadrone.configio import ConfigError, load
+from casadrone.evaluate import DEFAULT_TRACK
+from casadrone.guidance import TrackConfig
+from casadrone.limitcheck import target_miss
+from casadrone.limitlap import LimitLapOptions, limit_lap, track_targets
+from casadrone.limitnlp import Layout, OcpModel, build_nlp, solve, target_vector
+
+TRACK = load(TrackConfig, DEFAULT_TRACK)
+
+
+def _double_integrator() -> OcpModel:
+    x = ca.SX.sym("x", 6)
+    u = ca.SX.sym("u", 3)
+    p = ca.SX.sym("p", 1)
+    f = ca.Function("f_di", [x, u, p], [ca.vertcat(x[3:6], u)], ["x", "u", "p"], ["xdot"])
+    return OcpModel("double-integrator", f, lambda s: s[3:6])
+
+
+def _solve_double_integrator(points, a_max, end_at_rest=False, intervals=20):
+    model = _double_integrator()
+    kinds = ("ball",) * len(points)
+    nlp = build_nlp(model, Layout(kinds, intervals, end_at_rest=end_at_rest))
+    L, M = len(points), len(points) * intervals
+    P = np.concatenate([[0.0], np.zeros(6), target_vector(
+        np.asarray(points, float), kinds, np.zeros(L), np.zeros(L), np.zeros(L), 0.0)])
+    zl, zu = np.full((M, 3, 6), -np.inf), np.full((M, 3, 6), np.inf)
+    lbx = nlp.pack(np.full(L, 1e-2), np.full((M + 1, 6), -np.inf), np.full((M, 3), -a_max), zl)
+    ubx = nlp.pack(np.full(L, 1e2), np.full((M + 1, 6), np.inf), np.full((M, 3), a_max), zu)
+    w0 = nlp.pack(np.ones(L), np.zeros((M + 1, 6)), np.zeros((M, 3)))
+    sol = solve(nlp, w0, P, lbx, ubx)
+    assert sol.success, sol.return_status
+    return nlp.unpack(sol.point.w)[0]
+
+
+def test_double_integrator_out_and_back_matches_bang_bang():
+    """Rest at 0, touch x = L, back to 0 with |a| ≤ A: +A until the peak at L (t = 2√(L/A)
+    with the switch at √(L/A)), then −A back: T = (2 + √2)√(L/A)."""
+    L, A = 10.0, 2.0
+    T = _solve_double_integrator([[L, 0, 0], [0, 0, 0]], A)
+    np.testing.assert_allclose(T.sum(), (2 + math.sqrt(2)) * math.sqrt(L / A), rtol=1e-3)
+    np.testing.assert_allclose(T[0], 2 * math.sqrt(L / A), rtol=1e-3)
+
+
+def test_double_integrator_rest_to_rest_through_a_point():
+    """Rest to rest over D through a point at D/4 on the way: T = 2√(D/A); the point is passed
+    while accelerating, at t = √(2 (D/4) / A)."""
+    D, A = 12.0, 3.0
+    T = _solve_double_integrator([[D / 4, 0, 0], [D, 0, 0]], A, end_at_rest=True, intervals=40)
+    np.testing.assert_allclose(T.sum(), 2 * math.sqrt(D / A), rtol=1e-3)
+    np.testing.assert_allclose(T[0], math.sqrt(2 * D / 4 / A), rtol=1e-3)
+
+
+def test_gate_miss_geometry():
+    """A gate 2 m wide (half 1 m) facing north: inside → 0; 0.5 m beside the opening → 0.5 m;
+    0.3 m in front of the plane → 0.3 m."""
+    tp = np.array([0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, 0.0])
+    assert target_miss(np.array([0.9, 0.0, 1.5]), tp, "gate") == 0.0
+    np.testing.assert_allclose(target_miss(np.array([-1.5, 0.0, 1.0]), tp, "gate"), 0.5)
+    np.testing.assert_allclose(target_miss(np.array([0.0, -0.3, 1.0]), tp, "gate"), 0.3)
+    ball = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.5])
+    np.testing.assert_allclose(target_miss(np.array([0.0, 2.0, 0.0]), ball, "ball"), 1.5)
+
+
+def test_gate_track_flies_through_gate_centres():
+    trk = load(TrackConfig, "configs/tracks/multigp-cdra-gates.yaml")
+    assert [tuple(g.centre_m) for g in trk.gates] == [tuple(w) for w in trk.waypoints_m]
+    assert all(g.width_m == pytest.approx(5 * 0.3048) for g in trk.gates)
+    targets = track_targets(trk, LimitLapOptions())
+    assert targets.kinds == ("gate",) * len(trk.gates)
+    with pytest.raises(ConfigError):  # both ways at once is refused
+        load(TrackConfig, "configs/tracks/multigp-cdra-gates.yaml",
+             ["waypoints_m=[[0, 0, 1], [1, 0, 1], [2, 0, 1], [3, 0, 1], [4, 0, 1], [5, 0, 1]]"])
+
+
+def test_too_small_gate_is_a_failed_result_not_an_exception():
+    trk = load(TrackConfig, "configs/tracks/multigp-cdra-gates.yaml")
+    lap = limit_lap(load_airframe("SY250"), trk, LimitLapOptions(gate_clearance_m=1.0))
+    assert lap.status == "failed" and "clearance" in lap.reason
+
+
+def test_cli_bad_track_and_heavy_frame_exit_2(cli_runner, tmp_path):
+    from casadrone.cli import app
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: bad\nwaypoints_m: [[0, 0, 1]]\nstraight: [true, false]\n")
+    r = cli_runner.invoke(app, ["limit-lap", "SY250", "--track", str(bad), "--json"])
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    assert "straight" in r.stderr
+    r = cli_runner.invoke(app, ["limit-lap", "SY250", "mass_kg=4", "--json"])
+    assert r.exit_code == 2 and "cannot hover" in r.stderr and "Traceback" not in r.output
+
+
+def test_j3_limit_is_a_limit_index_outside_closed_loop_indices():
+    from casadrone.indices import BUILTIN_LIMIT_NAMES, INDICES, limit_index_names
+
+    assert BUILTIN_LIMIT_NAMES == ("J3_limit",)
+    assert INDICES["J3_limit"].source == "limit" and INDICES["J3_limit"].sense == "min"
+    assert limit_index_names(["J1", "J3_limit", "J5"]) == ("J3_limit",)
+
+
+def test_limit_lap_problem_sets_up_limit_options_and_references():
+    from casadrone.optimise.problem import limit_setup
+    from casadrone.problemconfig import load_problem
+
+    problem = load_problem("limit-lap")
+    template = load_airframe(problem.airframe)
+    extra = limit_setup(problem, template)
+    assert extra["limit"] is not None
+    assert len(extra["limit_references"]) == 2  # the template and the centre of the box
+    assert extra["limit_references"][1]["alpha_deg"] == pytest.approx(77.5)
+    assert limit_setup(load_problem("quick"), template) == {}

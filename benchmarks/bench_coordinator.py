@@ -57,9 +57,9 @@ def problem(generations: int):
 
 
 def measure(run_dir: Path, archive: int, generations: int) -> tuple[list[dict], float]:
-    from casadrone.config import BackendConfig
     from casadrone.optimise.runner import run
     from casadrone.optimise.timings import read_timings
+    from casadrone.problemconfig import BackendConfig
 
     def progress(gen: int, stats: dict) -> None:
         print(f"gen {gen:>3}  archive {stats['archive_size']:>6}", file=sys.stderr, flush=True)
@@ -143,8 +143,12 @@ def main() -> None:
         "",
         *[at_size(rows, s) for s in (1000, 2000, 5000, 7500, 10000)],
         "",
-        "Statistics: the hypervolume runs every 10th generation with 5 objectives (exact, "
-        "moocore), hence the spikes in that column; the other generations only sort the front.",
+        "Statistics: the progress hypervolume (`casadrone.optimise.hypervolume`: the "
+        "non-dominated set of every feasible evaluation so far, exact with moocore for 5 "
+        "objectives) is computed every 10th generation, hence the spikes in that column; the "
+        "other generations only buffer the new points and sort the archive's front. "
+        "Coordinator = ask + advance + statistics + history + checkpoint; CPU = the coordinating "
+        "process's CPU time over those steps.",
         "",
         *table(rows),
         "",

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import subprocess
 import sys
 import time
@@ -44,18 +43,13 @@ COORDINATOR = ("ask_s", "advance_s", "statistics_s", "history_s", "checkpoint_s"
 
 def run_or_resume(problem: str, run_dir: Path, generations: int | None, backend: str,
                   workers: int) -> float:
-    """Run ``problem`` into ``run_dir`` to its end, resuming it if it was stopped; return the
-    wall time of this call (s)."""
-    from casadrone.optimise.timings import TIMINGS
-
+    """Run ``problem`` into ``run_dir`` to its end, resuming it if it was stopped (``casadrone
+    resume`` also restarts a run stopped before its first checkpoint); return the wall time of
+    this call (s)."""
     manifest = run_dir / "manifest.json"
     if manifest.exists() and json.loads(manifest.read_text()).get("status") == "completed":
         print(f"{run_dir}: already complete", file=sys.stderr)
         return 0.0
-    if manifest.exists() and not (run_dir / TIMINGS).exists():
-        print(f"{run_dir}: stopped before its first generation was stored: starting it again",
-              file=sys.stderr)
-        shutil.rmtree(run_dir)
     backend_args = ["--backend", backend, "-j", str(workers)]
     if manifest.exists():
         cmd = [*CLI, "resume", str(run_dir), *backend_args]

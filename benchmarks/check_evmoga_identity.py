@@ -6,6 +6,7 @@ n_div 200 for ZDT1/ZDT2, 20 for DTLZ2) with the ev-MOGA of git revision ``--old`
 one, and compares the final archives (X and F, in order) bit for bit, plus the wall time of each.
 
 Run: ``python benchmarks/check_evmoga_identity.py [--seeds 0 1 4] [--problems zdt1 zdt2 dtlz2]``
+Writes ``benchmarks/RESULTS-identity.md``.
 """
 
 from __future__ import annotations
@@ -56,10 +57,25 @@ def main() -> None:
     parser.add_argument("--old", default="683f05d")
     parser.add_argument("--seeds", type=int, nargs="*", default=[0, 1, 4])
     parser.add_argument("--problems", nargs="*", default=["zdt1", "zdt2", "dtlz2"])
+    parser.add_argument("--out", type=Path, default=HERE / "RESULTS-identity.md")
     args = parser.parse_args()
+    import machine
+
     old = old_evmoga(args.old)
-    print("| problem | seed | archive size | identical X and F | wall old (s) | wall new (s) |")
-    print("|---|---:|---:|---|---:|---:|")
+    lines = [
+        "# ev-MOGA: vectorised archive against the sequential one, whole runs",
+        "",
+        f"`python benchmarks/check_evmoga_identity.py` — bench_evmoga_zdt.py's ev-MOGA settings "
+        f"(P 800, 8 children, G 2400, 20 000 evaluations), the ev-MOGA of git {args.old} "
+        "(sequential archive) against the current one; final archives compared bit for bit "
+        "(X and F, in order). Wall times under the machine's load, one process each.",
+        "",
+        machine.markdown(),
+        "",
+        "| problem | seed | archive size | identical X and F | wall old (s) | wall new (s) |",
+        "|---|---:|---:|---|---:|---:|",
+    ]
+    print("\n".join(lines), flush=True)
     ok = True
     for name in args.problems:
         for seed in args.seeds:
@@ -67,8 +83,10 @@ def main() -> None:
             X1, F1, t1 = one(EvMOGA, name, seed)
             same = X0.shape == X1.shape and np.array_equal(X0, X1) and np.array_equal(F0, F1)
             ok &= same
-            print(f"| {name.upper()} | {seed} | {len(F1)} | {'yes' if same else 'NO'} "
-                  f"| {t0:.1f} | {t1:.1f} |", flush=True)
+            lines.append(f"| {name.upper()} | {seed} | {len(F1)} | {'yes' if same else 'NO'} "
+                         f"| {t0:.1f} | {t1:.1f} |")
+            print(lines[-1], flush=True)
+    args.out.write_text("\n".join(lines) + "\n")
     sys.exit(0 if ok else 1)
 
 

@@ -218,7 +218,25 @@ class EvMOGA(Algorithm):
         for key in ("pop", "off"):
             if isinstance(state.get(key), dict):
                 state[key] = _population_of_rows(state[key])
+        legacy = "box_archive" not in state and "archive_pop" in state
+        if legacy:  # a checkpoint of the sequential archive (git 683f05d and before): convert it
+            archive = {k: state.pop(k) for k in ("archive_pop", "archive_F", "archive_box",
+                                                 "grid_min", "grid_max", "eps")}
+            state["_opt"], state["_opt_rows"] = state.pop("opt", None), None
         self.__dict__.update(state)
+        if legacy:
+            self._individuals = {}
+            self._n_seen = int(self.evaluator.n_eval)
+            self.box_archive = BoxArchive(self.n_div, self._widths())
+            pop = archive["archive_pop"]
+            if len(pop):  # the old members get ids below zero: new ones count up from n_eval
+                rows = _rows(pop, self._widths(with_id=False))
+                rows["id"] = -1.0 - np.arange(len(pop), dtype=float)[:, None]
+                self.box_archive._set(rows, np.asarray(archive["archive_box"]).T)
+            if archive["grid_min"] is not None:
+                self.box_archive.grid_min = archive["grid_min"]
+                self.box_archive.grid_max = archive["grid_max"]
+                self.box_archive.eps = archive["eps"]
 
     def _population(self, rows: dict[str, np.ndarray]) -> Population:
         """A pymoo population of archive rows, reusing the Individual of each member that was

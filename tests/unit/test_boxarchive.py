@@ -392,3 +392,34 @@ def test_runs_equal_the_sequential_archive(name, kwargs, n_div, generations):
     res = fast.result()
     np.testing.assert_array_equal(res.X, slow.box_archive.rows["X"])
     np.testing.assert_array_equal(res.F, slow.box_archive.F)
+
+
+def test_checkpoint_of_the_sequential_archive_resumes_to_the_same_end():
+    """A checkpoint pickled by the sequential ev-MOGA (archive_pop, archive_F, archive_box, grid
+    and opt attributes) is converted on loading and ends like the uninterrupted run."""
+    import pickle
+
+    problem = get_problem("zdt1", n_var=4)
+    settings = dict(n_ind_p=40, n_ind_ga=8, n_div=30, generations=80)
+    full = EvMOGA(**settings)
+    full.setup(problem, seed=2)
+    while full.has_next():
+        full.next()
+    alg = EvMOGA(**settings)
+    alg.setup(problem, seed=2)
+    for _ in range(30):
+        alg.next()
+    state = pickle.loads(pickle.dumps(alg)).__dict__.copy()  # P as a Population again
+    for key in ("box_archive", "_individuals", "_n_seen", "_opt", "_opt_rows"):
+        del state[key]
+    state.update(archive_pop=alg.archive_pop, archive_F=alg.archive_F.copy(),
+                 archive_box=alg.archive_box.copy(), grid_min=alg.grid_min.copy(),
+                 grid_max=alg.grid_max.copy(), eps=alg.eps.copy(), opt=alg.opt)
+    resumed = EvMOGA.__new__(EvMOGA)
+    resumed.__setstate__(pickle.loads(pickle.dumps(state)))
+    assert len(resumed.box_archive) == len(alg.box_archive) > 1
+    while resumed.has_next():
+        resumed.next()
+    res, ref = resumed.result(), full.result()
+    np.testing.assert_array_equal(res.X, ref.X)
+    np.testing.assert_array_equal(res.F, ref.F)

@@ -47,6 +47,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.optimise.backends",
     "casadrone.optimise.checkpoint",
     "casadrone.optimise.store",
+    "casadrone.optimise.timings",
     "casadrone.optimise.runner",
     "casadrone.optimise",
     "casadrone.benchmark",

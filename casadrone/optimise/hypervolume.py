@@ -8,41 +8,33 @@ moves, so the value never falls (an elitist run's per-generation front, normalis
 bounds, can: 0.567 → 0.459). A pymoo test problem keeps its raw objectives (the space is the unit
 box), so its value compares with the problem's known optimum.
 
-Its cost is bounded as the set grows (issue "paper scale"): with up to three objectives it is exact
-every generation (O(n log n)); with four or more the new points are only buffered, and the set is
-merged and measured every :data:`HV_EVERY` generations and at the last (the others log NULL and the
-console shows "-"). Exact up to five objectives; from six, estimated from :data:`HV_SAMPLES` fixed
-uniform points of the box [0, 1.1]^m of the fixed space (the fraction dominated times the box
-volume): the same points every time, so the estimate cannot fall either.
+Its cost stays bounded as the set grows (a paper-scale run has tens of thousands of
+non-dominated evaluations in five objectives, whose exact hypervolume takes minutes):
+
+- up to three objectives it is exact, every generation (O(n log n) on the non-dominated set);
+- from four objectives it is estimated from :data:`HV_SAMPLES` fixed uniform points of the box
+  [0, 1.1]^m of the fixed space: the fraction of them that some evaluation dominates, times the
+  box volume. It is kept incrementally, as the set of samples dominated so far: each generation
+  tests only its own new points against the samples not yet dominated (O(samples · new points),
+  no growing set to keep), so the estimate is computed every generation and, the samples being
+  fixed, cannot fall either. Its standard error is at most 0.5/√samples of the box volume
+  (0.4 % for 16 384 samples); regions better than the first generation's ideal (below 0) are not
+  counted.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
-#: With four or more objectives the hypervolume is computed every this many generations (and at the
-#: last one); in between the new points are buffered.
-HV_EVERY = 10
-#: Fixed sample points of the Monte Carlo estimate used from six objectives on.
-HV_SAMPLES = 4096
-
-
-def due(n_obj: int, generation: int, last: bool) -> bool:
-    """Whether the hypervolume is computed after ``generation`` (see the module docstring)."""
-    return n_obj <= 3 or last or generation % HV_EVERY == 0
-
-
-def dominated_fraction(F: np.ndarray, lo: np.ndarray, ref: np.ndarray,
-                       n_samples: int = HV_SAMPLES) -> float:
-    """Fraction of ``n_samples`` fixed uniform points of the box [lo, ref] that some row of ``F``
-    (minimised) weakly dominates; O(samples · points · objectives), in blocks of 256 points."""
-    S = lo + np.random.default_rng(0).random((n_samples, len(ref))) * (ref - lo)
-    hit = np.zeros(n_samples, dtype=bool)
-    for k in range(0, len(F), 256):
-        hit |= (F[None, k:k + 256, :] <= S[:, None, :]).all(axis=2).any(axis=1)
-    return float(hit.mean())
+#: Objectives up to which the hypervolume is exact.
+EXACT_MAX_OBJECTIVES = 3
+#: Fixed sample points of the estimate used from four objectives on.
+HV_SAMPLES = 16384
+#: Upper corner of the sampled box in the normalised space (the reference point).
+REFERENCE = 1.1
 
 
 def non_dominated(F: np.ndarray) -> np.ndarray:
@@ -51,6 +43,22 @@ def non_dominated(F: np.ndarray) -> np.ndarray:
 
     F = np.unique(np.asarray(F, float), axis=0)
     return F[NonDominatedSorting().do(F, only_non_dominated_front=True)] if len(F) > 1 else F
+
+
+@cache
+def samples(n_obj: int, n_samples: int = HV_SAMPLES) -> np.ndarray:
+    """The fixed uniform sample points of [0, REFERENCE]^m (seed 0; read-only)."""
+    S = np.random.default_rng(0).random((n_samples, n_obj)) * REFERENCE
+    S.setflags(write=False)
+    return S
+
+
+def dominated_by(Z: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """Which rows of ``S`` some row of ``Z`` weakly dominates (minimised), in blocks of points."""
+    hit = np.zeros(len(S), dtype=bool)
+    for k in range(0, len(Z), 128):
+        hit |= (Z[None, k:k + 128, :] <= S[:, None, :]).all(axis=2).any(axis=1)
+    return hit
 
 
 @dataclass(frozen=True)
@@ -69,45 +77,59 @@ class HypervolumeSpace:
         nd = non_dominated(F_first)
         return cls(nd.min(axis=0), nd.max(axis=0))
 
+    def normalise(self, F: np.ndarray) -> np.ndarray:
+        """``F`` (minimised) in this space."""
+        span = np.where(self.nadir > self.ideal, self.nadir - self.ideal, 1.0)
+        return (np.asarray(F, float) - self.ideal) / span
+
     def hypervolume(self, F: np.ndarray) -> float:
-        """Hypervolume of the (minimised) points ``F`` in this space."""
+        """Hypervolume of the (minimised) points ``F`` in this space: exact up to three
+        objectives, else the fixed-sample estimate (the same value the run shows)."""
         from pymoo.indicators.hv import HV
 
+        m = len(self.ideal)
         if len(F) == 0:
             return 0.0
-        span = np.where(self.nadir > self.ideal, self.nadir - self.ideal, 1.0)
-        Z, ref = (np.asarray(F) - self.ideal) / span, np.full(len(self.ideal), 1.1)
-        if len(ref) >= 6:  # exact: ~2 min for 5 000 points in 6 objectives
-            return float(np.prod(ref) * dominated_fraction(Z, np.zeros_like(ref), ref))
-        return float(HV(ref_point=ref)(Z))
+        if m > EXACT_MAX_OBJECTIVES:
+            return float(REFERENCE ** m * dominated_by(self.normalise(F), samples(m)).mean())
+        return float(HV(ref_point=np.full(m, REFERENCE))(self.normalise(F)))
 
 
 @dataclass(frozen=True)
 class HypervolumeState:
-    """The non-dominated feasible set so far, the points not merged into it yet, and the fixed
-    space (None before any feasible evaluation); :func:`advance` gives the next state and the
-    value to show."""
+    """What the run keeps between generations: the fixed space (None before any feasible
+    evaluation) and, up to three objectives, the non-dominated set so far, from four, which fixed
+    samples the evaluations so far dominate. :func:`advance` gives the next state and value."""
 
     archive: np.ndarray
     space: HypervolumeSpace | None = None
-    pending: np.ndarray | None = None
+    hit: np.ndarray | None = None
+
+    def value(self) -> float:
+        """The hypervolume of the set so far (0 before any feasible evaluation)."""
+        if self.space is None:
+            return 0.0
+        if self.hit is not None:
+            return float(REFERENCE ** len(self.space.ideal) * self.hit.mean())
+        return self.space.hypervolume(self.archive)
 
 
-def advance(state: HypervolumeState | None, F_feasible: np.ndarray, raw: bool = False,
-            compute: bool = True) -> tuple[HypervolumeState, float | None]:
+def advance(state: HypervolumeState | None, F_feasible: np.ndarray,
+            raw: bool = False) -> tuple[HypervolumeState, float]:
     """Add one generation's feasible (minimised) objective vectors; the new state and the
-    hypervolume of the set so far in the fixed space (None when ``compute`` is false: the points
-    are buffered until the next generation that computes it)."""
+    hypervolume of the set so far in the fixed space."""
     F_feasible = np.asarray(F_feasible, float)
+    m = F_feasible.shape[1]
     if state is None:
-        state = HypervolumeState(np.empty((0, F_feasible.shape[1])))
-    pending = state.pending if state.pending is not None else np.empty((0, F_feasible.shape[1]))
-    if len(F_feasible):
-        pending = np.vstack([pending, F_feasible])
-    space = state.space or (HypervolumeSpace.of(F_feasible, raw) if len(F_feasible) else None)
-    if not compute:
-        return HypervolumeState(state.archive, space, pending), None
-    if len(pending) == 0:
-        return state, (state.space.hypervolume(state.archive) if state.space else 0.0)
-    archive = non_dominated(np.vstack([state.archive, pending]))
-    return HypervolumeState(archive, space), space.hypervolume(archive)
+        state = HypervolumeState(np.empty((0, m)))
+    if len(F_feasible) == 0:
+        return state, state.value()
+    space = state.space or HypervolumeSpace.of(F_feasible, raw)
+    if m > EXACT_MAX_OBJECTIVES:
+        hit = np.zeros(HV_SAMPLES, dtype=bool) if state.hit is None else state.hit.copy()
+        open_ = ~hit
+        hit[open_] = dominated_by(space.normalise(F_feasible), samples(m)[open_])
+        new = HypervolumeState(state.archive, space, hit)
+    else:
+        new = HypervolumeState(non_dominated(np.vstack([state.archive, F_feasible])), space)
+    return new, new.value()

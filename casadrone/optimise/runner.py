@@ -30,7 +30,7 @@ import numpy as np
 
 from casadrone.optimise.algorithms import seeded_defaults
 from casadrone.optimise.backends import make_backend
-from casadrone.optimise.hypervolume import HypervolumeState, advance, due
+from casadrone.optimise.hypervolume import HypervolumeState, advance
 from casadrone.optimise.mainguard import unguarded_main_call, unguarded_message
 from casadrone.optimise.problem import CandidateProblem, Record, Study, objectives_and_constraints
 from casadrone.optimise.store import RunDamaged, RunStore, now
@@ -167,16 +167,14 @@ def front(algorithm, study: Study) -> tuple[np.ndarray, np.ndarray]:
     return X[order], F[order] * sign
 
 
-def generation_hypervolume(study: Study, records, state: HypervolumeState | None,
-                          generation: int, last: bool) -> tuple[HypervolumeState, float | None]:
+def generation_hypervolume(study: Study, records, state: HypervolumeState | None
+                          ) -> tuple[HypervolumeState, float]:
     """The hypervolume shown after a generation (:mod:`casadrone.optimise.hypervolume`): its
-    feasible evaluations join the non-dominated set so far, measured in the run's fixed space
-    (None at the generations where it is not computed)."""
+    feasible evaluations join the set so far, measured in the run's fixed space."""
     F, G = objectives_and_constraints(study, records)
     m = len(study.objective_names)
     feasible = F[np.all(G <= 0, axis=1)] if len(records) else np.empty((0, m))
-    return advance(state, feasible, raw=study.problem.test_problem is not None,
-                   compute=due(m, generation, last))
+    return advance(state, feasible, raw=study.problem.test_problem is not None)
 
 
 class Progress:
@@ -257,7 +255,7 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
         records = problem.last_records
         X_f, _ = front(algorithm, study)
         had_space = hv is not None and hv.space is not None
-        hv, hv_value = generation_hypervolume(study, records, hv, gen, not algorithm.has_next())
+        hv, hv_value = generation_hypervolume(study, records, hv)
         if hv.space is not None and not had_space:  # the report measures in the same space
             store.update_manifest(hypervolume_space={"ideal": hv.space.ideal.tolist(),
                                                      "nadir": hv.space.nadir.tolist()})

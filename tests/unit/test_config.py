@@ -495,4 +495,4 @@ def problems_of_file(path) -> list[str]:
 @pytest.mark.parametrize("key", ["izz_kgm2", "ixz_kgm2"])
 def test_non_finite_inertia_is_named(key):
     (line,) = problems_of({**SY250, key: float("inf")})
-    assert line == f"f.yaml: {key}: inertia must be a finite number (got inf)"
+    assert line == f"f.yaml: {key}: expected a finite number, got inf"

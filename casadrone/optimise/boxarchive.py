@@ -325,15 +325,12 @@ class BoxArchive:
             self._append(row, b)
             return True
         Bt = self._box[:, :self._n]
-        below = _all_le(Bt, b)
-        equal = below.copy()
-        for j in range(len(b)):
-            equal &= Bt[j] == b[j]
-        if np.any(below & ~equal):
-            return False  # case 1: the child's box is dominated
-        same = np.flatnonzero(equal)
-        if len(same):  # case 3 (the invariant leaves nothing for case 2 to delete)
-            k = int(same[0])
+        below = np.flatnonzero(_all_le(Bt, b))  # members whose box is <= the child's
+        if len(below):
+            if not (Bt[:, below] == b[:, None]).all():
+                return False  # case 1: the child's box is dominated
+            # case 3: the one member of the child's box (nothing for case 2 to delete)
+            k = int(below[0])
             if not challenger_wins(f, self.F[k], b, self.grid_min, self.eps):
                 return False
             for key, v in self._rows.items():

@@ -215,7 +215,8 @@ def _outcome_figure(gen, done, ok, history) -> Figure:
     series = [("feasible", ok, "tab:green"), ("violates a constraint", done & ~ok, "tab:olive")]
     series += [(f"failed: {s}", np.array([r["status"] != "completed" and r["stage"] == s
                                           for r in history]), c)
-               for s, c in zip(STAGES, ("tab:purple", "tab:red", "tab:orange", "tab:brown"),
+               for s, c in zip(STAGES, ("tab:purple", "tab:red", "tab:orange", "tab:brown",
+                                        "tab:pink"),
                                strict=True)]
     fig = Figure(figsize=(9.0, 3.4), layout="constrained")
     ax = fig.add_subplot()

@@ -80,7 +80,7 @@ from casadrone.trim import trim  # noqa: E402
 RESULTS = Path(__file__).resolve().parent / "RESULTS-lap.md"
 STAGES = ("build", "trim", "design", "lap", "indices")
 TARGETS_MS = {"frozen": 1.5, "redesign": 2.5}  # issue 10, one complete rk4 evaluation
-POLICIES = {"frozen": "frozen-sy250", "redesign": None}  # gain policy -> controller config
+POLICIES = {"frozen": "frozen-wrench-sy250", "redesign": None}  # policy -> controller config
 PLAIN_LAP_C = Path(__file__).resolve().parent / "plain_lap.c"
 
 
@@ -672,8 +672,9 @@ def write(r: dict, rp: dict | None, m: dict, cmd: str, path: Path) -> None:
   wall time, but cache and frequency interference remain: the min is the quiet-machine figure.
 - Python {m["python"]}; {m["versions"]}; casadrone git {m["git"]}
 
-Setups: `default_setup(controller="frozen-sy250")` (the paper problems' controller: one gain
-designed on SY250's hover linearisation; each candidate's own newton hover trim, linearisation,
+Setups: `default_setup(controller="frozen-wrench-sy250")` (the paper problems' controller: one
+gain designed on SY250's hover linearisation, frozen from state error to the wrench and mixed by
+each candidate's own allocation inverse; each candidate's own newton hover trim, linearisation,
 ZOH plant and closed-loop eigenvalue check) and `default_setup()` (gain policy `redesign`: each
 candidate's own LQR-I, DARE by doubling); SY250 template, LQR-I at Ts = 0.01 s, paper rectangle
 track. SY250's lap: J3 = {r["sy250_indices"]["J3"]:.3f} s, {len(tr.t)} samples of 10 ms.

@@ -25,6 +25,12 @@ ORDER = [
      "python benchmarks/bench_evmoga_zdt.py"),
     ("limitlap", "The limit lap over random Table 1 frames: solve time, success, spread",
      "python benchmarks/bench_limitlap.py"),
+    ("identity", "ev-MOGA's vectorised archive against the sequential one (issue 10)",
+     "python benchmarks/check_evmoga_identity.py"),
+    ("coordinator", "ev-MOGA's coordinator alone against archive size (issue 10)",
+     "python benchmarks/bench_coordinator.py"),
+    ("paper-scale", "Paper-scale runs measured: paper-run1 and paper-run2 (issue 10)",
+     "python benchmarks/bench_paper_scale.py --run-root runs/paper-scale --workers 2"),
 ]
 
 

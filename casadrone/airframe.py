@@ -7,6 +7,7 @@ draws the nose on body +y (x to the right): :func:`from_paper_frame` converts at
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -87,11 +88,11 @@ class Airframe:
     gravity: float  # m/s²
     com: np.ndarray = field(default_factory=lambda: np.zeros(3))  # hub → CoM (m), body axes
 
-    @property
+    @cached_property
     def p(self) -> np.ndarray:
-        """Model parameter vector, ordered as :data:`PARAM_NAMES`."""
+        """Model parameter vector, ordered as :data:`PARAM_NAMES` (computed once, read-only)."""
         J = self.inertia
-        return np.concatenate(
+        p = np.concatenate(
             [
                 [self.mass, J[0, 0], J[1, 1], J[2, 2], J[0, 1], J[0, 2], J[1, 2]],
                 self.rotor_positions.ravel(),
@@ -101,6 +102,8 @@ class Airframe:
                 [self.air_density, self.thrust_gain, self.thrust_time_constant, self.gravity],
             ]
         ).astype(float)
+        p.flags.writeable = False
+        return p
 
     @property
     def allocation_matrix(self) -> np.ndarray:

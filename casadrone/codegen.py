@@ -5,7 +5,9 @@ directory and moved into the cache atomically (write to a temporary name in the 
 ``os.replace``), so concurrent processes (Dask workers starting cold, a process pool) never read
 each other's half-written files, and nothing is written to the current working directory (a
 read-only one is fine). The cache is ``$CASADRONE_CACHE`` or ``~/.cache/casadrone``; a library's
-name carries the hash of its source, compiler flags and CasADi version.
+name carries the hash of its source, compiler flags and CasADi version. The temporary directory
+is removed on every exit Python sees (an error, Ctrl-C); a staged file that a killed process
+(SIGKILL) left in the cache is removed by a later compile once it is an hour old.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import os
 import subprocess
 import tempfile
 import threading
+import time
 from pathlib import Path
 
 import casadi as ca
@@ -49,6 +52,7 @@ def compile_source(name: str, src: str, flags: tuple[str, ...] = DEFAULT_FLAGS) 
     target = cache / f"{name}_{digest}.so"
     if target.exists():
         return target
+    _remove_stale(cache)
     with tempfile.TemporaryDirectory(prefix="casadrone-cc-") as tmp:  # removed on any exit
         c_file, so_file = Path(tmp) / f"{name}.c", Path(tmp) / f"{name}.so"
         c_file.write_text(src)
@@ -65,6 +69,16 @@ def compile_source(name: str, src: str, flags: tuple[str, ...] = DEFAULT_FLAGS) 
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(staged)
     return target
+
+
+def _remove_stale(cache: Path, age_s: float = 3600.0) -> None:
+    """Remove staged files that a process killed mid-install (SIGKILL: no cleanup runs) left in
+    the cache more than ``age_s`` ago; a compile in progress elsewhere is younger."""
+    now = time.time()
+    for staged in cache.glob(".*.tmp"):
+        with contextlib.suppress(OSError):
+            if now - staged.stat().st_mtime > age_s:
+                staged.unlink()
 
 
 def compile_function(fun: ca.Function, flags: tuple[str, ...] = DEFAULT_FLAGS) -> ca.Function:

@@ -21,6 +21,11 @@ from casadrone.massprops import inertia_tensor, mass_properties_of, rotor_positi
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
 Spin = Literal[-1, 1]
+#: Physical ceilings of airframe values (generous: a heavy-lift multirotor stays far inside).
+#: Beyond them a number is a unit slip (m for mm) and the chain's numerics lose meaning.
+MAX_ARM_MM = 5000.0  # arm length or prop diameter (mm)
+MAX_INERTIA = 1000.0  # any inertia-tensor element (kg·m²)
+DragArea = Annotated[float, Field(ge=0, le=100)]  # C_d·A (m²)
 
 
 # --------------------------------------------------------------------------------------------
@@ -31,8 +36,8 @@ Spin = Literal[-1, 1]
 class ThrustModelConfig(Schema):
     """Identified first-order thrust model G(s) = K / (1 + tau s) per rotor (paper Table 6)."""
 
-    gain_n: float = Field(9.0519, gt=0, description="K, thrust per unit ESC command (N)")
-    time_constant_s: float = Field(0.060538, gt=0, description="tau (s)")
+    gain_n: float = Field(9.0519, gt=0, le=1e4, description="K, thrust per unit ESC command (N)")
+    time_constant_s: float = Field(0.060538, gt=0, le=10, description="tau (s)")
 
 
 ROTOR_LABELS = ("FR", "FL", "RL", "RR")
@@ -79,35 +84,40 @@ class AirframeConfig(Schema):
     """
 
     name: str
-    lambda_a_mm: float = Field(gt=0, description="hub (free: CoM) to front motors (mm)")
-    lambda_b_mm: float = Field(gt=0, description="hub (free: CoM) to rear motors (mm)")
+    lambda_a_mm: float = Field(gt=0, le=MAX_ARM_MM,
+                               description="hub (free: CoM) to front motors (mm)")
+    lambda_b_mm: float = Field(gt=0, le=MAX_ARM_MM,
+                               description="hub (free: CoM) to rear motors (mm)")
     alpha_deg: float = Field(gt=0, lt=180, description="angle between the nose arms (deg)")
     beta_deg: float = Field(gt=0, lt=180, description="angle between the tail arms (deg)")
     mass_model: Literal["free", "components"] = Field(
         "free", description="free: mass and inertia given; components: computed from the parts")
-    ixx_kgm2: float | None = Field(None, gt=0, description="roll inertia, about the nose axis "
+    ixx_kgm2: float | None = Field(None, gt=0, le=MAX_INERTIA,
+                                   description="roll inertia, about the nose axis "
                                    "(kg·m²); mass_model free only")
-    iyy_kgm2: float | None = Field(None, gt=0, description="pitch inertia (kg·m²); free only")
-    izz_kgm2: float | None = Field(None, gt=0, description="yaw inertia (kg·m²); free only")
-    ixy_kgm2: float = 0.0
-    ixz_kgm2: float = 0.0
-    iyz_kgm2: float = 0.0
-    mass_kg: float | None = Field(None, gt=0, description="total mass (kg); free only")
+    iyy_kgm2: float | None = Field(None, gt=0, le=MAX_INERTIA,
+                                   description="pitch inertia (kg·m²); free only")
+    izz_kgm2: float | None = Field(None, gt=0, le=MAX_INERTIA,
+                                   description="yaw inertia (kg·m²); free only")
+    ixy_kgm2: float = Field(0.0, ge=-MAX_INERTIA, le=MAX_INERTIA)
+    ixz_kgm2: float = Field(0.0, ge=-MAX_INERTIA, le=MAX_INERTIA)
+    iyz_kgm2: float = Field(0.0, ge=-MAX_INERTIA, le=MAX_INERTIA)
+    mass_kg: float | None = Field(None, gt=0, le=1000, description="total mass (kg); free only")
     components: ComponentsConfig | None = Field(
         None, description="the parts (mass_model: components only)")
-    drag_area_m2: tuple[NonNegative, NonNegative, NonNegative] = Field(
+    drag_area_m2: tuple[DragArea, DragArea, DragArea] = Field(
         (0.012, 0.012, 0.025), description="C_d·A along body x, y, z (m²)"
     )
-    kappa_m: float = Field(0.016, gt=0, description="rotor yaw torque per unit thrust (m)")
-    battery_voltage_v: float = Field(14.8, gt=0)
-    prop_diameter_mm: float = Field(127.0, gt=0)
+    kappa_m: float = Field(0.016, gt=0, le=1, description="rotor yaw torque per unit thrust (m)")
+    battery_voltage_v: float = Field(14.8, gt=0, le=1000)
+    prop_diameter_mm: float = Field(127.0, gt=0, le=MAX_ARM_MM)
     rotor_spins: tuple[Spin, Spin, Spin, Spin] = Field(
         (-1, 1, -1, 1),
         description="sign of each rotor's reaction yaw torque about body +z, rotors FR, FL, RL, RR",
     )
     thrust: ThrustModelConfig = ThrustModelConfig()
-    air_density_kgm3: float = Field(1.225, gt=0)
-    gravity_mps2: float = Field(9.81, gt=0)
+    air_density_kgm3: float = Field(1.225, gt=0, le=2)
+    gravity_mps2: float = Field(9.81, ge=0.1, le=30)
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
@@ -277,7 +287,7 @@ class StateWeights(Schema):
 class RobustnessConfig(Schema):
     """Perturbed-plant ensemble of paper Appendix B."""
 
-    n_plants: int = Field(50, ge=1)
+    n_plants: int = Field(50, ge=1, le=10000)
     dynamics_pct: float = Field(30.0, ge=0, lt=100, description="mass, inertia, drag spread (%)")
     coupling_pct: float = Field(
         20.0, ge=0, lt=100, description="thrust gain, time constant, arm geometry, κ spread (%)"

@@ -12,13 +12,26 @@ from __future__ import annotations
 
 import copy
 import difflib
+import math
+import re
+import types
+import typing
 from functools import cache
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, TypeVar
+from typing import Annotated, Any, Literal, TypeVar
 
 import yaml
-from pydantic import BaseModel, ConfigDict, TypeAdapter, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    TypeAdapter,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 #: The checkout (or, installed, site-packages): relative paths in configs resolve here too.
 ROOT = Path(__file__).resolve().parent.parent
@@ -44,15 +57,84 @@ class Problems(ValueError):
         super().__init__("; ".join(f"{k}: {m}" for k, m in self.problems))
 
 
+#: Largest magnitude of any number in a config. No quantity of this model comes near it in the
+#: units the keys name (mm, deg, kg, s, m, N, V); beyond it the chain's arithmetic (squares,
+#: products of inertias) overflows to inf, and a number that large is a typing slip (1e308).
+MAX_MAGNITUDE = 1e9
+
+
+def scalar_types(annotation: Any) -> set[Any]:
+    """The scalar types an annotation admits (``tuple[float, float] | None`` → {float, None}),
+    with Literal values as their types and models as themselves."""
+    origin = typing.get_origin(annotation)
+    if annotation is type(None):
+        return {type(None)}
+    if origin is Annotated:
+        return scalar_types(typing.get_args(annotation)[0])
+    if origin is Literal:
+        return {type(a) for a in typing.get_args(annotation)}
+    if origin in (typing.Union, types.UnionType, list, tuple, dict, set, frozenset):
+        args = typing.get_args(annotation)
+        if origin is dict:
+            args = args[1:]
+        return set().union(*(scalar_types(a) for a in args if a is not Ellipsis)) if args else {Any}
+    return {annotation}
+
+
+def _scalars(value: Any):
+    """Every scalar inside nested lists and tuples (dicts are models' business)."""
+    if isinstance(value, list | tuple):
+        for v in value:
+            yield from _scalars(v)
+    else:
+        yield value
+
+
+def strict_scalar_problem(leaves: set[Any], value: Any) -> str | None:
+    """Why ``value`` cannot stand for a field admitting ``leaves``, or None. Numbers are numbers:
+    no booleans (``true`` is not 1 kg) and no text (``"1"``) for a numeric field; every number
+    finite and within :data:`MAX_MAGNITUDE`."""
+    if Any in leaves:
+        return None
+    numeric = {float, int} & leaves
+    for v in _scalars(value):
+        if isinstance(v, bool):
+            if bool not in leaves and numeric:
+                return f"expected a number, got the boolean {str(v).lower()}"
+        elif isinstance(v, str):
+            if numeric and not ({str} | {t for t in leaves if isinstance(t, type)
+                                         and issubclass(t, str | Path)}) & leaves:
+                return f"expected a number, got the text {v!r}"
+        elif isinstance(v, int | float):
+            if float in leaves and not math.isfinite(v):
+                return f"expected a finite number, got {v}"
+            if numeric and abs(v) > MAX_MAGNITUDE:
+                return (f"{v:g} is beyond any physical value here (|x| <= {MAX_MAGNITUDE:g}); "
+                        "check the unit and the exponent")
+    return None
+
+
 class Schema(BaseModel):
-    """Base of every config schema: frozen, unknown keys rejected.
+    """Base of every config schema: frozen, unknown keys rejected, numbers strict.
 
     Cross-field checks live in :meth:`problems`, which works on a plain dict of field values so
     that the loader can still run it when some fields failed (those are simply absent): a file
-    with a negative mass *and* overlapping rotors gets both reported.
+    with a negative mass *and* overlapping rotors gets both reported. Every numeric field takes
+    numbers only (no booleans, no text), finite and within :data:`MAX_MAGNITUDE`, whichever way
+    the value came in (file, ``key=value`` override, a problem's ``fixed:`` or bounds).
     """
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _strict_numbers(cls, value: Any, info: ValidationInfo) -> Any:
+        field = cls.model_fields.get(info.field_name)
+        if field is not None:
+            problem = strict_scalar_problem(scalar_types(field.annotation), value)
+            if problem:
+                raise ValueError(problem)
+        return value
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
@@ -108,6 +190,18 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+# PyYAML follows YAML 1.1, where ``1e-3`` (no dot) is a string; read it as the number it is.
+_UniqueKeyLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+    |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+    |\.[0-9_]+(?:[eE][-+][0-9]+)?
+    |[-+]?\.(?:inf|Inf|INF)
+    |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."),
+)
+
+
 def read_yaml(path: str | Path) -> dict[str, Any]:
     """Read a YAML mapping; malformed YAML or a missing file raises ConfigError with the line."""
     path = Path(path)
@@ -138,7 +232,7 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
 def parse_value(text: str) -> Any:
     """Parse the value of a ``key=value`` override as YAML (numbers, lists, strings)."""
     try:
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader subclass)
     except yaml.YAMLError:
         return text
 
@@ -255,11 +349,21 @@ def format_errors(exc: ValidationError, source: str, model: type[BaseModel]) -> 
 
 
 @cache
-def _field_adapter(model: type[BaseModel], name: str) -> TypeAdapter:
+def field_adapter(model: type[BaseModel], name: str) -> TypeAdapter:
+    """Validates one field of ``model`` on its own, as strictly as the model does."""
     field = model.model_fields[name]
-    if not field.metadata:
-        return TypeAdapter(field.annotation)
-    return TypeAdapter(Annotated[field.annotation, *field.metadata])
+    leaves = scalar_types(field.annotation)
+
+    def strict(value: Any) -> Any:
+        problem = strict_scalar_problem(leaves, value)
+        if problem:
+            raise ValueError(problem)
+        return value
+
+    annotated = Annotated[field.annotation, *field.metadata, BeforeValidator(strict)]
+    if _model_in(field.annotation) is None:
+        return TypeAdapter(annotated, config=ConfigDict(allow_inf_nan=False))
+    return TypeAdapter(annotated)
 
 
 def partial_problems(model: type[BaseModel], data: Any) -> list[tuple[str, str]]:
@@ -277,7 +381,7 @@ def partial_problems(model: type[BaseModel], data: Any) -> list[tuple[str, str]]
                 values[name] = field.get_default(call_default_factory=True)
             continue
         try:
-            values[name] = _field_adapter(model, name).validate_python(data[name])
+            values[name] = field_adapter(model, name).validate_python(data[name])
         except ValidationError:
             sub, value = _model_in(field.annotation), data[name]
             if sub is None:

@@ -52,10 +52,11 @@ def discretise(A: np.ndarray, B: np.ndarray, Ts: float) -> tuple[np.ndarray, np.
 def augment(Ad: np.ndarray, Bd: np.ndarray, Ts: float) -> tuple[np.ndarray, np.ndarray]:
     """Append the four integrators of (x, y, z, ψ) to a discrete plant."""
     n, m = Bd.shape
-    C = np.zeros((len(INTEGRATED), n))
-    C[np.arange(len(INTEGRATED)), [IDX[k] for k in INTEGRATED]] = 1.0
-    Aa = np.block([[Ad, np.zeros((n, 4))], [Ts * C, np.eye(4)]])
-    Ba = np.vstack([Bd, np.zeros((4, m))])
+    k = len(INTEGRATED)
+    Aa, Ba = np.zeros((n + k, n + k)), np.zeros((n + k, m))
+    Aa[:n, :n], Ba[:n] = Ad, Bd
+    Aa[n + np.arange(k), [IDX[name] for name in INTEGRATED]] = Ts
+    Aa[n:, n:] = np.eye(k)
     return Aa, Ba
 
 
@@ -222,7 +223,10 @@ def frozen_wrench_gain(K_ref: np.ndarray, reference: Airframe, airframe: Airfram
 
     The mapping is exact (no linearisation), so the commanded wrench K_g A (δ − u0) equals the
     reference controller's for the same rigid-body and wrench errors whatever the frame, and on
-    the reference itself K = K_ref. Cost per candidate: two 4×4 solves and a 4×20 product.
+    the reference itself K = K_ref. Frames with equal mass, inertia, drag and thrust lag thus fly
+    the same rigid-body trajectory until a command is clipped to [0, 1] (clipping acts per motor,
+    after the mixer, so there the arms matter). Cost per candidate: two 4×4 solves and a 4×20
+    product.
     """
     A_ref, A = reference.allocation_matrix, airframe.allocation_matrix
     K = np.array(K_ref, float)

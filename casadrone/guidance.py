@@ -27,6 +27,9 @@ from pydantic import Field, model_validator
 from casadrone.configio import Schema
 
 Vec3 = tuple[float, float, float]
+#: Shortest leg between consecutive route points (m): a waypoint on top of the previous one
+#: gives a segment with no direction, which the guidance cannot fly.
+MIN_LEG_M = 0.01
 
 
 class GateConfig(Schema):
@@ -65,7 +68,8 @@ class TrackConfig(Schema):
     max_accel_mps2: float = Field(
         10.0, gt=0, description="rate limit of the velocity reference (reference shaping)"
     )
-    time_limit_s: float = Field(60.0, gt=0)
+    time_limit_s: float = Field(60.0, gt=0, le=3600, description="lap time limit (s); the "
+                                "compiled lap allocates every controller step up to it")
     max_tilt_deg: float = Field(80.0, gt=0, lt=90, description="attitude limit → failed lap")
 
     @model_validator(mode="before")
@@ -87,6 +91,15 @@ class TrackConfig(Schema):
                 raise ValueError("give gates or waypoints_m, not both")
         if len(self.straight) != len(self.waypoints_m):
             raise ValueError("straight: needs one entry per waypoint (or gate)")
+        route = self.route
+        legs = np.linalg.norm(np.diff(route, axis=0), axis=1)
+        if np.any(legs < MIN_LEG_M):
+            k = int(np.argmin(legs))
+            name = "the climb point" if self.climb_to_m is not None and k == 0 else \
+                f"waypoint {k - self.first_timed_segment + 1}"
+            raise ValueError(f"waypoints_m: {name} is {legs[k]:.3g} m from the route point "
+                             f"before it (a leg needs at least {MIN_LEG_M} m; a zero-length leg "
+                             "has no direction to fly)")
         return self
 
     @property

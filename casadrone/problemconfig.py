@@ -12,17 +12,19 @@ import difflib
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field
+from pydantic import Field, ValidationError
 
 from casadrone.config import MASS_KEYS, AirframeConfig
 from casadrone.configio import (
     ROOT,
     ConfigError,
     Schema,
+    field_adapter,
     has_keys,
     load,
     read_yaml,
     resolve_config,
+    scalar_types,
 )
 
 
@@ -43,6 +45,18 @@ class VariableConfig(Schema):
             close = difflib.get_close_matches(v["name"], list(AirframeConfig.model_fields), 1)
             hint = f" (did you mean '{close[0]}'?)" if close else ""
             found.append(("name", f"'{v['name']}' is not an airframe key{hint}"))
+        elif "name" in v and scalar_types(AirframeConfig.model_fields[v["name"]].annotation) - {
+                type(None)} != {float}:
+            found.append(("name", f"'{v['name']}' is not a number the search can vary"))
+        elif "name" in v:  # each bound must itself be a value the airframe key accepts
+            for bound in ("lower", "upper"):
+                if bound not in v:
+                    continue
+                try:
+                    field_adapter(AirframeConfig, v["name"]).validate_python(v[bound])
+                except ValidationError as exc:
+                    msg = exc.errors()[0]["msg"].removeprefix("Value error, ")
+                    found.append((bound, f"{v[bound]} is not a possible {v['name']}: {msg}"))
         return found
 
 
@@ -101,7 +115,7 @@ class BackendConfig(Schema):
     """Where candidates are evaluated: this process, a process pool, or a Dask cluster."""
 
     name: Literal["serial", "processes", "dask"] = "serial"
-    workers: int = Field(1, ge=1, description="processes (or LocalCluster workers)")
+    workers: int = Field(1, ge=1, le=1024, description="processes (or LocalCluster workers)")
     scheduler: str | None = Field(None, description="Dask scheduler address; None: LocalCluster")
 
     @classmethod
@@ -135,7 +149,7 @@ class ProblemConfig(Schema):
     objectives: list[ObjectiveConfig] = Field(default_factory=list)
     constraints: list[ConstraintConfig] = Field(default_factory=list)
     algorithm: AlgorithmConfig = Field(default_factory=AlgorithmConfig)
-    seed: int = 1
+    seed: int = Field(1, ge=0, le=2**32 - 1, description="random seed (numpy: 0 … 2³² − 1)")
     backend: BackendConfig = Field(default_factory=BackendConfig)
     test_problem: PymooProblemConfig | None = None
     plugins: list[str] = Field(
@@ -177,8 +191,95 @@ class ProblemConfig(Schema):
             for key in v.get("fixed") or {}:
                 if key not in AirframeConfig.model_fields:
                     found.append((f"fixed.{key}", "not an airframe key"))
+                elif key in vnames:
+                    found.append((f"fixed.{key}", "also a decision variable: fix it or vary it"))
             found += _computed_variables(v)
+            if not found and v.get("airframe") is not None:
+                found += _input_problems(v)
+        found += _algorithm_problems(v)
         return found
+
+
+def _algorithm_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
+    """The algorithm section against the algorithm's own parameters (and the objectives)."""
+    from casadrone.optimise.algorithms import REFUSED, settings_problems
+
+    a = v.get("algorithm")
+    if a is None:
+        return []
+    key = a.name.strip().lower()
+    if key in REFUSED:
+        return [("algorithm.name", f"{key} cannot run a casadrone problem: {REFUSED[key]}")]
+    test = v.get("test_problem")
+    if test is not None:
+        n_obj = test.n_obj if test.name == "dtlz2" else 2
+    elif v.get("objectives"):
+        n_obj = len(v["objectives"])
+    else:
+        return []
+    return [(f"algorithm.settings.{k}" if not k.startswith("(") else "algorithm.settings", m)
+            for k, m in settings_problems(key, a.settings, a.population, n_obj)]
+
+
+def _first(exc: Exception) -> str:
+    lines = getattr(exc, "lines", None) or [str(exc)]
+    return lines[0] + (f" (and {len(lines) - 1} more)" if len(lines) > 1 else "")
+
+
+def _input_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
+    """The referenced airframe, track and controller valid, ``fixed:`` values valid on the
+    template, and the search box able to produce an airframe: every bound a possible value on
+    its own (checked per variable), and the full airframe schema met at the box's centre or at
+    one of its corners (a box where neither holds would only give failed evaluations)."""
+    import itertools
+
+    from casadrone.config import AirframeConfig, load_airframe, load_controller
+    from casadrone.configio import ConfigError, error_pairs
+
+    found: list[tuple[str, str]] = []
+    try:
+        template = load_airframe(v["airframe"])
+    except ConfigError as exc:
+        return [("airframe", f"referenced file is invalid: {_first(exc)}")]
+    for key, loader in (("controller", load_controller), ("track", _load_track)):
+        if v.get(key) is not None:
+            try:
+                ctrl = loader(v[key])
+                if key == "controller" and ctrl.reference_airframe is not None:
+                    load_airframe(ctrl.reference_airframe)
+            except ConfigError as exc:
+                found.append((key, f"referenced file is invalid: {_first(exc)}"))
+    base = template.model_dump()
+    if v.get("fixed"):
+        try:
+            template = AirframeConfig.model_validate({**base, **v["fixed"]})
+        except ValidationError as exc:
+            return found + [(f"fixed.{k}", m) for k, m in error_pairs(exc, AirframeConfig)]
+        base = template.model_dump()
+    variables = v.get("variables") or []
+    if not variables:
+        return found
+    points = [{x.name: (x.lower + x.upper) / 2 for x in variables}]
+    if len(variables) <= 10:  # 2^n corners (Table 1: 128); more would be slow to list
+        points += [dict(zip([x.name for x in variables], c, strict=True)) for c in
+                   itertools.product(*[(x.lower, x.upper) for x in variables])]
+    first_problem = None
+    for point in points:
+        try:
+            AirframeConfig.model_validate({**base, **point})
+            return found
+        except ValidationError as exc:
+            if first_problem is None:
+                k, m = error_pairs(exc, AirframeConfig)[0]
+                first_problem = f"{k}: {m}"
+    return found + [("variables", "the search box cannot produce a valid airframe (neither its "
+                     f"centre nor any corner is one); at the centre: {first_problem}")]
+
+
+def _load_track(path):
+    from casadrone.guidance import TrackConfig
+
+    return load(TrackConfig, path)
 
 
 def _computed_variables(v: dict[str, Any]) -> list[tuple[str, str]]:

@@ -13,7 +13,38 @@ import typer
 
 from casadrone.configio import ConfigError
 
-app = typer.Typer(
+
+class _App(typer.Typer):
+    """The typer app, run so that a bad command-line option is one line too: ``COMMAND:
+    message``, exit code 2 (click would print a usage block)."""
+
+    def __call__(self, *args, **kwargs):
+        import sys
+
+        if "standalone_mode" in kwargs:
+            return super().__call__(*args, **kwargs)
+        try:
+            code = super().__call__(*args, standalone_mode=False, **kwargs)
+        except _CLICK_ERROR as exc:
+            if isinstance(exc, _USAGE_ERROR) and type(exc).__name__ != "NoArgsIsHelpError":
+                where = exc.ctx.command_path if exc.ctx is not None else "casadrone"
+                message = " ".join(exc.format_message().split())
+                typer.echo(f"{where}: {message} (see '{where} --help')", err=True)
+                sys.exit(EXIT_BAD_INPUT)
+            exc.show()
+            sys.exit(exc.exit_code)
+        except typer.Abort:
+            typer.echo("interrupted", err=True)
+            sys.exit(130)
+        sys.exit(code if isinstance(code, int) else 0)
+
+
+# typer (>= 0.20) carries its own copy of click: its exception classes, found from typer's own.
+_USAGE_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
+_CLICK_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+
+
+app = _App(
     name="casadrone",
     help="Racing-drone airframe optimisation: validate configs, trim, linearise, design LQR-I, "
     "fly a lap, benchmark, optimise (run, resume), decide, compare and report.",
@@ -61,15 +92,84 @@ def bad_input(lines: list[str]) -> typer.Exit:
     return typer.Exit(EXIT_BAD_INPUT)
 
 
+#: Failures a command can meet on a good day (a full disk, a damaged run directory, a pickle or
+#: database that does not read, numerics that overflow): one line each, exit code 2.
+def _expected() -> tuple[type[BaseException], ...]:
+    import pickle
+    import sqlite3
+
+    import yaml
+
+    from casadrone.optimise.store import NotARunDirectory, RunDamaged, RunInProgress
+
+    return (OSError, sqlite3.Error, pickle.PickleError, EOFError, UnicodeDecodeError,
+            yaml.YAMLError, FloatingPointError, OverflowError, RunDamaged, RunInProgress,
+            NotARunDirectory)
+
+
+def one_line(exc: BaseException) -> str:
+    """An expected failure as one line: ``FILE: what`` where a file is known."""
+    import sqlite3
+
+    if isinstance(exc, OSError) and exc.strerror:
+        where = exc.filename or ""
+        return f"{where}: {exc.strerror}" if where else exc.strerror
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if isinstance(exc, sqlite3.Error):
+        return f"history database: {text}"
+    return text
+
+
+def log_traceback(exc: BaseException) -> Path | None:
+    """Write the traceback of an unexpected exception to a log file; its path (None if even
+    that fails)."""
+    import datetime as dt
+    import os
+    import traceback
+
+    root = Path(os.environ.get("CASADRONE_CACHE") or Path.home() / ".cache" / "casadrone")
+    try:
+        folder = root / "logs"
+        folder.mkdir(parents=True, exist_ok=True)
+        stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%S")
+        path = folder / f"error-{stamp}-{os.getpid()}.log"
+        path.write_text("".join(traceback.format_exception(exc)), encoding="utf-8")
+        return path
+    except OSError:
+        return None
+
+
 def reports_config_errors(command):
-    """Turn a ConfigError raised anywhere in ``command`` into its lines and exit code 2."""
+    """Every way ``command`` can fail, as lines on stderr and an exit code, never a traceback:
+    a ConfigError (one line per problem) or an expected failure (one line) exits 2; a signal
+    exits 128 + its number (130 Ctrl-C, 143 SIGTERM) saying how to resume a run; anything else
+    is a bug: one line naming a log file that holds the traceback, exit 1."""
 
     @wraps(command)
     def wrapper(*args, **kwargs):
+        import signal
+
         try:
             return command(*args, **kwargs)
         except ConfigError as exc:
             raise bad_input(exc.lines) from None
+        except (typer.Exit, typer.Abort, _CLICK_ERROR):
+            raise
+        except KeyboardInterrupt as exc:  # also the runner's Interrupted (SIGINT, SIGTERM)
+            signum = getattr(exc, "signum", signal.SIGINT)
+            run_dir = getattr(exc, "run_dir", None)
+            hint = (f"; state recorded, continue with: casadrone resume {run_dir}"
+                    if run_dir is not None else "")
+            typer.echo(f"interrupted ({signal.Signals(signum).name}){hint}", err=True)
+            raise typer.Exit(128 + signum) from None
+        except _expected() as exc:
+            raise bad_input([one_line(exc)]) from None
+        except Exception as exc:  # noqa: BLE001 (the last resort: a bug, not bad input)
+            log = log_traceback(exc)
+            where = f" (traceback in {log})" if log else ""
+            typer.echo(f"casadrone: internal error: {type(exc).__name__}: "
+                       f"{' '.join(str(exc).split())[:300]}{where}", err=True)
+            raise typer.Exit(1) from None
 
     return wrapper
 

@@ -62,12 +62,15 @@ def _matrix_text(M, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
 
 def _yaml_files(paths: list[Path]) -> list[Path]:
     """The files given, with a folder expanded to every YAML below it (sorted), and a bare name
-    that is no file here (``SY250``, ``quick``) taken as the shipped config of that name."""
-    from casadrone.configio import kind_dir
+    that is no file here taken as the shipped config of that name (``SY250``, ``quick``) or the
+    shipped folder (``configs``, ``problems``)."""
+    from casadrone.configio import DATA_DIR, kind_dir
     from casadrone.validation import SCHEMAS_BY_FOLDER
 
     out: list[Path] = []
     for p in paths:
+        if not p.exists() and str(p) in ("configs", "problems"):
+            p = DATA_DIR / p
         if p.is_dir():
             out += sorted(f for f in p.rglob("*") if f.suffix in (".yaml", ".yml"))
         elif not p.exists() and len(p.parts) == 1 and p.suffix in ("", ".yaml", ".yml"):
@@ -79,8 +82,11 @@ def _yaml_files(paths: list[Path]) -> list[Path]:
 
 
 @app.command()
+@reports_config_errors
 def validate(
-    files: Annotated[list[Path], typer.Argument(help="config YAML files or folders of them")],
+    files: Annotated[list[Path], typer.Argument(
+        help="config YAML files or folders of them; a shipped name (SY250, quick), or configs "
+        "and problems for every shipped file")],
     as_json: JsonOpt = False,
 ) -> None:
     """Validate config files: exit 0 when all are valid, 2 otherwise (one line per problem)."""
@@ -164,7 +170,15 @@ def _check_speed(condition: str, speed: float | None) -> float:
         return 0.0
     if speed is None:
         raise bad_input(["--speed: required with --condition forward (m/s)"])
+    if not 0.0 < speed <= MAX_SPEED_MPS:
+        raise bad_input([f"--speed: forward flight needs 0 < speed <= {MAX_SPEED_MPS:g} m/s "
+                         f"(got {speed:g})"])
     return float(speed)
+
+
+#: Fastest forward flight trimmed (m/s): racing quadrotors fly below about 60 m/s; beyond this
+#: the quadratic drag model and the small-angle controller are meaningless.
+MAX_SPEED_MPS = 100.0
 
 
 def _trim_result(tp) -> dict:
@@ -294,7 +308,8 @@ def lqr(
         typer.Option(help="controller YAML or name (default: configs/controllers/default.yaml)"),
     ] = None,
     ensemble: Annotated[
-        int | None, typer.Option(min=1, help="also apply the gain to N perturbed plants")
+        int | None,
+        typer.Option(min=1, max=10000, help="also apply the gain to N perturbed plants"),
     ] = None,
     as_json: JsonOpt = False,
     plot: PlotOpt = None,

@@ -50,8 +50,9 @@ def export_command(
     Betaflight custom mix (mmix lines), PX4 CA_ROTOR* parameters, URDF, or the frame plate as a 1:1
     SVG/DXF. Every file names the casadrone version, the airframe or run and the candidate.
     """
-    from casadrone.export import export, source_of, write_export
+    from casadrone.export import export, write_export
     from casadrone.export.plate import PlateOptions
+    from casadrone.export.source import source_of
 
     try:
         src = source_of(source, candidate, overrides)

@@ -110,13 +110,16 @@ def run_summary(run_dir: Path) -> list[str]:
     """The run directory and a short summary of its front (from pareto.csv)."""
     from casadrone.indices import INDICES
     from casadrone.optimise.problem import Study
-    from casadrone.optimise.store import RunStore
+    from casadrone.optimise.store import RunDamaged, RunStore
 
     store = RunStore(run_dir)
     m = store.manifest
     study = Study(store.problem())
     header, rows = store.read_pareto()
     n_var = len(header) - len(study.objective_names)
+    if n_var < 0 or header[n_var:] != study.objective_names:
+        raise RunDamaged(f"{run_dir / 'pareto.csv'}: columns {header} do not end with the "
+                         f"objectives {study.objective_names}")
     lines = [f"run directory: {run_dir}",
              f"Pareto front: {len(rows)} design(s) from {m.get('n_evaluations')} evaluations "
              f"(pareto.csv)"]
@@ -174,18 +177,17 @@ def run_command(
     'casadrone resume DIR' and ends exactly as an uninterrupted one.
     """
     from casadrone.optimise import runner
-    from casadrone.optimise.store import MANIFEST, RunInProgress
+    from casadrone.optimise.store import NotARunDirectory, check_new_run_dir
     from casadrone.problemconfig import load_problem
 
     if quiet and verbose:
         raise bad_input(["--quiet and --verbose: choose one"])
     cfg = load_problem(problem, overrides or [])
     be = backend_config(cfg.backend, backend, workers, scheduler)
-    if out.exists() and not out.is_dir():
-        raise bad_input([f"--out: {out}: exists and is not a directory"])
-    if (out / MANIFEST).exists():
-        raise bad_input([f"--out: {out}: already holds a run; resume it with "
-                         f"'casadrone resume {out}' or choose another --out"])
+    try:
+        check_new_run_dir(out)
+    except NotARunDirectory as exc:
+        raise bad_input([f"--out: {exc}"]) from None
     if verbose:
         a = cfg.algorithm
         objectives = ", ".join(f"{o.index} ({o.sense or 'default'})" for o in cfg.objectives)
@@ -195,11 +197,8 @@ def run_command(
                    f"{', scheduler ' + be.scheduler if be.scheduler else ''}) -> {out}", err=True)
     try:
         runner.run(cfg, out, be, quiet=quiet)
-    except RunInProgress as exc:
-        raise bad_input([str(exc)]) from None
-    except OSError as exc:
-        typer.echo(f"{out}: the run stopped: {exc}", err=True)
-        raise typer.Exit(1) from None
+    except NotARunDirectory as exc:
+        raise bad_input([f"--out: {exc}"]) from None
     if verbose:
         for line in _failure_summary(out):
             typer.echo(line, err=True)
@@ -217,11 +216,13 @@ def resume(
 ) -> None:
     """Continue a killed run from its last checkpoint (same end as an uninterrupted run).
 
-    A run that has already finished is reported as complete (exit code 0): resuming is
-    idempotent, so scripts may call it unconditionally.
+    A damaged last checkpoint falls back to the previous one; with neither (or a run killed
+    before its first checkpoint) the run is rebuilt from its history.sqlite. A moved or copied
+    run directory resumes from its own inputs. A run that has already finished is reported as
+    complete (exit code 0): resuming is idempotent, so scripts may call it unconditionally.
     """
     from casadrone.optimise import runner
-    from casadrone.optimise.store import CHECKPOINT, PARETO, RunInProgress, RunStore
+    from casadrone.optimise.store import PARETO, RunStore
 
     require_run_dir(run_dir)
     problem = open_problem(run_dir)
@@ -231,17 +232,8 @@ def resume(
                    "nothing to resume")
         typer.echo("\n".join(run_summary(run_dir)))
         return
-    if not (run_dir / CHECKPOINT).is_file():
-        raise bad_input([f"{run_dir}: no {CHECKPOINT}: killed before its first generation was "
-                         "stored; start it again with 'casadrone run' into a new --out"])
     be = backend_config(problem.backend, backend, workers, scheduler)
-    try:
-        runner.resume(run_dir, be, quiet=quiet)
-    except RunInProgress as exc:
-        raise bad_input([str(exc)]) from None
-    except OSError as exc:
-        typer.echo(f"{run_dir}: the run stopped: {exc}", err=True)
-        raise typer.Exit(1) from None
+    runner.resume(run_dir, be, quiet=quiet)
     typer.echo("\n".join(run_summary(run_dir)))
 
 

@@ -1,8 +1,9 @@
 """From the Pareto front to a flying frame: an airframe or a run's candidate written for a flight
 controller (Betaflight ``mmix``, PX4 ``CA_ROTOR*``), a simulator (URDF) or the cutter (SVG, DXF).
 
-:func:`export` returns the text of one format; :func:`write_export` writes it to a file. Every
-file starts with the casadrone version, the airframe or run and the candidate it came from.
+:func:`export` returns the text of one format; :func:`write_export` writes it to a file; what to
+export comes from :func:`casadrone.export.source.source_of` (an airframe, or a run's candidate).
+Every file starts with the casadrone version, the airframe or run and the candidate it came from.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from pathlib import Path
 
 from casadrone.export.mixers import betaflight, px4
 from casadrone.export.plate import PlateOptions, dxf, svg
-from casadrone.export.source import ExportSource, source_of
+from casadrone.export.source import ExportSource
 from casadrone.export.urdf import urdf
 
 #: Format name → file suffix.
@@ -49,7 +50,3 @@ def write_export(src: ExportSource, fmt: str, out: str | Path,
 def default_name(src: ExportSource, fmt: str) -> str:
     """``<airframe name><suffix>``, e.g. ``SY250.txt`` for a Betaflight mix."""
     return f"{src.config.name}-{fmt}{FORMATS[fmt]}"
-
-
-__all__ = ["FORMATS", "ExportSource", "PlateOptions", "default_name", "export", "source_of",
-           "write_export"]

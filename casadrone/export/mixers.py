@@ -124,7 +124,9 @@ def px4(src: ExportSource) -> str:
     lines += [
         "# Positions in PX4's body frame FRD (x forward, y right, z down), metres from the centre",
         "# of mass: casadrone's (x, y, z) becomes (x, -y, -z). KM = +kappa for a CCW rotor (seen",
-        "# from above), -kappa for a CW one. Rotor order (PX4 quadrotor-x numbering):",
+        "# from above), -kappa for a CW one. CA_ROTORn_AX/AY/AZ stay at PX4's default (0, 0, -1):",
+        "# thrust up the body; CA_ROTORn_CT stays yours (it depends on the motor and ESC).",
+        "# Rotor order (PX4 quadrotor-x numbering):",
         *(f"#   CA_ROTOR{n} = motor {n + 1} = {LABELS[i]}, {spin_word(a.rotor_spins[i])}"
           for n, i in enumerate(PX4_ORDER)),
         "param set CA_AIRFRAME 0",

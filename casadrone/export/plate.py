@@ -3,8 +3,10 @@ SVG (no dependency) or DXF (``ezdxf``, imported when a DXF is asked for).
 
 The outline is exact lines and arcs: a central hub circle (the flight stack), one straight arm of
 the given width from the hub to each motor centre, a round motor pad at its end. Drawing axes (both
-formats): X to the right of the drone, Y towards the nose, so X = −y and Y = x in casadrone's body
-frame (SVG's Y axis points down the page; it is flipped so the nose is up there too).
+formats): origin at the hub (the arms' meeting point, where λa and λb are measured from), X to the
+right of the drone, Y towards the nose, so X = −y and Y = x in casadrone's body frame (SVG's Y axis
+points down the page; it is flipped so the nose is up there too). The centre of mass is marked
+(it sits off the hub when the mass properties come from components).
 """
 
 from __future__ import annotations
@@ -50,6 +52,7 @@ class Plate:
 
     outline: tuple  # sequence of ("line", p0, p1) and ("arc", Arc)
     motors: np.ndarray  # 4×2, rotor order FR, FL, RL, RR
+    com: np.ndarray  # 2, centre of mass
     holes: tuple[tuple[float, float, float], ...]  # (X, Y, diameter)
     prop_radius: float
     options: PlateOptions
@@ -70,7 +73,8 @@ def plate(src: ExportSource, options: PlateOptions | None = None) -> Plate:
     o = options or PlateOptions()
     if o.pattern not in PATTERNS:
         raise ValueError(f"pattern {o.pattern!r}: one of {', '.join(PATTERNS)}")
-    motors = drawing_xy(src.airframe.rotor_positions)
+    a = src.airframe
+    motors = drawing_xy(a.rotor_positions + a.com)  # rotor positions are from the CoM
     w2, R, rp = o.arm_width_mm / 2, o.hub_radius_mm, o.pad_radius_mm
     if not (w2 < rp and w2 < R):
         raise ValueError("the arm must be narrower than the hub and the motor pads")
@@ -109,7 +113,8 @@ def plate(src: ExportSource, options: PlateOptions | None = None) -> Plate:
                           o.hole_diameter_mm))
     s = o.stack_spacing_mm / 2
     holes += [(sx * s, sy * s, o.hole_diameter_mm) for sx in (-1, 1) for sy in (-1, 1)]
-    return Plate(tuple(pieces), motors, tuple(holes), src.config.prop_diameter_mm / 2, o)
+    return Plate(tuple(pieces), motors, drawing_xy(a.com), tuple(holes),
+                 src.config.prop_diameter_mm / 2, o)
 
 
 def _dimensions(p: Plate) -> list[tuple[np.ndarray, np.ndarray, str]]:
@@ -164,6 +169,9 @@ def svg(src: ExportSource, options: PlateOptions | None = None) -> str:
         out.append(f'<circle class="prop" cx="{m[0]:.4f}" cy="{-m[1] + 0.0:.4f}" '
                    f'r="{p.prop_radius:.4f}" fill="none" stroke="#3366cc" stroke-width="0.2" '
                    'stroke-dasharray="4 2"/>')
+    cx, cy = p.com
+    out.append(f'<circle class="com" cx="{cx + 0.0:.4f}" cy="{-cy + 0.0:.4f}" r="1.5" '
+               'fill="#cc3333"/>')
     for a, b, label in _dimensions(p):
         mid = (a + b) / 2
         out.append(f'<line class="dimension" x1="{a[0]:.4f}" y1="{-a[1] + 0.0:.4f}" '
@@ -199,7 +207,8 @@ def dxf(src: ExportSource, options: PlateOptions | None = None) -> str:
     doc.header["$MEASUREMENT"] = 1
     for name, color, ltype in (("OUTLINE", 7, "CONTINUOUS"), ("HOLES", 7, "CONTINUOUS"),
                                ("MOTOR_CENTRES", 1, "CONTINUOUS"), ("PROPS", 5, "DASHED"),
-                               ("DIMENSIONS", 3, "CONTINUOUS"), ("NOTES", 8, "CONTINUOUS")):
+                               ("DIMENSIONS", 3, "CONTINUOUS"), ("NOTES", 8, "CONTINUOUS"),
+                               ("COM", 1, "CONTINUOUS")):
         doc.layers.add(name, color=color, linetype=ltype)
     for i, line in enumerate(src.header_lines("1:1 frame plate, top view, mm")):
         doc.header.custom_vars.append(f"casadrone_{i}", line)
@@ -221,6 +230,7 @@ def dxf(src: ExportSource, options: PlateOptions | None = None) -> str:
     for m in p.motors:
         msp.add_point((float(m[0]), float(m[1])), dxfattribs={"layer": "MOTOR_CENTRES"})
         msp.add_circle((float(m[0]), float(m[1])), p.prop_radius, dxfattribs={"layer": "PROPS"})
+    msp.add_point((float(p.com[0]), float(p.com[1])), dxfattribs={"layer": "COM"})
     for a, b, _ in _dimensions(p):
         msp.add_aligned_dim(p1=tuple(a), p2=tuple(b), distance=8.0,
                             dxfattribs={"layer": "DIMENSIONS"}).render()

@@ -28,12 +28,18 @@ class ExportSource:
         """The provenance lines every export starts with (without comment markers)."""
         from casadrone import __version__
 
-        theta = ", ".join(f"{k}={getattr(self.config, k):g}" for k in THETA_KEYS)
+        a = self.airframe
+        theta = ", ".join(f"{k}={getattr(self.config, k):g}" for k in THETA_KEYS
+                          if getattr(self.config, k, None) is not None)
+        J = a.inertia
         return [f"{what} written by casadrone {__version__}",
                 f"source: {self.origin}; candidate: {self.candidate}",
-                f"airframe: {self.config.name} ({self.airframe.family}); {theta}",
-                f"mass {self.airframe.mass:g} kg; body frame of the numbers below is stated where "
-                "it differs from casadrone's (x forward, y left, z up)"]
+                f"airframe: {self.config.name} ({a.family}); {theta}",
+                f"mass {a.mass:.6g} kg; inertia about the centre of mass Ixx {J[0, 0]:.6g}, Iyy "
+                f"{J[1, 1]:.6g}, Izz {J[2, 2]:.6g}, Ixy {J[0, 1]:.6g}, Ixz {J[0, 2]:.6g}, Iyz "
+                f"{J[1, 2]:.6g} kg m^2; centre of mass {1000 * a.com[0]:+.2f}, "
+                f"{1000 * a.com[1]:+.2f}, {1000 * a.com[2]:+.2f} mm from the hub",
+                "casadrone body frame: x forward, y left, z up (other frames are stated below)"]
 
 
 def airframe_source(airframe: str | Path, overrides: list[str] | None = None) -> ExportSource:

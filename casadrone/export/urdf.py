@@ -45,11 +45,15 @@ def urdf(src: ExportSource) -> str:
             f'      <inertia ixx="{_f(J[0, 0])}" ixy="{_f(J[0, 1])}" ixz="{_f(J[0, 2])}" '
             f'iyy="{_f(J[1, 1])}" iyz="{_f(J[1, 2])}" izz="{_f(J[2, 2])}"/>',
             "    </inertial>"]
+    hub = -a.com  # the arms meet at the hub; base_link is at the centre of mass
     for r in a.rotor_positions:
-        length = math.hypot(r[0], r[1])
-        yaw = math.atan2(r[1], r[0])
+        arm = r - hub
+        length = math.hypot(arm[0], arm[1])
+        yaw = math.atan2(arm[1], arm[0])
+        mid = hub + arm / 2
         out += ["    <visual>",
-                f'      <origin xyz="{_f(r[0] / 2)} {_f(r[1] / 2)} 0" rpy="0 0 {_f(yaw)}"/>',
+                f'      <origin xyz="{_f(mid[0])} {_f(mid[1])} {_f(mid[2])}" '
+                f'rpy="0 0 {_f(yaw)}"/>',
                 f'      <geometry><box size="{_f(length)} {_f(ARM_WIDTH_M)} '
                 f'{_f(ARM_THICKNESS_M)}"/></geometry>',
                 '      <material name="frame"/>',

@@ -6,8 +6,9 @@ ev-MOGA and pymoo's algorithms are compared on the same budget through the same 
 
 from __future__ import annotations
 
+import contextlib
 import importlib
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from math import comb
 from typing import Any
 
@@ -16,7 +17,8 @@ from pymoo.core.algorithm import Algorithm
 
 from casadrone.optimise.evmoga import EvMOGA
 
-__all__ = ["ALGORITHM_NAMES", "make_algorithm", "reference_directions"]
+__all__ = ["ALGORITHM_NAMES", "REFUSED", "make_algorithm", "reference_directions",
+           "seeded_defaults", "settings_problems"]
 
 # name -> (module, class, takes reference directions, takes pop_size)
 _PYMOO: dict[str, tuple[str, str, bool, bool]] = {
@@ -31,6 +33,118 @@ _PYMOO: dict[str, tuple[str, str, bool, bool]] = {
 }
 
 ALGORITHM_NAMES: tuple[str, ...] = ("evmoga", *_PYMOO)
+
+#: Algorithms ``make_algorithm`` builds but a casadrone problem cannot use, with the reason.
+REFUSED: dict[str, str] = {
+    "moead": "pymoo's MOEA/D handles no constraints, and every casadrone problem has the "
+    "always-on lap-completed constraint (failed candidates are infeasible); use nsga3 or rvea "
+    "for a reference-direction algorithm",
+}
+
+
+def _int(lo: int, even: bool = False):
+    def check(v: Any) -> str | None:
+        if isinstance(v, bool) or not isinstance(v, int):
+            return f"expected a whole number, got {v!r}"
+        if v < lo:
+            return f"must be >= {lo}, got {v}"
+        if even and v % 2:
+            return f"must be even (children come in pairs), got {v}"
+        return None
+    return check
+
+
+def _float(lo: float, hi: float = float("inf"), lo_open: bool = False):
+    def check(v: Any) -> str | None:
+        if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v):
+            return f"expected a finite number, got {v!r}"
+        if v < lo or (lo_open and v == lo) or v > hi:
+            left = "(" if lo_open else "["
+            return f"must be in {left}{lo:g}, {hi:g}], got {v}"
+        return None
+    return check
+
+
+def _bool(v: Any) -> str | None:
+    return None if isinstance(v, bool) else f"expected true or false, got {v!r}"
+
+
+def _n_div(v: Any) -> str | None:
+    if isinstance(v, list):
+        bad = [_int(1)(x) for x in v]
+        return next((f"item {i}: {b}" for i, b in enumerate(bad) if b), None)
+    return _int(1)(v)
+
+
+_COMMON = {"eliminate_duplicates": _bool, "n_offsprings": _int(1)}
+#: The settings a problem file may give each algorithm, with their checks (the constructors'
+#: other arguments are operator objects, which YAML cannot express; population and generations
+#: have their own keys).
+SETTINGS: dict[str, dict[str, Any]] = {
+    "evmoga": {"n_ind_ga": _int(2, even=True), "n_div": _n_div, "p_m": _float(0.0, 1.0),
+               "dd_ini": _float(0.0), "dd_fin": _float(0.0, lo_open=True),
+               "sigma_ini": _float(0.0, lo_open=True), "sigma_fin": _float(0.0, lo_open=True),
+               "n_ind_p": _int(1)},
+    "nsga2": dict(_COMMON), "nsga3": dict(_COMMON), "unsga3": dict(_COMMON),
+    "smsemoa": {**_COMMON, "normalize": _bool}, "spea2": dict(_COMMON),
+    "moead": {"n_neighbors": _int(1), "prob_neighbor_mating": _float(0.0, 1.0)},
+    "rvea": {**_COMMON, "alpha": _float(0.0, lo_open=True),
+             "adapt_freq": _float(0.0, 1.0, lo_open=True)},
+    "ctaea": {"eliminate_duplicates": _bool},
+}
+#: Settings that have a key of their own in the problem's ``algorithm`` section.
+_OWN_KEYS = {"generations": "algorithm.generations", "pop_size": "algorithm.population",
+             "n_ind_p": "algorithm.population", "ref_dirs": "algorithm.population",
+             "seed": "seed", "termination": "algorithm.generations"}
+
+
+def settings_problems(
+    name: str, settings: Mapping[str, Any], population: int, n_obj: int
+) -> list[tuple[str, str]]:
+    """Problems of an algorithm's settings, as (key under ``settings``, message): unknown keys
+    (with a "did you mean"), wrong types and ranges, contradictions with the population, and
+    whatever the algorithm's own constructor then refuses. Empty when it can be built."""
+    import difflib
+
+    key = name.strip().lower()
+    if key not in SETTINGS:
+        return []
+    known = SETTINGS[key]
+    found: list[tuple[str, str]] = []
+    for k, v in settings.items():
+        if k in known:
+            problem = known[k](v)
+            if problem:
+                found.append((k, problem))
+            elif k == "n_ind_p" and v != population:
+                found.append((k, f"contradicts algorithm.population ({population}); give the "
+                              "population there only"))
+            elif k == "n_div" and isinstance(v, list) and len(v) != n_obj:
+                found.append((k, f"needs one value per objective ({n_obj}), got {len(v)}"))
+        elif k in _OWN_KEYS:
+            found.append((k, f"set by {_OWN_KEYS[k]}, not in settings"))
+        else:
+            close = difflib.get_close_matches(str(k), list(known), n=1, cutoff=0.6)
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            found.append((k, f"unknown setting of {key} ({hint}known: "
+                          f"{', '.join(known) or 'none'})"))
+    if key == "spea2" and settings.get("eliminate_duplicates", True) is not False:
+        found.append(("eliminate_duplicates", "spea2 with duplicate elimination (pymoo's default) "
+                      "is not reproducible from its seed in pymoo 0.6.2 (the survivors' order "
+                      "varies between identical runs), so a run could neither be repeated nor "
+                      "resumed identically; set eliminate_duplicates: false"))
+    if found:
+        return found
+    if key == "ctaea" and len(reference_directions(n_obj, population)) < 2:
+        return [("(population)", "too small for ctaea's reference directions")]
+    try:
+        kw = dict(settings)
+        if key == "evmoga":
+            kw["generations"] = 1
+        make_algorithm(key, kw, pop_size=population, n_obj=n_obj)
+    except (ValueError, TypeError) as exc:
+        found.append(("(algorithm)", f"{key} refuses these settings: {exc}"))
+    return found
 
 
 def reference_directions(n_obj: int, n_points: int) -> np.ndarray:
@@ -88,3 +202,49 @@ def _merge_pop_size(kwargs: dict[str, Any], key: str, pop_size: int | None) -> N
     if key in kwargs and kwargs[key] != pop_size:
         raise ValueError(f"pop_size={pop_size} contradicts settings {key}={kwargs[key]}")
     kwargs[key] = pop_size
+
+
+class _SeededRandom:
+    """``numpy.random`` whose ``default_rng()`` (no seed) is one given generator."""
+
+    def __init__(self, generator: np.random.Generator):
+        self._generator = generator
+
+    def default_rng(self, seed=None):
+        return self._generator if seed is None else np.random.default_rng(seed)
+
+    def __getattr__(self, name: str):
+        return getattr(np.random, name)
+
+
+class _SeededNumpy:
+    def __init__(self, generator: np.random.Generator):
+        self.random = _SeededRandom(generator)
+
+    def __getattr__(self, name: str):
+        return getattr(np, name)
+
+
+@contextlib.contextmanager
+def seeded_defaults(algorithm: Algorithm) -> Iterator[None]:
+    """Make pymoo's unseeded random draws come from the algorithm's own generator.
+
+    pymoo 0.6.2 decorates its random functions with ``default_random_state``, which draws a
+    fresh, OS-seeded generator when a caller passes no ``random_state``; the tournament
+    tie-breaks of NSGA-III, U-NSGA-III, SMS-EMOA and SPEA2 do exactly that (equal constraint
+    violations, common when candidates fail at the same stage), so those runs were neither
+    reproducible from their seed nor resumable to the same end. Inside this block such draws
+    use ``algorithm.random_state`` (seeded, and saved in every checkpoint) instead.
+    """
+    import pymoo.util
+
+    generator = getattr(algorithm, "random_state", None)
+    if generator is None:
+        yield
+        return
+    saved = pymoo.util.np
+    pymoo.util.np = _SeededNumpy(generator)
+    try:
+        yield
+    finally:
+        pymoo.util.np = saved

@@ -8,28 +8,32 @@ the evaluation chain once per process (:func:`casadrone.optimise.problem.study_s
 from __future__ import annotations
 
 import multiprocessing
+import os
 import pickle
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from casadrone.optimise.lifeline import worker_init
 from casadrone.optimise.mainguard import SpawnWithoutMainContext
 from casadrone.optimise.problem import Record, Study, evaluate_rows
 from casadrone.problemconfig import BackendConfig
 
 
 def guided_sizes(rows: int, workers: int) -> list[int]:
-    """Chunk sizes for ``rows`` on ``workers`` (guided self-scheduling): each chunk takes
-    ``1 / (2 · workers)`` of the rows still unassigned, at least ``rows / (16 · workers)``
-    (and 2), so the first round hands every worker a large share and the chunks then shrink
-    geometrically: a worker that finishes early takes the small ones, and the idle tail at the
-    end of a generation is about one small chunk (1/16 of a worker's share), while the number
-    of chunks (pickling, IPC) stays near 6 per worker. 850 rows on 16 workers: 97 chunks of 27
-    down to 1 row; on 2 workers: 12 chunks of 213 down to 6."""
-    min_rows = max(2, rows // (16 * max(1, workers)))
+    """Chunk sizes for ``rows`` on ``workers``: guided self-scheduling (Polychronopoulos & Kuck
+    1987). Each chunk takes ``1 / workers`` of the rows still unassigned, at least
+    ``rows / (32 · workers)`` (and 2): the first round hands every worker a large share, then
+    the chunks shrink geometrically, so a worker that finishes early takes small ones and the
+    idle tail at the end of a generation is about one small chunk, while the chunks (pickling,
+    IPC) stay few: 850 rows on 16 workers, 64 chunks of 54 down to 1 row; on 2 workers, 7
+    of 425 down to 13. Against one chunk per worker it trades ~4 more round trips per worker
+    (0.1 ms each) for the balance of unequal evaluation times (time-outs cost ~3× a completed
+    lap): ``benchmarks/bench_backends.py`` projects 94 % vs 81 % at 16 workers."""
+    min_rows = max(2, rows // (32 * max(1, workers)))
     sizes, left = [], rows
     while left > 0:
-        size = min(left, max(min_rows, -(-left // (2 * workers))))
+        size = min(left, max(min_rows, -(-left // max(1, workers))))
         sizes.append(size)
         left -= size
     return sizes
@@ -92,7 +96,8 @@ class ProcessBackend:
         self.workers = workers
         context = (SpawnWithoutMainContext() if without_main
                    else multiprocessing.get_context("spawn"))
-        self.pool = ProcessPoolExecutor(workers, mp_context=context)
+        self.pool = ProcessPoolExecutor(workers, mp_context=context, initializer=worker_init,
+                                        initargs=(os.getpid(),))
         self.warm_for: set[str] = set()
 
     def warm(self, study: Study) -> None:
@@ -119,6 +124,12 @@ class ProcessBackend:
 
     def close(self) -> None:
         self.pool.shutdown(cancel_futures=True)
+
+    def terminate(self) -> None:
+        """Stop now (the run was interrupted): kill the workers, do not wait for their tasks."""
+        for proc in list(getattr(self.pool, "_processes", {}).values()):
+            proc.kill()
+        self.pool.shutdown(wait=False, cancel_futures=True)
 
 
 class DaskBackend:

@@ -14,6 +14,11 @@ inserting items 1…n in order into an empty archive on a fixed grid (proved in 
 - they appear in the order of their first item;
 - each holds the winner of the same-box contest (case 3) folded over its items in order.
 
+Members whose box the new grid leaves unchanged cannot dominate or meet each other (they did not
+on the old grid), so a rebuild only compares pairs with a changed member, as bitsets (64 members
+per machine word). Boxes are stored one row per objective, so each test against the archive is a
+few contiguous comparisons of length |A|.
+
 A property test (``tests/unit/test_boxarchive.py``) checks every step against the sequential
 implementation this module replaced, on random streams of 2 to 6 objectives.
 """
@@ -31,10 +36,6 @@ __all__ = [
     "pareto_dominates",
     "pareto_dominates_rows",
 ]
-
-#: Candidate pairs checked per vectorised block in :func:`_dominated_boxes` (bounds the memory).
-_PAIR_BLOCK = 1 << 20
-
 
 def pareto_dominates(f: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Whether ``f`` Pareto-dominates each row of ``F`` (minimisation)."""
@@ -89,47 +90,88 @@ def challenger_wins(f: np.ndarray, f_k: np.ndarray, b: np.ndarray, f_min: np.nda
     return centre_distance(f, b, f_min, eps) < centre_distance(f_k, b, f_min, eps)
 
 
-def _dominated_boxes(U: np.ndarray) -> np.ndarray:
-    """Which rows of ``U`` (distinct boxes of mutually Pareto non-dominated points) another row
-    box-dominates.
+def _all_le(Bt: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``B[i] <= b`` componentwise for each column ``i`` of ``Bt`` (one row per objective)."""
+    out = Bt[0] <= b[0]
+    for j in range(1, len(b)):
+        out &= Bt[j] <= b[j]
+    return out
 
-    If the box of ``a`` dominates the box of ``b`` although neither point dominates the other,
-    some objective has ``f_a,j > f_b,j`` and, box indices being monotone in ``f``, the two boxes
-    share coordinate ``j``. So only pairs that share a coordinate are compared: per objective,
-    within each run of equal coordinates sorted by coordinate sum (a dominating box has the smaller
-    sum), in blocks of at most ``_PAIR_BLOCK`` pairs.
+
+def _any_below(U: np.ndarray, targets: np.ndarray, sources: np.ndarray) -> np.ndarray:
+    """For each target column of ``U`` (distinct boxes, one row per objective): whether another
+    source column is ``<=`` it componentwise, i.e. dominates it.
+
+    Per objective, a table holds as bitsets (64 sources per word) the sources at or below each
+    value; a target's dominators are the AND of its m table rows, less itself. Sources are ranked
+    by coordinate sum (a dominator has the smaller sum), so a block of targets only reads the words
+    of the sources with a sum below its largest. O(targets · sources · m / 64) word operations.
     """
-    n, m = U.shape
-    dominated = np.zeros(n, dtype=bool)
-    if n < 2:
-        return dominated
-    total = U.sum(axis=1)
-    positions = np.arange(n)
-    for j in range(m):
-        order = np.lexsort((total, U[:, j]))
-        col = U[order, j]
-        starts = np.flatnonzero(np.r_[True, col[1:] != col[:-1]])
-        group_start = np.repeat(starts, np.diff(np.r_[starts, n]))
-        count = positions - group_start  # earlier members of the run: the possible dominators
-        count[dominated[order]] = 0  # already known to be dominated
-        if not count.any():
+    total = U.sum(axis=0)
+    asked = targets
+    sources = sources[np.argsort(total[sources], kind="stable")]
+    targets = targets[np.argsort(total[targets], kind="stable")]
+    ns = len(sources)
+    k = np.arange(ns)
+    bits = np.left_shift(np.uint64(1), (k & 63).astype(np.uint64))
+    tables, rows = [], []
+    for j in range(U.shape[0]):
+        v, t = U[j, sources], U[j, targets]
+        if v.min() >= 0 and v.max() < 4 * ns + 64:  # box indices: index the table directly
+            size, row = int(max(v.max(), t.max())) + 1, t
+        else:  # large or negative values: by rank
+            values, v = np.unique(v, return_inverse=True)
+            size, row = len(values), np.searchsorted(values, t, side="right") - 1
+        table = np.zeros((size + 1, -(-ns // 64)), dtype=np.uint64)  # last row: no source
+        np.bitwise_or.at(table, (v.ravel(), k >> 6), bits)
+        table = np.bitwise_or.accumulate(table, axis=0)
+        table[-1] = 0
+        tables.append(table)
+        rows.append(np.where(row < 0, size, row))
+    where = np.full(U.shape[1], -1)
+    where[sources] = k
+    own = where[targets]
+    word, bit = own >> 6, bits[np.maximum(own, 0)]
+    below = np.searchsorted(total[sources], total[targets], side="left")  # sources with less sum
+    out = np.zeros(U.shape[1], dtype=bool)
+    for lo in range(0, len(targets), 256):
+        sl = slice(lo, lo + 256)
+        n_words = -(-int(below[sl].max()) // 64)
+        if n_words == 0:
             continue
-        U_sorted = U[order]
-        ends = np.cumsum(count)
-        lo = 0
-        while lo < n:
-            hi = int(np.searchsorted(ends, ends[lo] - count[lo] + _PAIR_BLOCK, side="right"))
-            hi = max(hi, lo + 1)
-            c = count[lo:hi]
-            n_pairs = int(c.sum())
-            if n_pairs:
-                p = np.repeat(positions[lo:hi], c)
-                offset = np.repeat(np.cumsum(c) - c, c)
-                q = group_start[p] + (np.arange(n_pairs) - offset)
-                hit = (U_sorted[q] <= U_sorted[p]).all(axis=1)
-                dominated[order[p[hit]]] = True
-            lo = hi
+        acc = tables[0][:, :n_words][rows[0][sl]]
+        for table, row in zip(tables[1:], rows[1:], strict=True):
+            acc &= table[:, :n_words][row[sl]]
+        mine = np.flatnonzero((own[sl] >= 0) & (word[sl] < n_words))
+        acc[mine, word[sl][mine]] &= ~bit[sl][mine]
+        out[targets[sl]] = acc.any(axis=1)
+    return out[asked]
+
+
+def dominated_boxes(U: np.ndarray, changed: np.ndarray) -> np.ndarray:
+    """Which columns of ``U`` (distinct boxes, one row per objective) another column dominates,
+    given that the columns not ``changed`` do not dominate each other."""
+    dominated = np.zeros(U.shape[1], dtype=bool)
+    moved, still = np.flatnonzero(changed), np.flatnonzero(~changed)
+    if 2 * len(moved) > U.shape[1]:  # one pass over all pairs is cheaper than two
+        everyone = np.arange(U.shape[1])
+        return _any_below(U, everyone, everyone)
+    if len(moved):
+        dominated[moved] = _any_below(U, moved, np.arange(U.shape[1]))
+        if len(still):
+            dominated[still] = _any_below(U, still, moved)
     return dominated
+
+
+def _box_keys(Bt: np.ndarray) -> np.ndarray:
+    """One integer per box (columns of ``Bt``), equal exactly for equal boxes."""
+    radix = Bt.max(axis=1) + 1
+    if Bt.min() >= 0 and float(np.prod(radix.astype(float))) < 2.0**62:
+        keys = np.zeros(Bt.shape[1], dtype=np.int64)
+        for j in range(Bt.shape[0]):
+            keys = keys * radix[j] + Bt[j]
+        return keys
+    return np.unique(Bt.T, axis=0, return_inverse=True)[1].ravel()
 
 
 class BoxArchive:
@@ -140,31 +182,48 @@ class BoxArchive:
         widths: Number of columns of each row array (must include ``"F"``, the minimised
             objectives), e.g. ``{"X": n_var, "F": n_obj, "G": n_ieq, "H": n_eq, "CV": 1}``.
 
-    Attributes (read them, do not edit them):
-        rows: Row-aligned member arrays, in archive order (the order ev-MOGA draws parents from).
-        box: Box indices of the members on the current grid.
-        grid_min, grid_max, eps: The grid (``None`` until the first member).
+    Read (never edit) ``rows`` (row-aligned member arrays, in archive order: the order ev-MOGA
+    draws parents from), ``F``, ``box`` (box indices on the current grid) and the grid
+    ``grid_min``, ``grid_max``, ``eps`` (``None`` until the first member). Storage grows by
+    doubling, so appending a member is O(1) amortised.
     """
 
     def __init__(self, n_div: np.ndarray, widths: Mapping[str, int]) -> None:
         if "F" not in widths:
             raise ValueError("the archive's rows need an 'F' array")
         self.n_div = np.asarray(n_div, dtype=np.int64)
-        self.rows: dict[str, np.ndarray] = {k: np.empty((0, int(w))) for k, w in widths.items()}
-        self.box = np.empty((0, len(self.n_div)), dtype=np.int64)
+        self._n = 0
+        self._rows: dict[str, np.ndarray] = {k: np.empty((0, int(w))) for k, w in widths.items()}
+        self._box = np.empty((len(self.n_div), 0), dtype=np.int64)  # one row per objective
         self.grid_min: np.ndarray | None = None
         self.grid_max: np.ndarray | None = None
         self.eps: np.ndarray | None = None
 
     def __len__(self) -> int:
-        return len(self.box)
+        return self._n
+
+    @property
+    def rows(self) -> dict[str, np.ndarray]:
+        """The members' row arrays (views)."""
+        return {k: v[:self._n] for k, v in self._rows.items()}
 
     @property
     def F(self) -> np.ndarray:
         """Objectives of the members (minimised)."""
-        return self.rows["F"]
+        return self._rows["F"][:self._n]
 
-    # ---- grid and rows ------------------------------------------------------------------------
+    @property
+    def box(self) -> np.ndarray:
+        """Box indices of the members, one row per member."""
+        return self._box[:, :self._n].T
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_rows"] = {k: v.copy() for k, v in self.rows.items()}
+        state["_box"] = self._box[:, :self._n].copy()
+        return state
+
+    # ---- grid and storage ---------------------------------------------------------------------
 
     def set_grid(self, f_min: np.ndarray, f_max: np.ndarray) -> None:
         """Grid from the extremes: ``ε = (max - min) / n_div``."""
@@ -172,22 +231,53 @@ class BoxArchive:
         self.grid_max = np.array(f_max, dtype=float)
         self.eps = (self.grid_max - self.grid_min) / self.n_div
 
-    def _take(self, index: np.ndarray) -> None:
-        """Keep the members ``index`` (a boolean mask or positions, in the new order)."""
-        self.rows = {k: v[index] for k, v in self.rows.items()}
-        self.box = self.box[index]
+    def _box_columns(self, F: np.ndarray) -> np.ndarray:
+        """:func:`box_index` of the rows of ``F``, one row per objective (same arithmetic)."""
+        out = np.zeros((F.shape[1], len(F)), dtype=np.int64)
+        for j in range(F.shape[1]):
+            if self.eps[j] > 0.0:
+                out[j] = np.ceil(np.round((F[:, j] - self.grid_min[j]) / self.eps[j], 6))
+        return out
+
+    def _set(self, rows: Mapping[str, np.ndarray], box_columns: np.ndarray) -> None:
+        self._rows = {k: np.asarray(rows[k], dtype=float) for k in self._rows}
+        self._box = np.ascontiguousarray(box_columns, dtype=np.int64)
+        self._n = self._box.shape[1]
+
+    def _take(self, index: np.ndarray, box_columns: np.ndarray | None = None) -> None:
+        """Keep the members ``index`` (mask or positions, in the new order); their boxes are
+        ``box_columns[:, index]`` when given, else the stored ones."""
+        B = self._box[:, :self._n] if box_columns is None else box_columns
+        index = np.flatnonzero(index) if index.dtype == bool else index
+        n = len(index)
+        cap = n + max(16, n // 4)  # room to append without copying again
+        rows = {}
+        for k, v in self.rows.items():
+            rows[k] = np.empty((cap, v.shape[1]))
+            np.take(v, index, axis=0, out=rows[k][:n])
+        box = np.empty((B.shape[0], cap), dtype=np.int64)
+        np.take(B, index, axis=1, out=box[:, :n])
+        self._rows, self._box, self._n = rows, box, n
 
     def _row(self, row: Mapping[str, np.ndarray], key: str) -> np.ndarray:
-        """One member's values of row array ``key`` as a (1, width) float array."""
-        return np.asarray(row[key], dtype=float).reshape(1, self.rows[key].shape[1])
+        """One member's values of row array ``key`` as a (width,) float array."""
+        return np.asarray(row[key], dtype=float).reshape(self._rows[key].shape[1])
 
     def _append(self, row: Mapping[str, np.ndarray], b: np.ndarray) -> None:
-        self.rows = {k: np.concatenate([v, self._row(row, k)]) for k, v in self.rows.items()}
-        self.box = np.concatenate([self.box, b[None, :]])
+        n = self._n
+        if n == self._box.shape[1]:  # grow by doubling
+            cap = max(16, 2 * n)
+            self._rows = {k: np.concatenate([v[:n], np.empty((cap - n, v.shape[1]))])
+                          for k, v in self._rows.items()}
+            self._box = np.concatenate([self._box[:, :n],
+                                        np.empty((len(b), cap - n), dtype=np.int64)], axis=1)
+        for k, v in self._rows.items():
+            v[n] = self._row(row, k)
+        self._box[:, n] = b
+        self._n = n + 1
 
     def _only(self, row: Mapping[str, np.ndarray], b: np.ndarray) -> None:
-        self.rows = {k: self._row(row, k) for k in self.rows}
-        self.box = b[None, :].astype(np.int64)
+        self._set({k: self._row(row, k)[None, :].copy() for k in self._rows}, b[:, None])
 
     # ---- EVMOGA.md rules ----------------------------------------------------------------------
 
@@ -196,7 +286,7 @@ class BoxArchive:
         grid when it moves the extremes (EVMOGA.md "archive each child in turn")."""
         f = np.asarray(row["F"], dtype=float).ravel()
         m = len(f)
-        if len(self) == 0 and self.grid_min is None:
+        if self._n == 0 and self.grid_min is None:
             self.set_grid(f, f)
             self._only(row, np.zeros(m, dtype=np.int64))
             return
@@ -213,34 +303,45 @@ class BoxArchive:
             self._only(row, box_index(f, self.grid_min, self.eps)[0])
         else:
             F = self.F
-            if np.any(pareto_dominates_rows(F, f)):
+            lower, higher = F[:, 0] < f[0], F[:, 0] > f[0]  # column by column: no axis-1 reduce
+            for j in range(1, m):
+                lower |= F[:, j] < f[j]
+                higher |= F[:, j] > f[j]
+            if np.any(lower & ~higher):  # a member dominates the child
                 return
-            self._take(~pareto_dominates(f, F))
+            gone = higher & ~lower  # members the child dominates
+            if gone.any():
+                self._take(~gone)
             both = np.vstack([self.F, f])
             self.set_grid(both.min(axis=0), both.max(axis=0))
-            self._rebuild()
+            self._rebuild(changed_only=True)
             self.insert(row)
 
     def insert(self, row: Mapping[str, np.ndarray]) -> bool:
         """Insert with the current grid (EVMOGA.md cases 1-4); return whether the child entered."""
         f = np.asarray(row["F"], dtype=float).ravel()
         b = box_index(f, self.grid_min, self.eps)[0]
-        B = self.box
-        if len(B) == 0:
+        if self._n == 0:
             self._append(row, b)
             return True
-        equal = (B == b).all(axis=1)
-        if np.any((B <= b).all(axis=1) & ~equal):
+        Bt = self._box[:, :self._n]
+        below = _all_le(Bt, b)
+        equal = below.copy()
+        for j in range(len(b)):
+            equal &= Bt[j] == b[j]
+        if np.any(below & ~equal):
             return False  # case 1: the child's box is dominated
         same = np.flatnonzero(equal)
         if len(same):  # case 3 (the invariant leaves nothing for case 2 to delete)
             k = int(same[0])
             if not challenger_wins(f, self.F[k], b, self.grid_min, self.eps):
                 return False
-            for key, v in self.rows.items():
-                v[k] = self._row(row, key)[0]
+            for key, v in self._rows.items():
+                v[k] = self._row(row, key)
             return True
-        gone = (b <= B).all(axis=1)  # case 2 (B == b is excluded above)
+        gone = Bt[0] >= b[0]  # case 2 (equal boxes are excluded above)
+        for j in range(1, len(b)):
+            gone &= Bt[j] >= b[j]
         if gone.any():
             self._take(~gone)
         self._append(row, b)  # case 4
@@ -256,25 +357,33 @@ class BoxArchive:
         item boxes; a minimal box is never rejected (case 1) nor deleted (case 2), so it enters with
         its first item, keeps its place, and only case 3 changes its member.
         """
-        if len(self):
+        if self._n:
             raise ValueError("fill needs an empty archive")
-        self.rows = {k: np.array(rows[k], dtype=float) for k in self.rows}
-        self._rebuild()
+        F = np.asarray(rows["F"], dtype=float)
+        self._set({k: np.array(rows[k], dtype=float) for k in self._rows},
+                  np.zeros((F.shape[1], len(F)), dtype=np.int64))
+        self._rebuild(changed_only=False)
 
-    def _rebuild(self) -> None:
+    def _rebuild(self, changed_only: bool) -> None:
         """Re-insert the members, in order, into an empty archive on the current grid (vectorised
-        equivalent of EVMOGA.md's re-insertion loop, see :meth:`fill`)."""
-        F = self.F
-        B = box_index(F, self.grid_min, self.eps) if len(F) else self.box
-        self.box = B
-        if len(F) < 2:
+        equivalent of EVMOGA.md's re-insertion loop, see :meth:`fill`). With ``changed_only`` the
+        stored boxes are the members' boxes on the previous grid, where they were distinct and
+        mutually non-dominated: only pairs with a member whose box changed are compared."""
+        n, F = self._n, self.F
+        old = self._box[:, :n]
+        new = self._box_columns(F)
+        changed = (new != old).any(axis=0) if changed_only else np.ones(n, dtype=bool)
+        if n < 2 or not changed.any():
+            self._box = new
             return
-        boxes, first, group = np.unique(B, axis=0, return_index=True, return_inverse=True)
+        keys, first, group = np.unique(_box_keys(new), return_index=True, return_inverse=True)
         group = group.ravel()
-        keep = np.flatnonzero(~_dominated_boxes(boxes))
+        changed_box = np.zeros(len(keys), dtype=bool)
+        changed_box[group[changed]] = True
+        keep = np.flatnonzero(~dominated_boxes(new[:, first], changed_box))
         keep = keep[np.argsort(first[keep], kind="stable")]  # order of first appearance
         winner = first[keep]
-        sizes = np.bincount(group, minlength=len(boxes))
+        sizes = np.bincount(group, minlength=len(keys))
         crowded = np.flatnonzero(sizes[keep] > 1)
         if len(crowded):  # fold case 3 over each crowded box's items, in order
             members = np.argsort(group, kind="stable")  # items grouped by box, in order
@@ -284,8 +393,10 @@ class BoxArchive:
                 queue = members[bounds[g]:bounds[g + 1]]
                 k = queue[0]
                 for c in queue[1:]:
-                    if challenger_wins(F[c], F[k], boxes[g], self.grid_min, self.eps):
+                    if challenger_wins(F[c], F[k], new[:, c], self.grid_min, self.eps):
                         k = c
                 winner[i] = k
-        if len(winner) < len(F) or np.any(winner != np.arange(len(F))):
-            self._take(winner)
+        if len(winner) == n and np.array_equal(winner, np.arange(n)):
+            self._box = new
+        else:
+            self._take(winner, new)

@@ -153,6 +153,8 @@ class EvMOGA(Algorithm):
         self.schedule_generations: int | None = None
         self.n_div: np.ndarray | None = None
         self.box_archive: BoxArchive | None = None  # A and its grid
+        self._n_seen = 0  # solutions evaluated so far: the next one's id
+        self._individuals: dict[float, object] = {}  # id -> pymoo Individual of archive members
         # objectives and violation of P, kept in step with self.pop
         self.pop_F = np.empty((0, 0))
         self.pop_cv = np.empty(0)
@@ -187,13 +189,13 @@ class EvMOGA(Algorithm):
     @property
     def archive_pop(self) -> Population:
         """The archive as a new pymoo ``Population`` (built on each call: O(|A|) objects)."""
-        return _population(self.box_archive.rows)
+        return self._population(self.box_archive.rows)
 
     @property
     def opt(self) -> Population | None:
         """pymoo's optimum: the archive at the end of the last generation (built on demand)."""
         if self._opt is None and self._opt_rows is not None:
-            self._opt = _population(self._opt_rows)
+            self._opt = self._population(self._opt_rows)
         return self._opt
 
     @opt.setter
@@ -206,16 +208,48 @@ class EvMOGA(Algorithm):
         state = self.__dict__.copy()
         if state.get("_opt_rows") is not None:
             state["_opt"] = None
+        state["_individuals"] = {}
         for key in ("pop", "off"):
             if isinstance(state.get(key), Population) and len(state[key]):
-                state[key] = _rows(state[key], **self._widths())
+                state[key] = _rows(state[key], self._widths(with_id=False))
         return state
 
     def __setstate__(self, state: dict) -> None:
         for key in ("pop", "off"):
             if isinstance(state.get(key), dict):
-                state[key] = _population(state[key])
+                state[key] = _population_of_rows(state[key])
+        legacy = "box_archive" not in state and "archive_pop" in state
+        if legacy:  # a checkpoint of the sequential archive (git 683f05d and before): convert it
+            archive = {k: state.pop(k) for k in ("archive_pop", "archive_F", "archive_box",
+                                                 "grid_min", "grid_max", "eps")}
+            state["_opt"], state["_opt_rows"] = state.pop("opt", None), None
         self.__dict__.update(state)
+        if legacy:
+            self._individuals = {}
+            self._n_seen = int(self.evaluator.n_eval)
+            self.box_archive = BoxArchive(self.n_div, self._widths())
+            pop = archive["archive_pop"]
+            if len(pop):  # the old members get ids below zero: new ones count up from n_eval
+                rows = _rows(pop, self._widths(with_id=False))
+                rows["id"] = -1.0 - np.arange(len(pop), dtype=float)[:, None]
+                self.box_archive._set(rows, np.asarray(archive["archive_box"]).T)
+            if archive["grid_min"] is not None:
+                self.box_archive.grid_min = archive["grid_min"]
+                self.box_archive.grid_max = archive["grid_max"]
+                self.box_archive.eps = archive["eps"]
+
+    def _population(self, rows: dict[str, np.ndarray]) -> Population:
+        """A pymoo population of archive rows, reusing the Individual of each member that was
+        already built (by its ``id``): building one costs ~20 µs, and pymoo reads ``opt`` after
+        every generation."""
+        ids = rows["id"][:, 0].tolist()
+        cache = self._individuals
+        missing = [i for i, key in enumerate(ids) if key not in cache]
+        if missing:
+            fresh = _population_of_rows({k: rows[k][missing] for k in ROW_KEYS})
+            cache.update(zip([ids[i] for i in missing], fresh, strict=True))
+        self._individuals = {key: cache[key] for key in ids}
+        return Population.create(*self._individuals.values())
 
     # ---- pymoo hooks --------------------------------------------------------------------------
 
@@ -231,9 +265,17 @@ class EvMOGA(Algorithm):
         self.schedule_generations = self._resolve_generations()
         self.box_archive = BoxArchive(n_div, self._widths())
 
-    def _widths(self) -> dict[str, int]:
+    def _widths(self, with_id: bool = True) -> dict[str, int]:
+        """Columns of the row arrays kept per solution (``id``: its serial number)."""
         p = self.problem
-        return {"X": p.n_var, "F": p.n_obj, "G": p.n_ieq_constr, "H": p.n_eq_constr, "CV": 1}
+        widths = {"X": p.n_var, "F": p.n_obj, "G": p.n_ieq_constr, "H": p.n_eq_constr, "CV": 1}
+        return {**widths, "id": 1} if with_id else widths
+
+    def _rows_of_children(self, infills: Population) -> dict[str, np.ndarray]:
+        rows = _rows(infills, self._widths(with_id=False))
+        rows["id"] = (self._n_seen + np.arange(len(infills), dtype=float))[:, None]
+        self._n_seen += len(infills)
+        return rows
 
     def _resolve_generations(self) -> int:
         if self.generations is not None:
@@ -263,7 +305,7 @@ class EvMOGA(Algorithm):
         nd = np.sort(nd)
         F_nd = self.pop_F[nd]
         self.box_archive.set_grid(F_nd.min(axis=0), F_nd.max(axis=0))
-        rows = _rows(infills, **self._widths())
+        rows = self._rows_of_children(infills)
         self.box_archive.fill({k: v[nd] for k, v in rows.items()})
 
     def _infill(self) -> Population:
@@ -274,10 +316,12 @@ class EvMOGA(Algorithm):
         xl, xu = self.problem.bounds()
         n_pairs, n_var = self.n_ind_ga // 2, self.problem.n_var
 
-        X_p = np.asarray(self.pop.get("X"), dtype=float)
-        X_2 = self.archive_X if len(self.box_archive) else X_p  # A empty: both parents from P
-        p1 = X_p[rs.integers(len(X_p), size=n_pairs)]
-        p2 = X_2[rs.integers(len(X_2), size=n_pairs)]
+        p1 = np.asarray(self.pop[rs.integers(len(self.pop), size=n_pairs)].get("X"), dtype=float)
+        if len(self.box_archive):
+            p2 = self.archive_X[rs.integers(len(self.box_archive), size=n_pairs)]
+        else:  # A empty: both parents from P
+            p2 = np.asarray(self.pop[rs.integers(len(self.pop), size=n_pairs)].get("X"),
+                            dtype=float)
         mutate = rs.random(n_pairs) < self.p_m
         beta = rs.uniform(-dd, 1.0 + dd, size=(n_pairs, 1))
         noise = rs.normal(0.0, 1.0, size=(2, n_pairs, n_var)) * (sigma / 100.0) * (xu - xl)
@@ -289,7 +333,7 @@ class EvMOGA(Algorithm):
 
     def _advance(self, infills=None, **kwargs) -> None:
         F, cv = _violation(infills)
-        rows = _rows(infills, **self._widths())
+        rows = self._rows_of_children(infills)
         for i in np.flatnonzero(cv <= 0.0):
             self.box_archive.offer({k: v[i] for k, v in rows.items()})
         n = len(self.pop)
@@ -311,14 +355,13 @@ class EvMOGA(Algorithm):
             self.opt = filter_optimum(self.pop, least_infeasible=True)
 
 
-def _rows(pop: Population, X: int, F: int, G: int, H: int, CV: int = 1) -> dict[str, np.ndarray]:
-    """The row arrays of a population, each (len(pop), width) float."""
+def _rows(pop: Population, widths: dict[str, int]) -> dict[str, np.ndarray]:
+    """The row arrays ``ROW_KEYS`` of a population, each (len(pop), width) float."""
     n = len(pop)
-    widths = {"X": X, "F": F, "G": G, "H": H, "CV": CV}
     return {k: np.asarray(pop.get(k), dtype=float).reshape(n, widths[k]) for k in ROW_KEYS}
 
 
-def _population(rows: dict[str, np.ndarray]) -> Population:
+def _population_of_rows(rows: dict[str, np.ndarray]) -> Population:
     """A pymoo population of evaluated solutions from row arrays."""
     args = [a for k in ROW_KEYS for a in (k, rows[k])]
     pop = Population.new(*args)

@@ -194,7 +194,9 @@ class CandidateProblem(Problem):
     """pymoo problem: a whole batch (one generation) goes to the backend at once.
 
     ``backend`` (an object with ``evaluate(study, X) -> list[Record]``) is attached by the runner
-    and dropped when pickled (checkpoints), as are the records of the last batch.
+    and dropped when pickled (checkpoints), as are the records of the last batch and the study
+    (its absolute input paths belong to where the run was: the runner attaches the study of the
+    run directory it resumes, so a moved or copied run never reads the original's inputs).
     """
 
     def __init__(self, study: Study, backend=None):
@@ -218,4 +220,5 @@ class CandidateProblem(Problem):
         state = self.__dict__.copy()
         state["backend"] = None
         state["last_records"] = []
+        state["study"] = None
         return state

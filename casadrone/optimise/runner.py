@@ -4,11 +4,23 @@ The loop is pymoo's own ``Algorithm.next()`` (ask → evaluate the whole generat
 → tell), one generation at a time; after each generation the coordinator stores its evaluations
 and then checkpoints the algorithm (random state included). Resuming loads the checkpoint,
 re-attaches a backend and continues: the run ends exactly as an uninterrupted one would.
+
+When no checkpoint is usable (killed before the first one, or both damaged), resuming rebuilds
+the run from ``history.sqlite``: the algorithm starts again from its seed and each stored
+generation is served from the history instead of being evaluated (a replay, checked row by row
+against what the algorithm asks for), then the run continues live. SIGTERM (``timeout``, batch
+schedulers, ``docker stop``) and SIGINT (Ctrl-C) stop a run the same way: the manifest records
+``interrupted`` and :class:`Interrupted` carries the signal to the caller.
+Each step is timed into the run's ``timings.csv`` (:mod:`casadrone.optimise.timings`); the
+progress hypervolume stays cheap as the set grows (:mod:`casadrone.optimise.hypervolume`).
 """
 
 from __future__ import annotations
 
+import contextlib
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -16,12 +28,99 @@ from pathlib import Path
 
 import numpy as np
 
+from casadrone.optimise.algorithms import seeded_defaults
 from casadrone.optimise.backends import make_backend
-from casadrone.optimise.hypervolume import HypervolumeState, advance
+from casadrone.optimise.hypervolume import HypervolumeState, advance, due
 from casadrone.optimise.mainguard import unguarded_main_call, unguarded_message
-from casadrone.optimise.problem import CandidateProblem, Study, objectives_and_constraints
-from casadrone.optimise.store import RunStore, now
+from casadrone.optimise.problem import CandidateProblem, Record, Study, objectives_and_constraints
+from casadrone.optimise.store import RunDamaged, RunStore, now
+from casadrone.optimise.timings import append_timings
 from casadrone.problemconfig import BackendConfig, ProblemConfig
+
+
+class Interrupted(KeyboardInterrupt):
+    """The run was stopped by a signal (SIGINT or SIGTERM); its state is recorded."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+        self.run_dir: Path | None = None  # the run to resume, once it has a directory
+
+
+@contextlib.contextmanager
+def _signals_interrupt():
+    """SIGTERM and SIGINT raise :class:`Interrupted` in the coordinator while the block runs
+    (only the main thread can take signals; elsewhere nothing changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise Interrupted(signum)
+
+    old = {s: signal.signal(s, handler) for s in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+class ReplayBackend:
+    """Serves a run's stored generations (``history.sqlite``) in order, then evaluates live."""
+
+    name = "replay"
+
+    def __init__(self, stored: list[list[Record]], live, why: str = ""):
+        self.stored, self.live, self.generation = stored, live, 0
+        self.why = why  # why the run is being rebuilt, for the message if it cannot be
+
+    def evaluate(self, study: Study, X: np.ndarray) -> list[Record]:
+        if self.generation >= len(self.stored):
+            return self.live.evaluate(study, X)
+        records = self.stored[self.generation]
+        names = study.variable_names
+        X_stored = np.array([[r.theta[n] for n in names] for r in records], dtype=float)
+        if X_stored.shape != np.shape(X) or not np.array_equal(X_stored, X):
+            raise RunDamaged(f"{self.why}; and history.sqlite cannot rebuild the run: it does "
+                             f"not match a replay at generation {self.generation} (different "
+                             "candidates)")
+        self.generation += 1
+        return records
+
+    def close(self) -> None:
+        self.live.close()
+
+    def terminate(self) -> None:
+        getattr(self.live, "terminate", self.live.close)()
+
+
+def _check_history(store: RunStore, generation: int) -> None:
+    """The history holds every generation up to the checkpoint's (else the run lost data)."""
+    done = {g["generation"] for g in store.generations()}
+    with store.database("read the evaluations") as db:
+        db.execute("SELECT generation, idx FROM evaluations LIMIT 1").fetchall()
+    missing = sorted(set(range(generation + 1)) - done)
+    if missing:
+        raise RunDamaged(f"{store.path / 'history.sqlite'}: generation {missing[0]} is missing "
+                         f"though the checkpoint is at generation {generation}")
+
+
+def stored_generations(store: RunStore) -> list[list[Record]]:
+    """The complete generations of ``history.sqlite`` (0, 1, … without a gap) as records."""
+    m = store.manifest
+    done = [g["generation"] for g in store.generations()]
+    rows = store.history()
+    n = next((i for i, g in enumerate(done) if g != i), len(done))
+    out: list[list[Record]] = [[] for _ in range(n)]
+    for r in rows:
+        if r["generation"] < n:
+            out[r["generation"]].append(Record(
+                theta={v: r[v] for v in m["variables"]}, status=r["status"],
+                stage=r["stage"] or "", reason=r["reason"] or "",
+                indices={k: float("nan") if r[k] is None else r[k] for k in m["indices"]},
+                wall_time_s=r["wall_time_s"] or 0.0))
+    return out
 
 
 @dataclass(frozen=True)
@@ -52,23 +151,32 @@ def build_algorithm(problem: ProblemConfig, n_obj: int):
 
 def front(algorithm, study: Study) -> tuple[np.ndarray, np.ndarray]:
     """Feasible non-dominated set of the algorithm's result (objectives back in their sense)."""
-    opt = algorithm.opt
-    if opt is None or len(opt) == 0:
-        return np.empty((0, len(study.variable_names))), np.empty((0, len(study.objective_names)))
-    feas = np.asarray(opt.get("CV")).ravel() <= 0
-    X, F = opt.get("X")[feas], opt.get("F")[feas]
+    archive = getattr(algorithm, "box_archive", None)  # ev-MOGA: its arrays, no Population
+    if archive is not None and len(archive):
+        X, F, CV = archive.rows["X"], archive.F, archive.rows["CV"]
+    else:
+        opt = algorithm.opt
+        if opt is None or len(opt) == 0:
+            return (np.empty((0, len(study.variable_names))),
+                    np.empty((0, len(study.objective_names))))
+        X, F, CV = opt.get("X"), opt.get("F"), opt.get("CV")
+    feas = np.asarray(CV).ravel() <= 0
+    X, F = X[feas], F[feas]
     sign = np.array([-1.0 if s == "max" else 1.0 for s in study.senses])
     order = np.lexsort(F.T[::-1])
     return X[order], F[order] * sign
 
 
-def generation_hypervolume(study: Study, records, state: HypervolumeState | None
-                          ) -> tuple[HypervolumeState, float]:
+def generation_hypervolume(study: Study, records, state: HypervolumeState | None,
+                          generation: int, last: bool) -> tuple[HypervolumeState, float | None]:
     """The hypervolume shown after a generation (:mod:`casadrone.optimise.hypervolume`): its
-    feasible evaluations join the non-dominated set so far, measured in the run's fixed space."""
+    feasible evaluations join the non-dominated set so far, measured in the run's fixed space
+    (None at the generations where it is not computed)."""
     F, G = objectives_and_constraints(study, records)
-    feasible = F[np.all(G <= 0, axis=1)] if len(records) else np.empty((0, F.shape[1]))
-    return advance(state, feasible, raw=study.problem.test_problem is not None)
+    m = len(study.objective_names)
+    feasible = F[np.all(G <= 0, axis=1)] if len(records) else np.empty((0, m))
+    return advance(state, feasible, raw=study.problem.test_problem is not None,
+                   compute=due(m, generation, last))
 
 
 class Progress:
@@ -84,9 +192,11 @@ class Progress:
             return
         done = (gen + 1) / (self.total + 1)
         eta = stats["elapsed_s"] * (1 - done) / done
+        hv = stats["hypervolume"]
         line = (f"gen {gen:>4}/{self.total}  evals {stats['n_evaluations']:>7}  "
                 f"archive {stats['archive_size']:>4}  feasible {stats['feasible_fraction']:6.1%}  "
-                f"HV {stats['hypervolume']:.5f}  elapsed {stats['elapsed_s']:7.1f} s  "
+                f"HV {'      -' if hv is None else format(hv, '.5f')}  "
+                f"elapsed {stats['elapsed_s']:7.1f} s  "
                 f"remaining {eta:7.1f} s")
         if self.tty:
             width = 24
@@ -102,9 +212,29 @@ def _loop(store: RunStore, algorithm, study: Study, backend, elapsed0: float,
     problem.backend = backend
     store.acquire()
     try:
-        return _generations(store, algorithm, study, problem, elapsed0, progress, stop_after, hv)
+        with _signals_interrupt():
+            return _generations(store, algorithm, study, problem, elapsed0, progress, stop_after,
+                                hv)
+    except Interrupted as exc:
+        exc.run_dir = store.path
+        with contextlib.suppress(Exception):
+            store.update_manifest(status="interrupted", interrupted=now(), signal=str(exc))
+        raise
+    except Exception as exc:
+        with contextlib.suppress(Exception):
+            store.update_manifest(status="stopped", stopped=now(),
+                                  error=f"{type(exc).__name__}: {exc}"[:300])
+        raise
     finally:
         store.release()
+
+
+def _marker(t: list[float], cpu: list[float]) -> Callable[[], None]:
+    """A function appending the wall-clock and CPU time to ``t`` and ``cpu``."""
+    def mark() -> None:
+        t.append(time.perf_counter())
+        cpu.append(time.process_time())
+    return mark
 
 
 def _generations(store, algorithm, study, problem, elapsed0, progress, stop_after,
@@ -112,13 +242,22 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
     start = time.perf_counter()
     steps = 0
     while algorithm.has_next():
-        algorithm.next()
+        t, cpu = [time.perf_counter()], [time.process_time()]
+        mark = _marker(t, cpu)
+        with seeded_defaults(algorithm):  # Algorithm.next(), one step at a time
+            infills = algorithm.infill()
+            mark()
+            if infills is not None:
+                algorithm.evaluator.eval(algorithm.problem, infills, algorithm=algorithm)
+            mark()
+            algorithm.advance(infills=infills)
+            mark()
         # pymoo's n_gen is 2 after the initial population (generation 0 here), 3 after the next…
         gen = int(algorithm.n_gen) - 2
         records = problem.last_records
         X_f, _ = front(algorithm, study)
         had_space = hv is not None and hv.space is not None
-        hv, hv_value = generation_hypervolume(study, records, hv)
+        hv, hv_value = generation_hypervolume(study, records, hv, gen, not algorithm.has_next())
         if hv.space is not None and not had_space:  # the report measures in the same space
             store.update_manifest(hypervolume_space={"ideal": hv.space.ideal.tolist(),
                                                      "nadir": hv.space.nadir.tolist()})
@@ -130,10 +269,20 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
             "hypervolume": hv_value,
             "elapsed_s": elapsed0 + time.perf_counter() - start,
         }
+        mark()
         store.write_generation(gen, records, stats)
         problem.last_records = []
+        mark()
         store.save_checkpoint({"algorithm": algorithm, "elapsed_s": stats["elapsed_s"],
                                "generation": gen, "hypervolume_state": hv})
+        mark()
+        step = dict(zip(("ask_s", "evaluate_s", "advance_s", "statistics_s", "history_s",
+                         "checkpoint_s"), np.diff(t).tolist(), strict=True))
+        append_timings(store.path, {
+            "generation": gen, "n_evaluations": stats["n_evaluations"],
+            "archive_size": stats["archive_size"], **step, "wall_s": t[-1] - t[0],
+            "cpu_s": cpu[-1] - cpu[0], "coordinator_s": t[-1] - t[0] - step["evaluate_s"],
+            "coordinator_cpu_s": cpu[-1] - cpu[0] - (cpu[2] - cpu[1]), "finished": now()})
         if progress:
             progress(gen, stats)
         steps += 1
@@ -150,6 +299,27 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
                      generations=int(algorithm.n_gen or 0))
 
 
+def _close(be, failed: bool) -> None:
+    """Close a backend; after a failure or a signal, kill its workers rather than wait."""
+    if failed and hasattr(be, "terminate"):
+        be.terminate()
+    else:
+        be.close()
+
+
+def _interruptible(fn):
+    """Signals interrupt ``fn`` (a run or resume) anywhere, not only inside the loop."""
+    import functools
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with _signals_interrupt():
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+@_interruptible
 def _check_main_guard(backend: BackendConfig, what: str) -> bool:
     """True when called from a script's unguarded top level (its workers must not import it);
     RuntimeError (one line) when the backend cannot start workers that way (Dask LocalCluster)."""
@@ -162,12 +332,11 @@ def _check_main_guard(backend: BackendConfig, what: str) -> bool:
 def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None = None,
         quiet: bool = False, progress: Callable | None = None,
         stop_after: int | None = None) -> RunResult:
-    """Run ``problem`` into the new run directory ``out``.
+    """Run ``problem`` into the new run directory ``out`` (a new or empty folder; anything else
+    is refused untouched).
 
     ``backend`` overrides the problem's own; ``stop_after`` stops after that many generations
-    (as if killed; resume continues it). Safe from a script's top level without
-    ``if __name__ == "__main__":`` (:mod:`casadrone.optimise.mainguard`), except on a Dask
-    LocalCluster, where such a call raises RuntimeError before anything is created.
+    (as if killed; resume continues it).
     """
     from casadrone.indices import INDICES
 
@@ -177,36 +346,78 @@ def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None =
     study = Study(problem)
     index_names = (study.objective_names if problem.test_problem is not None
                    else list(INDICES))
+    build_algorithm(problem, len(study.objective_names))  # refused here, before any file
     store = RunStore.create(out, problem, study.variable_names, index_names, backend_cfg.name)
-    study = Study(store.problem())  # the run's own copies of its input files
-    algorithm, termination = build_algorithm(problem, len(study.objective_names))
-    algorithm.setup(CandidateProblem(study), termination=termination, seed=problem.seed,
-                    verbose=False)
-    be = make_backend(backend_cfg, without_main=unguarded)
+    try:
+        study = Study(store.problem())  # the run's own copies of its input files
+        algorithm, termination = build_algorithm(problem, len(study.objective_names))
+        algorithm.setup(CandidateProblem(study), termination=termination, seed=problem.seed,
+                        verbose=False)
+        be = make_backend(backend_cfg, without_main=unguarded)
+    except BaseException as exc:
+        if isinstance(exc, Interrupted):
+            exc.run_dir = store.path
+        store.release()
+        raise
+    failed = True
     try:
         prog = progress or Progress(problem.algorithm.generations, quiet)
-        return _loop(store, algorithm, study, be, 0.0, prog, stop_after)
+        result = _loop(store, algorithm, study, be, 0.0, prog, stop_after)
+        failed = False
+        return result
     finally:
-        be.close()
+        _close(be, failed)
 
 
+@_interruptible
 def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = False,
            progress: Callable | None = None, stop_after: int | None = None) -> RunResult:
-    """Continue the run in ``out`` from its last checkpoint."""
+    """Continue the run in ``out`` from its last checkpoint (the previous one if the last is
+    damaged; with neither, rebuilt from ``history.sqlite``, which also restarts a run killed
+    before its first checkpoint). The lock is taken before anything is read or written."""
     store = RunStore(Path(out))
-    if not (store.path / "checkpoint.pkl").exists():
-        raise FileNotFoundError(f"{out}: no checkpoint.pkl: not a run directory, or killed "
-                                "before its first generation was stored (start it again)")
-    problem = store.problem()
-    backend_cfg = backend or problem.backend
-    unguarded = _check_main_guard(backend_cfg, "casadrone.resume()")
-    state = store.load_checkpoint()
-    algorithm = state["algorithm"]
-    be = make_backend(backend_cfg, without_main=unguarded)
-    store.update_manifest(status="running", resumed=now())
+    store.acquire()
     try:
+        problem = store.problem()  # from the run's own config.yaml and inputs/, wherever it is
+        study = Study(problem)
+        replay: list[list[Record]] | None = None
+        reason = ""
+        try:
+            state = store.load_checkpoint()
+            algorithm, elapsed0 = state["algorithm"], float(state["elapsed_s"])
+            _check_history(store, int(state["generation"]))
+        except (FileNotFoundError, RunDamaged) as why:
+            reason = str(why)
+            try:
+                replay = stored_generations(store)
+            except RunDamaged as exc:
+                raise RunDamaged(f"{why}; and the history cannot rebuild it: {exc}") from None
+            algorithm, termination = build_algorithm(problem, len(study.objective_names))
+            algorithm.setup(CandidateProblem(study), termination=termination,
+                            seed=problem.seed, verbose=False)
+            elapsed0 = 0.0
+            if not quiet:
+                print(f"{out}: no usable checkpoint ({str(why).removeprefix(f'{out}: ')}); "
+                      f"rebuilding from history.sqlite ({len(replay)} stored generation(s))",
+                      file=sys.stderr, flush=True)
+        algorithm.problem.study = study  # never the original directory's inputs
+        backend_cfg = backend or problem.backend
+        be = make_backend(backend_cfg,
+                          without_main=_check_main_guard(backend_cfg, "casadrone.resume()"))
+        if replay is not None:
+            be = ReplayBackend(replay, be, reason)
+    except BaseException as exc:
+        if isinstance(exc, Interrupted):
+            exc.run_dir = store.path
+        store.release()
+        raise
+    failed = True
+    try:
+        store.update_manifest(status="running", resumed=now())
         prog = progress or Progress(problem.algorithm.generations, quiet)
-        return _loop(store, algorithm, algorithm.problem.study, be, state["elapsed_s"], prog,
-                     stop_after, state.get("hypervolume_state"))
+        result = _loop(store, algorithm, study, be, elapsed0, prog, stop_after,
+                       None if replay is not None else state.get("hypervolume_state"))
+        failed = False
+        return result
     finally:
-        be.close()
+        _close(be, failed)

@@ -5,28 +5,37 @@
 - ``history.sqlite``: one row per evaluation (generation, θ, indices, status, stage, reason, wall
   time) and one per generation (evaluations, archive size, feasible fraction, hypervolume, time),
   written by the coordinating process only;
-- ``checkpoint.pkl``: the algorithm after the last stored generation, replaced atomically;
-- ``pareto.csv``: the final Pareto set and front, one column per variable and objective.
+- ``checkpoint.pkl``: the algorithm after the last stored generation, replaced atomically, and
+  ``checkpoint.prev.pkl``, the one before it (a damaged checkpoint loses one generation, not the
+  run; both damaged, the run is rebuilt from ``history.sqlite``, see :mod:`.runner`);
+- ``pareto.csv``: the final Pareto set and front, one column per variable and objective;
+- ``run.lock``: held (``flock``) by the one live coordinator; the kernel drops it when that
+  process dies, however it dies, so a killed run's lock is never stale.
 
 A generation's rows are written in one transaction *before* its checkpoint, and re-writing a
 generation first deletes its rows: a run killed anywhere resumes from the checkpoint, evaluates the
-next generation again and ends with each evaluation exactly once.
+next generation again and ends with each evaluation exactly once. Every file is written to a
+temporary name and renamed into place, so a reader never sees half a file. Paths inside a run are
+relative to the run directory, so a moved or copied run resumes from its own ``inputs/``.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import datetime as _dt
+import errno
+import fcntl
 import hashlib
+import io
 import json
 import os
-import pickle
 import platform
 import socket
 import sqlite3
 import subprocess
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
@@ -36,24 +45,34 @@ from casadrone.problemconfig import ProblemConfig
 
 CONFIG, MANIFEST, HISTORY, CHECKPOINT, PARETO = (
     "config.yaml", "manifest.json", "history.sqlite", "checkpoint.pkl", "pareto.csv")
+PREVIOUS_CHECKPOINT, LOCK = "checkpoint.prev.pkl", "run.lock"
 
 
 class RunInProgress(RuntimeError):
     """Another live process coordinates this run directory."""
 
 
-def _alive(pid: int) -> bool:
-    """Whether a process with this pid exists (and is not a zombie)."""
+class RunDamaged(RuntimeError):
+    """A run directory whose files cannot be read (the message says which and why)."""
+
+
+class NotARunDirectory(RuntimeError):
+    """``run --out`` names a folder that holds something else (it is left untouched)."""
+
+
+def atomic_write(path: Path, data: bytes | str) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename (fsynced)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
-    except (OSError, IndexError):
-        return True
+        with open(tmp, "wb") as fh:
+            fh.write(data.encode() if isinstance(data, str) else data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def now() -> str:
@@ -87,14 +106,17 @@ def snapshot_inputs(problem: ProblemConfig, path: Path) -> ProblemConfig:
     """Copy the airframe, track and controller files (and a frozen gain's reference airframe)
     into ``path/inputs/`` and point the problem at the copies (relative to the run directory), so
     resuming or reporting a run never depends on files edited after it started."""
-    import shutil
-
     from casadrone.configio import CONFIG_DIR, read_yaml, resolve_config
 
     if problem.test_problem is not None:
         return problem
     inputs = path / "inputs"
     inputs.mkdir(exist_ok=True)
+    if problem.plugins:  # import each plugin now: an unimportable one fails before any work
+        from casadrone.problemconfig import import_plugin
+
+        for plugin in problem.plugins:
+            import_plugin(plugin)
     sources = {
         "airframe": resolve_config(problem.airframe, "airframes"),
         "track": Path(problem.track or CONFIG_DIR / "tracks" / "paper-rectangle.yaml"),
@@ -110,18 +132,27 @@ def snapshot_inputs(problem: ProblemConfig, path: Path) -> ProblemConfig:
                 ref_path = Path(ref) if Path(ref).is_absolute() else src.parent / ref
                 if not ref_path.is_file():
                     ref_path = resolve_config(ref, "airframes")
-                shutil.copyfile(ref_path, inputs / "reference_airframe.yaml")
+                atomic_write(inputs / "reference_airframe.yaml", ref_path.read_bytes())
                 data["reference_airframe"] = "reference_airframe.yaml"
-            dst.write_text(f"# copied from {src}\n" + yaml.safe_dump(data, sort_keys=False))
+            atomic_write(dst, f"# copied from {src}\n" + yaml.safe_dump(data, sort_keys=False))
         else:
-            shutil.copyfile(src, dst)
+            atomic_write(dst, Path(src).read_bytes())
         updates[key] = Path("inputs") / dst.name
     return problem.model_copy(update=updates)
 
 
 def resolved_yaml(problem: ProblemConfig) -> str:
-    """The resolved problem as YAML (paths as absolute strings)."""
+    """The resolved problem as YAML (input paths relative to the run directory)."""
     return yaml.safe_dump(json.loads(problem.model_dump_json()), sort_keys=False)
+
+
+def _checkpoint_state(raw: bytes) -> dict:
+    from casadrone.optimise.checkpoint import loads
+
+    state = loads(raw)
+    if not isinstance(state, dict) or not {"algorithm", "elapsed_s", "generation"} <= set(state):
+        raise ValueError("not a casadrone checkpoint")
+    return state
 
 
 @dataclass
@@ -129,6 +160,7 @@ class RunStore:
     """A run directory."""
 
     path: Path
+    _lock_fd: int | None = field(default=None, repr=False, compare=False)
 
     # -- creation and opening --------------------------------------------------------------
 
@@ -136,24 +168,43 @@ class RunStore:
     def create(cls, path: str | Path, problem: ProblemConfig, variable_names: list[str],
                index_names: list[str], backend: str) -> RunStore:
         """Start a new run directory (refuses one that already holds a run)."""
+        import shutil
+
         path = Path(path)
-        if (path / MANIFEST).exists():
-            raise FileExistsError(f"{path}: already holds a run; resume it with "
-                                  f"'casadrone resume {path}' or choose another --out")
-        path.mkdir(parents=True, exist_ok=True)
+        check_new_run_dir(path, allow={LOCK})
+        try:
+            path.mkdir(parents=True)
+            created = True
+        except FileExistsError:
+            created = False
+        store = cls(path)
+        store.acquire()  # nothing is written before the lock is held
+        try:
+            check_new_run_dir(path, allow={LOCK})  # another run got here first?
+        except BaseException:
+            store.release()
+            raise
+        try:
+            store._populate(problem, variable_names, index_names, backend)
+        except BaseException:  # leave the folder as it was: new (gone) or empty
+            for entry in ([path] if created else [p for p in path.iterdir() if p.name != LOCK]):
+                if entry.is_dir():
+                    shutil.rmtree(entry, ignore_errors=True)
+                else:
+                    entry.unlink(missing_ok=True)
+            store.release()
+            raise
+        return store
+
+    def _populate(self, problem: ProblemConfig, variable_names: list[str],
+                  index_names: list[str], backend: str) -> None:
+        path, store = self.path, self
         problem = snapshot_inputs(problem, path)
         text = resolved_yaml(problem)
-        (path / CONFIG).write_text(text)
-        store = cls(path)
-        store.write_manifest({
-            "config_hash": hashlib.sha256(text.encode()).hexdigest(),
-            "problem": problem.name, "seed": problem.seed, "versions": versions(),
-            "git_revision": git_revision(), "host": socket.gethostname(),
-            "platform": platform.platform(), "python_executable": sys.executable,
-            "backend": backend, "started": now(), "finished": None, "status": "running",
-            "variables": variable_names, "indices": index_names,
-        })
-        with store.connect() as db:
+        atomic_write(path / CONFIG, text)
+        tmp_db = path / f".{HISTORY}.{os.getpid()}.tmp"
+        tmp_db.unlink(missing_ok=True)
+        with contextlib.closing(sqlite3.connect(tmp_db)) as db, db:
             cols = ", ".join(f'"{n}" REAL' for n in variable_names + index_names)
             db.execute(f"CREATE TABLE evaluations (generation INTEGER, idx INTEGER, {cols}, "
                        "status TEXT, stage TEXT, reason TEXT, wall_time_s REAL, "
@@ -161,19 +212,38 @@ class RunStore:
             db.execute("CREATE TABLE generations (generation INTEGER PRIMARY KEY, "
                        "n_evaluations INTEGER, archive_size INTEGER, feasible_fraction REAL, "
                        "hypervolume REAL, elapsed_s REAL)")
-        return store
+        os.replace(tmp_db, path / HISTORY)
+        store.write_manifest({
+            "config_hash": hashlib.sha256(text.encode()).hexdigest(),
+            "problem": problem.name, "seed": problem.seed, "versions": versions(),
+            "git_revision": git_revision(), "host": socket.gethostname(),
+            "platform": platform.platform(), "python_executable": sys.executable,
+            "backend": backend, "started": now(), "finished": None, "status": "running",
+            "variables": variable_names, "indices": index_names,
+        })  # last: a folder with a manifest is a complete run directory
 
     def connect(self) -> sqlite3.Connection:
-        return sqlite3.connect(self.path / HISTORY, timeout=30)
+        """The history database (which must exist: a missing one is a damaged run)."""
+        db_path = self.path / HISTORY
+        if not db_path.is_file():
+            raise RunDamaged(f"{db_path}: missing")
+        return sqlite3.connect(f"file:{db_path}?mode=rw", uri=True, timeout=30)
 
     @property
     def manifest(self) -> dict:
-        return json.loads((self.path / MANIFEST).read_text())
+        try:
+            data = json.loads((self.path / MANIFEST).read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise RunDamaged(f"{self.path / MANIFEST}: missing") from None
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            raise RunDamaged(f"{self.path / MANIFEST}: damaged, not JSON ({exc})") from None
+        if not isinstance(data, dict) or not isinstance(data.get("variables"), list) \
+                or not isinstance(data.get("indices"), list):
+            raise RunDamaged(f"{self.path / MANIFEST}: damaged (no variables and indices lists)")
+        return data
 
     def write_manifest(self, data: dict) -> None:
-        tmp = self.path / (MANIFEST + ".tmp")
-        tmp.write_text(json.dumps(data, indent=2))
-        os.replace(tmp, self.path / MANIFEST)
+        atomic_write(self.path / MANIFEST, json.dumps(data, indent=2))
 
     def update_manifest(self, **changes) -> None:
         self.write_manifest({**self.manifest, **changes})
@@ -185,6 +255,15 @@ class RunStore:
         return load(ProblemConfig, self.path / CONFIG)
 
     # -- history ----------------------------------------------------------------------------
+
+    @contextlib.contextmanager
+    def database(self, doing: str):
+        """The history database; its errors (damaged file, disk full) name the file."""
+        try:
+            with contextlib.closing(self.connect()) as db, db:
+                yield db
+        except sqlite3.Error as exc:
+            raise RunDamaged(f"{self.path / HISTORY}: cannot {doing} ({exc})") from None
 
     def write_generation(self, generation: int, records: list[Record], stats: dict) -> None:
         """Store one generation's evaluations and statistics in one transaction."""
@@ -198,7 +277,7 @@ class RunStore:
              r.wall_time_s)
             for i, r in enumerate(records)
         ]
-        with self.connect() as db:
+        with self.database("write the generation") as db:
             db.execute("DELETE FROM evaluations WHERE generation >= ?", (generation,))
             db.execute("DELETE FROM generations WHERE generation >= ?", (generation,))
             db.executemany(f"INSERT INTO evaluations (generation, idx, {cols}, status, stage, "
@@ -209,69 +288,123 @@ class RunStore:
 
     def history(self) -> list[dict]:
         """All evaluations, ordered by generation and position."""
-        with self.connect() as db:
+        with self.database("read the evaluations") as db:
             db.row_factory = sqlite3.Row
             return [dict(r) for r in db.execute(
                 "SELECT * FROM evaluations ORDER BY generation, idx")]
 
     def generations(self) -> list[dict]:
-        with self.connect() as db:
+        """One row per stored generation (statistics), in order."""
+        with self.database("read the generations") as db:
             db.row_factory = sqlite3.Row
             return [dict(r) for r in db.execute("SELECT * FROM generations ORDER BY generation")]
 
     # -- one coordinator at a time ----------------------------------------------------------
 
     def acquire(self) -> None:
-        """Take the run's lock (``run.lock`` holding this pid): a second ``run``/``resume`` on a
-        directory whose coordinator is still alive is refused; a dead coordinator's (killed) lock
-        is taken over."""
-        lock = self.path / "run.lock"
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-        except FileExistsError:
-            try:
-                pid = int(lock.read_text().strip() or 0)
-            except (OSError, ValueError):
-                pid = 0
-            if pid and pid != os.getpid() and _alive(pid):
-                raise RunInProgress(f"{self.path}: run in progress (coordinator pid {pid}); "
-                                   "wait for it or kill it before resuming") from None
-            lock.write_text(str(os.getpid()))
+        """Take the run's lock: an exclusive ``flock`` on ``run.lock`` (which then holds this
+        pid, for people). A second ``run``/``resume`` on a directory whose coordinator is alive
+        is refused; a dead coordinator's lock was dropped by the kernel with its process, so
+        taking it over is the same atomic call and exactly one contender wins."""
+        if self._lock_fd is not None:
             return
-        with os.fdopen(fd, "w") as fh:
-            fh.write(str(os.getpid()))
+        fd = os.open(self.path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            os.close(fd)
+            if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise
+            try:
+                pid = (self.path / LOCK).read_text().strip() or "?"
+            except OSError:
+                pid = "?"
+            raise RunInProgress(f"{self.path}: run in progress (coordinator pid {pid}); "
+                                "wait for it or stop it before resuming") from None
+        os.ftruncate(fd, 0)
+        os.write(fd, str(os.getpid()).encode())
+        self._lock_fd = fd
 
     def release(self) -> None:
-        (self.path / "run.lock").unlink(missing_ok=True)
+        """Drop the lock (the file stays: unlinking it would let two processes lock two
+        different files of the same name)."""
+        fd = self._lock_fd
+        if fd is not None:
+            self._lock_fd = None
+            os.close(fd)
 
     # -- checkpoint and front -----------------------------------------------------------------
 
     def save_checkpoint(self, state: dict) -> None:
-        """Pickle the run state and replace the checkpoint atomically."""
-        tmp = self.path / (CHECKPOINT + ".tmp")
+        """Pickle the run state and replace the checkpoint atomically, keeping the one before
+        as ``checkpoint.prev.pkl``."""
+        from casadrone.optimise.checkpoint import dumps
+
+        data = dumps(state)
+        tmp = self.path / f".{CHECKPOINT}.{os.getpid()}.tmp"
         with open(tmp, "wb") as fh:
-            pickle.dump(state, fh, protocol=pickle.HIGHEST_PROTOCOL)
+            fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
+        if (self.path / CHECKPOINT).exists():
+            os.replace(self.path / CHECKPOINT, self.path / PREVIOUS_CHECKPOINT)
         os.replace(tmp, self.path / CHECKPOINT)
 
     def load_checkpoint(self) -> dict:
-        with open(self.path / CHECKPOINT, "rb") as fh:
-            return pickle.load(fh)
+        """The newest readable checkpoint (the previous one when the last is damaged).
+
+        Raises RunDamaged listing why each is unusable (none at all: FileNotFoundError)."""
+        why = []
+        for name in (CHECKPOINT, PREVIOUS_CHECKPOINT):
+            f = self.path / name
+            if not f.exists():
+                why.append(f"{name}: missing")
+                continue
+            try:
+                return _checkpoint_state(f.read_bytes())
+            except Exception as exc:  # noqa: BLE001 (a damaged pickle raises anything)
+                why.append(f"{name}: damaged ({type(exc).__name__}: {exc})"[:200])
+        if all(w.endswith("missing") for w in why):
+            raise FileNotFoundError(f"{self.path}: no checkpoint")
+        raise RunDamaged(f"{self.path}: " + "; ".join(why))
 
     def write_pareto(self, variable_names, objective_names, X, values) -> Path:
         """Write ``pareto.csv``: variables then objectives (in their own units and sense)."""
         out = self.path / PARETO
-        tmp = out.with_suffix(".csv.tmp")
-        with open(tmp, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(list(variable_names) + list(objective_names))
-            for x, f in zip(X, values, strict=True):
-                w.writerow([repr(float(v)) for v in (*x, *f)])
-        os.replace(tmp, out)
+        buf = io.StringIO(newline="")
+        w = csv.writer(buf)
+        w.writerow(list(variable_names) + list(objective_names))
+        for x, f in zip(X, values, strict=True):
+            w.writerow([repr(float(v)) for v in (*x, *f)])
+        atomic_write(out, buf.getvalue())
         return out
 
     def read_pareto(self) -> tuple[list[str], list[list[float]]]:
-        with open(self.path / PARETO, newline="") as fh:
-            rows = list(csv.reader(fh))
-        return rows[0], [[float(v) for v in r] for r in rows[1:]]
+        try:
+            with open(self.path / PARETO, newline="", encoding="utf-8") as fh:
+                rows = list(csv.reader(fh))
+            if any(len(r) != len(rows[0]) for r in rows[1:]):
+                raise ValueError("rows of different lengths")
+            return rows[0], [[float(v) for v in r] for r in rows[1:]]
+        except (IndexError, ValueError, UnicodeDecodeError, csv.Error) as exc:
+            raise RunDamaged(f"{self.path / PARETO}: damaged ({exc})") from None
+
+
+def check_new_run_dir(path: Path, allow: set[str] = frozenset()) -> None:
+    """Refuse a ``--out`` that is not a new or empty folder (names in ``allow`` aside), without
+    touching it: a folder holding a run is to be resumed, any other content is the user's."""
+    if not path.exists():
+        return
+    if not path.is_dir():
+        raise NotARunDirectory(f"{path}: exists and is not a directory")
+    if (path / MANIFEST).exists():
+        raise NotARunDirectory(f"{path}: already holds a run; resume it with 'casadrone resume "
+                               f"{path}' or choose another --out")
+    try:
+        entries = sorted(e.name for e in os.scandir(path) if e.name not in allow)
+    except OSError as exc:
+        raise NotARunDirectory(f"{path}: cannot read the folder ({exc.strerror})") from None
+    if entries:
+        shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
+        raise NotARunDirectory(f"{path}: not empty ({shown}); a run needs a new or empty "
+                               "folder, and nothing in this one was touched")

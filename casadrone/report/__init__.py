@@ -89,8 +89,13 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
             beside it, as PNG and SVG.
         trim_sample: at most this many evaluations are trimmed again for the trim section.
     """
+    path = Path(out) if out is not None else Path(run_dir) / REPORT
+    if path.is_dir() or (path.exists() and not path.is_file()):
+        raise ValueError(f"--out: {path}: is a directory; give the report's file name "
+                         f"(e.g. {path / REPORT})")
+    if path.parent.exists() and not path.parent.is_dir():
+        raise ValueError(f"--out: {path.parent}: exists and is not a directory")
     run = read_run(run_dir)
-    path = Path(out) if out is not None else run.store.path / REPORT
     figs = Figures(path.parent / PLOTS)
     cands = choose_candidates(run)
     if not run.test_problem:
@@ -119,6 +124,8 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
             f" · status {esc(m.get('status'))} · {len(run.history)} evaluations · "
             f"{len(run.F)} designs on the front · report written {esc(stamp)}</p>"
             f"<nav>{nav}</nav></header>{sections}</body></html>")
+    from casadrone.optimise.store import atomic_write
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(page, encoding="utf-8")
+    atomic_write(path, page)
     return path

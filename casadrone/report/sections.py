@@ -210,14 +210,18 @@ def _constraint_violations(run: Run, done: np.ndarray) -> list[list]:
     return out
 
 
+#: One colour per failure stage (geometry, trim, control, lap, limit lap, …), none of them the
+#: feasible green or the constraint olive.
+STAGE_COLOURS = ("tab:pink", "tab:purple", "tab:red", "tab:orange", "tab:brown", "tab:gray",
+                 "tab:cyan", "tab:blue")
+
+
 def _outcome_figure(gen, done, ok, history) -> Figure:
     gens = np.unique(gen)
     series = [("feasible", ok, "tab:green"), ("violates a constraint", done & ~ok, "tab:olive")]
     series += [(f"failed: {s}", np.array([r["status"] != "completed" and r["stage"] == s
                                           for r in history]), c)
-               for s, c in zip(STAGES, ("tab:purple", "tab:red", "tab:orange", "tab:brown",
-                                        "tab:pink"),
-                               strict=True)]
+               for s, c in zip(STAGES, STAGE_COLOURS, strict=False)]
     fig = Figure(figsize=(9.0, 3.4), layout="constrained")
     ax = fig.add_subplot()
     bottom = np.zeros(len(gens))

@@ -201,9 +201,11 @@ def stored_generation(run_dir: Path) -> int:
     return -1 if value is None else int(value)
 
 
-def kill_at_generation(args: list[str], run_dir: Path, generation: int, timeout: float = 120.0,
-                       **popen) -> int:
-    """Start ``casadrone ARGS --out RUN_DIR``, SIGKILL it once ``generation`` is stored; its pid."""
+def stop_at_generation(args: list[str], run_dir: Path, generation: int, sig: int,
+                       whole_group: bool = False, timeout: float = 120.0,
+                       **popen) -> tuple[int, int, str]:
+    """Start ``casadrone ARGS --out RUN_DIR``, send ``sig`` to it (to its whole process group
+    with ``whole_group``) once ``generation`` is stored; its pid, exit status and stderr."""
     proc = subprocess.Popen([*console(), *args, "--out", str(run_dir)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, cwd=ROOT, **popen)
     deadline = time.monotonic() + timeout
@@ -215,16 +217,27 @@ def kill_at_generation(args: list[str], run_dir: Path, generation: int, timeout:
             if time.monotonic() > deadline:
                 pytest.fail(f"generation {generation} not stored within {timeout} s")
             time.sleep(0.005)
-        if popen.get("start_new_session"):
-            os.killpg(proc.pid, signal.SIGKILL)  # the run and its worker processes
+        if whole_group:
+            os.killpg(proc.pid, sig)
         else:
-            os.kill(proc.pid, signal.SIGKILL)
+            os.kill(proc.pid, sig)
+        _, err = proc.communicate(timeout=60)
     finally:
-        proc.wait(timeout=30)
-        proc.stdout.close()
-        proc.stderr.close()
-    assert proc.returncode == -signal.SIGKILL
-    return proc.pid
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return proc.pid, proc.returncode, err.decode()
+
+
+def kill_at_generation(args: list[str], run_dir: Path, generation: int, timeout: float = 120.0,
+                       **popen) -> int:
+    """Start ``casadrone ARGS --out RUN_DIR``, SIGKILL it once ``generation`` is stored; its pid
+    (with ``start_new_session``, the run and its worker processes are killed together)."""
+    pid, code, _ = stop_at_generation(args, run_dir, generation, signal.SIGKILL,
+                                      whole_group=bool(popen.get("start_new_session")),
+                                      timeout=timeout, **popen)
+    assert code == -signal.SIGKILL
+    return pid
 
 
 def live_processes_in_group(pgid: int) -> list[int]:
@@ -327,3 +340,59 @@ def test_export_bad_candidate_is_one_line_exit_2(cli_runner, tiny_run):
         result = invoke(cli_runner, "export", out, "--format", "px4", *bad)
         assert result.exit_code == 2, (bad, result.output)
         assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.output
+
+
+def assert_group_gone_within(pgid: int, seconds: float) -> None:
+    """No live process of the run (its process group: coordinator, workers, resource tracker)
+    remains ``seconds`` after the coordinator died."""
+    deadline = time.monotonic() + seconds
+    while live_processes_in_group(pgid):
+        if time.monotonic() > deadline:
+            pytest.fail(f"processes of the run still alive {seconds} s after the coordinator "
+                        f"died: {live_processes_in_group(pgid)}")
+        time.sleep(0.05)
+
+
+POOL = ["--backend", "processes", "-j", "2", "--quiet"]
+
+
+def test_sigkill_of_a_pool_coordinator_leaves_no_worker(tmp_path):
+    """Only the coordinator is killed (not its group): its workers must notice and end."""
+    args = ["run", str(QUICK), *KILL_BUDGET, *POOL]
+    pid, code, _ = stop_at_generation(args, tmp_path / "D", 1, signal.SIGKILL,
+                                      start_new_session=True)
+    assert code == -signal.SIGKILL
+    assert_group_gone_within(pid, 5.0)
+
+
+def test_sigterm_of_a_pool_coordinator_records_state_and_resumes(tmp_path):
+    """SIGTERM (timeout, batch schedulers, docker stop): exit 143, one line saying how to
+    resume, manifest "interrupted", no process left; the resumed run equals the serial one."""
+    args = ["run", str(QUICK), *KILL_BUDGET, *POOL]
+    d1, d2 = tmp_path / "D1", tmp_path / "D2"
+    pid, code, err = stop_at_generation(args, d1, 1, signal.SIGTERM, start_new_session=True)
+    assert code == 128 + signal.SIGTERM, err
+    assert err.strip().splitlines()[-1] == (
+        f"interrupted (SIGTERM); state recorded, continue with: casadrone resume {d1}")
+    assert "Traceback" not in err
+    manifest = json.loads((d1 / "manifest.json").read_text())
+    assert manifest["status"] == "interrupted" and manifest["signal"] == "SIGTERM"
+    assert_group_gone_within(pid, 5.0)
+    resumed = subprocess.run([*console(), "resume", str(d1), "--backend", "serial", "--quiet"],
+                             capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    full = subprocess.run([*console(), "run", str(QUICK), *KILL_BUDGET, "--backend", "serial",
+                           "--quiet", "--out", str(d2)], capture_output=True, text=True,
+                          cwd=ROOT, timeout=300)
+    assert full.returncode == 0, full.stderr
+    check_resumed_equals_uninterrupted(d1, d2)
+
+
+def test_ctrl_c_exits_130_with_a_hint_and_records_the_state(tmp_path):
+    args = ["run", str(QUICK), *KILL_BUDGET, "--backend", "serial", "--quiet"]
+    d = tmp_path / "D"
+    _, code, err = stop_at_generation(args, d, 1, signal.SIGINT)
+    assert code == 130, err
+    assert err.strip().splitlines() == [
+        f"interrupted (SIGINT); state recorded, continue with: casadrone resume {d}"]
+    assert json.loads((d / "manifest.json").read_text())["status"] == "interrupted"

@@ -158,15 +158,16 @@ def test_without_a_c_compiler_the_lap_runs_on_casadis_virtual_machine(tmp_path):
     assert out.stdout.strip() != "External" and not list(tmp_path.glob("*.so"))
 
 
-@pytest.mark.parametrize(("name", "overrides", "track_update", "ending"), [
-    ("SY250", None, {}, "completed"),
-    ("NSY200", None, {}, "completed"),
-    ("SY250", ["mass_kg=3.0"], {}, "attitude beyond"),
-    ("SY250", None, {"max_tilt_deg": 20.0}, "attitude beyond 20 deg"),
-    ("HS210", None, {"time_limit_s": 3.37}, "time-out"),
+@pytest.mark.parametrize(("name", "overrides", "track_update", "ending", "substeps"), [
+    ("SY250", None, {}, "completed", 1),
+    ("NSY200", None, {}, "completed", 1),
+    ("HS210", None, {}, "completed", 2),
+    ("SY250", ["mass_kg=3.0"], {}, "attitude beyond", 1),
+    ("SY250", None, {"max_tilt_deg": 20.0}, "attitude beyond 20 deg", 1),
+    ("HS210", None, {"time_limit_s": 3.37}, "time-out", 1),
 ])
-def test_whole_lap_loop_equals_chunked_loop(name, overrides, track_update, ending, track, ctrl,
-                                            monkeypatch):
+def test_whole_lap_loop_equals_chunked_loop(name, overrides, track_update, ending, substeps,
+                                            track, ctrl, monkeypatch):
     """The compiled whole-lap loop (one C call, checks after every sample) flies exactly, to the
     last bit, the lap of the chunked mapaccum path with the checks in numpy, and ends the same
     way: completed, failed (same reason) or timed out (same number of samples)."""
@@ -176,12 +177,40 @@ def test_whole_lap_loop_equals_chunked_loop(name, overrides, track_update, endin
     tr = track.model_copy(update=track_update)
     a = build_airframe(load_airframe(name, overrides))
     d = design_for(a, ctrl)
-    assert sim.lap_driver(d.sample_time_s, 1, len(tr.route)) is not None, "no C compiler"
-    whole = simulate(a, d, tr, "rk4")
+    options = sim.SimOptions(substeps=substeps)
+    assert sim.lap_driver(d.sample_time_s, substeps, len(tr.route)) is not None, "no C compiler"
+    whole = simulate(a, d, tr, "rk4", options)
     monkeypatch.setattr(sim, "lap_driver", lambda *args: None)
-    chunked = simulate(a, d, tr, "rk4")
+    chunked = simulate(a, d, tr, "rk4", options)
     assert (whole.status, whole.reason) == (chunked.status, chunked.reason)
     assert ending in (whole.status + " " + whole.reason)
     for field in ("t", "x", "u", "acceleration", "p_ref", "v_ref", "segment"):
         np.testing.assert_array_equal(getattr(whole, field), getattr(chunked, field), field)
     np.testing.assert_array_equal(whole.split_times, chunked.split_times)
+
+
+def test_evaluations_in_threads_equal_serial():
+    """A Dask worker may run several threads: evaluations in 4 threads at once (zero-copy trim
+    and linearisation buffers per thread, the lap loop's arrays per call) equal serial ones."""
+    import threading
+
+    from casadrone.airframe import random_thetas
+    from casadrone.evaluate import default_setup, evaluate
+
+    setup = default_setup(controller="frozen-wrench-sy250")
+    thetas, _ = random_thetas(setup.template, 12, seed=5)
+    serial = [evaluate(th, setup) for th in thetas]
+    got: dict[int, object] = {}
+
+    def work(idx):
+        for _ in range(3):
+            for i in idx:
+                got[i] = evaluate(thetas[i], setup)
+
+    threads = [threading.Thread(target=work, args=(range(k, 12, 4),)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for i, ev in enumerate(serial):
+        assert (got[i].status, got[i].reason, got[i].indices) == (ev.status, ev.reason, ev.indices)

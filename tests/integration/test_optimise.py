@@ -91,8 +91,12 @@ def test_dask_local_cluster_equals_serial(tmp_path, tiny, uninterrupted):
 
 
 def test_existing_run_directory_is_not_overwritten(uninterrupted, tiny):
-    with pytest.raises(FileExistsError, match="resume"):
+    from casadrone.optimise.store import NotARunDirectory
+
+    before = {p.name: p.stat().st_mtime_ns for p in uninterrupted.iterdir()}
+    with pytest.raises(NotARunDirectory, match="resume"):
         run(tiny, uninterrupted, BackendConfig(name="serial"), quiet=True)
+    assert {p.name: p.stat().st_mtime_ns for p in uninterrupted.iterdir()} == before
 
 
 def test_same_seed_same_front_different_seed_differs(tmp_path, tiny, uninterrupted):
@@ -156,9 +160,15 @@ def test_second_coordinator_is_refused_while_first_is_alive(uninterrupted):
     import sys
 
     store = RunStore(uninterrupted)
-    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    holder = ("import fcntl, os, sys, time\n"
+              "fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT)\n"
+              "fcntl.flock(fd, fcntl.LOCK_EX)\n"
+              "os.ftruncate(fd, 0); os.write(fd, str(os.getpid()).encode())\n"
+              "print('locked', flush=True); time.sleep(60)\n")
+    sleeper = subprocess.Popen([sys.executable, "-c", holder, str(uninterrupted / "run.lock")],
+                               stdout=subprocess.PIPE, text=True)
     try:
-        (uninterrupted / "run.lock").write_text(str(sleeper.pid))
+        assert sleeper.stdout.readline().strip() == "locked"
         expected = f"run in progress \\(coordinator pid {sleeper.pid}\\)"
         with pytest.raises(RuntimeError, match=expected):
             store.acquire()
@@ -167,8 +177,12 @@ def test_second_coordinator_is_refused_while_first_is_alive(uninterrupted):
         sleeper.wait()
     store.acquire()  # the dead coordinator's lock is taken over
     assert (uninterrupted / "run.lock").read_text() == str(os.getpid())
+    with pytest.raises(RuntimeError, match="run in progress"):
+        RunStore(uninterrupted).acquire()  # even from this same process
     store.release()
-    assert not (uninterrupted / "run.lock").exists()
+    other = RunStore(uninterrupted)
+    other.acquire()  # released: free again
+    other.release()
 
 
 def test_run_keeps_its_own_copies_of_input_files(uninterrupted, tmp_path):

@@ -54,7 +54,7 @@ def test_validate_folder(cli_runner):
 BAD_CASES = {
     "misspelt_key.yaml": ("mas_kg", "did you mean 'mass_kg'"),
     "misspelt_nested_key.yaml": ("thrust.gainn", "did you mean 'gain_n'"),
-    "wrong_type.yaml": ("mass_kg", "Input should be a valid number"),
+    "wrong_type.yaml": ("mass_kg", "expected a number, got the text 'heavy'"),
     "negative_mass.yaml": ("mass_kg", "Input should be greater than 0 (got -0.32)"),
     "angle_out_of_range.yaml": ("alpha_deg", "Input should be less than 180 (got 200.0)"),
     "missing_reference.yaml": ("reference_airframe",
@@ -467,6 +467,7 @@ def make_run_dir(path: Path, finished: bool = True, checkpoint: bool = False) ->
         store.write_pareto(study.variable_names, study.objective_names, X,
                            np.array([[16.5, 14.0], [16.6, 15.0]]))
         store.update_manifest(status="completed", n_evaluations=2, finished="2026-01-01")
+    store.release()
     return path
 
 
@@ -493,12 +494,6 @@ def test_resume_of_a_finished_run_reports_it_complete(cli_runner, tmp_path):
     assert result.stdout.startswith(f"{d}: the run is already complete (finished 2026-01-01)")
     assert "Pareto front: 2 design(s) from 2 evaluations" in result.stdout
     assert (d / "manifest.json").read_text() == before  # untouched
-
-
-def test_resume_without_checkpoint_exits_2(cli_runner, tmp_path):
-    d = make_run_dir(tmp_path / "run", finished=False)
-    result = run(cli_runner, "resume", d)
-    assert result.exit_code == 2 and "no checkpoint.pkl" in result.stderr
 
 
 def test_decide_unfinished_run_and_unknown_objective_exit_2(cli_runner, tmp_path):
@@ -558,6 +553,25 @@ def test_report_without_the_report_module_exits_1(cli_runner, tmp_path, monkeypa
     result = run(cli_runner, "report", make_run_dir(tmp_path / "run"))
     assert result.exit_code == 1, result.output
     assert "casadrone.report is not available" in result.stderr
+
+
+def test_version(cli_runner):
+    from casadrone import __version__
+
+    result = run(cli_runner, "--version")
+    assert result.exit_code == 0 and result.stdout.strip() == f"casadrone {__version__}"
+
+
+def test_validate_configs_problems_outside_the_checkout_checks_the_shipped_files(
+        cli_runner, tmp_path, monkeypatch):
+    from casadrone.configio import DATA_DIR
+
+    monkeypatch.chdir(tmp_path)  # no configs/ or problems/ here: the shipped ones are meant
+    shipped = sorted(DATA_DIR.rglob("*.yaml"))
+    result = run(cli_runner, "validate", "configs", "problems", "--json")
+    assert result.exit_code == 0, result.output
+    files = sorted(Path(f["file"]) for f in json.loads(result.stdout)["files"])
+    assert files == shipped
 
 
 @pytest.mark.parametrize("command", ["validate", "trim", "simulate"])

@@ -61,7 +61,27 @@ BAD_EXPECTED = {
     "misspelt_key.yaml": [("mas_kg", "unknown key (did you mean 'mass_kg'?)"),
                           ("mass_kg", "required key missing")],
     "misspelt_nested_key.yaml": [("thrust.gainn", "did you mean 'gain_n'")],
-    "wrong_type.yaml": [("mass_kg", "valid number")],
+    "wrong_type.yaml": [("mass_kg", "expected a number, got the text 'heavy'")],
+    "number_as_text.yaml": [("mass_kg", "expected a number, got the text '0.32'")],
+    "bool_as_number.yaml": [("mass_kg", "expected a number, got the boolean true")],
+    "infinite_inertia.yaml": [("ixx_kgm2", "finite"), ("drag_area_m2", "finite")],
+    "huge_arm.yaml": [("lambda_a_mm", "beyond any physical value")],
+    "controller_infinite_weight.yaml": [("r", "finite"), ("q_integral", "finite")],
+    "track_repeated_waypoint.yaml": [("waypoints_m", "waypoint 2 is 0 m from the route point")],
+    "track_infinite_waypoint.yaml": [("waypoints_m", "finite")],
+    "problem_fixed_negative_mass.yaml": [("fixed.mass_kg", "greater than 0")],
+    "problem_negative_seed.yaml": [("seed", "greater than or equal to 0")],
+    "problem_negative_arm_bounds.yaml": [("variables.0.lower", "not a possible lambda_a_mm"),
+                                         ("variables.0.upper", "not a possible lambda_a_mm")],
+    "problem_text_variable.yaml": [("variables.0.name", "not a number the search can vary")],
+    "problem_empty_box.yaml": [("variables", "cannot produce a valid airframe")],
+    "problem_bad_evmoga_settings.yaml": [("algorithm.settings.n_ind_ga", "must be even"),
+                                         ("algorithm.settings.n_div", "must be >= 1")],
+    "problem_misspelt_setting.yaml": [("algorithm.settings.eliminate_duplicate",
+                                       "did you mean 'eliminate_duplicates'")],
+    "problem_population_contradiction.yaml": [("algorithm.settings.n_ind_p",
+                                               "contradicts algorithm.population")],
+    "problem_moead.yaml": [("algorithm.name", "handles no constraints")],
     "negative_mass.yaml": [("mass_kg", "greater than 0")],
     "angle_out_of_range.yaml": [("alpha_deg", "less than 180")],
     "overlapping_rotors.yaml": [("alpha_deg", "rotors FR and FL overlap")],
@@ -287,8 +307,7 @@ def test_overrides_are_validated_like_the_file():
     src = str(CONFIG_DIR / "airframes/SY250.yaml")
     assert info.value.lines == [
         f"{src}: alpha_deg: Input should be less than 180 (got 200) [override alpha_deg=200]",
-        f"{src}: mass_kg: Input should be a valid number, unable to parse string as a number "
-        "(got 'x') [override mass_kg=x]",
+        f"{src}: mass_kg: expected a number, got the text 'x' [override mass_kg=x]",
         f"{src}: thrust.gainn: unknown key (did you mean 'gain_n'?) [override thrust.gainn=3]",
     ]
 
@@ -476,4 +495,4 @@ def problems_of_file(path) -> list[str]:
 @pytest.mark.parametrize("key", ["izz_kgm2", "ixz_kgm2"])
 def test_non_finite_inertia_is_named(key):
     (line,) = problems_of({**SY250, key: float("inf")})
-    assert line == f"f.yaml: {key}: inertia must be a finite number (got inf)"
+    assert line == f"f.yaml: {key}: expected a finite number, got inf"

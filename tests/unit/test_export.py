@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 from casadrone import __version__
-from casadrone.export import FORMATS, export, source_of, write_export
+from casadrone.export import FORMATS, export, write_export
 from casadrone.export.mixers import BETAFLIGHT_ORDER, motor_mix, to_frd
 from casadrone.export.plate import PlateOptions, plate
+from casadrone.export.source import source_of
 
 FRAMES = ("SY250", "HS210", "NSY200")
 
@@ -130,7 +131,6 @@ def test_px4_positions_in_frd():
         ccw = src.airframe.rotor_spins[i] < 0
         assert params[f"CA_ROTOR{n}_KM"] == pytest.approx(
             (1 if ccw else -1) * src.airframe.kappa, abs=1e-6)
-    assert ("FR" in "FR") and src.airframe.rotor_spins[0] < 0  # PX4's motor 1 is CCW, as ours
 
 
 def test_frd_conversion_is_a_proper_rotation():
@@ -140,7 +140,7 @@ def test_frd_conversion_is_a_proper_rotation():
     np.testing.assert_allclose(to_frd([0.1, 0.2, 0.3]), [0.1, -0.2, -0.3])
 
 
-@pytest.mark.parametrize("frame", FRAMES)
+@pytest.mark.parametrize("frame", [*FRAMES, "SY250-components"])
 def test_urdf_parsed_by_yourdfpy_round_trips(frame, tmp_path):
     yourdfpy = pytest.importorskip("yourdfpy")
     src = source_of(frame)
@@ -168,7 +168,7 @@ def test_urdf_is_well_formed_xml_with_header_comment():
     assert root.tag == "robot" and root.get("name") == "SY250"
 
 
-@pytest.mark.parametrize("frame", FRAMES)
+@pytest.mark.parametrize("frame", [*FRAMES, "SY250-components"])
 def test_dxf_read_back_by_ezdxf(frame):
     ezdxf = pytest.importorskip("ezdxf")
     src = source_of(frame)
@@ -176,10 +176,17 @@ def test_dxf_read_back_by_ezdxf(frame):
     assert doc.units == 4  # millimetres
     msp = doc.modelspace()
     points = [p.dxf.location for p in msp.query("POINT[layer=='MOTOR_CENTRES']")]
-    r = src.airframe.rotor_positions
+    # drawing origin at the hub: rotor positions are from the centre of mass, the CoM from the hub
+    r = src.airframe.rotor_positions + src.airframe.com
     expected = np.stack([-1000 * r[:, 1], 1000 * r[:, 0]], axis=1)  # X right, Y nose (mm)
     got = np.array([[p.x, p.y] for p in points])
     np.testing.assert_allclose(got, expected, atol=0.01)
+    if frame == "SY250":  # hand values: λ = 125 mm at 45°: (±88.388, ±88.388) mm
+        np.testing.assert_allclose(np.abs(got), 125 / math.sqrt(2), atol=0.01)
+    (com,) = msp.query("POINT[layer=='COM']")
+    c = src.airframe.com
+    np.testing.assert_allclose([com.dxf.location.x, com.dxf.location.y],
+                               [-1000 * c[1], 1000 * c[0]], atol=0.01)
     # centre holes on the same centres; 4 mounting holes per motor on the 16 × 19 mm pattern
     holes = [(c.dxf.center, c.dxf.radius) for c in msp.query("CIRCLE[layer=='HOLES']")]
     for m in expected:
@@ -252,3 +259,54 @@ def test_unknown_format_and_wrong_candidate():
         export(source_of("SY250"), "stl")
     with pytest.raises(ValueError, match="not a run directory"):
         source_of("SY250", candidate="A")
+
+
+def svg_arc_centres(d: str) -> list[tuple[float, float]]:
+    """Centres of the circular arcs of an SVG path, by the SVG spec's endpoint-to-centre
+    conversion (SVG 1.1 appendix F.6.5, rx = ry, no rotation)."""
+    tokens = re.findall(r"[MLAZ]|-?\d+(?:\.\d+)?", d)
+    centres, here, i = [], None, 0
+    while i < len(tokens):
+        t = tokens[i]
+        if t in "ML":
+            here = (float(tokens[i + 1]), float(tokens[i + 2]))
+            i += 3
+        elif t == "A":
+            r, large, sweep = float(tokens[i + 1]), int(tokens[i + 4]), int(tokens[i + 5])
+            end = (float(tokens[i + 6]), float(tokens[i + 7]))
+            x1p, y1p = (here[0] - end[0]) / 2, (here[1] - end[1]) / 2
+            coef = math.sqrt(max(0.0, (r ** 4 - r * r * (x1p ** 2 + y1p ** 2))
+                                 / (r * r * (x1p ** 2 + y1p ** 2))))
+            sign = -1.0 if large == sweep else 1.0
+            centres.append((sign * coef * y1p + (here[0] + end[0]) / 2,
+                            -sign * coef * x1p + (here[1] + end[1]) / 2))
+            here = end
+            i += 8
+        else:
+            i += 1
+    return centres
+
+
+@pytest.mark.parametrize("frame", FRAMES)
+def test_svg_outline_arcs_turn_about_the_motors_and_the_hub(frame):
+    src = source_of(frame)
+    root = ET.fromstring(export(src, "svg").encode())
+    (path,) = root.findall("{http://www.w3.org/2000/svg}path")
+    d = re.sub(r"([MLAZ])", r" \1 ", path.get("d")).replace(",", " ")
+    centres = np.array(svg_arc_centres(d))
+    r = src.airframe.rotor_positions + src.airframe.com
+    motors_svg = np.stack([-1000 * r[:, 1], -1000 * r[:, 0]], axis=1)  # page: X right, Y down
+    pads, hubs = centres[0::2], centres[1::2]
+    for m in motors_svg:  # each motor centre is the centre of exactly one pad arc
+        assert np.sum(np.linalg.norm(pads - m, axis=1) < 1e-3) == 1
+    np.testing.assert_allclose(hubs, 0.0, atol=1e-3)
+
+
+def test_px4_sy250_has_the_sign_pattern_of_px4s_own_quad_x():
+    # PX4's x500 airframe (ROMFS init.d-posix/airframes, gz_x500): rotor 0 (+0.13, +0.22) KM +0.05,
+    # 1 (-0.13, -0.20) +0.05, 2 (+0.13, -0.22) -0.05, 3 (-0.13, +0.20) -0.05 (FRD, KM > 0 = CCW)
+    x500 = [(1, 1, 1), (-1, -1, 1), (1, -1, -1), (-1, 1, -1)]
+    params = px4_params(export(source_of("SY250"), "px4"))
+    got = [tuple(int(np.sign(params[f"CA_ROTOR{n}_{k}"])) for k in ("PX", "PY", "KM"))
+           for n in range(4)]
+    assert got == x500

@@ -1,0 +1,168 @@
+"""Paper-scale runs, measured (issue 10, item 4): paper-run1 and paper-run2 to the end.
+
+Each problem (850 + 350 × 850 = 298 350 evaluations) runs with ``casadrone run`` into
+``RUN_ROOT/<problem>``; per generation the runner writes ``timings.csv`` in the run directory
+(evaluation time, the coordinator's steps, archive size; see ``casadrone/optimise/timings.py``),
+so a stopped run that is resumed keeps the record of its earlier generations. The script then
+writes ``benchmarks/RESULTS-paper-scale.md`` from the run directories: per run the total wall
+time, evaluation and coordinator time, the coordinator's share at the end of the run, and a
+per-generation table (every 25th generation; the full record stays in each ``timings.csv``).
+
+The full measurement, on a quiet machine, is one command (run it again after any stop: finished
+runs are skipped, an interrupted one continues with ``casadrone resume``):
+
+    python benchmarks/bench_paper_scale.py --run-root runs/paper-scale --workers 2
+
+A short validation run (3 generations per problem):
+
+    python benchmarks/bench_paper_scale.py --run-root /tmp/paper-short --generations 3
+
+Options: ``--problems`` (default paper-run1 paper-run2), ``--generations`` (override
+``algorithm.generations``; the report says so), ``--workers`` and ``--backend`` (default
+processes; the evaluation backend), ``--report-only`` (only rebuild the results file from the
+run directories), ``--out``. Targets (issue 10) on 2 cores: ≤ 20 min per paper run, coordinator
+≤ 10 % of the wall time at the end of the run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+sys.path.insert(0, str(HERE))
+
+CLI = [sys.executable, "-c", "from casadrone.cli import app; app()"]
+COORDINATOR = ("ask_s", "advance_s", "statistics_s", "history_s", "checkpoint_s")
+
+
+def run_or_resume(problem: str, run_dir: Path, generations: int | None, backend: str,
+                  workers: int) -> float:
+    """Run ``problem`` into ``run_dir`` to its end, resuming it if it was stopped (``casadrone
+    resume`` also restarts a run stopped before its first checkpoint); return the wall time of
+    this call (s)."""
+    manifest = run_dir / "manifest.json"
+    if manifest.exists() and json.loads(manifest.read_text()).get("status") == "completed":
+        print(f"{run_dir}: already complete", file=sys.stderr)
+        return 0.0
+    backend_args = ["--backend", backend, "-j", str(workers)]
+    if manifest.exists():
+        cmd = [*CLI, "resume", str(run_dir), *backend_args]
+    else:
+        overrides = [] if generations is None else [f"algorithm.generations={generations}"]
+        cmd = [*CLI, "run", problem, *overrides, "--out", str(run_dir), *backend_args]
+    print(" ".join(cmd[3:]), file=sys.stderr, flush=True)
+    start = time.perf_counter()
+    subprocess.run(cmd, check=True)
+    return time.perf_counter() - start
+
+
+def summary(run_dir: Path) -> list[str]:
+    """The results section of one run directory."""
+    from casadrone.optimise.store import RunStore
+    from casadrone.optimise.timings import read_timings
+
+    store = RunStore(run_dir)
+    m, problem = store.manifest, store.problem()
+    rows = read_timings(run_dir)
+    if not rows:
+        return [f"## {problem.name}", "", f"`{run_dir}`: no generation stored yet.", ""]
+    total = {k: sum(r[k] for r in rows) for k in ("wall_s", "evaluate_s", "coordinator_s",
+                                                   "coordinator_cpu_s", *COORDINATOR)}
+    tail = rows[-10:]
+    end_share = sum(r["coordinator_s"] for r in tail) / sum(r["wall_s"] for r in tail)
+    evals = rows[-1]["n_evaluations"]
+    a = problem.algorithm
+    lines = [
+        f"## {problem.name}",
+        "",
+        f"- run directory `{run_dir}`; status {m.get('status')}; started {m.get('started')}, "
+        f"finished {m.get('finished')}; resumed: {m.get('resumed') or 'never'}; backend "
+        f"{m.get('backend')} (last session's: see the command above)",
+        f"- {a.name}, population {a.population}, {a.generations} generations, "
+        f"n_ind_ga {a.settings.get('n_ind_ga')}, n_div {a.settings.get('n_div')}; "
+        f"{len(rows)} generations recorded, {evals} evaluations",
+        f"- total wall time (sum over generations) {total['wall_s']:.0f} s = "
+        f"{total['wall_s'] / 60:.1f} min (target ≤ 20 min); evaluation "
+        f"{total['evaluate_s']:.0f} s ({evals / total['evaluate_s']:.0f} evaluations/s); "
+        f"coordinator {total['coordinator_s']:.1f} s wall, {total['coordinator_cpu_s']:.1f} s CPU "
+        "(coordinating process)",
+        f"- coordinator share of the wall time: {total['coordinator_s'] / total['wall_s']:.1%} "
+        f"over the run, {end_share:.1%} over its last {len(tail)} generations (target ≤ 10 % "
+        "at the end)",
+        "- coordinator time by step (s, summed): "
+        + ", ".join(f"{k[:-2]} {total[k]:.1f}" for k in COORDINATOR),
+        f"- archive at the end: {rows[-1]['archive_size']} members",
+        "",
+        "| generation | archive | evaluate (s) | coordinator (s) | of which advance | statistics "
+        "| history | checkpoint | wall (s) | coordinator share |",
+        "|" + "---:|" * 10,
+    ]
+    for r in rows:
+        if r["generation"] % 25 and r is not rows[-1]:
+            continue
+        lines.append(
+            f"| {r['generation']} | {r['archive_size']} | {r['evaluate_s']:.2f} "
+            f"| {r['coordinator_s']:.3f} | {r['advance_s']:.3f} | {r['statistics_s']:.3f} "
+            f"| {r['history_s']:.3f} | {r['checkpoint_s']:.3f} | {r['wall_s']:.2f} "
+            f"| {r['coordinator_s'] / r['wall_s']:.1%} |")
+    lines.append("")
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--run-root", type=Path, default=Path("runs/paper-scale"))
+    parser.add_argument("--problems", nargs="*", default=["paper-run1", "paper-run2"])
+    parser.add_argument("--generations", type=int, default=None,
+                        help="override algorithm.generations (validation runs)")
+    parser.add_argument("--backend", default="processes", choices=["serial", "processes", "dask"])
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--report-only", action="store_true")
+    parser.add_argument("--out", type=Path, default=HERE / "RESULTS-paper-scale.md")
+    args = parser.parse_args()
+
+    import machine
+
+    command = " ".join(["python benchmarks/bench_paper_scale.py", "--run-root",
+                        str(args.run_root), "--workers", str(args.workers), "--backend",
+                        args.backend] + ([] if args.generations is None
+                                         else ["--generations", str(args.generations)]))
+    sessions = []
+    for problem in args.problems:
+        run_dir = args.run_root / problem
+        if not args.report_only:
+            wall = run_or_resume(problem, run_dir, args.generations, args.backend, args.workers)
+            sessions.append(f"- {problem}: this session {wall:.0f} s")
+    lines = [
+        "# Paper-scale runs: paper-run1 and paper-run2, measured",
+        "",
+        f"`{command}` — settings and method in the script's docstring. Per-generation times "
+        "come from each run directory's `timings.csv` (written by the runner, kept across "
+        "resumes).",
+        "",
+        machine.markdown(),
+        *sessions,
+        "",
+    ]
+    if args.generations is not None:
+        lines += [f"**Shortened validation run: algorithm.generations={args.generations}, not "
+                  "the paper's 350.**", ""]
+    for problem in args.problems:
+        run_dir = args.run_root / problem
+        if (run_dir / "manifest.json").exists():
+            lines += summary(run_dir)
+        else:
+            lines += [f"## {problem}", "", f"`{run_dir}`: not run yet.", ""]
+    text = "\n".join(lines)
+    args.out.write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()

@@ -182,13 +182,17 @@ def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory
     """The limit lap of a candidate under ``setup.limit``: the best of the primal-dual warm
     starts from the per-study references (:attr:`EvaluationSetup.limit_warm_starts`, the same in
     every worker, so the result does not depend on the backend or the evaluation order); from
-    its closed-loop lap when no reference solved."""
+    its closed-loop lap when no reference solved or every warm start failed."""
     from casadrone.limitlap import limit_lap
 
     warm = setup.limit_warm_starts
     options = replace(setup.limit, guess_trajectory=traj, warm_starts=warm,
                       starts=() if warm else ("closed-loop",), sensitivities=False)
-    return limit_lap(cfg, setup.track, options)
+    lap = limit_lap(cfg, setup.track, options)
+    if warm and not lap.optimal:  # every warm start failed: the closed-loop start decides
+        lap = limit_lap(cfg, setup.track, replace(options, warm_starts=(),
+                                                  starts=("closed-loop",)))
+    return lap
 
 
 def theta_of(cfg: AirframeConfig) -> Theta:

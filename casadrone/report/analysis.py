@@ -22,7 +22,7 @@ from casadrone.optimise.store import PARETO, RunStore
 LABELS = (("A", "utopian", "closest to the utopian point"),
           ("B", "compromise", "compromise: closest to the front's mean point"),
           ("C", "extreme", "extreme on the first objective"))
-STAGES = tuple(FAILURE_CV)  # geometry, trim, control, lap
+STAGES = tuple(FAILURE_CV)  # geometry, trim, control, lap, limit
 
 
 # ---------------------------------------------------------------------------------------------

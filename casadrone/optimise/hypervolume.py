@@ -54,10 +54,19 @@ def samples(n_obj: int, n_samples: int = HV_SAMPLES) -> np.ndarray:
 
 
 def dominated_by(Z: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """Which rows of ``S`` some row of ``Z`` weakly dominates (minimised), in blocks of points."""
+    """Which rows of ``S`` some row of ``Z`` weakly dominates (minimised). Only the
+    non-dominated rows of ``Z`` can add any (a dominated point's region lies inside its
+    dominator's), then blocks of 256 points, one objective at a time."""
     hit = np.zeros(len(S), dtype=bool)
-    for k in range(0, len(Z), 128):
-        hit |= (Z[None, k:k + 128, :] <= S[:, None, :]).all(axis=2).any(axis=1)
+    if len(Z) == 0 or len(S) == 0:
+        return hit
+    Z = non_dominated(Z)
+    for k in range(0, len(Z), 256):
+        block = Z[k:k + 256]
+        inside = S[:, 0, None] >= block[None, :, 0]
+        for j in range(1, S.shape[1]):
+            inside &= S[:, j, None] >= block[None, :, j]
+        hit |= inside.any(axis=1)
     return hit
 
 

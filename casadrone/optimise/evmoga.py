@@ -41,7 +41,13 @@ from pymoo.util.optimum import filter_optimum
 
 from casadrone.optimise.boxarchive import BoxArchive, pareto_dominates
 
-__all__ = ["EvMOGA", "constrained_dominates", "shrinking_schedule"]
+__all__ = [
+    "EvMOGA",
+    "constrained_dominance_matrix",
+    "constrained_dominates",
+    "replacements",
+    "shrinking_schedule",
+]
 
 #: The row arrays the archive and the pickled P keep of each solution (pymoo's attributes).
 ROW_KEYS = ("X", "F", "G", "H", "CV")
@@ -63,6 +69,54 @@ def constrained_dominates(f: np.ndarray, cv: float, F: np.ndarray, CV: np.ndarra
     if cv <= 0.0:
         return np.where(feasible, pareto_dominates(f, F), True)
     return np.where(feasible, False, cv < CV)
+
+
+def constrained_dominance_matrix(F: np.ndarray, cv: np.ndarray, F_b: np.ndarray,
+                                 cv_b: np.ndarray) -> np.ndarray:
+    """``D[i, j]``: whether ``(F[i], cv[i])`` dominates ``(F_b[j], cv_b[j])`` feasibility-first,
+    i.e. ``constrained_dominates(F[i], cv[i], F_b, cv_b)[j]`` (same comparisons, elementwise)."""
+    feasible, feasible_b = cv <= 0.0, cv_b <= 0.0
+    D = np.empty((len(F), len(F_b)), dtype=bool)
+    ok, bad = np.flatnonzero(feasible), np.flatnonzero(~feasible)
+    if len(ok):  # Pareto dominance, objective by objective; "some <" only where "all <=" holds
+        Fa = F[ok]
+        le = Fa[:, None, 0] <= F_b[None, :, 0]
+        for j in range(1, F.shape[1]):
+            le &= Fa[:, None, j] <= F_b[None, :, j]
+        ia, ib = np.nonzero(le)
+        le[ia, ib] = (Fa[ia] < F_b[ib]).any(axis=1)
+        D[ok] = le | ~feasible_b
+    if len(bad):
+        D[bad] = ~feasible_b & (cv[bad, None] < cv_b[None, :])
+    return D
+
+
+def replacements(pop_F: np.ndarray, pop_cv: np.ndarray, F: np.ndarray, cv: np.ndarray,
+                 random_state: np.random.Generator) -> dict[int, int]:
+    """EVMOGA.md "update P with each child", for the children ``(F, cv)`` in order: each draws a
+    start index in P (``random_state.integers(len(P))``, one draw per child, in order), scans P
+    circularly from it for the first member it strictly dominates (feasibility first) and takes
+    its slot; if none, it is dropped. Returns ``{slot of P: child now in it}``; P is not edited.
+
+    Vectorised: the child-over-P and child-over-child dominance matrices are computed once; the
+    row a child scans is P's row of the matrix with each taken slot's column replaced by its
+    child's column, so each child costs a few O(|P|) operations.
+    """
+    n = len(pop_F)
+    starts = [int(random_state.integers(n)) for _ in range(len(F))]
+    hits = constrained_dominance_matrix(F, cv, pop_F, pop_cv)  # hits[i, j]: child i beats slot j
+    over_child = constrained_dominance_matrix(F, cv, F, cv)
+    taken: dict[int, int] = {}
+    for i, start in enumerate(starts):
+        row = hits[i]
+        j = start + int(row[start:].argmax())  # the first hit at or after start, else the first
+        if not row[j]:
+            j = int(row[:start].argmax()) if start else 0
+            if not row[j]:
+                continue
+        hits[:, j] = over_child[:, i]  # later children now meet child i in slot j
+        taken[j] = i
+    return taken
 
 
 def _violation(pop: Population) -> tuple[np.ndarray, np.ndarray]:
@@ -336,16 +390,9 @@ class EvMOGA(Algorithm):
         rows = self._rows_of_children(infills)
         for i in np.flatnonzero(cv <= 0.0):
             self.box_archive.offer({k: v[i] for k, v in rows.items()})
-        n = len(self.pop)
-        for i in range(len(infills)):
-            # scan P circularly from a random start: the first hit at or after it, else the first
-            start = int(self.random_state.integers(n))
-            hit = np.flatnonzero(constrained_dominates(F[i], cv[i], self.pop_F, self.pop_cv))
-            if len(hit):
-                later = hit[hit >= start]
-                j = int(later[0] if len(later) else hit[0])
-                self.pop[j] = infills[i]
-                self.pop_F[j], self.pop_cv[j] = F[i], cv[i]
+        for j, i in replacements(self.pop_F, self.pop_cv, F, cv, self.random_state).items():
+            self.pop[j] = infills[i]
+            self.pop_F[j], self.pop_cv[j] = F[i], cv[i]
 
     def _set_optimum(self) -> None:
         if len(self.box_archive):  # a snapshot: A is edited in place later

@@ -57,8 +57,11 @@ def box_index(F: np.ndarray, f_min: np.ndarray, eps: np.ndarray) -> np.ndarray:
     """
     F = np.atleast_2d(F)
     positive = eps > 0.0
-    ratio = np.where(positive, (F - f_min) / np.where(positive, eps, 1.0), 0.0)
-    return np.ceil(np.round(ratio, 6)).astype(np.int64)
+    ratio = (F - f_min) / np.where(positive, eps, 1.0)
+    if not positive.all():
+        ratio = np.where(positive, ratio, 0.0)
+    ratio = ratio.round(6)
+    return np.ceil(ratio, out=ratio).astype(np.int64)
 
 
 def box_dominates(b: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -290,8 +293,8 @@ class BoxArchive:
             self.set_grid(f, f)
             self._only(row, np.zeros(m, dtype=np.int64))
             return
-        a = int(np.sum(f >= self.grid_max))
-        b = int(np.sum(f <= self.grid_min))
+        a = int(np.count_nonzero(f >= self.grid_max))
+        b = int(np.count_nonzero(f <= self.grid_min))
         if a == 0 and b == 0:
             self.insert(row)
         elif a == m and b == 0:

@@ -16,8 +16,10 @@ inserting items 1…n in order into an empty archive on a fixed grid (proved in 
 
 Members whose box the new grid leaves unchanged cannot dominate or meet each other (they did not
 on the old grid), so a rebuild only compares pairs with a changed member, as bitsets (64 members
-per machine word). Boxes are stored one row per objective, so each test against the archive is a
-few contiguous comparisons of length |A|.
+per machine word). Boxes are stored one row per objective, and also packed one int64 per member
+(:func:`box_packing`, a guard bit above each objective's field) so that :meth:`BoxArchive.insert`
+tests "member box <= child box" (and ">=") against the whole archive with one subtraction instead
+of m comparisons.
 
 A property test (``tests/unit/test_boxarchive.py``) checks every step against the sequential
 implementation this module replaced, on random streams of 2 to 6 objectives.
@@ -33,6 +35,9 @@ __all__ = [
     "BoxArchive",
     "box_dominates",
     "box_index",
+    "box_packing",
+    "pack_box",
+    "pack_boxes",
     "pareto_dominates",
     "pareto_dominates_rows",
 ]
@@ -99,6 +104,47 @@ def _all_le(Bt: np.ndarray, b: np.ndarray) -> np.ndarray:
     for j in range(1, len(b)):
         out &= Bt[j] <= b[j]
     return out
+
+
+def box_packing(n_div: np.ndarray) -> tuple[list[int], list[int], int] | None:
+    """Bit layout that packs a box (entries ``0 <= b_j < 2**w_j``, ``w_j`` the bit length of
+    ``n_div_j``, so up to ``n_div_j`` fits) into one int64: field ``j`` at bit ``shift_j`` with a
+    guard bit above it. Returns ``(shifts, widths, guard mask)``, or ``None`` beyond 63 bits.
+
+    For packed ``k``, ``K``: ``((k | guard) - K) & guard == guard`` exactly when ``K <= k``
+    componentwise (each field computes ``2**w_j + k_j - K_j``, which keeps its guard bit iff
+    ``k_j >= K_j`` and never borrows from the next field): one comparison for m objectives.
+    """
+    shifts, widths, at = [], [], 0
+    for d in np.asarray(n_div).tolist():
+        widths.append(int(d).bit_length())
+        shifts.append(at)
+        at += widths[-1] + 1
+    if at > 63:
+        return None
+    return shifts, widths, sum(1 << (s + w) for s, w in zip(shifts, widths, strict=True))
+
+
+def pack_boxes(Bt: np.ndarray, packing: tuple[list[int], list[int], int]) -> np.ndarray | None:
+    """The boxes (columns of ``Bt``, one row per objective) packed by :func:`box_packing`, or
+    ``None`` if an entry does not fit its field."""
+    shifts, widths, _ = packing
+    keys = np.zeros(Bt.shape[1], dtype=np.int64)
+    for j, (s, w) in enumerate(zip(shifts, widths, strict=True)):
+        if Bt.shape[1] and (Bt[j].min() < 0 or Bt[j].max() >= 1 << w):
+            return None
+        keys |= Bt[j] << s
+    return keys
+
+
+def pack_box(b: np.ndarray, packing: tuple[list[int], list[int], int]) -> int | None:
+    """One box packed by :func:`box_packing` (a Python int), or ``None`` if it does not fit."""
+    key = 0
+    for v, s, w in zip(b.tolist(), packing[0], packing[1], strict=True):
+        if not 0 <= v < 1 << w:
+            return None
+        key |= v << s
+    return key
 
 
 def _any_below(U: np.ndarray, targets: np.ndarray, sources: np.ndarray) -> np.ndarray:
@@ -198,6 +244,8 @@ class BoxArchive:
         self._n = 0
         self._rows: dict[str, np.ndarray] = {k: np.empty((0, int(w))) for k, w in widths.items()}
         self._box = np.empty((len(self.n_div), 0), dtype=np.int64)  # one row per objective
+        self._packing = box_packing(self.n_div)
+        self._packed: np.ndarray | None = None  # boxes packed (box_packing), None: not built
         self.grid_min: np.ndarray | None = None
         self.grid_max: np.ndarray | None = None
         self.eps: np.ndarray | None = None
@@ -224,7 +272,13 @@ class BoxArchive:
         state = self.__dict__.copy()
         state["_rows"] = {k: v.copy() for k, v in self.rows.items()}
         state["_box"] = self._box[:, :self._n].copy()
+        state["_packed"] = None
         return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._packing = box_packing(self.n_div)  # absent from checkpoints before it existed
+        self._packed = None
 
     # ---- grid and storage ---------------------------------------------------------------------
 
@@ -246,6 +300,7 @@ class BoxArchive:
         self._rows = {k: np.asarray(rows[k], dtype=float) for k in self._rows}
         self._box = np.ascontiguousarray(box_columns, dtype=np.int64)
         self._n = self._box.shape[1]
+        self._packed = None
 
     def _take(self, index: np.ndarray, box_columns: np.ndarray | None = None) -> None:
         """Keep the members ``index`` (mask or positions, in the new order); their boxes are
@@ -261,6 +316,7 @@ class BoxArchive:
         box = np.empty((B.shape[0], cap), dtype=np.int64)
         np.take(B, index, axis=1, out=box[:, :n])
         self._rows, self._box, self._n = rows, box, n
+        self._packed = None
 
     def _row(self, row: Mapping[str, np.ndarray], key: str) -> np.ndarray:
         """One member's values of row array ``key`` as a (width,) float array."""
@@ -277,7 +333,22 @@ class BoxArchive:
         for k, v in self._rows.items():
             v[n] = self._row(row, k)
         self._box[:, n] = b
+        if self._packed is not None:
+            key = pack_box(b, self._packing)
+            if key is None or len(self._packed) <= n:  # does not fit, or storage grew
+                self._packed = None
+            else:
+                self._packed[n] = key
         self._n = n + 1
+
+    def _packed_boxes(self) -> np.ndarray | None:
+        """The members' boxes packed (:func:`box_packing`), or ``None`` if they do not fit."""
+        if self._packed is None and self._packing is not None:
+            keys = pack_boxes(self._box[:, :self._n], self._packing)
+            if keys is not None:  # as long as the box storage: room to append
+                self._packed = np.empty(self._box.shape[1], dtype=np.int64)
+                self._packed[:self._n] = keys
+        return None if self._packed is None else self._packed[:self._n]
 
     def _only(self, row: Mapping[str, np.ndarray], b: np.ndarray) -> None:
         self._set({k: self._row(row, k)[None, :].copy() for k in self._rows}, b[:, None])
@@ -328,7 +399,13 @@ class BoxArchive:
             self._append(row, b)
             return True
         Bt = self._box[:, :self._n]
-        below = np.flatnonzero(_all_le(Bt, b))  # members whose box is <= the child's
+        keys = self._packed_boxes()
+        key = None if keys is None else pack_box(b, self._packing)
+        if key is None:
+            below = np.flatnonzero(_all_le(Bt, b))  # members whose box is <= the child's
+        else:  # the same test on packed boxes (box_packing)
+            guard = self._packing[2]
+            below = np.flatnonzero((((key | guard) - keys) & guard) == guard)
         if len(below):
             if not (Bt[:, below] == b[:, None]).all():
                 return False  # case 1: the child's box is dominated
@@ -339,9 +416,12 @@ class BoxArchive:
             for key, v in self._rows.items():
                 v[k] = self._row(row, key)
             return True
-        gone = Bt[0] >= b[0]  # case 2 (equal boxes are excluded above)
-        for j in range(1, len(b)):
-            gone &= Bt[j] >= b[j]
+        if key is None:  # case 2 (equal boxes are excluded above)
+            gone = Bt[0] >= b[0]
+            for j in range(1, len(b)):
+                gone &= Bt[j] >= b[j]
+        else:
+            gone = (((keys | guard) - key) & guard) == guard
         if gone.any():
             self._take(~gone)
         self._append(row, b)  # case 4
@@ -374,7 +454,7 @@ class BoxArchive:
         new = self._box_columns(F)
         changed = (new != old).any(axis=0) if changed_only else np.ones(n, dtype=bool)
         if n < 2 or not changed.any():
-            self._box = new
+            self._box, self._packed = new, None
             return
         keys, first, group = np.unique(_box_keys(new), return_index=True, return_inverse=True)
         group = group.ravel()
@@ -397,6 +477,6 @@ class BoxArchive:
                         k = c
                 winner[i] = k
         if len(winner) == n and np.array_equal(winner, np.arange(n)):
-            self._box = new
+            self._box, self._packed = new, None
         else:
             self._take(winner, new)

@@ -22,7 +22,10 @@ from casadrone.optimise.boxarchive import (
     BoxArchive,
     box_dominates,
     box_index,
+    box_packing,
     dominated_boxes,
+    pack_box,
+    pack_boxes,
     pareto_dominates,
     pareto_dominates_rows,
 )
@@ -335,6 +338,70 @@ def test_dominated_boxes_against_brute_force():
         # columns known not to dominate each other need not be compared among themselves
         changed = brute | (rng.random(len(U)) < 0.3)
         np.testing.assert_array_equal(dominated_boxes(U.T, changed), brute)
+
+
+def test_packed_boxes_compare_like_their_entries():
+    """One subtraction on packed boxes (box_packing) decides ``B <= b`` componentwise, for
+    entries anywhere in their fields (0 and the largest value included); what does not fit is
+    refused."""
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        m = int(rng.integers(2, 8))
+        n_div = rng.integers(1, 2 ** rng.integers(1, 9, size=m) + 1)
+        packing = box_packing(n_div)
+        assert packing is not None
+        top = np.array([1 << w for w in packing[1]])  # entries 0 .. top - 1 fit
+        assert np.all(top > n_div)
+        B = rng.integers(0, top, size=(200, m))
+        B[rng.random(B.shape) < 0.2] = 0
+        edge = rng.random(B.shape) < 0.2
+        B[edge] = np.broadcast_to(top - 1, B.shape)[edge]
+        b = B[rng.integers(len(B))].copy()
+        keys, key, guard = pack_boxes(B.T, packing), pack_box(b, packing), packing[2]
+        np.testing.assert_array_equal((((key | guard) - keys) & guard) == guard,
+                                      (B <= b).all(axis=1))
+        np.testing.assert_array_equal((((keys | guard) - key) & guard) == guard,
+                                      (B >= b).all(axis=1))
+        bad = b.copy()
+        bad[rng.integers(m)] = rng.choice([-1, top.max()]) if rng.random() < 0.5 else -1
+        if (bad < 0).any() or (bad >= top).any():
+            assert pack_box(bad, packing) is None
+            assert pack_boxes(np.vstack([B, bad]).T, packing) is None
+    assert box_packing(np.full(7, 255)) is not None  # 7 x (8 + 1) = 63 bits
+    assert box_packing(np.full(7, 256)) is None
+
+
+@pytest.mark.parametrize("n_div", [None, 2**20])
+def test_archive_without_packed_boxes_is_the_same(n_div):
+    """The archive that compares packed boxes and one that cannot pack them (boxes too wide for
+    63 bits, or packing switched off) take the same steps on random streams."""
+    total_used = 0
+    for seed in range(15):
+        rng = np.random.default_rng(300 + seed)
+        m = int(rng.integers(2, 7))
+        divisions = np.full(m, n_div if n_div else int(rng.integers(2, 30)))
+        widths = {**WIDTHS, "F": m}
+        packed, plain = BoxArchive(divisions, widths), BoxArchive(divisions, widths)
+        plain._packing = None
+        F = child_stream(rng, int(rng.integers(50, 250)), m)
+        rows = rows_of(F, rng)
+        used = 0  # children offered while packed boxes were in use
+        for i in range(len(F)):
+            row = {k: v[i] for k, v in rows.items()}
+            used += packed._packed is not None
+            packed.offer(row)
+            plain.offer(row)
+            assert len(packed) == len(plain)
+            for k in KEYS:
+                assert packed.rows[k].tobytes() == plain.rows[k].tobytes(), (seed, i, k)
+            np.testing.assert_array_equal(packed.box, plain.box)
+        assert plain._packed is None
+        fits = n_div is None or m <= 2  # 2**20 needs 21 + 1 bits per objective
+        assert (packed._packing is not None) == fits
+        assert fits or used == 0
+        total_used += used
+    if n_div is None:
+        assert total_used > 500
 
 
 # ---------------------------------------------------------------------------------------------

@@ -399,13 +399,13 @@ class BoxArchive:
             self._append(row, b)
             return True
         Bt = self._box[:, :self._n]
-        keys = self._packed_boxes()
-        key = None if keys is None else pack_box(b, self._packing)
-        if key is None:
+        packed = self._packed_boxes()
+        packed_b = None if packed is None else pack_box(b, self._packing)
+        if packed_b is None:
             below = np.flatnonzero(_all_le(Bt, b))  # members whose box is <= the child's
         else:  # the same test on packed boxes (box_packing)
             guard = self._packing[2]
-            below = np.flatnonzero((((key | guard) - keys) & guard) == guard)
+            below = np.flatnonzero((((packed_b | guard) - packed) & guard) == guard)
         if len(below):
             if not (Bt[:, below] == b[:, None]).all():
                 return False  # case 1: the child's box is dominated
@@ -416,12 +416,12 @@ class BoxArchive:
             for key, v in self._rows.items():
                 v[k] = self._row(row, key)
             return True
-        if key is None:  # case 2 (equal boxes are excluded above)
+        if packed_b is None:  # case 2 (equal boxes are excluded above)
             gone = Bt[0] >= b[0]
             for j in range(1, len(b)):
                 gone &= Bt[j] >= b[j]
         else:
-            gone = (((keys | guard) - key) & guard) == guard
+            gone = (((packed | guard) - packed_b) & guard) == guard
         if gone.any():
             self._take(~gone)
         self._append(row, b)  # case 4

@@ -24,7 +24,9 @@ def test_timings_one_row_per_generation_across_a_resume(tmp_path):
     run(load_problem("problems/quick.yaml", TINY), out, BackendConfig(name="serial"), quiet=True,
         stop_after=2)
     assert [r["generation"] for r in read_timings(out)] == [0, 1]
-    resume(out, quiet=True)
+    result = resume(out, quiet=True)
+    # the logged archive size (counted without building pymoo's population) is the front's
+    assert RunStore(out).generations()[-1]["archive_size"] == len(result.X) > 0
     rows = read_timings(out)
     generations = RunStore(out).generations()
     assert [r["generation"] for r in rows] == [g["generation"] for g in generations] == [0, 1, 2, 3]

@@ -147,6 +147,15 @@ def pack_box(b: np.ndarray, packing: tuple[list[int], list[int], int]) -> int | 
     return key
 
 
+def _stable_argsort(a: np.ndarray) -> np.ndarray:
+    """``np.argsort(a, kind="stable")`` of a 1-D integer array; sorted as uint16 (numpy's radix
+    sort, ~10x faster than int64) when every value fits: a stable sort's permutation depends only
+    on the order of the values, so it is the same."""
+    if len(a) and a.min() >= 0 and a.max() < 1 << 16:
+        a = a.astype(np.uint16)
+    return np.argsort(a, kind="stable")
+
+
 def _any_below(U: np.ndarray, targets: np.ndarray, sources: np.ndarray) -> np.ndarray:
     """For each target column of ``U`` (distinct boxes, one row per objective): whether another
     source column is ``<=`` it componentwise, i.e. dominates it.
@@ -158,8 +167,8 @@ def _any_below(U: np.ndarray, targets: np.ndarray, sources: np.ndarray) -> np.nd
     """
     total = U.sum(axis=0)
     asked = targets
-    sources = sources[np.argsort(total[sources], kind="stable")]
-    targets = targets[np.argsort(total[targets], kind="stable")]
+    sources = sources[_stable_argsort(total[sources])]
+    targets = targets[_stable_argsort(total[targets])]
     ns = len(sources)
     k = np.arange(ns)
     bits = np.left_shift(np.uint64(1), (k & 63).astype(np.uint64))
@@ -461,12 +470,12 @@ class BoxArchive:
         changed_box = np.zeros(len(keys), dtype=bool)
         changed_box[group[changed]] = True
         keep = np.flatnonzero(~dominated_boxes(new[:, first], changed_box))
-        keep = keep[np.argsort(first[keep], kind="stable")]  # order of first appearance
+        keep = keep[_stable_argsort(first[keep])]  # order of first appearance
         winner = first[keep]
         sizes = np.bincount(group, minlength=len(keys))
         crowded = np.flatnonzero(sizes[keep] > 1)
         if len(crowded):  # fold case 3 over each crowded box's items, in order
-            members = np.argsort(group, kind="stable")  # items grouped by box, in order
+            members = _stable_argsort(group)  # items grouped by box, in order
             bounds = np.r_[0, np.cumsum(sizes)]
             for i in crowded:
                 g = keep[i]

@@ -20,6 +20,7 @@ from pymoo.util.nds.non_dominated_sorting import NonDominatedSorting
 
 from casadrone.optimise.boxarchive import (
     BoxArchive,
+    _stable_argsort,
     box_dominates,
     box_index,
     box_packing,
@@ -369,6 +370,16 @@ def test_packed_boxes_compare_like_their_entries():
             assert pack_boxes(np.vstack([B, bad]).T, packing) is None
     assert box_packing(np.full(7, 255)) is not None  # 7 x (8 + 1) = 63 bits
     assert box_packing(np.full(7, 256)) is None
+
+
+def test_stable_argsort_is_numpys_stable_argsort():
+    """The 16-bit radix path gives numpy's stable int64 permutation (many ties), and values that
+    do not fit 16 bits take the plain path."""
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        high = int(rng.choice([3, 200, 2**16, 2**16 + 5, 2**40]))
+        a = rng.integers(-2 if rng.random() < 0.2 else 0, high, size=int(rng.integers(0, 3000)))
+        np.testing.assert_array_equal(_stable_argsort(a), np.argsort(a, kind="stable"))
 
 
 @pytest.mark.parametrize("n_div", [None, 2**20])

@@ -29,6 +29,8 @@ ORDER = [
      "python benchmarks/check_evmoga_identity.py"),
     ("coordinator", "ev-MOGA's coordinator alone against archive size (issue 10)",
      "python benchmarks/bench_coordinator.py"),
+    ("advance", "ev-MOGA's advance step (archive + P update) per paper-scale generation",
+     "python benchmarks/bench_advance.py"),
     ("paper-scale", "Paper-scale runs measured: paper-run1 and paper-run2 (issue 10)",
      "python benchmarks/bench_paper_scale.py --run-root runs/paper-scale --workers 2"),
 ]

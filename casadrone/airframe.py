@@ -7,7 +7,7 @@ draws the nose on body +y (x to the right): :func:`from_paper_frame` converts at
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cache, cached_property
 from typing import Literal
 
 import numpy as np
@@ -180,6 +180,9 @@ def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = 
 
     from casadrone.configio import format_errors
 
+    fast = _replace_valid(cfg, theta, name)
+    if fast is not None:
+        return fast
     data = dict(base) if base is not None else cfg.model_dump()
     data.update(theta)
     if name is not None:
@@ -188,6 +191,35 @@ def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = 
         return AirframeConfig.model_validate(data)
     except ValidationError as exc:
         raise ConfigError(format_errors(exc, name or cfg.name, AirframeConfig)) from None
+
+
+@cache
+def _field_validator(key: str):
+    """The strict validator of one airframe field (built once per key)."""
+    from casadrone.configio import field_adapter
+
+    return field_adapter(AirframeConfig, key)
+
+
+def _replace_valid(cfg: AirframeConfig, theta: dict[str, float],
+                   name: str | None) -> AirframeConfig | None:
+    """The per-candidate fast path of :func:`with_theta`: ``cfg`` is valid already, so only the
+    replaced fields (each as strictly as the schema) and the cross-field checks need running;
+    that is the whole schema's verdict (a model validator checks nothing else) at a fraction of
+    a full re-validation (~0.5 ms of every evaluation). None when something is invalid: the
+    full validation then words the error."""
+    update = {}
+    for key, value in theta.items():
+        if key not in AirframeConfig.model_fields or key == "name":
+            return None
+        try:
+            update[key] = _field_validator(key).validate_python(value)
+        except ValueError:
+            return None
+    if name is not None:
+        update["name"] = name
+    new = cfg.model_copy(update=update)
+    return None if AirframeConfig.problems(dict(new)) else new
 
 
 def random_thetas(

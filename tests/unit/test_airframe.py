@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from casadrone.airframe import build_airframe, family, from_paper_frame
+from casadrone.airframe import TABLE1_BOUNDS, build_airframe, family, from_paper_frame, with_theta
 from casadrone.config import load_airframe
+from casadrone.configio import ConfigError
 
 
 def paper_rotors(la, lb, alpha_deg, beta_deg):
@@ -77,3 +78,34 @@ def test_random_thetas_inside_table1_with_valid_geometry():
         assert gap >= base.prop_diameter_mm
     assert random_thetas(base, 40, seed=3) == (thetas, rejected)
     assert random_thetas(base, 40, seed=4)[0] != thetas
+
+
+def test_with_theta_fast_path_equals_full_validation():
+    """Per candidate only the replaced fields and the cross-field checks are re-run; the result
+    (and every refusal, with its message) must be the full schema's."""
+    from pydantic import ValidationError
+
+    from casadrone.config import AirframeConfig, load_airframe
+
+    template = load_airframe("SY250")
+    rng = np.random.default_rng(3)
+    accepted = refused = 0
+    for _ in range(300):
+        theta = {k: float(rng.uniform(0.5 * lo, 1.5 * hi)) for k, (lo, hi) in TABLE1_BOUNDS.items()}
+        if rng.random() < 0.1:
+            theta["lambda_a_mm"] = [float("nan"), -1.0, True, "12"][int(rng.integers(4))]
+        try:
+            full = AirframeConfig.model_validate({**template.model_dump(), **theta})
+        except ValidationError:
+            full = None
+        try:
+            fast = with_theta(template, theta)
+        except ConfigError:
+            fast = None
+        assert (fast is None) == (full is None), theta
+        if full is not None:
+            assert fast == full
+            accepted += 1
+        else:
+            refused += 1
+    assert accepted > 50 and refused > 50

@@ -83,6 +83,10 @@ JsonOpt = Annotated[bool, typer.Option("--json", help="print one JSON object ins
 PlotOpt = Annotated[
     Path | None, typer.Option("--plot", help="save figures (PNG and SVG) into this folder")
 ]
+TrackOpt = Annotated[
+    str | None,
+    typer.Option(help="track YAML or name (default: configs/tracks/paper-rectangle.yaml)"),
+]
 
 
 def bad_input(lines: list[str]) -> typer.Exit:

@@ -13,6 +13,7 @@ from casadrone.cli.common import (
     JsonOpt,
     OverridesArg,
     PlotOpt,
+    TrackOpt,
     app,
     check_plot_dir,
     load_airframe_or_exit,
@@ -40,10 +41,7 @@ INTERVAL_KEYS = ("waypoint", "split_time_s", "effort_V", "pair_thrust_max_N", "p
 def simulate(
     airframe: AirframeArg,
     overrides: OverridesArg = None,
-    track: Annotated[
-        str | None,
-        typer.Option(help="track YAML or name (default: configs/tracks/paper-rectangle.yaml)"),
-    ] = None,
+    track: TrackOpt = None,
     controller: Annotated[
         str | None,
         typer.Option(help="controller YAML or name (default: configs/controllers/default.yaml)"),

@@ -12,6 +12,7 @@ from casadrone.cli.common import (
     JsonOpt,
     OverridesArg,
     PlotOpt,
+    TrackOpt,
     app,
     check_plot_dir,
     print_json,
@@ -30,11 +31,8 @@ LIMIT_KEYS = ("status", "reason", "lap_time_s", "lower_bound_s", "split_times_s"
 def limit_lap_command(
     airframe: AirframeArg,
     overrides: OverridesArg = None,
-    track: Annotated[
-        str | None,
-        typer.Option(help="track YAML or name (default: configs/tracks/paper-rectangle.yaml)"),
-    ] = None,
-    intervals: Annotated[int, typer.Option(min=2, help="collocation intervals per leg")] = 30,
+    track: TrackOpt = None,
+    intervals: Annotated[int, typer.Option(min=2, help="shooting intervals per leg")] = 30,
     as_json: JsonOpt = False,
     plot: PlotOpt = None,
 ) -> None:

@@ -307,6 +307,19 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
                      generations=int(algorithm.n_gen or 0))
 
 
+@contextlib.contextmanager
+def _released_on_error(store: RunStore):
+    """Setting up a run or resume: on any failure or signal, release its lock (and tell an
+    :class:`Interrupted` which run it stopped) before passing the exception on."""
+    try:
+        yield
+    except BaseException as exc:
+        if isinstance(exc, Interrupted):
+            exc.run_dir = store.path
+        store.release()
+        raise
+
+
 def _close(be, failed: bool) -> None:
     """Close a backend; after a failure or a signal, kill its workers rather than wait."""
     if failed and hasattr(be, "terminate"):
@@ -356,17 +369,12 @@ def run(problem: ProblemConfig, out: str | Path, backend: BackendConfig | None =
                    else list(INDICES))
     build_algorithm(problem, len(study.objective_names))  # refused here, before any file
     store = RunStore.create(out, problem, study.variable_names, index_names, backend_cfg.name)
-    try:
+    with _released_on_error(store):
         study = Study(store.problem())  # the run's own copies of its input files
         algorithm, termination = build_algorithm(problem, len(study.objective_names))
         algorithm.setup(CandidateProblem(study), termination=termination, seed=problem.seed,
                         verbose=False)
         be = make_backend(backend_cfg, without_main=unguarded)
-    except BaseException as exc:
-        if isinstance(exc, Interrupted):
-            exc.run_dir = store.path
-        store.release()
-        raise
     failed = True
     try:
         prog = progress or Progress(problem.algorithm.generations, quiet)
@@ -385,7 +393,7 @@ def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = 
     before its first checkpoint). The lock is taken before anything is read or written."""
     store = RunStore(Path(out))
     store.acquire()
-    try:
+    with _released_on_error(store):
         problem = store.problem()  # from the run's own config.yaml and inputs/, wherever it is
         study = Study(problem)
         replay: list[list[Record]] | None = None
@@ -414,11 +422,6 @@ def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = 
                           without_main=_check_main_guard(backend_cfg, "casadrone.resume()"))
         if replay is not None:
             be = ReplayBackend(replay, be, reason)
-    except BaseException as exc:
-        if isinstance(exc, Interrupted):
-            exc.run_dir = store.path
-        store.release()
-        raise
     failed = True
     try:
         store.update_manifest(status="running", resumed=now())

@@ -148,7 +148,8 @@ def evaluate(
     start = time.perf_counter()
     theta = {k: float(v) for k, v in theta.items()}
     try:
-        airframe = build_airframe(with_theta(setup.template, theta, base=setup.template_data))
+        cfg = with_theta(setup.template, theta, base=setup.template_data)
+        airframe = build_airframe(cfg)
     except ConfigError as exc:
         return _failed(theta, "geometry", "; ".join(exc.lines), start)
     tp = trim(airframe, "hover", 0.0, solver=setup.trim_solver)
@@ -167,7 +168,7 @@ def evaluate(
         return replace(ev, trajectory=traj) if keep_trajectory else ev
     indices = compute_indices(traj, index_names)
     if setup.limit is not None:
-        lap = evaluate_limit(with_theta(setup.template, theta), setup, traj)
+        lap = evaluate_limit(cfg, setup, traj)  # the candidate's config, validated once
         if not lap.optimal:
             return _failed(theta, "limit", lap.reason, start)
         indices.update(limit_indices(lap, index_names))

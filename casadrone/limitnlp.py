@@ -224,6 +224,154 @@ def ipopt_options(tol: float, max_iter: int, warm: bool) -> dict:
 
 
 _NLPS: dict[tuple, Nlp] = {}
+_BLOCKS: dict[tuple, tuple] = {}
+
+
+def interval_blocks(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Function,
+                                                             np.ndarray, np.ndarray]:
+    """Compiled derivatives of one shooting interval, the same for every interval and layout.
+
+    With ``z = [S, u, x]`` (the interval's leg duration, command and start node, in the order of
+    the decision vector) and ``h = S · inv_n``:
+
+    - ``jac(z, p, inv_n) -> (x_next, J)``: the RK4 step and its Jacobian ∂x_next/∂z (dense);
+    - ``hess(z, p, inv_n, lam) -> H``: the structural nonzeros of triu(∂²(lam·x_next)/∂z²).
+
+    Returns (jac, hess, rows, cols) with H's row and column indices in z. They are generated as
+    C and compiled once per machine (:mod:`casadrone.codegen`); the NLP maps them over its
+    intervals, so the compiled code is one interval's, whatever the number of intervals (the
+    whole NLP's Hessian as generated C is hundreds of MB; evaluated by CasADi's virtual machine
+    it costs ~0.1 s per IPOPT iteration, most of a solve).
+    """
+    key = (model.name, substeps)
+    if key in _BLOCKS:
+        return _BLOCKS[key]
+    from casadrone.codegen import compile_function
+
+    nx, nu = model.nx, model.nu
+    z = ca.SX.sym("z", 1 + nu + nx)
+    p = ca.SX.sym("p", model.np)
+    inv_n = ca.SX.sym("inv_n")
+    lam = ca.SX.sym("lam", nx)
+    step = rk4_step(model, substeps)
+    x_next = step(z[1 + nu:], z[1:1 + nu], p, z[0] * inv_n)
+    H = ca.triu(ca.hessian(ca.dot(lam, x_next), z)[0])
+    rows, cols = (np.array(a, dtype=int) for a in H.sparsity().get_triplet())
+    tag = f"{model.name.replace('-', '_')}_rk4x{substeps}"
+    jac = ca.Function(f"limit_jac_{tag}", [z, p, inv_n], [x_next, ca.densify(
+        ca.jacobian(x_next, z))], ["z", "p", "inv_n"], ["x_next", "J"])
+    hess = ca.Function(f"limit_hess_{tag}", [z, p, inv_n, lam], [ca.vertcat(*H.nonzeros())],
+                       ["z", "p", "inv_n", "lam"], ["H"])
+    built = (compile_function(jac, BLOCK_FLAGS), compile_function(hess, BLOCK_FLAGS), rows, cols)
+    _BLOCKS[key] = built
+    return built
+
+
+#: Compiler flags of the interval blocks: -O1 compiles the ~10⁵-line Hessian block in a fraction
+#: of -O2's time and runs as fast within a few per cent (measured on the shared machine).
+BLOCK_FLAGS: tuple[str, ...] = ("-O1",)
+
+
+def _assemble(nrow: int, ncol: int, rows: np.ndarray, cols: np.ndarray, values: ca.MX
+              ) -> ca.MX:
+    """The sparse matrix with ``values[t]`` added at (rows[t], cols[t]) (duplicates summed)."""
+    import scipy.sparse as sps
+
+    n = len(rows)
+    pattern = sps.csc_matrix((np.ones(n), (rows, cols)), shape=(nrow, ncol))
+    pattern.sum_duplicates()
+    pattern.sort_indices()
+    sp = ca.Sparsity(nrow, ncol, pattern.indptr.tolist(), pattern.indices.tolist())
+    # nonzero index (column-major) of each triplet
+    order = np.lexsort((rows, cols))
+    key = cols[order].astype(np.int64) * nrow + rows[order]
+    first = np.r_[True, key[1:] != key[:-1]]
+    nz = np.empty(n, dtype=int)
+    nz[order] = np.cumsum(first) - 1
+    A = ca.DM(ca.Sparsity.triplet(sp.nnz(), n, nz.tolist(), list(range(n))), 1.0)
+    return ca.sparsity_cast(ca.mtimes(A, values), sp)
+
+
+def _shooting_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np.ndarray, dict]:
+    """Multiple shooting as an MX NLP whose constraint Jacobian and Lagrangian Hessian are
+    assembled from the compiled interval blocks (:func:`interval_blocks`), mapped over the
+    intervals; CasADi's own AD serves only the rest (the target rows, and ∂L/∂P for the
+    sensitivities, once per solve). Same decision vector, constraints and bounds as the SX build.
+    """
+    L, N, M, nx, nu = layout.n_legs, layout.intervals, layout.n_intervals, model.nx, model.nu
+    per = 1 + nu + nx
+    nw = M * per + nx
+    W = ca.MX.sym("w", nw)
+    p = ca.MX.sym("p", model.np)
+    x_start = ca.MX.sym("x_start", nx)
+    targets = ca.MX.sym("targets", TARGET_SIZE * L)
+    P = ca.vertcat(p, x_start, targets)
+    Zb = ca.reshape(W[:M * per], per, M)  # column i: z_i = [S_i, u_i, x_i]
+    X = ca.horzcat(Zb[1 + nu:, :], W[M * per:])
+    S = Zb[0, :]
+    step = rk4_step(model, layout.substeps)
+    x_next = step.map(M)(X[:, :M], Zb[1:1 + nu, :], p, S / N)
+    same_i = np.array([i for i in range(1, M) if i % N], dtype=int)
+    trows = []
+    for k, kind in enumerate(layout.kinds):
+        xe = X[:, (k + 1) * N]
+        trows += _target_rows(xe, model.world_velocity(xe),
+                              targets[TARGET_SIZE * k:TARGET_SIZE * (k + 1)], kind)
+    if layout.end_at_rest:
+        trows.append((model.world_velocity(X[:, M]), 0.0, 0.0))
+    gt = ca.vertcat(*[r[0] for r in trows])
+    rows = [(ca.vec(X[:, 1:] - x_next), 0.0, 0.0),
+            ((S[same_i] - S[same_i - 1]).T, 0.0, 0.0), (X[:, 0] - x_start, 0.0, 0.0),
+            (gt, None, None)]
+    g = ca.vertcat(*[r[0] for r in rows])
+    lbg = np.concatenate([np.full(r[0].numel(), r[1]) for r in rows[:3]]
+                         + [np.full(r[0].numel(), r[1]) for r in trows])
+    ubg = np.concatenate([np.full(r[0].numel(), r[2]) for r in rows[:3]]
+                         + [np.full(r[0].numel(), r[2]) for r in trows])
+    f = ca.sum2(S[::N])
+    n_dyn, n_same = nx * M, len(same_i)
+    ng = g.numel()
+
+    # constraint Jacobian: blocks −J_i, identities, ±1 of the tied durations, target rows
+    jac, hess, hr, hc = interval_blocks(model, layout.substeps)
+    xn_c, J = jac.map(M)(Zb, p, 1.0 / N)
+    r_, c_, i_ = np.meshgrid(np.arange(nx), np.arange(per), np.arange(M), indexing="ij")
+    tr = [(nx * i_ + r_).ravel(order="F")]  # matches vec(J) of the mapped output
+    tc = [(per * i_ + c_).ravel(order="F")]
+    vals = [-ca.vec(J)]
+    node = np.arange(1, M + 1)[:, None] * per + (1 + nu) + np.arange(nx)[None, :]
+    node[-1] = M * per + np.arange(nx)  # x_{i+1}: the next block's state, or the last node
+    tr.append(np.arange(n_dyn)), tc.append(node.ravel())
+    tr.append(n_dyn + np.arange(n_same)), tc.append(per * same_i)
+    tr.append(n_dyn + np.arange(n_same)), tc.append(per * (same_i - 1))
+    tr.append(n_dyn + n_same + np.arange(nx)), tc.append(1 + nu + np.arange(nx))
+    consts = np.concatenate([np.ones(n_dyn), np.ones(n_same), -np.ones(n_same), np.ones(nx)])
+    vals.append(ca.DM(consts))
+    Jt = ca.jacobian(gt, W)
+    jr, jc = (np.array(a, dtype=int) for a in Jt.sparsity().get_triplet())
+    tr.append(n_dyn + n_same + nx + jr), tc.append(jc)
+    vals.append(Jt.nz[:] if Jt.nnz() else ca.MX(0, 1))
+    Jg = _assemble(ng, nw, np.concatenate(tr), np.concatenate(tc), ca.vertcat(*vals))
+    jac_g = ca.Function("nlp_jac_g", [W, P], [g, Jg], ["x", "p"], ["g", "jac_g_x"])
+
+    # Lagrangian Hessian (upper triangle): interval blocks of −lam_i·step, plus the target rows
+    lam_f = ca.MX.sym("lam_f")
+    lam_g = ca.MX.sym("lam_g", ng)
+    Hb = hess.map(M)(Zb, p, 1.0 / N, -ca.reshape(lam_g[:n_dyn], nx, M))
+    i2 = np.repeat(np.arange(M), len(hr))
+    hrow = [np.tile(hr, M) + per * i2]
+    hcol = [np.tile(hc, M) + per * i2]
+    hvals = [ca.vec(Hb)]
+    lam_t = lam_g[n_dyn + n_same + nx:]
+    Ht = ca.triu(ca.hessian(ca.dot(lam_t, gt), W)[0]) if gt.numel() else ca.MX(nw, nw)
+    if Ht.nnz():
+        a, b = (np.array(v, dtype=int) for v in Ht.sparsity().get_triplet())
+        hrow.append(a), hcol.append(b), hvals.append(Ht.nz[:])
+    H = _assemble(nw, nw, np.concatenate(hrow), np.concatenate(hcol), ca.vertcat(*hvals))
+    hess_lag = ca.Function("nlp_hess_l", [W, P, lam_f, lam_g], [H],
+                           ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
+    nlp = {"x": W, "p": P, "f": f, "g": g}
+    return nlp, lbg, ubg, {"jac_g": jac_g, "hess_lag": hess_lag}
 
 
 def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int = 1000) -> Nlp:
@@ -232,6 +380,17 @@ def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int 
     key = (model.name, layout, tol, max_iter)
     if key in _NLPS:
         return _NLPS[key]
+    if layout.method == "shooting":
+        nlp, lbg, ubg, extra = _shooting_nlp(model, layout)
+        name = f"limit_{model.name.replace('-', '_')}_{layout.n_legs}x{layout.intervals}"
+        built = Nlp(model=model, layout=layout,
+                    cold=ca.nlpsol(name, "ipopt", nlp, ipopt_options(tol, max_iter, False)
+                                   | extra),
+                    warm=ca.nlpsol(name + "_warm", "ipopt", nlp,
+                                   ipopt_options(tol, max_iter, True) | extra),
+                    lbg=lbg, ubg=ubg)
+        _NLPS[key] = built
+        return built
     L, N, M, nx, nu = layout.n_legs, layout.intervals, layout.n_intervals, model.nx, model.nu
     d = layout.n_coll
     # per interval i: its leg's duration S_i (its length is S_i / N), command, collocation

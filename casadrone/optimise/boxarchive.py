@@ -208,7 +208,12 @@ def _any_below(U: np.ndarray, targets: np.ndarray, sources: np.ndarray) -> np.nd
 
 def dominated_boxes(U: np.ndarray, changed: np.ndarray) -> np.ndarray:
     """Which columns of ``U`` (distinct boxes, one row per objective) another column dominates,
-    given that the columns not ``changed`` do not dominate each other."""
+    given that the columns not ``changed`` do not dominate each other.
+
+    The changed columns are tested against all; the others only against the changed columns
+    found undominated: following dominators down from an unchanged column ends (the order is
+    strict and finite) at an undominated column that dominates it too, and that one cannot be
+    unchanged."""
     dominated = np.zeros(U.shape[1], dtype=bool)
     moved, still = np.flatnonzero(changed), np.flatnonzero(~changed)
     if 2 * len(moved) > U.shape[1]:  # one pass over all pairs is cheaper than two
@@ -216,8 +221,9 @@ def dominated_boxes(U: np.ndarray, changed: np.ndarray) -> np.ndarray:
         return _any_below(U, everyone, everyone)
     if len(moved):
         dominated[moved] = _any_below(U, moved, np.arange(U.shape[1]))
-        if len(still):
-            dominated[still] = _any_below(U, still, moved)
+        minimal = moved[~dominated[moved]]
+        if len(still) and len(minimal):  # a dominated column has a minimal moved dominator
+            dominated[still] = _any_below(U, still, minimal)
     return dominated
 
 
@@ -399,6 +405,62 @@ class BoxArchive:
             self.set_grid(both.min(axis=0), both.max(axis=0))
             self._rebuild(changed_only=True)
             self.insert(row)
+
+    def offer_many(self, rows: Mapping[str, np.ndarray]) -> None:
+        """Offer feasible children (``rows[k]``: 2-D arrays, one row per child) in order: the
+        same archive as :meth:`offer` on each in turn.
+
+        Children strictly inside the grid (``min < f < max`` in every objective) do not move it,
+        and inserting a run of them on a fixed grid is the re-insertion :meth:`_rebuild` makes
+        (the module docstring's characterisation holds for any items in any order: cases 1, 2
+        and 4 depend on boxes only, so the surviving boxes are the minimal boxes of the members
+        and the children, in the order of their first item, each holding the case-3 fold over
+        its items in order). So each run of at least :attr:`BATCH` such children is appended
+        and settled by one vectorised rebuild in which only the children's boxes are new; the
+        others are offered one at a time.
+        """
+        F = np.asarray(rows["F"], dtype=float)
+        n, i = len(F), 0
+        while i < n:
+            if self.grid_min is None or self._n == 0:
+                self.offer({k: v[i] for k, v in rows.items()})
+                i += 1
+                continue
+            rest = F[i:]
+            inside = np.ones(len(rest), dtype=bool)
+            for j in range(rest.shape[1]):
+                inside &= (rest[:, j] < self.grid_max[j]) & (rest[:, j] > self.grid_min[j])
+            end = i + (int(inside.argmin()) if not inside.all() else len(rest))
+            if end - i >= self.BATCH:
+                self._insert_batch({k: v[i:end] for k, v in rows.items()})
+            else:
+                for c in range(i, end):
+                    self.insert({k: v[c] for k, v in rows.items()})
+            if end < n:  # a child on or outside the grid's edge: the sequential rules
+                self.offer({k: v[end] for k, v in rows.items()})
+            i = end + 1
+
+    #: Shortest run of children inside the grid that :meth:`offer_many` inserts in one pass.
+    BATCH = 24
+
+    def _insert_batch(self, rows: Mapping[str, np.ndarray]) -> None:
+        """Insert children (2-D rows) in order on the current grid, which none of them moves:
+        appended with an impossible box (-1), so the rebuild compares only pairs with a child."""
+        k, n = len(rows["F"]), self._n
+        need = n + k
+        if need > self._box.shape[1]:
+            cap = max(16, 2 * need)
+            self._rows = {key: np.concatenate([v[:n], np.empty((cap - n, v.shape[1]))])
+                          for key, v in self._rows.items()}
+            self._box = np.concatenate([self._box[:, :n],
+                                        np.empty((self._box.shape[0], cap - n), np.int64)],
+                                       axis=1)
+        for key, v in self._rows.items():
+            v[n:need] = np.asarray(rows[key], dtype=float).reshape(k, v.shape[1])
+        self._box[:, n:need] = -1
+        self._n = need
+        self._packed = None
+        self._rebuild(changed_only=True)
 
     def insert(self, row: Mapping[str, np.ndarray]) -> bool:
         """Insert with the current grid (EVMOGA.md cases 1-4); return whether the child entered."""

@@ -388,8 +388,8 @@ class EvMOGA(Algorithm):
     def _advance(self, infills=None, **kwargs) -> None:
         F, cv = _violation(infills)
         rows = self._rows_of_children(infills)
-        for i in np.flatnonzero(cv <= 0.0):
-            self.box_archive.offer({k: v[i] for k, v in rows.items()})
+        feasible = np.flatnonzero(cv <= 0.0)
+        self.box_archive.offer_many({k: v[feasible] for k, v in rows.items()})
         for j, i in replacements(self.pop_F, self.pop_cv, F, cv, self.random_state).items():
             self.pop[j] = infills[i]
             self.pop_F[j], self.pop_cv[j] = F[i], cv[i]

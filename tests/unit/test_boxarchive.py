@@ -325,6 +325,47 @@ def test_fill_equals_sequential_inserts_on_large_fronts():
     assert contests > 300  # many boxes held several points: the case-3 fold ran
 
 
+@pytest.mark.parametrize("seeds", [
+    range(0, 60),
+    pytest.param(range(60, 600), marks=pytest.mark.slow),
+])
+def test_offer_many_equals_offering_each_child_in_turn(seeds):
+    """Offering a generation's children at once (runs inside the grid inserted by one
+    vectorised rebuild, runs as short as one child) ends, after each batch, with the archive
+    the sequential oracle reaches offering them one by one: rows bit for bit, order, boxes and
+    grid. Batches start from a filled archive or an empty one, and mix grid moves, children
+    dominating everything, duplicates, ties, constant objectives and large fronts."""
+    calls: list[int] = []
+    for seed in seeds:
+        rng = np.random.default_rng(5000 + seed)
+        m = int(rng.integers(2, 7))
+        n_div = (rng.integers(2, 14, size=m) if rng.random() < 0.5
+                 else np.full(m, rng.integers(2, 60)))
+        widths = {**WIDTHS, "F": m}
+        fast, slow = BoxArchive(n_div, widths), SequentialArchive(n_div, widths)
+        fast.BATCH = int(rng.choice([1, 2, 5, 24]))
+        fast._insert_batch = lambda rows, a=fast: (calls.append(len(rows["F"])),
+                                                   BoxArchive._insert_batch(a, rows))
+        if rng.random() < 0.7:
+            P = random_front(rng, int(rng.integers(1, 300)), m)
+            nd = np.sort(NonDominatedSorting().do(P, only_non_dominated_front=True))
+            rows = {k: v[nd] for k, v in rows_of(P, rng).items()}
+            for a in (fast, slow):
+                a.set_grid(rows["F"].min(axis=0), rows["F"].max(axis=0))
+                a.fill(rows)
+        for batch in range(int(rng.integers(1, 5))):
+            if rng.random() < 0.5:
+                F = child_stream(rng, int(rng.integers(1, 200)), m)
+            else:  # mostly inside the grid: long runs
+                F = random_front(rng, int(rng.integers(1, 400)), m) * rng.uniform(0.95, 1.1)
+            rows = rows_of(F, rng)
+            fast.offer_many(rows)
+            for i in range(len(F)):
+                slow.offer({k: v[i] for k, v in rows.items()})
+            assert_same(fast, slow, f"seed {seed}, m {m}, batch {batch}")
+    assert sum(calls) > 20 * len(seeds)  # most children went through the vectorised path
+
+
 def test_dominated_boxes_against_brute_force():
     for seed in range(150):
         rng = np.random.default_rng(seed)

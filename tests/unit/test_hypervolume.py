@@ -55,3 +55,44 @@ def test_raw_space_for_test_problems():
     np.testing.assert_array_equal(state.space.ideal, [0, 0])
     np.testing.assert_array_equal(state.space.nadir, [1, 1])
     assert hv == pytest.approx(0.21, abs=1e-12)
+
+
+def test_dominated_by_equals_brute_force():
+    """The bitset test equals the definition (some z <= s in every objective), with exact ties,
+    samples equal to points, more than 64 points (several words) and no points or samples."""
+    from casadrone.optimise.hypervolume import dominated_by
+
+    rng = np.random.default_rng(0)
+    sizes = [(0, 10), (10, 0), (1, 1), (64, 500), (65, 500), (300, 3000)]
+    for t in range(120):
+        m = int(rng.integers(1, 7))
+        n, ns = sizes[t] if t < len(sizes) else (int(rng.integers(0, 300)),
+                                                int(rng.integers(0, 2000)))
+        Z = rng.random((n, m)) * 1.2 - 0.1
+        S = rng.random((ns, m)) * 1.1
+        if t % 2:  # coarse values: many exact ties between points and samples
+            Z, S = np.round(Z, 1), np.round(S, 1)
+        k = min(n, ns) // 3
+        S[:k] = Z[:k]  # a point weakly dominates itself
+        brute = (Z[None, :, :] <= S[:, None, :]).all(axis=2).any(axis=1) if n else \
+            np.zeros(ns, dtype=bool)
+        np.testing.assert_array_equal(dominated_by(Z, S), brute, err_msg=str((t, m, n, ns)))
+        assert brute[:k].all()
+
+
+def test_estimate_from_four_objectives_against_a_monte_carlo_oracle():
+    """From four objectives the value is the fraction of the fixed samples some evaluation so
+    far dominates, kept generation by generation: equal to that fraction computed at once."""
+    from casadrone.optimise.hypervolume import HV_SAMPLES, REFERENCE, samples
+
+    rng = np.random.default_rng(5)
+    state, seen = None, []
+    for _ in range(6):
+        F = rng.random((200, 4))
+        state, hv = advance(state, F)
+        seen.append(F)
+    Z = state.space.normalise(np.vstack(seen))
+    S = samples(4)
+    frac = (Z[None, :, :] <= S[:, None, :]).all(axis=2).any(axis=1).mean()
+    assert hv == REFERENCE ** 4 * frac
+    assert 0 < frac < 1 and HV_SAMPLES == len(S)

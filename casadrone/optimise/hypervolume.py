@@ -29,6 +29,8 @@ from functools import cache
 
 import numpy as np
 
+from casadrone.optimise.bitsets import points_below
+
 #: Objectives up to which the hypervolume is exact.
 EXACT_MAX_OBJECTIVES = 3
 #: Fixed sample points of the estimate used from four objectives on.
@@ -54,32 +56,10 @@ def samples(n_obj: int, n_samples: int = HV_SAMPLES) -> np.ndarray:
 
 
 def dominated_by(Z: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """Which rows of ``S`` some row of ``Z`` weakly dominates (minimised).
-
-    As bitsets over the rows of ``Z`` (64 per machine word): per objective, the rows of ``Z``
-    sorted by that objective, and for each prefix of them the set they form; a row of ``S`` is
-    dominated when the sets of the ``Z`` at or below it in every objective (one prefix each,
-    found by binary search) intersect. O(|S| · m · |Z| / 64) word operations, exact."""
-    Z, S = np.asarray(Z, float), np.asarray(S, float)
-    if len(Z) == 0 or len(S) == 0:
-        return np.zeros(len(S), dtype=bool)
-    n, words = len(Z), -(-len(Z) // 64)
-    bits = np.left_shift(np.uint64(1), (np.arange(n) & 63).astype(np.uint64))
-    tables, values = [], []
-    for j in range(Z.shape[1]):
-        order = np.argsort(Z[:, j], kind="stable")
-        table = np.zeros((n + 1, words), dtype=np.uint64)  # row r: the r lowest in objective j
-        table[np.arange(1, n + 1), order >> 6] = bits[order]
-        tables.append(np.bitwise_or.accumulate(table, axis=0))
-        values.append(Z[order, j])
-    hit = np.empty(len(S), dtype=bool)
-    for lo in range(0, len(S), 1024):
-        block = S[lo:lo + 1024]
-        acc = tables[0][np.searchsorted(values[0], block[:, 0], side="right")]
-        for j in range(1, len(tables)):
-            acc &= tables[j][np.searchsorted(values[j], block[:, j], side="right")]
-        hit[lo:lo + 1024] = acc.any(axis=1)
-    return hit
+    """Which rows of ``S`` some row of ``Z`` weakly dominates (minimised): as bitsets over
+    ``Z`` (:func:`casadrone.optimise.bitsets.points_below`), O(|S| · m · |Z| / 64) word
+    operations."""
+    return points_below(S, Z).any(axis=1)
 
 
 @dataclass(frozen=True)

@@ -30,11 +30,12 @@ import numpy as np
 
 from casadrone.optimise.algorithms import seeded_defaults
 from casadrone.optimise.backends import make_backend
+from casadrone.optimise.checkpoint import dumps
 from casadrone.optimise.hypervolume import HypervolumeState, advance
 from casadrone.optimise.mainguard import unguarded_main_call, unguarded_message
 from casadrone.optimise.problem import CandidateProblem, Record, Study, objectives_and_constraints
 from casadrone.optimise.store import RunDamaged, RunStore, now
-from casadrone.optimise.timings import append_timings
+from casadrone.optimise.writer import GenerationWriter
 from casadrone.problemconfig import BackendConfig, ProblemConfig
 
 
@@ -245,8 +246,30 @@ def _marker(t: list[float], cpu: list[float]) -> Callable[[], None]:
     return mark
 
 
+#: Write each generation's history, checkpoint and timings row in the background, behind the next
+#: generation's evaluation (:mod:`casadrone.optimise.writer`); False writes them in turn.
+BACKGROUND_WRITES = True
+
+
 def _generations(store, algorithm, study, problem, elapsed0, progress, stop_after,
                  hv) -> RunResult:
+    writer = GenerationWriter(store, background=BACKGROUND_WRITES)
+    try:
+        result = _generation_loop(store, writer, algorithm, study, problem, elapsed0, progress,
+                                  stop_after, hv)
+    except BaseException:
+        writer.close(raise_errors=False)  # the lock is released after the writes in flight
+        raise
+    writer.close()
+    if not algorithm.has_next():  # every generation is stored: the run is complete
+        store.write_pareto(study.variable_names, study.objective_names, result.X, result.F)
+        store.update_manifest(finished=now(), status="completed",
+                              n_evaluations=int(algorithm.evaluator.n_eval))
+    return result
+
+
+def _generation_loop(store, writer, algorithm, study, problem, elapsed0, progress, stop_after,
+                     hv) -> RunResult:
     start = time.perf_counter()
     steps = 0
     while algorithm.has_next():
@@ -278,15 +301,15 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
             "elapsed_s": elapsed0 + time.perf_counter() - start,
         }
         mark()
-        store.write_generation(gen, records, stats)
+        writer.wait()  # the previous generation's writes (usually long done)
         problem.last_records = []
         mark()
-        store.save_checkpoint({"algorithm": algorithm, "elapsed_s": stats["elapsed_s"],
-                               "generation": gen, "hypervolume_state": hv})
+        checkpoint = dumps({"algorithm": algorithm, "elapsed_s": stats["elapsed_s"],
+                            "generation": gen, "hypervolume_state": hv})
         mark()
         step = dict(zip(("ask_s", "evaluate_s", "advance_s", "statistics_s", "history_s",
                          "checkpoint_s"), np.diff(t).tolist(), strict=True))
-        append_timings(store.path, {
+        writer.submit(gen, records, stats, checkpoint, {
             "generation": gen, "n_evaluations": stats["n_evaluations"],
             "archive_size": stats["archive_size"], **step, "wall_s": t[-1] - t[0],
             "cpu_s": cpu[-1] - cpu[0], "coordinator_s": t[-1] - t[0] - step["evaluate_s"],
@@ -297,10 +320,6 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
         if stop_after is not None and steps >= stop_after:
             break
     X, F = front(algorithm, study)
-    if not algorithm.has_next():
-        store.write_pareto(study.variable_names, study.objective_names, X, F)
-        store.update_manifest(finished=now(), status="completed",
-                              n_evaluations=int(algorithm.evaluator.n_eval))
     return RunResult(path=store.path, variable_names=study.variable_names,
                      objective_names=study.objective_names, X=X, F=F,
                      n_evaluations=int(algorithm.evaluator.n_eval),

@@ -340,7 +340,11 @@ class RunStore:
         as ``checkpoint.prev.pkl``."""
         from casadrone.optimise.checkpoint import dumps
 
-        data = dumps(state)
+        self.write_checkpoint(dumps(state))
+
+    def write_checkpoint(self, data: bytes) -> None:
+        """Replace the checkpoint by ``data`` (a pickled run state) atomically, keeping the one
+        before as ``checkpoint.prev.pkl``."""
         tmp = self.path / f".{CHECKPOINT}.{os.getpid()}.tmp"
         with open(tmp, "wb") as fh:
             fh.write(data)

@@ -11,9 +11,15 @@ Columns (seconds unless named otherwise):
 - ``evaluate_s``: evaluating them on the backend (the parallel part);
 - ``advance_s``: the algorithm's update (ev-MOGA: archive and P);
 - ``statistics_s``: the progress statistics (front, hypervolume);
-- ``history_s``: writing the generation to ``history.sqlite``;
-- ``checkpoint_s``: pickling and writing the checkpoint;
-- ``wall_s``: the whole generation (the progress line after it is not included);
+- ``history_s``: waiting for the writes of the generation's files (``history.sqlite``, the
+  checkpoint, this row): they run in the background behind the next generation's evaluation
+  (:mod:`casadrone.optimise.writer`), so this is the wait for the previous generation's, usually
+  0; with ``runner.BACKGROUND_WRITES`` off, the writes of this generation;
+- ``checkpoint_s``: pickling the algorithm for the checkpoint;
+- ``write_s``: the seconds the writes of the generation's history and checkpoint took (in the
+  background they overlap the next generation, and their CPU time falls in its evaluation step);
+- ``wall_s``: the whole generation until its files are handed to the writer (the progress line
+  after it is not included);
 - ``cpu_s``: CPU time of the coordinating process over the generation (with the serial backend it
   includes the evaluations);
 - ``coordinator_s``: ``wall_s - evaluate_s``;
@@ -23,18 +29,33 @@ Columns (seconds unless named otherwise):
 from __future__ import annotations
 
 import csv
+import os
 from pathlib import Path
 
 TIMINGS = "timings.csv"
 FIELDS = ("generation", "n_evaluations", "archive_size", "ask_s", "evaluate_s", "advance_s",
           "statistics_s", "history_s", "checkpoint_s", "wall_s", "cpu_s", "coordinator_s",
-          "coordinator_cpu_s", "finished")
+          "coordinator_cpu_s", "finished", "write_s")
 
 
 def append_timings(run_dir: Path, row: dict) -> None:
-    """Append one generation's row (keys of ``FIELDS``) to the run's ``timings.csv``."""
+    """Append one generation's row (keys of ``FIELDS``) to the run's ``timings.csv``. A file
+    with other columns (a run started by an older casadrone) is first rewritten with these, the
+    missing ones left empty."""
     path = Path(run_dir) / TIMINGS
     new = not path.exists()
+    if not new:
+        with open(path, newline="") as fh:
+            header = next(csv.reader(fh), None)
+        if header != list(FIELDS):
+            with open(path, newline="") as fh:
+                old = list(csv.DictReader(fh))
+            tmp = path.with_name(f".{TIMINGS}.tmp")
+            with open(tmp, "w", newline="") as fh:
+                writer = csv.DictWriter(fh, fieldnames=FIELDS, extrasaction="ignore")
+                writer.writeheader()
+                writer.writerows(old)
+            os.replace(tmp, path)
     with open(path, "a", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=FIELDS)
         if new:

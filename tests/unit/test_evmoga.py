@@ -439,3 +439,74 @@ def test_make_algorithm():
         assert make_algorithm(name, pop_size=20, n_obj=2) is not None
     with pytest.raises(ValueError, match="nsga2"):
         make_algorithm("nsga-17")
+
+
+def test_rows_read_from_individuals_equal_pymoos_get():
+    """The rows ev-MOGA reads from a population (attributes, not ``Population.get``) are pymoo's
+    values bit for bit: constrained problem (CV computed on demand), and one without
+    constraints (empty G and H)."""
+    from pymoo.core.evaluator import Evaluator
+    from pymoo.core.population import Population
+
+    from casadrone.optimise.evmoga import _rows, _violation
+
+    for name, kwargs in (("bnh", {}), ("zdt2", {"n_var": 5})):
+        problem = get_problem(name, **kwargs)
+        rng = np.random.default_rng(1)
+        X = problem.xl + rng.random((37, problem.n_var)) * (problem.xu - problem.xl)
+        pop = Evaluator().eval(problem, Population.new("X", X))
+        widths = {"X": problem.n_var, "F": problem.n_obj, "G": problem.n_ieq_constr,
+                  "H": problem.n_eq_constr, "CV": 1}
+        rows = _rows(pop, widths)  # CV computed here, as pop.get would
+        for key, width in widths.items():
+            expected = np.asarray(pop.get(key), dtype=float).reshape(len(pop), width)
+            assert rows[key].shape == expected.shape
+            assert rows[key].tobytes() == expected.tobytes(), (name, key)
+        F, cv = _violation(pop)
+        assert F.tobytes() == rows["F"].tobytes() and cv.tobytes() == rows["CV"][:, 0].tobytes()
+
+
+def test_population_of_rows_is_what_population_new_built():
+    from pymoo.core.population import Population
+
+    from casadrone.optimise.evmoga import ROW_KEYS, _population_of_rows
+
+    rng = np.random.default_rng(2)
+    rows = {"X": rng.random((9, 3)), "F": rng.random((9, 2)), "G": rng.random((9, 1)) - 0.5,
+            "H": np.empty((9, 0)), "CV": rng.random((9, 1))}
+    built = _population_of_rows(rows)
+    old = Population.new(*[a for k in ROW_KEYS for a in (k, rows[k])])
+    assert type(built) is Population and len(built) == len(old) == 9
+    for a, b in zip(built, old, strict=True):
+        for key in ROW_KEYS:
+            assert a.get(key).tobytes() == b.get(key).tobytes()
+            assert a.get(key).shape == b.get(key).shape
+        assert a.evaluated == {"F", "G", "H"}
+    rows["X"][0, 0] = 99.0  # the members own their values
+    assert built[0].X[0] != 99.0
+
+
+def test_checkpoint_stores_the_archive_once_and_resumes_its_optimum():
+    """After a generation the optimum is the archive: pickled once, the optimum comes back equal;
+    an optimum that differs from the archive (the archive edited since) is pickled as it is."""
+    problem = get_problem("dtlz2", n_var=6, n_obj=3)
+    alg = EvMOGA(n_ind_p=60, n_ind_ga=40, n_div=15, generations=30)
+    alg.setup(problem, seed=4)
+    for _ in range(12):
+        alg.next()
+    n = len(alg.box_archive)
+    assert n > 40
+    archive_bytes = sum(v.nbytes for v in alg.box_archive.rows.values())
+    blob = pickle.dumps(alg)
+    back = pickle.loads(blob)
+    assert len(blob) < 1.5 * archive_bytes + 20_000  # not twice the archive
+    for key in ("X", "F", "CV"):
+        assert back.opt.get(key).tobytes() == alg.opt.get(key).tobytes()
+    assert back._opt_rows["F"] is not back.box_archive.rows["F"]  # its own copy
+    # the archive moves on after the optimum was set: both are pickled as they are
+    alg.box_archive.offer({k: v[0] for k, v in alg.box_archive.rows.items()}
+                          | {"F": alg.grid_min - 1.0})  # dominates all: A = {it}
+    assert len(alg.box_archive) == 1
+    back = pickle.loads(pickle.dumps(alg))
+    assert len(back.opt) == n and len(back.box_archive) == 1
+    assert back.opt.get("F").tobytes() == alg.opt.get("F").tobytes()

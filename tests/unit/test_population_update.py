@@ -96,3 +96,21 @@ def test_dominance_matrix_equals_the_row_rule(seed):
                          for f, v in zip(A_F, A_cv, strict=True)])
         np.testing.assert_array_equal(D, rows)
         assert D.any() and not D.all()
+
+
+def test_dominance_matrix_equals_the_row_rule_on_large_sets():
+    """Hundreds of columns (several 64-bit words), ties, duplicates, infeasible columns with NaN
+    objectives, and feasible non-finite objectives (the pairwise path)."""
+    rng = np.random.default_rng(7)
+    for t in range(30):
+        m = int(rng.integers(2, 7))
+        A_F, A_cv = random_solutions(rng, int(rng.integers(1, 300)), m, int(rng.integers(2, 9)))
+        B_F, B_cv = random_solutions(rng, int(rng.integers(1, 400)), m, int(rng.integers(2, 9)),
+                                     pool=(A_F, A_cv))
+        if t % 5 == 0:  # a feasible row or column with an infinite objective
+            A_F[0, 0], A_cv[0] = -np.inf, 0.0
+            B_F[-1, -1], B_cv[-1] = np.inf, 0.0
+        D = constrained_dominance_matrix(A_F, A_cv, B_F, B_cv)
+        rows = np.array([constrained_dominates(f, v, B_F, B_cv)
+                         for f, v in zip(A_F, A_cv, strict=True)])
+        np.testing.assert_array_equal(D, rows, err_msg=str(t))

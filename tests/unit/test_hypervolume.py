@@ -96,3 +96,30 @@ def test_estimate_from_four_objectives_against_a_monte_carlo_oracle():
     frac = (Z[None, :, :] <= S[:, None, :]).all(axis=2).any(axis=1).mean()
     assert hv == REFERENCE ** 4 * frac
     assert 0 < frac < 1 and HV_SAMPLES == len(S)
+
+
+def test_front_union_equals_recomputing_the_front_bit_for_bit():
+    """Kept generation by generation (2 and 3 objectives: ties, duplicates of old and new
+    points, new points dominating old ones, none at all), the front equals the front of all
+    points so far computed at once: same rows in the same order."""
+    from casadrone.optimise.hypervolume import front_union
+
+    rng = np.random.default_rng(3)
+    changed = 0
+    for t in range(60):
+        m = int(rng.integers(2, 4))
+        seen, front = np.empty((0, m)), np.empty((0, m))
+        for g in range(int(rng.integers(1, 12))):
+            F = rng.random((int(rng.integers(0, 150)), m)) * rng.uniform(0.7, 1.3)
+            if t % 2:
+                F = np.round(F, 1)  # exact ties
+            if len(front) and len(F) and g % 3 == 0:  # old front points again
+                k = min(len(front), len(F)) // 2
+                F[:k] = front[rng.integers(len(front), size=k)]
+            seen = np.vstack([seen, F])
+            before = front
+            front = front_union(front, F)
+            expected = non_dominated(seen) if len(seen) else seen
+            assert front.shape == expected.shape and front.tobytes() == expected.tobytes()
+            changed += len(before) and not np.array_equal(before, front)
+    assert changed > 50  # old fronts lost and gained members

@@ -20,16 +20,26 @@ A short validation run (3 generations per problem):
 Options: ``--problems`` (default paper-run1 paper-run2), ``--generations`` (override
 ``algorithm.generations``; the report says so), ``--workers`` and ``--backend`` (default
 processes; the evaluation backend), ``--report-only`` (only rebuild the results file from the
-run directories), ``--out``. Targets (issue 10) on 2 cores: ≤ 20 min per paper run, coordinator
-≤ 10 % of the wall time at the end of the run.
+run directories), ``--reference DIR`` (compare each run's ``pareto.csv`` byte for byte with
+``DIR/<problem>/pareto.csv``), ``--out``. Targets (issue 10) on 2 cores: ≤ 20 min per paper
+run, coordinator ≤ 10 % of the wall time at the end of the run.
+
+While a run goes, the machine's 1-minute load average is sampled every 10 s into
+``RUN_DIR/load.csv`` (the coordinator shares its 2 cores with the workers and with anyone else:
+a load above 2 means the measured times are inflated), and the report gives its range.
+The history, checkpoint and timings row of each generation are written in the background behind
+the next generation's evaluation (``casadrone/optimise/writer.py``): the coordinator's
+"history" step is its wait for them, and the seconds the writes took are reported apart.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -58,8 +68,37 @@ def run_or_resume(problem: str, run_dir: Path, generations: int | None, backend:
         cmd = [*CLI, "run", problem, *overrides, "--out", str(run_dir), *backend_args]
     print(" ".join(cmd[3:]), file=sys.stderr, flush=True)
     start = time.perf_counter()
-    subprocess.run(cmd, check=True)
+    done = threading.Event()
+    sampler = threading.Thread(target=sample_load, args=(run_dir, done), daemon=True)
+    sampler.start()
+    try:
+        subprocess.run(cmd, check=True)
+    finally:
+        done.set()
+        sampler.join()
     return time.perf_counter() - start
+
+
+def sample_load(run_dir: Path, done: threading.Event, every_s: float = 10.0) -> None:
+    """Append the 1-minute load average to ``run_dir/load.csv`` every ``every_s`` until
+    ``done``."""
+    while not done.wait(every_s):
+        if run_dir.is_dir():
+            with open(run_dir / "load.csv", "a") as fh:
+                fh.write(f"{time.strftime('%H:%M:%S', time.gmtime())},{os.getloadavg()[0]:.2f}\n")
+
+
+def load_range(run_dir: Path) -> str:
+    """The sampled load of the run's sessions: min, mean and max of the 1-minute average."""
+    try:
+        loads = [float(line.split(",")[1]) for line in
+                 (run_dir / "load.csv").read_text().splitlines() if line]
+    except (OSError, IndexError, ValueError):
+        return "not sampled"
+    if not loads:
+        return "not sampled"
+    return (f"1-minute load average during the run: min {min(loads):.2f}, mean "
+            f"{sum(loads) / len(loads):.2f}, max {max(loads):.2f} ({len(loads)} samples, 2 cores)")
 
 
 def summary(run_dir: Path) -> list[str]:
@@ -74,8 +113,11 @@ def summary(run_dir: Path) -> list[str]:
         return [f"## {problem.name}", "", f"`{run_dir}`: no generation stored yet.", ""]
     total = {k: sum(r[k] for r in rows) for k in ("wall_s", "evaluate_s", "coordinator_s",
                                                    "coordinator_cpu_s", *COORDINATOR)}
+    writes = [r["write_s"] for r in rows if r.get("write_s") is not None]
     tail = rows[-10:]
     end_share = sum(r["coordinator_s"] for r in tail) / sum(r["wall_s"] for r in tail)
+    mean = {k: sum(r[k] for r in tail) / len(tail)
+            for k in ("evaluate_s", "wall_s", "coordinator_s", *COORDINATOR)}
     evals = rows[-1]["n_evaluations"]
     a = problem.algorithm
     lines = [
@@ -97,6 +139,15 @@ def summary(run_dir: Path) -> list[str]:
         "at the end)",
         "- coordinator time by step (s, summed): "
         + ", ".join(f"{k[:-2]} {total[k]:.1f}" for k in COORDINATOR),
+        f"- last {len(tail)} generations, mean per generation (ms): evaluate "
+        f"{1e3 * mean['evaluate_s']:.0f}, coordinator {1e3 * mean['coordinator_s']:.1f} ("
+        + ", ".join(f"{k[:-2]} {1e3 * mean[k]:.1f}" for k in COORDINATOR)
+        + f"), wall {1e3 * mean['wall_s']:.0f}",
+        (f"- background writes (history, checkpoint; behind the next evaluation): "
+         f"{sum(writes):.1f} s over {len(writes)} generations, mean "
+         f"{1e3 * sum(writes) / len(writes):.1f} ms, max {1e3 * max(writes):.1f} ms"
+         if writes else "- background writes: none recorded (a run before they existed)"),
+        f"- {load_range(run_dir)}",
         f"- archive at the end: {rows[-1]['archive_size']} members",
         "",
         "| generation | archive | evaluate (s) | coordinator (s) | of which advance | statistics "
@@ -115,6 +166,16 @@ def summary(run_dir: Path) -> list[str]:
     return lines
 
 
+def same_front(run_dir: Path, reference: Path) -> str:
+    """Whether the run's pareto.csv equals the reference run's, byte for byte."""
+    try:
+        same = (run_dir / "pareto.csv").read_bytes() == (reference / "pareto.csv").read_bytes()
+    except OSError as exc:
+        return f"- pareto.csv against `{reference}`: not compared ({exc.strerror})"
+    return (f"- pareto.csv against `{reference / 'pareto.csv'}`: "
+            + ("identical, byte for byte" if same else "**DIFFERENT**"))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run-root", type=Path, default=Path("runs/paper-scale"))
@@ -124,6 +185,8 @@ def main() -> None:
     parser.add_argument("--backend", default="processes", choices=["serial", "processes", "dask"])
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--report-only", action="store_true")
+    parser.add_argument("--reference", type=Path, default=None,
+                        help="compare each pareto.csv with REFERENCE/<problem>/pareto.csv")
     parser.add_argument("--out", type=Path, default=HERE / "RESULTS-paper-scale.md")
     args = parser.parse_args()
 
@@ -132,7 +195,8 @@ def main() -> None:
     command = " ".join(["python benchmarks/bench_paper_scale.py", "--run-root",
                         str(args.run_root), "--workers", str(args.workers), "--backend",
                         args.backend] + ([] if args.generations is None
-                                         else ["--generations", str(args.generations)]))
+                                         else ["--generations", str(args.generations)])
+                       + ([] if args.reference is None else ["--reference", str(args.reference)]))
     sessions = []
     for problem in args.problems:
         run_dir = args.run_root / problem
@@ -157,6 +221,8 @@ def main() -> None:
         run_dir = args.run_root / problem
         if (run_dir / "manifest.json").exists():
             lines += summary(run_dir)
+            if args.reference is not None:
+                lines[-1:-1] = ["", same_front(run_dir, args.reference / problem)]
         else:
             lines += [f"## {problem}", "", f"`{run_dir}`: not run yet.", ""]
     text = "\n".join(lines)

@@ -4,7 +4,10 @@ The archive keeps its members as row-aligned arrays (``rows``: ``"X"``, ``"F"``,
 one length; ``F`` holds the minimised objectives) and their box indices ``box`` on the current
 grid (``grid_min``, ``grid_max``, ``eps``). Children are offered one at a time (:meth:`offer`),
 exactly as the sequential rules of ``EVMOGA.md`` say, and each step is vectorised over the
-archive: its cost is O(|A| m) numpy work, never a Python loop over the members.
+archive: its cost is O(|A| m) numpy work, never a Python loop over the members. A generation's
+children are offered together (:meth:`offer_many`): each run of them inside the grid, which none
+of them can move, is settled by one vectorised re-insertion (below) instead of one insert each,
+with the same result.
 
 When a child moves the grid, EVMOGA.md rebuilds A by re-inserting its members one at a time on the
 new grid. :meth:`fill` gives the same result in one vectorised pass, from this characterisation of
@@ -21,8 +24,9 @@ per machine word). Boxes are stored one row per objective, and also packed one i
 tests "member box <= child box" (and ">=") against the whole archive with one subtraction instead
 of m comparisons.
 
-A property test (``tests/unit/test_boxarchive.py``) checks every step against the sequential
-implementation this module replaced, on random streams of 2 to 6 objectives.
+A property test (``tests/unit/test_boxarchive.py``) checks every step, and every batch of
+:meth:`offer_many`, against the sequential implementation this module replaced, on random streams
+of 2 to 6 objectives.
 """
 
 from __future__ import annotations

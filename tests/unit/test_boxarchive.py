@@ -230,6 +230,25 @@ def rows_of(F: np.ndarray, rng: np.random.Generator, n_var: int = 3) -> dict[str
 WIDTHS = {"X": 3, "F": None, "G": 1, "H": 0, "CV": 1}
 
 
+def archive_pair(rng: np.random.Generator, most_div: int) -> tuple[int, BoxArchive,
+                                                                   SequentialArchive]:
+    """2 to 6 objectives, divisions per objective or one for all; both archives, empty."""
+    m = int(rng.integers(2, 7))
+    n_div = (rng.integers(2, 14, size=m) if rng.random() < 0.5
+             else np.full(m, rng.integers(2, most_div)))
+    widths = {**WIDTHS, "F": m}
+    return m, BoxArchive(n_div, widths), SequentialArchive(n_div, widths)
+
+
+def fill_from(P: np.ndarray, rng: np.random.Generator, *archives) -> None:
+    """Start like ev-MOGA: P's non-dominated front on its own grid."""
+    nd = np.sort(NonDominatedSorting().do(P, only_non_dominated_front=True))
+    rows = {k: v[nd] for k, v in rows_of(P, rng).items()}
+    for a in archives:
+        a.set_grid(rows["F"].min(axis=0), rows["F"].max(axis=0))
+        a.fill(rows)
+
+
 def assert_same(fast: BoxArchive, slow: SequentialArchive, where: str) -> None:
     assert len(fast) == len(slow), where
     for k in KEYS:
@@ -249,18 +268,9 @@ def test_random_streams_equal_the_sequential_archive(seeds):
     n_children = 0
     for seed in seeds:
         rng = np.random.default_rng(seed)
-        m = int(rng.integers(2, 7))
-        n_div = (rng.integers(2, 14, size=m) if rng.random() < 0.5
-                 else np.full(m, rng.integers(2, 30)))
-        widths = {**WIDTHS, "F": m}
-        fast, slow = BoxArchive(n_div, widths), SequentialArchive(n_div, widths)
-        if rng.random() < 0.7:  # start like ev-MOGA: P's non-dominated front on its own grid
-            P = child_stream(rng, int(rng.integers(1, 60)), m)
-            nd = np.sort(NonDominatedSorting().do(P, only_non_dominated_front=True))
-            rows = {k: v[nd] for k, v in rows_of(P, rng).items()}
-            for a in (fast, slow):
-                a.set_grid(rows["F"].min(axis=0), rows["F"].max(axis=0))
-                a.fill(rows)
+        m, fast, slow = archive_pair(rng, 30)
+        if rng.random() < 0.7:
+            fill_from(child_stream(rng, int(rng.integers(1, 60)), m), rng, fast, slow)
             assert_same(fast, slow, f"seed {seed}, initial fill")
         F = child_stream(rng, int(rng.integers(50, 250)), m)
         rows = rows_of(F, rng)
@@ -338,21 +348,12 @@ def test_offer_many_equals_offering_each_child_in_turn(seeds):
     calls: list[int] = []
     for seed in seeds:
         rng = np.random.default_rng(5000 + seed)
-        m = int(rng.integers(2, 7))
-        n_div = (rng.integers(2, 14, size=m) if rng.random() < 0.5
-                 else np.full(m, rng.integers(2, 60)))
-        widths = {**WIDTHS, "F": m}
-        fast, slow = BoxArchive(n_div, widths), SequentialArchive(n_div, widths)
+        m, fast, slow = archive_pair(rng, 60)
         fast.BATCH = int(rng.choice([1, 2, 5, 24]))
         fast._insert_batch = lambda rows, a=fast: (calls.append(len(rows["F"])),
                                                    BoxArchive._insert_batch(a, rows))
         if rng.random() < 0.7:
-            P = random_front(rng, int(rng.integers(1, 300)), m)
-            nd = np.sort(NonDominatedSorting().do(P, only_non_dominated_front=True))
-            rows = {k: v[nd] for k, v in rows_of(P, rng).items()}
-            for a in (fast, slow):
-                a.set_grid(rows["F"].min(axis=0), rows["F"].max(axis=0))
-                a.fill(rows)
+            fill_from(random_front(rng, int(rng.integers(1, 300)), m), rng, fast, slow)
         for batch in range(int(rng.integers(1, 5))):
             if rng.random() < 0.5:
                 F = child_stream(rng, int(rng.integers(1, 200)), m)

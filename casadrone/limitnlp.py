@@ -224,7 +224,10 @@ def ipopt_options(tol: float, max_iter: int, warm: bool) -> dict:
         ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-5,
                       "warm_start_mult_bound_push": 1e-5, "warm_start_slack_bound_push": 1e-5,
                       "mu_init": 1e-3})
-    return {"ipopt": ipopt, "print_time": False, "error_on_fail": False}
+    # show_eval_warnings off: a trial step that overflows the model (Inf/NaN in g) is IPOPT's
+    # to handle (it shortens the step); CasADi would print a warning line for each.
+    return {"ipopt": ipopt, "print_time": False, "error_on_fail": False,
+            "show_eval_warnings": False}
 
 
 _NLPS: dict[tuple, Nlp] = {}

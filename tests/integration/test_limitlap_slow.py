@@ -113,3 +113,24 @@ def test_optimisation_same_front_serial_and_processes(tmp_path):
         run(problem, tmp_path / backend, quiet=True)
     a, b = ((tmp_path / k / "pareto.csv").read_text() for k in ("serial", "processes"))
     assert a == b
+
+
+def test_a_start_that_misses_on_resimulation_is_never_chosen(laps):
+    """The same converged warm start is chosen under the default threshold and refused under
+    one below its re-simulation miss: the check, not the solver, decides."""
+    base = laps["SY250"]
+    opts = replace(FAST, starts=(), warm_starts=(base,), lower_bound=False)
+    lap = limit_lap(load_airframe("SY250"), TRACK, opts)
+    assert lap.optimal and 0 < lap.resimulation_miss_m <= opts.max_miss_m
+    strict = limit_lap(load_airframe("SY250"), TRACK,
+                       replace(opts, max_miss_m=0.5 * lap.resimulation_miss_m))
+    assert strict.status == "failed" and "re-simulation" in strict.reason
+
+
+def test_gate_track_lap_passes_every_gate_opening():
+    trk = load(TrackConfig, "configs/tracks/multigp-cdra-gates.yaml")
+    lap = limit_lap(load_airframe("SY250"), trk, FAST)
+    assert lap.optimal, lap.reason
+    assert lap.lower_bound_s <= lap.lap_time_s + 1e-6
+    assert lap.resimulation_miss_m <= 0.05
+    assert len(lap.split_times_s) == len(trk.gates)

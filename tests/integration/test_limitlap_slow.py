@@ -112,7 +112,27 @@ def test_optimisation_same_front_serial_and_processes(tmp_path):
                                              f"backend.name={backend}", "backend.workers=2"])
         run(problem, tmp_path / backend, quiet=True)
     a, b = ((tmp_path / k / "pareto.csv").read_text() for k in ("serial", "processes"))
-    assert a == b
+    assert a == b and "J3_limit" in a.splitlines()[0]
+
+
+def test_decide_report_compare_on_a_limit_lap_run(tmp_path, cli_runner):
+    """The three commands that follow a run work on one that optimises J3_limit; the report
+    shows the limit lap of the chosen candidates."""
+    from casadrone.cli import app
+
+    run_dir = tmp_path / "run"
+    r = cli_runner.invoke(app, ["run", "limit-lap", "--out", str(run_dir), "--quiet",
+                                "algorithm.population=4", "algorithm.generations=1",
+                                "algorithm.settings.n_ind_ga=2", "backend.name=serial"])
+    assert r.exit_code == 0, r.output
+    r = cli_runner.invoke(app, ["decide", str(run_dir)])
+    assert r.exit_code == 0 and "J3_limit=" in r.stdout, r.output
+    r = cli_runner.invoke(app, ["report", str(run_dir)])
+    assert r.exit_code == 0, r.output
+    html = (run_dir / "report.html").read_text()
+    assert "limit lap beside its closed-loop lap" in html
+    r = cli_runner.invoke(app, ["compare", str(run_dir)])
+    assert r.exit_code == 0 and "simulated" in r.stdout, r.output
 
 
 def test_a_start_that_misses_on_resimulation_is_never_chosen(laps):

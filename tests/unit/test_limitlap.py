@@ -164,3 +164,24 @@ def test_limit_lap_problem_sets_up_limit_options_and_references():
     assert len(extra["limit_references"]) == 2  # the template and the centre of the box
     assert extra["limit_references"][1]["alpha_deg"] == pytest.approx(77.5)
     assert limit_setup(load_problem("quick"), template) == {}
+
+
+def test_resampled_start_keeps_the_coarse_lap_on_a_finer_grid():
+    """Grid refinement's start: on twice the intervals, every other node is a coarse node (same
+    state), both halves of a coarse interval hold its command, and the leg durations stay."""
+    from casadrone.limitlap import LimitLap, guess_from_lap, node_times
+
+    model = _double_integrator()
+    coarse = build_nlp(model, Layout(("ball", "ball"), 4))
+    fine = build_nlp(model, Layout(("ball", "ball"), 8))
+    rng = np.random.default_rng(0)
+    T = np.array([1.5, 0.7])
+    X, U = rng.normal(size=(9, 6)), rng.normal(size=(8, 3))
+    lap = LimitLap(status="optimal", reason="", leg_times_s=T, t=node_times(T, 4), x=X, u=U,
+                   layout=coarse.layout)
+    Tf, Xf, Uf = fine.unpack(guess_from_lap(fine, lap, X[0]))
+    np.testing.assert_allclose(Tf, T)
+    np.testing.assert_allclose(Xf[::2], X, atol=1e-12)
+    np.testing.assert_allclose(Xf[1::2], 0.5 * (X[:-1] + X[1:]), atol=1e-12)
+    np.testing.assert_allclose(Uf[::2], U)
+    np.testing.assert_allclose(Uf[1::2], U)

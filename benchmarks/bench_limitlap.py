@@ -14,8 +14,8 @@ draws resampled), on one core:
   pitch angular acceleration per newton of differential thrust, arm/inertia), mass (constant
   under the paper's free mass model: reported as such) and inertia (Ixx + Iyy).
 
-Run: ``python benchmarks/bench_limitlap.py [--n 50] [--seed 0] [--intervals 20]``. Writes
-``benchmarks/RESULTS-limitlap.md``. Target: ≤ 1 s CPU per warm solve.
+Run: ``python benchmarks/bench_limitlap.py [--n 50] [--seed 0] [--template SY250]``. Writes
+``benchmarks/RESULTS-limitlap-frames.md`` (``--out``). Target: ≤ 1 s CPU per warm solve.
 """
 
 from __future__ import annotations
@@ -64,16 +64,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--intervals", type=int, default=LimitLapOptions().intervals)
-    ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap.md")
+    ap.add_argument("--template", default="SY250",
+                    help="airframe whose decision variables are drawn (SY250: Table 1's seven "
+                         "keys, free mass model; SY250-components: the four geometry keys, mass "
+                         "and inertia from the parts)")
+    ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap-frames.md")
     args = ap.parse_args(argv)
-    template = load_airframe("SY250")
+    template = load_airframe(args.template)
     track = load(TrackConfig, DEFAULT_TRACK)
     options = LimitLapOptions(intervals=args.intervals)
     thetas, _ = random_thetas(template, args.n, args.seed)
-    lo = np.array([b[0] for b in TABLE1_BOUNDS.values()])
-    hi = np.array([b[1] for b in TABLE1_BOUNDS.values()])
-    unit = np.array([[(t[k] - a) / (b - a) for k, a, b in zip(TABLE1_BOUNDS, lo, hi,
-                                                              strict=True)] for t in thetas])
+    keys = list(thetas[0])
+    lo = np.array([TABLE1_BOUNDS[k][0] for k in keys])
+    hi = np.array([TABLE1_BOUNDS[k][1] for k in keys])
+    unit = (np.array([[t[k] for k in keys] for t in thetas]) - lo) / (hi - lo)
     limit_lap(template, track, options)  # warm-up: builds the NLPs once
     cold = []
     for i, theta in enumerate(thetas):
@@ -102,7 +106,8 @@ def main(argv: list[str] | None = None) -> int:
     med = np.median
     lines = ["# Limit lap over random Table 1 frames", "", markdown(), "",
              f"Command: `python benchmarks/bench_limitlap.py --n {args.n} --seed {args.seed} "
-             f"--intervals {args.intervals}` (SY250 template, paper track, one core).", "",
+             f"--intervals {args.intervals} --template {args.template}` (paper track, one "
+             f"core; decision variables {', '.join(keys)}).", "",
              "| quantity | value |", "|---|---|",
              f"| frames | {args.n} |",
              f"| cold success | {len(ok)}/{args.n} |",

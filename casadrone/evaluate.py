@@ -187,12 +187,15 @@ def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory
     from casadrone.limitlap import limit_lap
 
     warm = setup.limit_warm_starts
+    cold = ("closed-loop", "point-mass")
     options = replace(setup.limit, guess_trajectory=traj, warm_starts=warm,
-                      starts=() if warm else ("closed-loop",), sensitivities=False)
+                      starts=() if warm else cold, sensitivities=False)
     lap = limit_lap(cfg, setup.track, options)
-    if warm and not lap.optimal:  # every warm start failed: the closed-loop start decides
-        lap = limit_lap(cfg, setup.track, replace(options, warm_starts=(),
-                                                  starts=("closed-loop",)))
+    if warm and not lap.optimal:  # every warm start failed: the two cold starts decide
+        first = lap
+        lap = limit_lap(cfg, setup.track, replace(options, warm_starts=(), starts=cold))
+        if not lap.optimal:
+            lap = replace(lap, reason=f"warm starts: {first.reason}; cold starts: {lap.reason}")
     return lap
 
 

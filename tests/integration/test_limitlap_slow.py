@@ -38,10 +38,15 @@ def test_reference_lap_between_bound_and_closed_loop(laps, name):
 
 
 def test_grid_refinement_changes_the_lap_little(laps):
+    """Twice the intervals, started from the coarse optimum resampled onto the fine grid (so the
+    solver follows the same local optimum; different starts land on optima ~1 % apart)."""
+    coarse = laps["SY250"]
     fine = limit_lap(load_airframe("SY250"), TRACK,
-                     replace(FAST, intervals=2 * FAST.intervals, lower_bound=False))
+                     replace(FAST, intervals=2 * FAST.intervals, lower_bound=False, starts=(),
+                             warm_starts=(coarse,)))
     assert fine.optimal, fine.reason
-    assert abs(fine.lap_time_s - laps["SY250"].lap_time_s) <= 1e-3 * laps["SY250"].lap_time_s
+    assert fine.start == "resampled-1"
+    assert abs(fine.lap_time_s - coarse.lap_time_s) <= 1e-3 * coarse.lap_time_s
 
 
 def test_slower_lag_and_weaker_thrust_never_faster(laps):
@@ -107,4 +112,45 @@ def test_optimisation_same_front_serial_and_processes(tmp_path):
                                              f"backend.name={backend}", "backend.workers=2"])
         run(problem, tmp_path / backend, quiet=True)
     a, b = ((tmp_path / k / "pareto.csv").read_text() for k in ("serial", "processes"))
-    assert a == b
+    assert a == b and "J3_limit" in a.splitlines()[0]
+
+
+def test_decide_report_compare_on_a_limit_lap_run(tmp_path, cli_runner):
+    """The three commands that follow a run work on one that optimises J3_limit; the report
+    shows the limit lap of the chosen candidates."""
+    from casadrone.cli import app
+
+    run_dir = tmp_path / "run"
+    r = cli_runner.invoke(app, ["run", "limit-lap", "--out", str(run_dir), "--quiet",
+                                "algorithm.population=4", "algorithm.generations=1",
+                                "algorithm.settings.n_ind_ga=2", "backend.name=serial"])
+    assert r.exit_code == 0, r.output
+    r = cli_runner.invoke(app, ["decide", str(run_dir)])
+    assert r.exit_code == 0 and "J3_limit=" in r.stdout, r.output
+    r = cli_runner.invoke(app, ["report", str(run_dir)])
+    assert r.exit_code == 0, r.output
+    html = (run_dir / "report.html").read_text()
+    assert "limit lap beside its closed-loop lap" in html
+    r = cli_runner.invoke(app, ["compare", str(run_dir)])
+    assert r.exit_code == 0 and "simulated" in r.stdout, r.output
+
+
+def test_a_start_that_misses_on_resimulation_is_never_chosen(laps):
+    """The same converged warm start is chosen under the default threshold and refused under
+    one below its re-simulation miss: the check, not the solver, decides."""
+    base = laps["SY250"]
+    opts = replace(FAST, starts=(), warm_starts=(base,), lower_bound=False)
+    lap = limit_lap(load_airframe("SY250"), TRACK, opts)
+    assert lap.optimal and 0 < lap.resimulation_miss_m <= opts.max_miss_m
+    strict = limit_lap(load_airframe("SY250"), TRACK,
+                       replace(opts, max_miss_m=0.5 * lap.resimulation_miss_m))
+    assert strict.status == "failed" and "re-simulation" in strict.reason
+
+
+def test_gate_track_lap_passes_every_gate_opening():
+    trk = load(TrackConfig, "configs/tracks/multigp-cdra-gates.yaml")
+    lap = limit_lap(load_airframe("SY250"), trk, FAST)
+    assert lap.optimal, lap.reason
+    assert lap.lower_bound_s <= lap.lap_time_s + 1e-6
+    assert lap.resimulation_miss_m <= 0.05
+    assert len(lap.split_times_s) == len(trk.gates)

@@ -65,6 +65,46 @@ def test_double_integrator_rest_to_rest_through_a_point():
     np.testing.assert_allclose(T[0], math.sqrt(2 * D / 4 / A), rtol=1e-3)
 
 
+def _nonlinear_toy() -> OcpModel:
+    """A planar 'drone' with quadratic drag, thrust along a rotating axis and a lagged thrust:
+    every second derivative the quadrotor's RK4 step has (products, trig, |v|v), small."""
+    x = ca.SX.sym("x", 7)  # px, py, pz, vx, vy, vz ... reused: angle x[6]
+    u = ca.SX.sym("u", 2)
+    p = ca.SX.sym("p", 2)
+    acc = ca.vertcat(u[0] * ca.sin(x[6]), 0.3 * x[3] * x[4], u[0] * ca.cos(x[6]) - 9.81) \
+        - p[0] * ca.fabs(x[3:6]) * x[3:6]
+    f = ca.Function("f_toy", [x, u, p], [ca.vertcat(x[3:6], acc, p[1] * u[1])],
+                    ["x", "u", "p"], ["xdot"])
+    return OcpModel("toy", f, lambda s: s[3:6])
+
+
+def test_assembled_derivatives_equal_casadi_ad():
+    """The constraint Jacobian and Lagrangian Hessian assembled from the compiled interval
+    blocks equal CasADi's own AD of the same NLP, entry by entry (ball and gate targets, a
+    rest condition, 3 intervals per leg, random point and multipliers)."""
+    from casadrone.limitnlp import _shooting_nlp
+
+    model = _nonlinear_toy()
+    layout = Layout(("ball", "gate"), 3, substeps=2, end_at_rest=True)
+    nlp, lbg, ubg, extra = _shooting_nlp(model, layout)
+    W, P = nlp["x"], nlp["p"]
+    lam_g = ca.MX.sym("lam_g", nlp["g"].numel())
+    ref_jac = ca.Function("J", [W, P], [ca.jacobian(nlp["g"], W)])
+    ref_hess = ca.Function("H", [W, P, lam_g], [ca.triu(ca.hessian(
+        nlp["f"] + ca.dot(lam_g, nlp["g"]), W)[0])])
+    rng = np.random.default_rng(3)
+    w = rng.uniform(0.2, 1.5, W.numel())
+    prm = rng.uniform(0.1, 1.0, P.numel())
+    lam = rng.normal(size=lam_g.numel())
+    g, J = extra["jac_g"](w, prm)
+    H = extra["hess_lag"](w, prm, 1.0, lam)
+    assert len(lbg) == len(ubg) == g.numel() and np.isfinite(np.array(g)).all()
+    np.testing.assert_allclose(np.array(J), np.array(ref_jac(w, prm)), rtol=1e-10, atol=1e-11)
+    np.testing.assert_allclose(np.array(H), np.array(ref_hess(w, prm, lam)), rtol=1e-10,
+                               atol=1e-11)
+    assert np.abs(np.array(H)).max() > 1e-3  # the Hessian is not trivially zero
+
+
 def test_gate_miss_geometry():
     """A gate 2 m wide (half 1 m) facing north: inside → 0; 0.5 m beside the opening → 0.5 m;
     0.3 m in front of the plane → 0.3 m."""
@@ -124,3 +164,24 @@ def test_limit_lap_problem_sets_up_limit_options_and_references():
     assert len(extra["limit_references"]) == 2  # the template and the centre of the box
     assert extra["limit_references"][1]["alpha_deg"] == pytest.approx(77.5)
     assert limit_setup(load_problem("quick"), template) == {}
+
+
+def test_resampled_start_keeps_the_coarse_lap_on_a_finer_grid():
+    """Grid refinement's start: on twice the intervals, every other node is a coarse node (same
+    state), both halves of a coarse interval hold its command, and the leg durations stay."""
+    from casadrone.limitlap import LimitLap, guess_from_lap, node_times
+
+    model = _double_integrator()
+    coarse = build_nlp(model, Layout(("ball", "ball"), 4))
+    fine = build_nlp(model, Layout(("ball", "ball"), 8))
+    rng = np.random.default_rng(0)
+    T = np.array([1.5, 0.7])
+    X, U = rng.normal(size=(9, 6)), rng.normal(size=(8, 3))
+    lap = LimitLap(status="optimal", reason="", leg_times_s=T, t=node_times(T, 4), x=X, u=U,
+                   layout=coarse.layout)
+    Tf, Xf, Uf = fine.unpack(guess_from_lap(fine, lap, X[0]))
+    np.testing.assert_allclose(Tf, T)
+    np.testing.assert_allclose(Xf[::2], X, atol=1e-12)
+    np.testing.assert_allclose(Xf[1::2], 0.5 * (X[:-1] + X[1:]), atol=1e-12)
+    np.testing.assert_allclose(Uf[::2], U)
+    np.testing.assert_allclose(Uf[1::2], U)

@@ -1,9 +1,11 @@
 """Run an optimisation problem into a run directory, and resume a killed run.
 
 The loop is pymoo's own ``Algorithm.next()`` (ask → evaluate the whole generation on the backend
-→ tell), one generation at a time; after each generation the coordinator stores its evaluations
-and then checkpoints the algorithm (random state included). Resuming loads the checkpoint,
-re-attaches a backend and continues: the run ends exactly as an uninterrupted one would.
+→ tell), one generation at a time; after each generation the coordinator pickles the algorithm
+(random state included) and hands its evaluations and that checkpoint to a background writer,
+which stores the evaluations and then the checkpoint while the next generation is evaluated
+(:mod:`casadrone.optimise.writer`). Resuming loads the checkpoint, re-attaches a backend and
+continues: the run ends exactly as an uninterrupted one would.
 
 When no checkpoint is usable (killed before the first one, or both damaged), resuming rebuilds
 the run from ``history.sqlite``: the algorithm starts again from its seed and each stored
@@ -309,7 +311,7 @@ def _generation_loop(store, writer, algorithm, study, problem, elapsed0, progres
         mark()
         step = dict(zip(("ask_s", "evaluate_s", "advance_s", "statistics_s", "history_s",
                          "checkpoint_s"), np.diff(t).tolist(), strict=True))
-        writer.submit(gen, records, stats, checkpoint, {
+        writer.submit(gen, records, dict(stats), checkpoint, {
             "generation": gen, "n_evaluations": stats["n_evaluations"],
             "archive_size": stats["archive_size"], **step, "wall_s": t[-1] - t[0],
             "cpu_s": cpu[-1] - cpu[0], "coordinator_s": t[-1] - t[0] - step["evaluate_s"],

@@ -490,22 +490,31 @@ class SequentialEvMOGA(EvMOGA):
                 self.pop_F[j], self.pop_cv[j] = F[i], cv[i]
 
 
-@pytest.mark.parametrize(("name", "kwargs", "n_div", "generations"), [
-    ("zdt1", {"n_var": 4}, 10, 150),
-    ("zdt2", {"n_var": 3}, [7, 13], 150),
-    ("dtlz2", {"n_var": 6, "n_obj": 4}, 6, 60),
+@pytest.mark.parametrize(("name", "kwargs", "n_div", "generations", "n_ind_ga"), [
+    ("zdt1", {"n_var": 4}, 10, 150, 16),
+    ("zdt2", {"n_var": 3}, [7, 13], 150, 16),
+    ("dtlz2", {"n_var": 6, "n_obj": 4}, 6, 60, 16),
+    # generations of many children: runs inside the grid go through offer_many's batches
+    ("zdt1", {"n_var": 4}, 60, 25, 200),
+    ("dtlz2", {"n_var": 6, "n_obj": 3}, 25, 12, 300),
 ])
-def test_runs_equal_the_sequential_archive(name, kwargs, n_div, generations):
+def test_runs_equal_the_sequential_archive(name, kwargs, n_div, generations, n_ind_ga,
+                                           monkeypatch):
     problem = get_problem(name, **kwargs)
+    batches: list[int] = []
+    insert_batch = BoxArchive._insert_batch
+    monkeypatch.setattr(BoxArchive, "_insert_batch",
+                        lambda self, rows: (batches.append(1), insert_batch(self, rows))[1])
     results = []
     for cls in (EvMOGA, SequentialEvMOGA):
-        alg = cls(n_ind_p=40, n_ind_ga=16, n_div=n_div, generations=generations)
+        alg = cls(n_ind_p=40, n_ind_ga=n_ind_ga, n_div=n_div, generations=generations)
         alg.setup(problem, seed=4)
         while alg.has_next():
             alg.next()
         results.append(alg)
     fast, slow = results
     assert slow.box_archive.counts["rebuild"] > 0
+    assert (len(batches) > 10) == (n_ind_ga > BoxArchive.BATCH)
     assert_same(fast.box_archive, slow.box_archive, name)
     np.testing.assert_array_equal(fast.box_archive.rows["id"], slow.box_archive.rows["id"])
     np.testing.assert_array_equal(fast.pop.get("X"), slow.pop.get("X"))

@@ -97,7 +97,7 @@ class Layout:
     """What fixes the NLP's structure (everything else is a parameter or a bound)."""
 
     kinds: tuple[TargetKind, ...]  # one target per leg
-    intervals: int = 30  # per leg
+    intervals: int = 40  # per leg
     degree: int = 3  # Radau collocation points per interval (collocation)
     method: Literal["shooting", "collocation"] = "shooting"
     substeps: int = 3  # RK4 steps per interval (shooting)

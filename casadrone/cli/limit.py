@@ -32,7 +32,7 @@ def limit_lap_command(
     airframe: AirframeArg,
     overrides: OverridesArg = None,
     track: TrackOpt = None,
-    intervals: Annotated[int, typer.Option(min=2, help="shooting intervals per leg")] = 30,
+    intervals: Annotated[int, typer.Option(min=2, help="shooting intervals per leg")] = 40,
     as_json: JsonOpt = False,
     plot: PlotOpt = None,
 ) -> None:

@@ -37,16 +37,23 @@ def test_reference_lap_between_bound_and_closed_loop(laps, name):
     assert 0.0 <= lap.bang_bang_fraction <= 1.0
 
 
-def test_grid_refinement_changes_the_lap_little(laps):
-    """Twice the intervals, started from the coarse optimum resampled onto the fine grid (so the
-    solver follows the same local optimum; different starts land on optima ~1 % apart)."""
-    coarse = laps["SY250"]
-    fine = limit_lap(load_airframe("SY250"), TRACK,
-                     replace(FAST, intervals=2 * FAST.intervals, lower_bound=False, starts=(),
-                             warm_starts=(coarse,)))
+@pytest.mark.parametrize("name", REFERENCES)
+def test_grid_refinement_changes_the_lap_little(laps, name):
+    """Twice the intervals change the lap by < 0.1 %. The fine lap starts from the coarse
+    optimum resampled onto the fine grid; the coarse grid is then solved again from the fine
+    optimum, so both grids are compared on the same local optimum. (Measured: from the coarse
+    multi-start optimum alone the fine lap was 0.22 % (HS200) and 0.25 % (NSY200) faster, but the
+    coarse grid started from the fine optimum came within 0.04-0.05 % of it: a neighbouring local
+    optimum, not discretisation error.)"""
+    coarse = laps[name]
+    cfg = load_airframe(name)
+    fine = limit_lap(cfg, TRACK, replace(FAST, intervals=2 * FAST.intervals, lower_bound=False,
+                                         starts=(), warm_starts=(coarse,)))
     assert fine.optimal, fine.reason
     assert fine.start == "resampled-1"
-    assert abs(fine.lap_time_s - coarse.lap_time_s) <= 1e-3 * coarse.lap_time_s
+    back = limit_lap(cfg, TRACK, replace(FAST, lower_bound=False, starts=(), warm_starts=(fine,)))
+    best = min([coarse.lap_time_s] + ([back.lap_time_s] if back.optimal else []))
+    assert abs(fine.lap_time_s - best) <= 1e-3 * best
 
 
 def test_slower_lag_and_weaker_thrust_never_faster(laps):
@@ -58,16 +65,59 @@ def test_slower_lag_and_weaker_thrust_never_faster(laps):
         assert lap.lap_time_s >= base.lap_time_s - 1e-4, override
 
 
+def _reflect_state(X: np.ndarray) -> np.ndarray:
+    """States reflected in the world x–z plane, body frame kept right-handed (body y flipped):
+    y, v, p, r, φ, ψ change sign; rotors FR↔FL and RL↔RR swap places."""
+    out = X[..., [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 13, 12, 15, 14]].copy()
+    out[..., [1, 4, 6, 8, 9, 11]] *= -1
+    return out
+
+
+def _reflect_lap(lap):
+    """The lap's primal-dual point reflected (decision vector and multipliers alike: every
+    constraint row maps to its mirror, so the multipliers permute and change sign with it)."""
+    from casadrone.limitlap import LimitLap
+    from casadrone.limitnlp import NlpPoint
+
+    M, nx = len(lap.u), 16
+    per = 1 + 4 + nx
+
+    def vec(v):  # decision-vector layout: [S, U, X] per interval, then the last X
+        blocks = v[:M * per].reshape(M, per).copy()
+        blocks[:, 1:5] = blocks[:, [2, 1, 4, 3]]
+        blocks[:, 5:] = _reflect_state(blocks[:, 5:])
+        return np.concatenate([blocks.ravel(), _reflect_state(v[M * per:])])
+
+    def rows(v):  # constraint layout: 16 dynamics rows per interval, ties, start, balls
+        out = v.copy()
+        out[:M * nx] = _reflect_state(v[:M * nx].reshape(M, nx)).ravel()
+        n0 = M * nx + (M - len(lap.leg_times_s))
+        out[n0:n0 + nx] = _reflect_state(v[n0:n0 + nx])
+        return out
+
+    sol = lap.solution
+    point = NlpPoint(vec(sol.w), vec(sol.lam_x), rows(sol.lam_g), sol.lam_p)
+    return LimitLap(status="optimal", reason="", layout=lap.layout, solution=point)
+
+
 def test_mirror_track_same_lap_on_mirror_image_frame(laps):
-    """Reflecting the world in the x–z plane maps SY250 on the track to SY250 with its rotor
-    spins reversed (a mirrored propeller turns the other way) on the mirrored track: the two
-    problems are the same up to the reflection, so their laps agree (tolerance: the solver)."""
+    """Reflecting the world in the x–z plane maps the track to its mirror image and SY250 to
+    itself (its spin pattern is its own mirror image: the prop at FR's image, FL, turns the
+    other way, as FL does). So the reflected optimum is an optimum of the mirrored problem:
+    started from it (primal and dual), the solver stays there, with the same lap. A model or
+    transcription that is not mirror-symmetric (a sign of a rate, a rotor's torque) fails."""
+    base = laps["SY250"]
     mirror = TRACK.model_copy(update={"waypoints_m": [(x, -y, z) for x, y, z in
                                                       TRACK.waypoints_m]})
-    image = load_airframe("SY250", ["rotor_spins=[1, -1, 1, -1]"])
-    lap = limit_lap(image, mirror, replace(FAST, warm_starts=()))
+    lap = limit_lap(load_airframe("SY250"), mirror,
+                    replace(FAST, starts=(), warm_starts=(_reflect_lap(base),),
+                            lower_bound=False))
     assert lap.optimal, lap.reason
-    np.testing.assert_allclose(lap.lap_time_s, laps["SY250"].lap_time_s, rtol=2e-3)
+    assert lap.iterations <= 20
+    np.testing.assert_allclose(lap.lap_time_s, base.lap_time_s, rtol=1e-6)
+    # the flight path is the reflected one to a centimetre (rates and thrusts on saturated arcs
+    # are determined only to the solver's tolerance: up to 0.06 in rad/s or N)
+    np.testing.assert_allclose(lap.x[:, 0:3], _reflect_state(base.x)[:, 0:3], atol=0.01)
 
 
 def test_sensitivities_match_finite_differences_on_asymmetric_frame():

@@ -20,7 +20,6 @@ progress hypervolume stays cheap as the set grows (:mod:`casadrone.optimise.hype
 from __future__ import annotations
 
 import contextlib
-import gc
 import signal
 import sys
 import threading
@@ -271,30 +270,6 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
     return result
 
 
-#: Generations between full garbage collections of the coordinator (see _collect_garbage).
-GC_PERIOD = 50
-#: The collector's thresholds in the coordinator (CPython's default: 700, 10, 10).
-GC_THRESHOLDS = (20_000, 20, 10)
-
-
-def _collect_garbage(generation: int) -> None:
-    """Keep CPython's cyclic garbage collector off the coordinator's long-lived state.
-
-    The archive, P, the study and the stores are hundreds of thousands of objects that live for
-    the whole run; the collector's oldest generation rescans all of them. Measured on paper-run1
-    (60 generations, archive 5 200): 5.3 s of the coordinator's 12.3 s were garbage collection,
-    8 full collections at 0.43 s each. After each generation the survivors are frozen
-    (``gc.freeze``: later collections skip them; objects are still freed by reference counting),
-    and every ``GC_PERIOD`` generations they are unfrozen and collected once, so cyclic garbage
-    cannot accumulate. Counted in the generation's ``statistics`` step.
-    """
-    if generation % GC_PERIOD == 0:
-        gc.unfreeze()
-        gc.collect()
-    gc.freeze()
-    gc.set_threshold(*GC_THRESHOLDS)
-
-
 def _generation_loop(store, writer, algorithm, study, problem, elapsed0, progress, stop_after,
                      hv) -> RunResult:
     start = time.perf_counter()
@@ -327,7 +302,6 @@ def _generation_loop(store, writer, algorithm, study, problem, elapsed0, progres
             "hypervolume": hv_value,
             "elapsed_s": elapsed0 + time.perf_counter() - start,
         }
-        _collect_garbage(gen)
         mark()
         writer.wait()  # the previous generation's writes (usually long done)
         problem.last_records = []

@@ -127,9 +127,30 @@ class ProcessBackend:
 
     def terminate(self) -> None:
         """Stop now (the run was interrupted): kill the workers, do not wait for their tasks."""
+        manager = getattr(self.pool, "_executor_manager_thread", None)  # shutdown forgets it
         for proc in list(getattr(self.pool, "_processes", {}).values()):
             proc.kill()
         self.pool.shutdown(wait=False, cancel_futures=True)
+        _forget_wakeup(manager)
+
+
+def _forget_wakeup(thread) -> None:
+    """Let the interpreter exit quietly after a killed pool.
+
+    The pool's manager thread sees the killed workers, tears the pool down and closes its wakeup
+    pipe; CPython 3.11's exit hook (``concurrent.futures.process._python_exit``) then still
+    writes to that pipe and prints ``OSError: [Errno 9] Bad file descriptor`` as the last line
+    of an interrupted run (intermittently: it depends on which thread gets there first; 3.12
+    checks for a closed pipe). So: wait briefly for the manager thread, then drop its entry from
+    the exit hook's table.
+    """
+    import concurrent.futures.process as cfp
+
+    if thread is None:
+        return
+    thread.join(timeout=5.0)
+    if not thread.is_alive():
+        getattr(cfp, "_threads_wakeups", {}).pop(thread, None)
 
 
 class DaskBackend:

@@ -373,7 +373,7 @@ def test_sigterm_of_a_pool_coordinator_records_state_and_resumes(tmp_path):
     pid, code, err = stop_at_generation(args, d1, 1, signal.SIGTERM, start_new_session=True)
     assert code == 128 + signal.SIGTERM, err
     assert err.strip().splitlines()[-1] == (
-        f"interrupted (SIGTERM); state recorded, continue with: casadrone resume {d1}")
+        f"interrupted (SIGTERM); state recorded, continue with: casadrone resume {d1}"), err
     assert "Traceback" not in err
     manifest = json.loads((d1 / "manifest.json").read_text())
     assert manifest["status"] == "interrupted" and manifest["signal"] == "SIGTERM"

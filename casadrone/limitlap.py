@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from functools import cache
 from typing import Literal
 
 import numpy as np
@@ -390,14 +391,21 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
                     options.substeps)
     full = build_nlp(quadrotor_ocp_model(), layout, options.tol, options.max_iter)
-    pm = build_nlp(point_mass_ocp_model(), layout, options.tol, options.max_iter)
     x0 = start_state(frame, track, options)
-    x0_pm = np.concatenate([x0[0:3], np.asarray(rotation_matrix(*x0[9:12])).reshape(3, 3)
-                            @ x0[3:6]])
     P = np.concatenate([frame.p, x0, targets.vector])
-    P_pm = np.concatenate([frame.p, x0_pm, targets.vector])
     lbx, ubx = _bounds(full, frame, track, options, point_mass=False)
-    lbx_pm, ubx_pm = _bounds(pm, frame, track, options, point_mass=True)
+
+    @cache
+    def point_mass() -> Nlp:  # only when a point-mass start or the lower bound is asked for
+        return build_nlp(point_mass_ocp_model(), layout, options.tol, options.max_iter)
+
+    def lower_bound_from(w_full: np.ndarray) -> NlpSolution:
+        pm = point_mass()
+        x0_pm = np.concatenate([x0[0:3], np.asarray(rotation_matrix(*x0[9:12])).reshape(3, 3)
+                                @ x0[3:6]])
+        return solve(pm, point_mass_guess(full, pm, w_full),
+                     np.concatenate([frame.p, x0_pm, targets.vector]),
+                     *_bounds(pm, frame, track, options, point_mass=True))
 
     guess = None
     if "closed-loop" in options.starts or "point-mass" in options.starts:
@@ -412,14 +420,14 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     lbs: list[NlpSolution] = []
     if "point-mass" in options.starts or (options.lower_bound and guess is not None):
         src = guess if guess is not None else options.warm_starts[0].solution.w
-        lbs.append(solve(pm, point_mass_guess(full, pm, src), P_pm, lbx_pm, ubx_pm))
+        lbs.append(lower_bound_from(src))
 
     solves: list[tuple[str, NlpSolution]] = []
     for name in options.starts:
         if name == "closed-loop":
             solves.append((name, solve(full, guess, P, lbx, ubx)))
         elif name == "point-mass" and lbs and lbs[0].success:
-            w = lifted_guess(full, pm, lbs[0].point.w, frame, x0)
+            w = lifted_guess(full, point_mass(), lbs[0].point.w, frame, x0)
             solves.append((name, solve(full, w, P, lbx, ubx)))
     for i, ws in enumerate(options.warm_starts):
         if ws.solution is None or ws.layout is None:
@@ -459,7 +467,7 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     T, X, U = full.unpack(best.point.w)
     lap = float(np.sum(T))
     if options.lower_bound and (not lbs or not lbs[0].success or lbs[0].objective > lap):
-        lbs.append(solve(pm, point_mass_guess(full, pm, best.point.w), P_pm, lbx_pm, ubx_pm))
+        lbs.append(lower_bound_from(best.point.w))
     bounds = [s.objective for s in lbs if s.success]
     ends = np.cumsum(T)
     t_nodes = node_times(T, layout.intervals)

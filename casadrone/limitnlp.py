@@ -212,6 +212,25 @@ def _target_rows(x, vw, tp, kind: TargetKind):
     ]
 
 
+def _leg_end_rows(model: OcpModel, layout: Layout, X, targets) -> list:
+    """Constraint rows of every leg's end node (its target) and, if asked, rest at the end."""
+    N = layout.intervals
+    rows = []
+    for k, kind in enumerate(layout.kinds):
+        xe = X[:, (k + 1) * N]
+        rows += _target_rows(xe, model.world_velocity(xe),
+                             targets[TARGET_SIZE * k:TARGET_SIZE * (k + 1)], kind)
+    if layout.end_at_rest:
+        rows.append((model.world_velocity(X[:, layout.n_intervals]), 0.0, 0.0))
+    return rows
+
+
+def _bounds_of(rows) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds of constraint rows (expression, lower, upper)."""
+    return (np.concatenate([np.full(r[0].numel(), r[1]) for r in rows]),
+            np.concatenate([np.full(r[0].numel(), r[2]) for r in rows]))
+
+
 def ipopt_options(tol: float, max_iter: int, warm: bool) -> dict:
     """IPOPT settings (MUMPS, exact Hessian, quiet); ``warm`` adds primal-dual warm start."""
     ipopt = {"tol": tol, "acceptable_tol": 1e3 * tol, "max_iter": max_iter, "print_level": 0,
@@ -320,29 +339,19 @@ def _shooting_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np
     step = rk4_step(model, layout.substeps)
     x_next = step.map(M)(X[:, :M], Zb[1:1 + nu, :], p, S / N)
     same_i = np.array([i for i in range(1, M) if i % N], dtype=int)
-    trows = []
-    for k, kind in enumerate(layout.kinds):
-        xe = X[:, (k + 1) * N]
-        trows += _target_rows(xe, model.world_velocity(xe),
-                              targets[TARGET_SIZE * k:TARGET_SIZE * (k + 1)], kind)
-    if layout.end_at_rest:
-        trows.append((model.world_velocity(X[:, M]), 0.0, 0.0))
+    trows = _leg_end_rows(model, layout, X, targets)
     gt = ca.vertcat(*[r[0] for r in trows])
     rows = [(ca.vec(X[:, 1:] - x_next), 0.0, 0.0),
-            ((S[same_i] - S[same_i - 1]).T, 0.0, 0.0), (X[:, 0] - x_start, 0.0, 0.0),
-            (gt, None, None)]
+            ((S[same_i] - S[same_i - 1]).T, 0.0, 0.0), (X[:, 0] - x_start, 0.0, 0.0), *trows]
     g = ca.vertcat(*[r[0] for r in rows])
-    lbg = np.concatenate([np.full(r[0].numel(), r[1]) for r in rows[:3]]
-                         + [np.full(r[0].numel(), r[1]) for r in trows])
-    ubg = np.concatenate([np.full(r[0].numel(), r[2]) for r in rows[:3]]
-                         + [np.full(r[0].numel(), r[2]) for r in trows])
+    lbg, ubg = _bounds_of(rows)
     f = ca.sum2(S[::N])
     n_dyn, n_same = nx * M, len(same_i)
     ng = g.numel()
 
     # constraint Jacobian: blocks −J_i, identities, ±1 of the tied durations, target rows
     jac, hess, hr, hc = interval_blocks(model, layout.substeps)
-    xn_c, J = jac.map(M)(Zb, p, 1.0 / N)
+    J = jac.map(M)(Zb, p, 1.0 / N)[1]
     r_, c_, i_ = np.meshgrid(np.arange(nx), np.arange(per), np.arange(M), indexing="ij")
     tr = [(nx * i_ + r_).ravel(order="F")]  # matches vec(J) of the mapped output
     tc = [(per * i_ + c_).ravel(order="F")]
@@ -382,23 +391,9 @@ def _shooting_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np
     return nlp, lbg, ubg, {"jac_g": jac_g, "hess_lag": hess_lag}
 
 
-def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int = 1000) -> Nlp:
-    """The NLP of ``layout`` on ``model``, built once per process and cached (never per airframe).
-    """
-    key = (model.name, layout, tol, max_iter)
-    if key in _NLPS:
-        return _NLPS[key]
-    if layout.method == "shooting":
-        nlp, lbg, ubg, extra = _shooting_nlp(model, layout)
-        name = f"limit_{model.name.replace('-', '_')}_{layout.n_legs}x{layout.intervals}"
-        built = Nlp(model=model, layout=layout,
-                    cold=ca.nlpsol(name, "ipopt", nlp, ipopt_options(tol, max_iter, False)
-                                   | extra),
-                    warm=ca.nlpsol(name + "_warm", "ipopt", nlp,
-                                   ipopt_options(tol, max_iter, True) | extra),
-                    lbg=lbg, ubg=ubg)
-        _NLPS[key] = built
-        return built
+def _collocation_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np.ndarray,
+                                                                dict]:
+    """Radau collocation as an SX NLP (CasADi's own derivatives), kept for comparison."""
     L, N, M, nx, nu = layout.n_legs, layout.intervals, layout.n_intervals, model.nx, model.nu
     d = layout.n_coll
     # per interval i: its leg's duration S_i (its length is S_i / N), command, collocation
@@ -413,35 +408,36 @@ def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int 
     p = ca.SX.sym("p", model.np)
     x_start = ca.SX.sym("x_start", nx)
     targets = ca.SX.sym("targets", TARGET_SIZE * L)
+    interval = collocation_interval(model, d)
     res, x_end = [], []
-    if layout.method == "collocation":
-        interval = collocation_interval(model, d)
-        for i in range(M):
-            r, e = interval(X[:, i], ca.reshape(Z[:, i], nx, d), U[:, i], p, h[i])
-            res.append(r)
-            x_end.append(X[:, i + 1] - e)
-    else:
-        step = rk4_step(model, layout.substeps)
-        x_end = [X[:, i + 1] - step(X[:, i], U[:, i], p, h[i]) for i in range(M)]
-        res = [ca.SX(0, 1)]
+    for i in range(M):
+        r, e = interval(X[:, i], ca.reshape(Z[:, i], nx, d), U[:, i], p, h[i])
+        res.append(r)
+        x_end.append(X[:, i + 1] - e)
     same = [S[i] - S[i - 1] for i in range(1, M) if i % N]
     rows = [(ca.vertcat(*res), 0.0, 0.0), (ca.vertcat(*x_end), 0.0, 0.0),
-            (ca.vertcat(*same), 0.0, 0.0), (X[:, 0] - x_start, 0.0, 0.0)]
-    for k, kind in enumerate(layout.kinds):
-        xe = X[:, (k + 1) * N]
-        rows += _target_rows(xe, model.world_velocity(xe),
-                             targets[TARGET_SIZE * k:TARGET_SIZE * (k + 1)], kind)
-    if layout.end_at_rest:
-        rows.append((model.world_velocity(X[:, M]), 0.0, 0.0))
-    g = ca.vertcat(*[r[0] for r in rows])
-    lbg = np.concatenate([np.full(r[0].numel(), r[1]) for r in rows])
-    ubg = np.concatenate([np.full(r[0].numel(), r[2]) for r in rows])
+            (ca.vertcat(*same), 0.0, 0.0), (X[:, 0] - x_start, 0.0, 0.0),
+            *_leg_end_rows(model, layout, X, targets)]
+    lbg, ubg = _bounds_of(rows)
     w = ca.vertcat(ca.vec(ca.vertcat(S, U, Z, X[:, :M])), X[:, M])
-    nlp = {"x": w, "p": ca.vertcat(p, x_start, targets), "f": ca.sum2(S[::N]), "g": g}
-    name = f"limit_{model.name.replace('-', '_')}_{L}x{N}"
+    nlp = {"x": w, "p": ca.vertcat(p, x_start, targets), "f": ca.sum2(S[::N]),
+           "g": ca.vertcat(*[r[0] for r in rows])}
+    return nlp, lbg, ubg, {}
+
+
+def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int = 1000) -> Nlp:
+    """The NLP of ``layout`` on ``model``, built once per process and cached (never per airframe).
+    """
+    key = (model.name, layout, tol, max_iter)
+    if key in _NLPS:
+        return _NLPS[key]
+    make = _shooting_nlp if layout.method == "shooting" else _collocation_nlp
+    nlp, lbg, ubg, extra = make(model, layout)
+    name = f"limit_{model.name.replace('-', '_')}_{layout.n_legs}x{layout.intervals}"
     built = Nlp(model=model, layout=layout,
-                cold=ca.nlpsol(name, "ipopt", nlp, ipopt_options(tol, max_iter, False)),
-                warm=ca.nlpsol(name + "_warm", "ipopt", nlp, ipopt_options(tol, max_iter, True)),
+                cold=ca.nlpsol(name, "ipopt", nlp, ipopt_options(tol, max_iter, False) | extra),
+                warm=ca.nlpsol(name + "_warm", "ipopt", nlp,
+                               ipopt_options(tol, max_iter, True) | extra),
                 lbg=lbg, ubg=ubg)
     _NLPS[key] = built
     return built

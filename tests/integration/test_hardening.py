@@ -178,29 +178,39 @@ def stale_lock_dir(tmp_path: Path) -> Path:
     return d
 
 
+def race(attempt, n: int, refusals: tuple[type[Exception], ...]) -> tuple[list, list]:
+    """Run ``attempt()`` in ``n`` threads released together by a barrier: (what the winners
+    returned, the refusals raised)."""
+    barrier = threading.Barrier(n)
+    won, refused = [], []
+
+    def contend():
+        barrier.wait()
+        try:
+            won.append(attempt())
+        except refusals as exc:
+            refused.append(exc)
+
+    threads = [threading.Thread(target=contend) for _ in range(n)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return won, refused
+
+
 def test_stale_lock_takeover_lets_exactly_one_through(tmp_path):
     """200 synchronised trials, 4 contenders each (threads: flock is per open file, so threads
     of one process contend exactly as processes do)."""
     for trial in range(200):
         d = stale_lock_dir(tmp_path / str(trial))
-        barrier = threading.Barrier(4)
-        won: list[RunStore] = []
-        refused: list[Exception] = []
 
-        def contend(d=d, barrier=barrier, won=won, refused=refused):
+        def take(d=d):
             store = RunStore(d)
-            barrier.wait()
-            try:
-                store.acquire()
-                won.append(store)
-            except RunInProgress as exc:
-                refused.append(exc)
+            store.acquire()
+            return store
 
-        threads = [threading.Thread(target=contend) for _ in range(4)]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
+        won, refused = race(take, 4, (RunInProgress,))
         assert len(won) == 1 and len(refused) == 3, trial
         won[0].release()
 
@@ -246,22 +256,9 @@ def test_two_runs_into_one_new_out_one_wins(tmp_path, tiny):
     study = Study(tiny)
     for trial in range(20):
         out = tmp_path / f"out{trial}"
-        barrier = threading.Barrier(2)
-        won, refused = [], []
-
-        def create(out=out, barrier=barrier, won=won, refused=refused):
-            barrier.wait()
-            try:
-                won.append(RunStore.create(out, tiny, study.variable_names, list(INDICES),
-                                           "serial"))
-            except (RunInProgress, NotARunDirectory) as exc:
-                refused.append(exc)
-
-        threads = [threading.Thread(target=create) for _ in range(2)]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
+        won, refused = race(lambda out=out: RunStore.create(
+            out, tiny, study.variable_names, list(INDICES), "serial"), 2,
+            (RunInProgress, NotARunDirectory))
         assert len(won) == 1 and len(refused) == 1, (trial, refused)
         won[0].release()
 

@@ -18,9 +18,12 @@ constraints: the sum of the positive ``G``); a solution with a non-finite object
 infeasible with infinite violation. Only feasible solutions enter the archive.
 
 The archive lives in plain numpy arrays (:class:`~casadrone.optimise.boxarchive.BoxArchive`: its
-update costs O(|A|) numpy work per child, and a grid move one vectorised rebuild); a pymoo
-``Population`` of it is built only when pymoo or a caller asks for one (``opt``, ``archive_pop``).
-P is a pymoo ``Population`` (fixed size), pickled as arrays. Every random draw uses
+update costs O(|A|) numpy work per child, and a grid move one vectorised rebuild), and so does P
+(row arrays of fixed length): a pymoo ``Population`` of either is built only when a caller asks
+for one (``opt``, ``archive_pop``, ``pop``, ``result()``). The children are the only pymoo
+``Individual`` objects a generation makes (pymoo's evaluator needs them), and they are dropped
+after it; at paper scale (P 850, archive ~7 700) keeping P and the archive as Individuals held
+~45 000 objects that every full garbage collection walked. Every random draw uses
 ``self.random_state`` (the ``numpy.random.Generator`` pymoo creates from ``seed`` in ``setup``),
 so the algorithm pickles (checkpoints) cheaply and the same seed reproduces the same archive.
 """
@@ -32,6 +35,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from pymoo.core.algorithm import Algorithm
+from pymoo.core.individual import Individual
 from pymoo.core.population import Population
 from pymoo.termination.max_eval import MaximumFunctionCallTermination
 from pymoo.termination.max_gen import MaximumGenerationTermination
@@ -236,10 +240,8 @@ class EvMOGA(Algorithm):
         self.n_div: np.ndarray | None = None
         self.box_archive: BoxArchive | None = None  # A and its grid
         self._n_seen = 0  # solutions evaluated so far: the next one's id
-        self._individuals: dict[float, object] = {}  # id -> pymoo Individual of archive members
-        # objectives and violation of P, kept in step with self.pop
-        self.pop_F = np.empty((0, 0))
-        self.pop_cv = np.empty(0)
+        # P: its row arrays (ROW_KEYS), and its objectives and violation kept in step with them
+        # (set through the ``pop`` property, which pymoo's __init__ has already called)
 
     # ---- the archive as pymoo and the tests see it ----------------------------------------------
 
@@ -271,13 +273,31 @@ class EvMOGA(Algorithm):
     @property
     def archive_pop(self) -> Population:
         """The archive as a new pymoo ``Population`` (built on each call: O(|A|) objects)."""
-        return self._population(self.box_archive.rows)
+        return _population_of_rows(self.box_archive.rows)
+
+    @property
+    def pop(self) -> Population | None:
+        """P as a new pymoo ``Population`` (built on each call; P itself is ``pop_rows``)."""
+        rows = self.__dict__.get("pop_rows")
+        return None if rows is None else _population_of_rows(rows)
+
+    @pop.setter
+    def pop(self, value: Population | None) -> None:
+        """pymoo sets P (empty in ``setup``, the evaluated initial population in ``advance``)."""
+        if value is None or len(value) == 0:
+            self.pop_rows = None
+            self.pop_F, self.pop_cv = np.empty((0, 0)), np.empty(0)
+        else:
+            self.pop_rows = _rows(value, self._widths(with_id=False))
+            F, self.pop_cv = _violation_of_rows(self.pop_rows)
+            self.pop_F = F.copy()
 
     @property
     def opt(self) -> Population | None:
-        """pymoo's optimum: the archive at the end of the last generation (built on demand)."""
+        """pymoo's optimum: the archive at the end of the last generation (built on demand,
+        once per generation)."""
         if self._opt is None and self._opt_rows is not None:
-            self._opt = self._population(self._opt_rows)
+            self._opt = _population_of_rows(self._opt_rows)
         return self._opt
 
     @opt.setter
@@ -285,27 +305,25 @@ class EvMOGA(Algorithm):
         self._opt, self._opt_rows = value, None
 
     def __getstate__(self) -> dict:
-        """Pickle P as arrays, drop the built optimum (a checkpoint of Individual objects costs
-        ~0.05 ms per individual) and the last children (``history.sqlite`` holds them), and
-        store the optimum's rows only when they are not the archive's (after a generation they
-        are: the archive would be pickled twice)."""
+        """Drop the built optimum (a checkpoint of Individual objects costs ~0.05 ms per
+        individual) and the last children (``history.sqlite`` holds them), and store the
+        optimum's rows only when they are not the archive's (after a generation they are: the
+        archive would be pickled twice)."""
         state = self.__dict__.copy()
         opt_rows = state.get("_opt_rows")
         if opt_rows is not None:
             state["_opt"] = None
             if _same_rows(opt_rows, self.box_archive.rows):
                 state["_opt_rows"] = _ARCHIVE
-        state["_individuals"] = {}
-        if isinstance(state.get("pop"), Population) and len(state["pop"]):
-            state["pop"] = _rows(state["pop"], self._widths(with_id=False))
         if isinstance(state.get("off"), Population):
             state["off"] = None
         return state
 
     def __setstate__(self, state: dict) -> None:
-        for key in ("pop", "off"):
-            if isinstance(state.get(key), dict):
-                state[key] = _population_of_rows(state[key])
+        state.pop("_individuals", None)  # the Individual cache of git 6094a45 and before
+        pop = state.pop("pop", None)  # P of git 6094a45 and before: its rows or a Population
+        if isinstance(state.get("off"), dict):
+            state["off"] = _population_of_rows(state["off"])
         if isinstance(state.get("_opt_rows"), str) and state["_opt_rows"] == _ARCHIVE:
             state["_opt_rows"] = {k: v.copy() for k, v in state["box_archive"].rows.items()}
         legacy = "box_archive" not in state and "archive_pop" in state
@@ -314,8 +332,11 @@ class EvMOGA(Algorithm):
                                                  "grid_min", "grid_max", "eps")}
             state["_opt"], state["_opt_rows"] = state.pop("opt", None), None
         self.__dict__.update(state)
+        if isinstance(pop, dict):
+            self.pop_rows = pop
+        elif pop is not None:
+            self.pop = pop
         if legacy:
-            self._individuals = {}
             self._n_seen = int(self.evaluator.n_eval)
             self.box_archive = BoxArchive(self.n_div, self._widths())
             pop = archive["archive_pop"]
@@ -327,20 +348,6 @@ class EvMOGA(Algorithm):
                 self.box_archive.grid_min = archive["grid_min"]
                 self.box_archive.grid_max = archive["grid_max"]
                 self.box_archive.eps = archive["eps"]
-
-    def _population(self, rows: dict[str, np.ndarray]) -> Population:
-        """A pymoo population of archive rows, reusing the Individual of each member that was
-        already built (by its ``id``): building one costs ~20 µs, and pymoo reads ``opt`` after
-        every generation."""
-        ids = rows["id"][:, 0].tolist()
-        cache = self._individuals
-        missing = [i for i, key in enumerate(ids) if key not in cache]
-        if missing:
-            fresh = _population_of_rows({k: rows[k][missing] for k in ROW_KEYS})
-            cache.update(zip([ids[i] for i in missing], fresh, strict=True))
-        self._individuals = {key: cache[key] for key in ids}
-        members = np.fromiter(self._individuals.values(), dtype=object, count=len(ids))
-        return members.view(Population)  # Population.create's array, without its ~0.1 µs a member
 
     # ---- pymoo hooks --------------------------------------------------------------------------
 
@@ -386,9 +393,33 @@ class EvMOGA(Algorithm):
         X = xl + self.random_state.random((self.n_ind_p, self.problem.n_var)) * (xu - xl)
         return Population.new("X", X)
 
+    def advance(self, infills: Population | None = None, **kwargs) -> None:
+        """pymoo's ``Algorithm.advance`` (0.6.1–0.6.2, the same steps in the same order), except
+        that it returns ``None`` where pymoo returns ``self.opt`` (or ``self.result()`` after the
+        last generation): either builds a population of the whole archive (~7 700 Individuals
+        at paper scale, ~30 ms a generation, and garbage for the collector), which
+        ``Algorithm.next()``, ``Algorithm.run()`` and the runner drop unread. ``opt`` and
+        ``result()`` build it when asked."""
+        self.off = infills
+        if not self.is_initialized:
+            self.n_iter = 1
+            self._initialize_advance(infills=infills, **kwargs)
+            self.is_initialized = True
+            self._post_advance()
+        else:
+            val = self._advance(infills=infills, **kwargs)
+            if val is None or val:
+                self._post_advance()
+        if self.termination.has_terminated():
+            self.finalize()
+        if self.archive is not None and infills is not None:
+            self.archive = self.archive.add(infills)
+
     def _initialize_advance(self, infills=None, **kwargs) -> None:
-        self.pop = infills
-        self.pop_F, self.pop_cv = _violation(infills)
+        rows = self._rows_of_children(infills)
+        self.pop_rows = {k: rows[k].copy() for k in ROW_KEYS}
+        F, cv = _violation_of_rows(rows)
+        self.pop_F, self.pop_cv = F.copy(), cv
         feasible = np.flatnonzero(self.pop_cv <= 0.0)
         if len(feasible) == 0:
             return
@@ -396,7 +427,6 @@ class EvMOGA(Algorithm):
         nd = np.sort(nd)
         F_nd = self.pop_F[nd]
         self.box_archive.set_grid(F_nd.min(axis=0), F_nd.max(axis=0))
-        rows = self._rows_of_children(infills)
         self.box_archive.fill({k: v[nd] for k, v in rows.items()})
 
     def _infill(self) -> Population:
@@ -407,11 +437,12 @@ class EvMOGA(Algorithm):
         xl, xu = self.problem.bounds()
         n_pairs, n_var = self.n_ind_ga // 2, self.problem.n_var
 
-        p1 = _column(self.pop[rs.integers(len(self.pop), size=n_pairs)], "X", n_var)
+        X_p = self.pop_rows["X"]
+        p1 = X_p[rs.integers(len(X_p), size=n_pairs)]
         if len(self.box_archive):
             p2 = self.archive_X[rs.integers(len(self.box_archive), size=n_pairs)]
         else:  # A empty: both parents from P
-            p2 = _column(self.pop[rs.integers(len(self.pop), size=n_pairs)], "X", n_var)
+            p2 = X_p[rs.integers(len(X_p), size=n_pairs)]
         mutate = rs.random(n_pairs) < self.p_m
         beta = rs.uniform(-dd, 1.0 + dd, size=(n_pairs, 1))
         noise = rs.normal(0.0, 1.0, size=(2, n_pairs, n_var)) * (sigma / 100.0) * (xu - xl)
@@ -426,8 +457,12 @@ class EvMOGA(Algorithm):
         F, cv = _violation_of_rows(rows)
         feasible = np.flatnonzero(cv <= 0.0)
         self.box_archive.offer_many({k: v[feasible] for k, v in rows.items()})
-        for j, i in replacements(self.pop_F, self.pop_cv, F, cv, self.random_state).items():
-            self.pop[j] = infills[i]
+        taken = replacements(self.pop_F, self.pop_cv, F, cv, self.random_state)
+        if taken:  # slot j of P takes child i
+            j = np.fromiter(taken.keys(), dtype=np.intp, count=len(taken))
+            i = np.fromiter(taken.values(), dtype=np.intp, count=len(taken))
+            for key in ROW_KEYS:
+                self.pop_rows[key][j] = rows[key][i]
             self.pop_F[j], self.pop_cv[j] = F[i], cv[i]
 
     def _set_optimum(self) -> None:
@@ -445,8 +480,32 @@ def _column(pop: Population, key: str, width: int) -> np.ndarray:
 
 
 def _rows(pop: Population, widths: dict[str, int]) -> dict[str, np.ndarray]:
-    """The row arrays ``ROW_KEYS`` of a population, each (len(pop), width) float."""
-    return {k: _column(pop, k, widths[k]) for k in ROW_KEYS}
+    """The row arrays ``ROW_KEYS`` of a population, each (len(pop), width) float.
+
+    ``CV`` is pymoo's ``Individual.CV``: computed here for all rows at once from G and H
+    (:func:`_default_cv`) when no member has one yet and every member has pymoo's default
+    configuration (the case of the children ev-MOGA makes: ~10 µs a member saved), else read
+    from each member."""
+    rows = {k: _column(pop, k, widths[k]) for k in ROW_KEYS if k != "CV"}
+    default = Individual.default_config()
+    if all(ind._CV is None and ind.config == default for ind in pop):
+        rows["CV"] = _default_cv(rows["G"], rows["H"])
+    else:
+        rows["CV"] = _column(pop, "CV", widths["CV"])
+    return {k: rows[k] for k in ROW_KEYS}
+
+
+def _default_cv(G: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """pymoo's constraint violation under its default configuration (``calc_cv``), rows at
+    once: the sum of the positive inequality constraints plus the sum of the equality
+    constraints' magnitudes above 1e-4, as a (n, 1) column. Each row is summed along its own
+    contiguous axis, as pymoo sums a member's 1-D array, so the values agree bit for bit (tested
+    against ``Individual.CV``)."""
+    cv_eq = Individual.default_config()["cv_eq"]
+    ieq = np.maximum(0.0, G - 0.0).sum(axis=1) if G.shape[1] else np.zeros(len(G))
+    eq = (np.maximum(0.0, np.abs(H) - cv_eq["eps"]).sum(axis=1) if H.shape[1]
+          else np.zeros(len(H)))
+    return (ieq + eq)[:, None]
 
 
 def _population_of_rows(rows: dict[str, np.ndarray]) -> Population:

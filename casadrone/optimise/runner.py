@@ -20,6 +20,7 @@ progress hypervolume stays cheap as the set grows (:mod:`casadrone.optimise.hype
 from __future__ import annotations
 
 import contextlib
+import gc
 import signal
 import sys
 import threading
@@ -253,12 +254,30 @@ def _marker(t: list[float], cpu: list[float]) -> Callable[[], None]:
 BACKGROUND_WRITES = True
 
 
+@contextlib.contextmanager
+def _long_lived_objects_frozen():
+    """While the block runs, the garbage collector leaves alone the objects alive when it
+    starts (``gc.freeze``): imported modules, the study, the backend. They live as long as the
+    run anyway, and at paper scale they are ~80 000 of the ~100 000 objects that each full
+    collection walked (~40 of them per run, 0.1–0.4 s each, in the coordinator's time). Only
+    the cyclic collector is affected: reference counting frees as before. Unfrozen afterwards.
+    Freezing again after each generation was tried and reverted (it kept the garbage of every
+    generation alive; ``benchmarks/RESULTS-paper-scale.md``)."""
+    gc.collect()
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+
+
 def _generations(store, algorithm, study, problem, elapsed0, progress, stop_after,
                  hv) -> RunResult:
     writer = GenerationWriter(store, background=BACKGROUND_WRITES)
     try:
-        result = _generation_loop(store, writer, algorithm, study, problem, elapsed0, progress,
-                                  stop_after, hv)
+        with _long_lived_objects_frozen():
+            result = _generation_loop(store, writer, algorithm, study, problem, elapsed0,
+                                      progress, stop_after, hv)
     except BaseException:
         writer.close(raise_errors=False)  # the lock is released after the writes in flight
         raise

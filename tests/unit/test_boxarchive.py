@@ -30,7 +30,7 @@ from casadrone.optimise.boxarchive import (
     pareto_dominates,
     pareto_dominates_rows,
 )
-from casadrone.optimise.evmoga import EvMOGA, constrained_dominates
+from casadrone.optimise.evmoga import ROW_KEYS, EvMOGA, constrained_dominates
 
 KEYS = ("X", "F", "G", "H", "CV")
 
@@ -477,7 +477,7 @@ class SequentialEvMOGA(EvMOGA):
         for i in range(len(infills)):
             if cv[i] <= 0.0:
                 self.box_archive.offer({k: v[i] for k, v in rows.items()})
-        n = len(self.pop)
+        n = len(self.pop_F)
         for i in range(len(infills)):
             start = int(self.random_state.integers(n))
             order = (start + np.arange(n)) % n
@@ -486,7 +486,8 @@ class SequentialEvMOGA(EvMOGA):
             )
             if len(hit):
                 j = order[hit[0]]
-                self.pop[j] = infills[i]
+                for key in ROW_KEYS:
+                    self.pop_rows[key][j] = rows[key][i]
                 self.pop_F[j], self.pop_cv[j] = F[i], cv[i]
 
 
@@ -538,9 +539,10 @@ def test_checkpoint_of_the_sequential_archive_resumes_to_the_same_end():
     alg.setup(problem, seed=2)
     for _ in range(30):
         alg.next()
-    state = pickle.loads(pickle.dumps(alg)).__dict__.copy()  # P as a Population again
-    for key in ("box_archive", "_individuals", "_n_seen", "_opt", "_opt_rows"):
+    state = pickle.loads(pickle.dumps(alg)).__dict__.copy()
+    for key in ("box_archive", "_n_seen", "_opt", "_opt_rows", "pop_rows"):
         del state[key]
+    state["pop"] = alg.pop  # P as a Population, as it was then
     state.update(archive_pop=alg.archive_pop, archive_F=alg.archive_F.copy(),
                  archive_box=alg.archive_box.copy(), grid_min=alg.grid_min.copy(),
                  grid_max=alg.grid_max.copy(), eps=alg.eps.copy(), opt=alg.opt)

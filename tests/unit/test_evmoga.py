@@ -466,6 +466,33 @@ def test_rows_read_from_individuals_equal_pymoos_get():
         assert F.tobytes() == rows["F"].tobytes() and cv.tobytes() == rows["CV"][:, 0].tobytes()
 
 
+@pytest.mark.parametrize("n_ieq", [0, 1, 7, 8, 9, 19])
+@pytest.mark.parametrize("n_eq", [0, 1, 11])
+def test_violation_of_rows_at_once_is_pymoos_per_member(n_ieq, n_eq):
+    """The violation computed for all rows at once equals pymoo's ``Individual.CV`` (its
+    ``calc_cv``, one member at a time) bit for bit, with widths on both sides of numpy's
+    8-element pairwise-summation block, equality constraints near pymoo's 1e-4 tolerance, and
+    members whose CV pymoo had already computed (read as they are)."""
+    from pymoo.core.population import Population
+
+    from casadrone.optimise.evmoga import _rows
+
+    rng = np.random.default_rng(n_ieq * 100 + n_eq)
+    n = 60
+    G = rng.normal(size=(n, n_ieq)) * rng.choice([1e-8, 1.0, 1e6], size=(n, n_ieq))
+    H = rng.normal(scale=2e-4, size=(n, n_eq))
+    widths = {"X": 2, "F": 3, "G": n_ieq, "H": n_eq, "CV": 1}
+    for cached in (False, True):
+        pop = Population.new("X", rng.random((n, 2)), "F", rng.random((n, 3)), "G", G, "H", H)
+        expected = np.array([ind.CV for ind in pop]) if cached else None
+        got = _rows(pop, widths)["CV"]
+        if not cached:
+            expected = np.array([ind.CV for ind in pop])
+        assert got.shape == (n, 1)
+        assert got.tobytes() == expected.reshape(n, 1).tobytes()
+    assert (got > 0).any() == (n_ieq + n_eq > 0)  # violated rows were compared, where any
+
+
 def test_population_of_rows_is_what_population_new_built():
     from pymoo.core.population import Population
 

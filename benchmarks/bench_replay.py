@@ -1,0 +1,155 @@
+"""The coordinator of a finished paper-scale run, alone: the run replayed from its history.
+
+A finished run directory (``--run``, e.g. ``runs/paper-scale/paper-run1``) is run again into a new
+directory with the real runner (ask → evaluate → advance → statistics → checkpoint, background
+writes), but each generation's evaluations are read back from the finished run's
+``history.sqlite`` instead of being computed (one generation at a time, checked candidate by
+candidate against what the algorithm asks for, as a resume from history does). The evaluation
+step is then only the read; everything else is the coordinator's real work on the run's real
+stream of children: archive growth, grid moves, P updates, hypervolume, checkpoints. The result
+must be the finished run's ``pareto.csv`` byte for byte.
+
+Reported: the coordinator's wall and CPU time per generation (``timings.csv`` of the replay), by
+step, over the whole run and over its last 10 generations, and the time spent in the garbage
+collector (``gc.callbacks``). The share of a live run follows from these and the evaluation time
+of the live run: ``coordinator / (coordinator + evaluate)``.
+
+Run: ``python benchmarks/bench_replay.py --run runs/paper-scale/paper-run1 --out /tmp/replay1``
+(``--profile N``: cProfile over the last N generations, top functions printed).
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import filecmp  # noqa: E402
+import gc  # noqa: E402
+import sqlite3  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+
+
+class HistoryBackend:
+    """Serves generation ``g`` of a finished run's history on the ``g``-th call."""
+
+    name = "history"
+
+    def __init__(self, run: Path):
+        from casadrone.optimise.store import RunStore
+
+        self.store = RunStore(run)
+        self.generation = 0
+        self.on_generation = None
+
+    def evaluate(self, study, X):
+        from casadrone.optimise.problem import Record
+
+        if self.on_generation is not None:
+            self.on_generation(self.generation)
+        m = self.store.manifest
+        with sqlite3.connect(self.store.path / "history.sqlite") as db:
+            db.row_factory = sqlite3.Row
+            rows = db.execute("SELECT * FROM evaluations WHERE generation = ? ORDER BY idx",
+                              (self.generation,)).fetchall()
+        records = [Record(theta={v: r[v] for v in m["variables"]}, status=r["status"],
+                          stage=r["stage"] or "", reason=r["reason"] or "",
+                          indices={k: float("nan") if r[k] is None else r[k]
+                                   for k in m["indices"]},
+                          wall_time_s=r["wall_time_s"] or 0.0) for r in rows]
+        names = study.variable_names
+        stored = np.array([[r.theta[n] for n in names] for r in records], dtype=float)
+        if stored.shape != np.shape(X) or not np.array_equal(stored, X):
+            raise SystemExit(f"generation {self.generation}: the replay asks for other "
+                             "candidates than the run evaluated")
+        self.generation += 1
+        return records
+
+    def close(self) -> None:
+        pass
+
+    terminate = close
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--run", type=Path, required=True)
+    ap.add_argument("--out", type=Path, required=True, help="new run directory of the replay")
+    ap.add_argument("--profile", type=int, default=0, help="cProfile the last N generations")
+    args = ap.parse_args()
+
+    from casadrone.optimise import runner
+    from casadrone.optimise.store import RunStore
+
+    source = RunStore(args.run)
+    problem = source.problem()
+    backend = HistoryBackend(args.run)
+    runner.make_backend = lambda cfg, without_main=False: backend
+
+    gc_time = [0.0, 0]
+    gc_start = [0.0]
+
+    def on_gc(phase, info):
+        if phase == "start":
+            gc_start[0] = time.perf_counter()
+        else:
+            gc_time[0] += time.perf_counter() - gc_start[0]
+            gc_time[1] += info["generation"] == 2
+
+    gc.callbacks.append(on_gc)
+    profiler = None
+    if args.profile:
+        import cProfile
+
+        profiler = cProfile.Profile()
+        first = problem.algorithm.generations + 1 - args.profile
+
+        def switch(g):
+            if g == first:
+                profiler.enable()
+        backend.on_generation = switch
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    runner.run(problem, args.out, quiet=True)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    if profiler is not None:
+        import pstats
+
+        profiler.disable()
+        pstats.Stats(profiler).sort_stats(os.environ.get("SORT", "tottime")).print_stats(int(os.environ.get("TOP", "25")))
+
+    with open(args.out / "timings.csv") as f:
+        rows = list(csv.DictReader(f))
+    last = rows[-10:]
+    same = filecmp.cmp(args.out / "pareto.csv", args.run / "pareto.csv", shallow=False)
+
+    def mean_ms(rs, key):
+        return 1e3 * np.mean([float(r[key]) for r in rs])
+
+    steps = ("ask_s", "advance_s", "statistics_s", "history_s", "checkpoint_s")
+    print(f"replay of {args.run}: {len(rows)} generations, wall {wall:.1f} s, CPU {cpu:.1f} s, "
+          f"garbage collection {gc_time[0]:.1f} s ({gc_time[1]} full collections)")
+    print("whole run, coordinator (s): "
+          f"{sum(float(r['coordinator_s']) for r in rows):.1f} wall, "
+          f"{sum(float(r['coordinator_cpu_s']) for r in rows):.1f} CPU; by step: "
+          + ", ".join(f"{k[:-2]} {sum(float(r[k]) for r in rows):.1f}" for k in steps))
+    print("last 10 generations, mean per generation (ms): "
+          f"coordinator {mean_ms(last, 'coordinator_s'):.1f} wall, "
+          f"{mean_ms(last, 'coordinator_cpu_s'):.1f} CPU; "
+          + ", ".join(f"{k[:-2]} {mean_ms(last, k):.1f}" for k in steps)
+          + f"; archive {last[-1]['archive_size']}")
+    print(f"pareto.csv equal to the finished run's: {same}")
+
+
+if __name__ == "__main__":
+    main()

@@ -15,7 +15,9 @@ collector (``gc.callbacks``). The share of a live run follows from these and the
 of the live run: ``coordinator / (coordinator + evaluate)``.
 
 Run: ``python benchmarks/bench_replay.py --run runs/paper-scale/paper-run1 --out /tmp/replay1``
-(``--profile N``: cProfile over the last N generations, top functions printed).
+(``--profile N``: cProfile over the last N generations, top functions printed; ``--results F``:
+the markdown file the summary is written to, ``benchmarks/RESULTS-replay.md`` by default; a
+second run with ``--append`` adds its section, e.g. for paper-run2 or another revision).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ import numpy as np  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
+sys.path.insert(0, str(HERE))
 
 
 class HistoryBackend:
@@ -86,6 +89,8 @@ def main() -> None:
     ap.add_argument("--run", type=Path, required=True)
     ap.add_argument("--out", type=Path, required=True, help="new run directory of the replay")
     ap.add_argument("--profile", type=int, default=0, help="cProfile the last N generations")
+    ap.add_argument("--results", type=Path, default=HERE / "RESULTS-replay.md")
+    ap.add_argument("--append", action="store_true", help="add to --results, do not replace it")
     args = ap.parse_args()
 
     from casadrone.optimise import runner
@@ -137,18 +142,31 @@ def main() -> None:
         return 1e3 * np.mean([float(r[key]) for r in rs])
 
     steps = ("ask_s", "advance_s", "statistics_s", "history_s", "checkpoint_s")
-    print(f"replay of {args.run}: {len(rows)} generations, wall {wall:.1f} s, CPU {cpu:.1f} s, "
-          f"garbage collection {gc_time[0]:.1f} s ({gc_time[1]} full collections)")
-    print("whole run, coordinator (s): "
-          f"{sum(float(r['coordinator_s']) for r in rows):.1f} wall, "
-          f"{sum(float(r['coordinator_cpu_s']) for r in rows):.1f} CPU; by step: "
-          + ", ".join(f"{k[:-2]} {sum(float(r[k]) for r in rows):.1f}" for k in steps))
-    print("last 10 generations, mean per generation (ms): "
-          f"coordinator {mean_ms(last, 'coordinator_s'):.1f} wall, "
-          f"{mean_ms(last, 'coordinator_cpu_s'):.1f} CPU; "
-          + ", ".join(f"{k[:-2]} {mean_ms(last, k):.1f}" for k in steps)
-          + f"; archive {last[-1]['archive_size']}")
-    print(f"pareto.csv equal to the finished run's: {same}")
+    lines = [
+        f"- replay of `{args.run}`: {len(rows)} generations, wall {wall:.1f} s, CPU {cpu:.1f} s, "
+        f"garbage collection {gc_time[0]:.1f} s ({gc_time[1]} full collections)",
+        "- whole run, coordinator (s): "
+        f"{sum(float(r['coordinator_s']) for r in rows):.1f} wall, "
+        f"{sum(float(r['coordinator_cpu_s']) for r in rows):.1f} CPU; by step: "
+        + ", ".join(f"{k[:-2]} {sum(float(r[k]) for r in rows):.1f}" for k in steps),
+        "- last 10 generations, mean per generation (ms): "
+        f"coordinator {mean_ms(last, 'coordinator_s'):.1f} wall, "
+        f"{mean_ms(last, 'coordinator_cpu_s'):.1f} CPU; "
+        + ", ".join(f"{k[:-2]} {mean_ms(last, k):.1f}" for k in steps)
+        + f"; archive {last[-1]['archive_size']}",
+        f"- pareto.csv equal to the finished run's: {same}",
+    ]
+    print("\n".join(lines))
+    import machine
+
+    section = "\n".join([f"## {args.run.name}", "", machine.markdown(), *lines, ""])
+    head = ("# The coordinator alone: finished paper-scale runs replayed from their history\n\n"
+            "`python benchmarks/bench_replay.py --run RUN --out NEW_DIR` (method in its "
+            "docstring).\n\n")
+    if args.append and args.results.exists():
+        args.results.write_text(args.results.read_text() + "\n" + section)
+    else:
+        args.results.write_text(head + section)
 
 
 if __name__ == "__main__":

@@ -33,6 +33,8 @@ ORDER = [
      "python benchmarks/bench_coordinator.py"),
     ("advance", "ev-MOGA's advance step (archive + P update) per paper-scale generation",
      "python benchmarks/bench_advance.py"),
+    ("replay", "The coordinator alone: paper-scale runs replayed from their history (issue 10)",
+     "python benchmarks/bench_replay.py --run runs/paper-scale/paper-run1 --out NEW_DIR"),
     ("paper-scale", "Paper-scale runs measured: paper-run1 and paper-run2 (issue 10)",
      "python benchmarks/bench_paper_scale.py --run-root runs/paper-scale --workers 2"),
 ]

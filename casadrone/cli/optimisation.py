@@ -84,13 +84,16 @@ def backend_config(base, name: BackendName | None, workers: int | None,
 
 def require_run_dir(run_dir: Path) -> None:
     """Exit 2 unless ``run_dir`` is a run directory (it has config.yaml and manifest.json)."""
-    from casadrone.optimise.store import CONFIG, MANIFEST
+    from casadrone.optimise.store import CONFIG, MANIFEST, interrupted_creation
 
     if not run_dir.exists():
         raise bad_input([f"{run_dir}: no such run directory"])
     if not run_dir.is_dir():
         raise bad_input([f"{run_dir}: not a directory"])
     missing = [f for f in (CONFIG, MANIFEST) if not (run_dir / f).is_file()]
+    why = interrupted_creation(run_dir)
+    if why:
+        raise bad_input([why])
     if missing:
         raise bad_input([f"{run_dir}: not a run directory (no {', '.join(missing)})"])
 

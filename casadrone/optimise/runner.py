@@ -434,6 +434,7 @@ def resume(out: str | Path, backend: BackendConfig | None = None, quiet: bool = 
     store = RunStore(Path(out))
     store.acquire()
     with _released_on_error(store):
+        store.manifest  # noqa: B018 -- a run killed while being created: says so, not "missing"
         problem = store.problem()  # from the run's own config.yaml and inputs/, wherever it is
         study = Study(problem)
         replay: list[list[Record]] | None = None

@@ -46,6 +46,11 @@ from casadrone.problemconfig import ProblemConfig
 CONFIG, MANIFEST, HISTORY, CHECKPOINT, PARETO = (
     "config.yaml", "manifest.json", "history.sqlite", "checkpoint.pkl", "pareto.csv")
 PREVIOUS_CHECKPOINT, LOCK = "checkpoint.prev.pkl", "run.lock"
+#: Written first when a run directory is created and removed once its manifest is written: a
+#: folder holding it and no manifest is a creation killed half way (SIGKILL, power loss), and
+#: everything in it is casadrone's own (the folder was new or empty), so a new run clears and
+#: reuses it; ``resume`` says so.
+CREATING = ".casadrone-creating"
 
 
 class RunInProgress(RuntimeError):
@@ -171,7 +176,7 @@ class RunStore:
         import shutil
 
         path = Path(path)
-        check_new_run_dir(path, allow={LOCK})
+        check_new_run_dir(path)
         try:
             path.mkdir(parents=True)
             created = True
@@ -180,18 +185,21 @@ class RunStore:
         store = cls(path)
         store.acquire()  # nothing is written before the lock is held
         try:
-            check_new_run_dir(path, allow={LOCK})  # another run got here first?
+            check_new_run_dir(path)  # another run got here first?
+            if (path / CREATING).exists():  # a creation killed half way: its files, not the user's
+                _clear(path, keep=LOCK)
         except BaseException:
             store.release()
             raise
         try:
+            (path / CREATING).touch()
             store._populate(problem, variable_names, index_names, backend)
+            (path / CREATING).unlink()
         except BaseException:  # leave the folder as it was: new (gone) or empty
-            for entry in ([path] if created else [p for p in path.iterdir() if p.name != LOCK]):
-                if entry.is_dir():
-                    shutil.rmtree(entry, ignore_errors=True)
-                else:
-                    entry.unlink(missing_ok=True)
+            if created:
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                _clear(path, keep=LOCK)
             store.release()
             raise
         return store
@@ -234,7 +242,8 @@ class RunStore:
         try:
             data = json.loads((self.path / MANIFEST).read_text(encoding="utf-8"))
         except FileNotFoundError:
-            raise RunDamaged(f"{self.path / MANIFEST}: missing") from None
+            raise RunDamaged(interrupted_creation(self.path)
+                             or f"{self.path / MANIFEST}: missing") from None
         except (OSError, UnicodeDecodeError, ValueError) as exc:
             raise RunDamaged(f"{self.path / MANIFEST}: damaged, not JSON ({exc})") from None
         if not isinstance(data, dict) or not isinstance(data.get("variables"), list) \
@@ -394,9 +403,32 @@ class RunStore:
             raise RunDamaged(f"{self.path / PARETO}: damaged ({exc})") from None
 
 
-def check_new_run_dir(path: Path, allow: set[str] = frozenset()) -> None:
-    """Refuse a ``--out`` that is not a new or empty folder (names in ``allow`` aside), without
-    touching it: a folder holding a run is to be resumed, any other content is the user's."""
+def interrupted_creation(path: Path) -> str | None:
+    """What to tell about ``path`` when its creation was killed half way (no manifest, the
+    :data:`CREATING` marker left), else ``None``."""
+    if (path / MANIFEST).exists() or not (path / CREATING).exists():
+        return None
+    return (f"{path}: its creation was interrupted before the first generation, so there is "
+            f"nothing to resume; start it again with 'casadrone run PROBLEM --out {path}'")
+
+
+def _clear(path: Path, keep: str) -> None:
+    """Remove every entry of ``path`` but ``keep`` (files a run directory's creation made)."""
+    import shutil
+
+    for entry in path.iterdir():
+        if entry.name == keep:
+            continue
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry, ignore_errors=True)
+        else:
+            entry.unlink(missing_ok=True)
+
+
+def check_new_run_dir(path: Path) -> None:
+    """Refuse a ``--out`` that is not a new or empty folder, without touching it: a folder
+    holding a run is to be resumed, any other content is the user's. A lone ``run.lock`` and
+    the files of a creation killed half way (:data:`CREATING`) are casadrone's: accepted."""
     if not path.exists():
         return
     if not path.is_dir():
@@ -404,8 +436,10 @@ def check_new_run_dir(path: Path, allow: set[str] = frozenset()) -> None:
     if (path / MANIFEST).exists():
         raise NotARunDirectory(f"{path}: already holds a run; resume it with 'casadrone resume "
                                f"{path}' or choose another --out")
+    if (path / CREATING).exists():
+        return
     try:
-        entries = sorted(e.name for e in os.scandir(path) if e.name not in allow)
+        entries = sorted(e.name for e in os.scandir(path) if e.name != LOCK)
     except OSError as exc:
         raise NotARunDirectory(f"{path}: cannot read the folder ({exc.strerror})") from None
     if entries:

@@ -545,6 +545,48 @@ def test_a_failed_creation_leaves_no_half_run(tmp_path, tiny, monkeypatch):
     run(tiny, tmp_path / "empty", SERIAL, quiet=True, stop_after=1)  # usable afterwards
 
 
+KILLED_WHILE_CREATING = """
+import os, signal, sys
+from casadrone.optimise import store
+from casadrone.optimise.runner import run
+from casadrone.problemconfig import BackendConfig, load_problem
+
+def killed(self, data):  # SIGKILL (no cleanup can run) just before the manifest is written
+    os.kill(os.getpid(), signal.SIGKILL)
+
+store.RunStore.write_manifest = killed
+run(load_problem(sys.argv[1], sys.argv[3:]), sys.argv[2], BackendConfig(name="serial"),
+    quiet=True)
+"""
+
+
+@pytest.mark.parametrize("existing", [False, True])
+def test_a_creation_killed_half_way_is_reused_by_run_and_named_by_resume(tmp_path, tiny, full,
+                                                                         existing):
+    """SIGKILL while the run directory is being created (config, inputs and history written,
+    no manifest): the folder is not the user's, so ``run`` clears and reuses it and ends like
+    an uninterrupted run; ``resume`` says in one line that there is nothing to resume. Both
+    a new folder and an empty one the user made."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "run"
+    if existing:
+        out.mkdir()
+    done = subprocess.run([sys.executable, "-c", KILLED_WHILE_CREATING, QUICK, str(out), *TINY],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == -9, done.stderr
+    left = {p.name for p in out.iterdir()}
+    assert {"config.yaml", "history.sqlite", ".casadrone-creating"} <= left
+    assert "manifest.json" not in left
+    line = one_line_exit_2(cli("resume", out))
+    assert "creation was interrupted" in line and "casadrone run" in line
+    assert {p.name for p in out.iterdir()} == left  # resume wrote nothing
+    run(tiny, out, SERIAL, quiet=True)
+    same_run(out, full)
+    assert not (out / ".casadrone-creating").exists()
+
+
 def test_checkpoints_hold_no_path_of_the_run(tmp_path, tiny):
     out = tmp_path / "somewhere-unique"
     run(tiny, out, SERIAL, quiet=True, stop_after=2)

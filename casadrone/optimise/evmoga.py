@@ -488,7 +488,8 @@ def _rows(pop: Population, widths: dict[str, int]) -> dict[str, np.ndarray]:
     from each member."""
     rows = {k: _column(pop, k, widths[k]) for k in ROW_KEYS if k != "CV"}
     default = Individual.default_config()
-    if all(ind._CV is None and ind.config == default for ind in pop):
+    # pymoo 0.6 caches a member's CV in ``_CV``; any other layout takes the member-by-member path
+    if all(getattr(ind, "_CV", False) is None and ind.config == default for ind in pop):
         rows["CV"] = _default_cv(rows["G"], rows["H"])
     else:
         rows["CV"] = _column(pop, "CV", widths["CV"])

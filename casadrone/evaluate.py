@@ -183,17 +183,20 @@ def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory
     """The limit lap of a candidate under ``setup.limit``: the best of the primal-dual warm
     starts from the per-study references (:attr:`EvaluationSetup.limit_warm_starts`, the same in
     every worker, so the result does not depend on the backend or the evaluation order); from
-    its closed-loop lap when no reference solved or every warm start failed."""
+    its closed-loop lap when no reference solved or every warm start failed, then from
+    ``fallback_reference`` (only in that cold call: the references were tried already)."""
     from casadrone.limitlap import limit_lap
 
     warm = setup.limit_warm_starts
     cold = ("closed-loop", "point-mass")
     options = replace(setup.limit, guess_trajectory=traj, warm_starts=warm,
-                      starts=() if warm else cold, sensitivities=False)
+                      starts=() if warm else cold, sensitivities=False,
+                      fallback_reference=None if warm else setup.limit.fallback_reference)
     lap = limit_lap(cfg, setup.track, options)
-    if warm and not lap.optimal:  # every warm start failed: the two cold starts decide
+    if warm and not lap.optimal:  # every warm start failed: the cold starts (and fallback) decide
         first = lap
-        lap = limit_lap(cfg, setup.track, replace(options, warm_starts=(), starts=cold))
+        lap = limit_lap(cfg, setup.track, replace(
+            options, warm_starts=(), starts=cold, fallback_reference=setup.limit.fallback_reference))
         if not lap.optimal:
             lap = replace(lap, reason=f"warm starts: {first.reason}; cold starts: {lap.reason}")
     return lap

@@ -185,3 +185,24 @@ def test_resampled_start_keeps_the_coarse_lap_on_a_finer_grid():
     np.testing.assert_allclose(Xf[1::2], 0.5 * (X[:-1] + X[1:]), atol=1e-12)
     np.testing.assert_allclose(Uf[::2], U)
     np.testing.assert_allclose(Uf[1::2], U)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_assemble_sums_duplicate_triplets_like_numpy(seed):
+    """The sparse assembly of the NLP's Jacobian and Hessian (values gathered into a CasADi
+    sparsity) equals numpy's accumulation of the same triplets: duplicates (up to 4 per entry)
+    are summed, every other entry is zero, and the pattern is the triplets' own."""
+    from casadrone.limitnlp import _assemble
+
+    rng = np.random.default_rng(seed)
+    nrow, ncol, n = 7, 9, 60
+    rows, cols = rng.integers(nrow, size=n), rng.integers(ncol, size=n)
+    values = ca.MX.sym("v", n)
+    A = _assemble(nrow, ncol, rows, cols, values)
+    v = rng.normal(size=n)
+    got = np.array(ca.Function("a", [values], [ca.densify(A)])(v))
+    expected = np.zeros((nrow, ncol))
+    np.add.at(expected, (rows, cols), v)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-14)
+    assert A.nnz() == len(set(zip(rows.tolist(), cols.tolist(), strict=True)))
+    assert np.bincount(rows * ncol + cols).max() >= 3  # duplicates were exercised

@@ -38,17 +38,13 @@ sys.path.insert(0, str(HERE))
 
 
 def late_state(run: Path, generation: int) -> bytes:
-    from casadrone.optimise.problem import Record, Study, objectives_and_constraints
-    from casadrone.optimise.store import RunStore
+    from casadrone.optimise.problem import Study, objectives_and_constraints
+    from casadrone.optimise.store import RunStore, record_of
 
     store = RunStore(run)
     alg = store.load_checkpoint()["algorithm"]
-    rows = [r for r in store.history() if r["generation"] == generation]
     man = store.manifest
-    records = [Record(theta={v: r[v] for v in man["variables"]}, status=r["status"],
-                      stage=r["stage"] or "", reason=r["reason"] or "",
-                      indices={k: float("nan") if r[k] is None else r[k] for k in man["indices"]},
-                      wall_time_s=0.0) for r in rows]
+    records = [record_of(r, man) for r in store.history(generation)]
     F, G = objectives_and_constraints(Study(store.problem()), records)
     alg.termination = None
     off = alg._infill()

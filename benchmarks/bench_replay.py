@@ -3,11 +3,12 @@
 A finished run directory (``--run``, e.g. ``runs/paper-scale/paper-run1``) is run again into a new
 directory with the real runner (ask → evaluate → advance → statistics → checkpoint, background
 writes), but each generation's evaluations are read back from the finished run's
-``history.sqlite`` instead of being computed (one generation at a time, checked candidate by
-candidate against what the algorithm asks for, as a resume from history does). The evaluation
-step is then only the read; everything else is the coordinator's real work on the run's real
-stream of children: archive growth, grid moves, P updates, hypervolume, checkpoints. The result
-must be the finished run's ``pareto.csv`` byte for byte.
+``history.sqlite`` instead of being computed (one generation at a time, by the runner's own
+``ReplayBackend``, which checks them candidate by candidate against what the algorithm asks for,
+as a resume from history does). The evaluation step is then only the read; everything else is
+the coordinator's real work on the run's real stream of children: archive growth, grid moves, P
+updates, hypervolume, checkpoints. The result must be the finished run's ``pareto.csv`` byte for
+byte.
 
 Reported: the coordinator's wall and CPU time per generation (``timings.csv`` of the replay), by
 step, over the whole run and over its last 10 generations, and the time spent in the garbage
@@ -31,7 +32,6 @@ import argparse  # noqa: E402
 import csv  # noqa: E402
 import filecmp  # noqa: E402
 import gc  # noqa: E402
-import sqlite3  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -43,40 +43,36 @@ sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
 
-class HistoryBackend:
-    """Serves generation ``g`` of a finished run's history on the ``g``-th call."""
+class StoredGenerations:
+    """A finished run's generations as ``runner.ReplayBackend`` serves them, read from its
+    ``history.sqlite`` one generation at a time when asked (holding all ~300 000 records at
+    once would give the garbage collector work a live run does not have); ``on_read(g)`` is
+    called before generation ``g`` is read."""
 
-    name = "history"
-
-    def __init__(self, run: Path):
+    def __init__(self, run: Path, on_read=None):
         from casadrone.optimise.store import RunStore
 
         self.store = RunStore(run)
-        self.generation = 0
-        self.on_generation = None
+        self.manifest = self.store.manifest
+        self.n = len(self.store.generations())
+        self.on_read = on_read
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, generation: int) -> list:
+        from casadrone.optimise.store import record_of
+
+        if self.on_read is not None:
+            self.on_read(generation)
+        return [record_of(r, self.manifest) for r in self.store.history(generation)]
+
+
+class NoLiveEvaluation:
+    """The backend behind the replay: a finished run has nothing left to evaluate."""
 
     def evaluate(self, study, X):
-        from casadrone.optimise.problem import Record
-
-        if self.on_generation is not None:
-            self.on_generation(self.generation)
-        m = self.store.manifest
-        with sqlite3.connect(self.store.path / "history.sqlite") as db:
-            db.row_factory = sqlite3.Row
-            rows = db.execute("SELECT * FROM evaluations WHERE generation = ? ORDER BY idx",
-                              (self.generation,)).fetchall()
-        records = [Record(theta={v: r[v] for v in m["variables"]}, status=r["status"],
-                          stage=r["stage"] or "", reason=r["reason"] or "",
-                          indices={k: float("nan") if r[k] is None else r[k]
-                                   for k in m["indices"]},
-                          wall_time_s=r["wall_time_s"] or 0.0) for r in rows]
-        names = study.variable_names
-        stored = np.array([[r.theta[n] for n in names] for r in records], dtype=float)
-        if stored.shape != np.shape(X) or not np.array_equal(stored, X):
-            raise SystemExit(f"generation {self.generation}: the replay asks for other "
-                             "candidates than the run evaluated")
-        self.generation += 1
-        return records
+        raise SystemExit("the replay asked for a generation the finished run does not have")
 
     def close(self) -> None:
         pass
@@ -89,6 +85,7 @@ def main() -> None:
     ap.add_argument("--run", type=Path, required=True)
     ap.add_argument("--out", type=Path, required=True, help="new run directory of the replay")
     ap.add_argument("--profile", type=int, default=0, help="cProfile the last N generations")
+    ap.add_argument("--sort", default="tottime", help="pstats sort key of --profile's table")
     ap.add_argument("--results", type=Path, default=HERE / "RESULTS-replay.md")
     ap.add_argument("--append", action="store_true", help="add to --results, do not replace it")
     args = ap.parse_args()
@@ -96,10 +93,10 @@ def main() -> None:
     from casadrone.optimise import runner
     from casadrone.optimise.store import RunStore
 
-    source = RunStore(args.run)
-    problem = source.problem()
-    backend = HistoryBackend(args.run)
-    runner.make_backend = lambda cfg, without_main=False: backend
+    problem = RunStore(args.run).problem()
+    stored = StoredGenerations(args.run)
+    runner.make_backend = lambda cfg, without_main=False: runner.ReplayBackend(
+        stored, NoLiveEvaluation(), why=f"replaying {args.run}")
 
     gc_time = [0.0, 0]
     gc_start = [0.0]
@@ -122,7 +119,7 @@ def main() -> None:
         def switch(g):
             if g == first:
                 profiler.enable()
-        backend.on_generation = switch
+        stored.on_read = switch
 
     t0, c0 = time.perf_counter(), time.process_time()
     runner.run(problem, args.out, quiet=True)
@@ -131,7 +128,7 @@ def main() -> None:
         import pstats
 
         profiler.disable()
-        pstats.Stats(profiler).sort_stats(os.environ.get("SORT", "tottime")).print_stats(int(os.environ.get("TOP", "25")))
+        pstats.Stats(profiler).sort_stats(args.sort).print_stats(25)
 
     with open(args.out / "timings.csv") as f:
         rows = list(csv.DictReader(f))

@@ -187,18 +187,18 @@ def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory
     ``fallback_reference`` (only in that cold call: the references were tried already)."""
     from casadrone.limitlap import limit_lap
 
+    cold = replace(setup.limit, guess_trajectory=traj, starts=("closed-loop", "point-mass"),
+                   warm_starts=(), sensitivities=False)
     warm = setup.limit_warm_starts
-    cold = ("closed-loop", "point-mass")
-    options = replace(setup.limit, guess_trajectory=traj, warm_starts=warm,
-                      starts=() if warm else cold, sensitivities=False,
-                      fallback_reference=None if warm else setup.limit.fallback_reference)
-    lap = limit_lap(cfg, setup.track, options)
-    if warm and not lap.optimal:  # every warm start failed: the cold starts (and fallback) decide
-        first = lap
-        lap = limit_lap(cfg, setup.track, replace(
-            options, warm_starts=(), starts=cold, fallback_reference=setup.limit.fallback_reference))
-        if not lap.optimal:
-            lap = replace(lap, reason=f"warm starts: {first.reason}; cold starts: {lap.reason}")
+    if not warm:
+        return limit_lap(cfg, setup.track, cold)
+    first = limit_lap(cfg, setup.track, replace(cold, starts=(), warm_starts=warm,
+                                                fallback_reference=None))
+    if first.optimal:
+        return first
+    lap = limit_lap(cfg, setup.track, cold)  # every warm start failed: the cold starts decide
+    if not lap.optimal:
+        lap = replace(lap, reason=f"warm starts: {first.reason}; cold starts: {lap.reason}")
     return lap
 
 

@@ -240,8 +240,8 @@ class EvMOGA(Algorithm):
         self.n_div: np.ndarray | None = None
         self.box_archive: BoxArchive | None = None  # A and its grid
         self._n_seen = 0  # solutions evaluated so far: the next one's id
-        # P: its row arrays (ROW_KEYS), and its objectives and violation kept in step with them
-        # (set through the ``pop`` property, which pymoo's __init__ has already called)
+        # P: its row arrays (ROW_KEYS), set through the ``pop`` property, which pymoo's __init__
+        # has already called
 
     # ---- the archive as pymoo and the tests see it ----------------------------------------------
 
@@ -284,13 +284,21 @@ class EvMOGA(Algorithm):
     @pop.setter
     def pop(self, value: Population | None) -> None:
         """pymoo sets P (empty in ``setup``, the evaluated initial population in ``advance``)."""
-        if value is None or len(value) == 0:
-            self.pop_rows = None
-            self.pop_F, self.pop_cv = np.empty((0, 0)), np.empty(0)
-        else:
-            self.pop_rows = _rows(value, self._widths(with_id=False))
-            F, self.pop_cv = _violation_of_rows(self.pop_rows)
-            self.pop_F = F.copy()
+        empty = value is None or len(value) == 0
+        self.pop_rows = None if empty else _rows(value, self._widths(with_id=False))
+
+    @property
+    def pop_F(self) -> np.ndarray:
+        """Objectives (minimised) of P: its ``F`` rows (the array itself, not a copy)."""
+        rows = self.__dict__.get("pop_rows")
+        return np.empty((0, 0)) if rows is None else rows["F"]
+
+    @property
+    def pop_cv(self) -> np.ndarray:
+        """Total constraint violation of P, infinite for a non-finite objective or violation
+        (:func:`_violation_of_rows`; a new array)."""
+        rows = self.__dict__.get("pop_rows")
+        return np.empty(0) if rows is None else _violation_of_rows(rows)[1]
 
     @property
     def opt(self) -> Population | None:
@@ -320,7 +328,8 @@ class EvMOGA(Algorithm):
         return state
 
     def __setstate__(self, state: dict) -> None:
-        state.pop("_individuals", None)  # the Individual cache of git 6094a45 and before
+        for key in ("_individuals", "pop_F", "pop_cv"):  # git 6094a45 and before: P's cache
+            state.pop(key, None)  # of Individuals, and P's objectives and violation (now derived)
         pop = state.pop("pop", None)  # P of git 6094a45 and before: its rows or a Population
         if isinstance(state.get("off"), dict):
             state["off"] = _population_of_rows(state["off"])
@@ -419,13 +428,12 @@ class EvMOGA(Algorithm):
         rows = self._rows_of_children(infills)
         self.pop_rows = {k: rows[k].copy() for k in ROW_KEYS}
         F, cv = _violation_of_rows(rows)
-        self.pop_F, self.pop_cv = F.copy(), cv
-        feasible = np.flatnonzero(self.pop_cv <= 0.0)
+        feasible = np.flatnonzero(cv <= 0.0)
         if len(feasible) == 0:
             return
-        nd = feasible[NonDominatedSorting().do(self.pop_F[feasible], only_non_dominated_front=True)]
+        nd = feasible[NonDominatedSorting().do(F[feasible], only_non_dominated_front=True)]
         nd = np.sort(nd)
-        F_nd = self.pop_F[nd]
+        F_nd = F[nd]
         self.box_archive.set_grid(F_nd.min(axis=0), F_nd.max(axis=0))
         self.box_archive.fill({k: v[nd] for k, v in rows.items()})
 
@@ -463,7 +471,6 @@ class EvMOGA(Algorithm):
             i = np.fromiter(taken.values(), dtype=np.intp, count=len(taken))
             for key in ROW_KEYS:
                 self.pop_rows[key][j] = rows[key][i]
-            self.pop_F[j], self.pop_cv[j] = F[i], cv[i]
 
     def _set_optimum(self) -> None:
         if len(self.box_archive):  # a snapshot: A is edited in place later
@@ -498,15 +505,16 @@ def _rows(pop: Population, widths: dict[str, int]) -> dict[str, np.ndarray]:
 
 def _default_cv(G: np.ndarray, H: np.ndarray) -> np.ndarray:
     """pymoo's constraint violation under its default configuration (``calc_cv``), rows at
-    once: the sum of the positive inequality constraints plus the sum of the equality
-    constraints' magnitudes above 1e-4, as a (n, 1) column. Each row is summed along its own
-    contiguous axis, as pymoo sums a member's 1-D array, so the values agree bit for bit (tested
-    against ``Individual.CV``)."""
-    cv_eq = Individual.default_config()["cv_eq"]
-    ieq = np.maximum(0.0, G - 0.0).sum(axis=1) if G.shape[1] else np.zeros(len(G))
-    eq = (np.maximum(0.0, np.abs(H) - cv_eq["eps"]).sum(axis=1) if H.shape[1]
-          else np.zeros(len(H)))
-    return (ieq + eq)[:, None]
+    once: the sum of the inequality constraints above their tolerance (0) plus the sum of the
+    equality constraints' magnitudes above theirs (1e-4), as a (n, 1) column. Each row is summed
+    along its own contiguous axis, as pymoo sums a member's 1-D array, so the values agree bit
+    for bit (tested against ``Individual.CV``)."""
+    config = Individual.default_config()
+
+    def part(c: np.ndarray, eps: float) -> np.ndarray:  # pymoo's constr_to_cv, per row
+        return np.maximum(0.0, c - eps).sum(axis=1) if c.shape[1] else np.zeros(len(c))
+
+    return (part(G, config["cv_ieq"]["eps"]) + part(np.abs(H), config["cv_eq"]["eps"]))[:, None]
 
 
 def _population_of_rows(rows: dict[str, np.ndarray]) -> Population:

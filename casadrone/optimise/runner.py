@@ -37,7 +37,7 @@ from casadrone.optimise.checkpoint import dumps
 from casadrone.optimise.hypervolume import HypervolumeState, advance
 from casadrone.optimise.mainguard import unguarded_main_call, unguarded_message
 from casadrone.optimise.problem import CandidateProblem, Record, Study, objectives_and_constraints
-from casadrone.optimise.store import RunDamaged, RunStore, now
+from casadrone.optimise.store import RunDamaged, RunStore, now, record_of
 from casadrone.optimise.writer import GenerationWriter
 from casadrone.problemconfig import BackendConfig, ProblemConfig
 
@@ -119,11 +119,7 @@ def stored_generations(store: RunStore) -> list[list[Record]]:
     out: list[list[Record]] = [[] for _ in range(n)]
     for r in rows:
         if r["generation"] < n:
-            out[r["generation"]].append(Record(
-                theta={v: r[v] for v in m["variables"]}, status=r["status"],
-                stage=r["stage"] or "", reason=r["reason"] or "",
-                indices={k: float("nan") if r[k] is None else r[k] for k in m["indices"]},
-                wall_time_s=r["wall_time_s"] or 0.0))
+            out[r["generation"]].append(record_of(r, m))
     return out
 
 

@@ -295,12 +295,13 @@ class RunStore:
                        (generation, stats["n_evaluations"], stats["archive_size"],
                         stats["feasible_fraction"], stats["hypervolume"], stats["elapsed_s"]))
 
-    def history(self) -> list[dict]:
-        """All evaluations, ordered by generation and position."""
+    def history(self, generation: int | None = None) -> list[dict]:
+        """All evaluations (or one ``generation``'s), ordered by generation and position."""
+        where, args = ("", ()) if generation is None else ("WHERE generation = ?", (generation,))
         with self.database("read the evaluations") as db:
             db.row_factory = sqlite3.Row
             return [dict(r) for r in db.execute(
-                "SELECT * FROM evaluations ORDER BY generation, idx")]
+                f"SELECT * FROM evaluations {where} ORDER BY generation, idx", args)]
 
     def generations(self) -> list[dict]:
         """One row per stored generation (statistics), in order."""
@@ -401,6 +402,16 @@ class RunStore:
             return rows[0], [[float(v) for v in r] for r in rows[1:]]
         except (IndexError, ValueError, UnicodeDecodeError, csv.Error) as exc:
             raise RunDamaged(f"{self.path / PARETO}: damaged ({exc})") from None
+
+
+def record_of(row: dict, manifest: dict) -> Record:
+    """One row of ``history.sqlite``'s evaluations as the :class:`Record` that was stored (an
+    index stored as NULL is NaN)."""
+    return Record(theta={v: row[v] for v in manifest["variables"]}, status=row["status"],
+                  stage=row["stage"] or "", reason=row["reason"] or "",
+                  indices={k: float("nan") if row[k] is None else row[k]
+                           for k in manifest["indices"]},
+                  wall_time_s=row["wall_time_s"] or 0.0)
 
 
 def interrupted_creation(path: Path) -> str | None:

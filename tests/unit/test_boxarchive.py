@@ -486,9 +486,8 @@ class SequentialEvMOGA(EvMOGA):
             )
             if len(hit):
                 j = order[hit[0]]
-                for key in ROW_KEYS:
+                for key in ROW_KEYS:  # P's objectives and violation follow its rows
                     self.pop_rows[key][j] = rows[key][i]
-                self.pop_F[j], self.pop_cv[j] = F[i], cv[i]
 
 
 @pytest.mark.parametrize(("name", "kwargs", "n_div", "generations", "n_ind_ga"), [
@@ -524,33 +523,68 @@ def test_runs_equal_the_sequential_archive(name, kwargs, n_div, generations, n_i
     np.testing.assert_array_equal(res.F, slow.box_archive.F)
 
 
-def test_checkpoint_of_the_sequential_archive_resumes_to_the_same_end():
-    """A checkpoint pickled by the sequential ev-MOGA (archive_pop, archive_F, archive_box, grid
-    and opt attributes) is converted on loading and ends like the uninterrupted run."""
+def resumes_to_the_uninterrupted_end(problem, settings: dict, seed: int, stop: int,
+                                     old_format, check_loaded) -> None:
+    """Run ev-MOGA ``stop`` generations, pickle it, rewrite the pickled state into an older
+    revision's checkpoint format (``old_format(state, alg)``), load that (checked by
+    ``check_loaded(loaded, alg)``) and run it to the end: the result (X, F in order) and P equal
+    the uninterrupted run's."""
     import pickle
 
-    problem = get_problem("zdt1", n_var=4)
-    settings = dict(n_ind_p=40, n_ind_ga=8, n_div=30, generations=80)
     full = EvMOGA(**settings)
-    full.setup(problem, seed=2)
+    full.setup(problem, seed=seed)
     while full.has_next():
         full.next()
     alg = EvMOGA(**settings)
-    alg.setup(problem, seed=2)
-    for _ in range(30):
+    alg.setup(problem, seed=seed)
+    for _ in range(stop):
         alg.next()
     state = pickle.loads(pickle.dumps(alg)).__dict__.copy()
-    for key in ("box_archive", "_n_seen", "_opt", "_opt_rows", "pop_rows"):
-        del state[key]
-    state["pop"] = alg.pop  # P as a Population, as it was then
-    state.update(archive_pop=alg.archive_pop, archive_F=alg.archive_F.copy(),
-                 archive_box=alg.archive_box.copy(), grid_min=alg.grid_min.copy(),
-                 grid_max=alg.grid_max.copy(), eps=alg.eps.copy(), opt=alg.opt)
+    old_format(state, alg)
     resumed = EvMOGA.__new__(EvMOGA)
     resumed.__setstate__(pickle.loads(pickle.dumps(state)))
-    assert len(resumed.box_archive) == len(alg.box_archive) > 1
+    check_loaded(resumed, alg)
     while resumed.has_next():
         resumed.next()
     res, ref = resumed.result(), full.result()
     np.testing.assert_array_equal(res.X, ref.X)
     np.testing.assert_array_equal(res.F, ref.F)
+    np.testing.assert_array_equal(resumed.pop.get("X"), full.pop.get("X"))
+
+
+def test_checkpoint_of_the_sequential_archive_resumes_to_the_same_end():
+    """A checkpoint pickled by the sequential ev-MOGA (archive_pop, archive_F, archive_box, grid
+    and opt attributes; P a Population) is converted on loading and ends like the uninterrupted
+    run."""
+    def sequential(state, alg):
+        for key in ("box_archive", "_n_seen", "_opt", "_opt_rows", "pop_rows"):
+            del state[key]
+        state.update(pop=alg.pop, pop_F=alg.pop_F.copy(), pop_cv=alg.pop_cv,
+                     archive_pop=alg.archive_pop, archive_F=alg.archive_F.copy(),
+                     archive_box=alg.archive_box.copy(), grid_min=alg.grid_min.copy(),
+                     grid_max=alg.grid_max.copy(), eps=alg.eps.copy(), opt=alg.opt)
+
+    def same_archive_size(loaded, alg):
+        assert len(loaded.box_archive) == len(alg.box_archive) > 1
+
+    resumes_to_the_uninterrupted_end(get_problem("zdt1", n_var=4),
+                                     dict(n_ind_p=40, n_ind_ga=8, n_div=30, generations=80), 2,
+                                     30, sequential, same_archive_size)
+
+
+def test_checkpoint_of_p_as_rows_under_pop_resumes_to_the_same_end():
+    """A checkpoint of git 6094a45 and before (P's rows under ``pop``, its objectives and
+    violation as ``pop_F`` and ``pop_cv``, the archive's Individual cache ``_individuals``)
+    loads into P's rows and ends like the uninterrupted run, on a constrained problem: a
+    paper-scale run interrupted before this revision resumes after it."""
+    def rows_under_pop(state, alg):
+        state.update(pop=state.pop("pop_rows"), pop_F=alg.pop_F.copy(), pop_cv=alg.pop_cv,
+                     _individuals={})
+
+    def p_in_rows(loaded, alg):
+        assert not {"_individuals", "pop", "pop_F", "pop_cv"} & loaded.__dict__.keys()
+        assert loaded.pop_rows["X"].tobytes() == alg.pop_rows["X"].tobytes()
+
+    resumes_to_the_uninterrupted_end(
+        get_problem("bnh"), dict(n_ind_p=30, n_ind_ga=10, n_div=20, generations=40), 3, 15,
+        rows_under_pop, p_in_rows)

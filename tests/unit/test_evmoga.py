@@ -538,32 +538,3 @@ def test_checkpoint_stores_the_archive_once_and_resumes_its_optimum():
     assert len(back.opt) == n and len(back.box_archive) == 1
     assert back.opt.get("F").tobytes() == alg.opt.get("F").tobytes()
 
-
-def test_checkpoint_of_p_as_a_population_resumes_to_the_same_end():
-    """A checkpoint of git 6094a45 and before (P pickled as row arrays under ``pop``, with the
-    archive's Individual cache ``_individuals``) loads into P's rows and ends like the
-    uninterrupted run: a paper-scale run interrupted before this revision resumes after it."""
-    problem = get_problem("bnh")  # constrained: P's violations matter
-    settings = dict(n_ind_p=30, n_ind_ga=10, n_div=20, generations=40)
-    full = EvMOGA(**settings)
-    full.setup(problem, seed=3)
-    while full.has_next():
-        full.next()
-    alg = EvMOGA(**settings)
-    alg.setup(problem, seed=3)
-    for _ in range(15):
-        alg.next()
-    state = pickle.loads(pickle.dumps(alg)).__dict__.copy()
-    state["pop"] = state.pop("pop_rows")
-    state["_individuals"] = {}
-    state["pop_F"] = state["pop_F"] + 0.0  # a copy, as the old code held one
-    resumed = EvMOGA.__new__(EvMOGA)
-    resumed.__setstate__(pickle.loads(pickle.dumps(state)))
-    assert "_individuals" not in resumed.__dict__ and "pop" not in resumed.__dict__
-    assert resumed.pop_rows["X"].tobytes() == alg.pop_rows["X"].tobytes()
-    while resumed.has_next():
-        resumed.next()
-    res, ref = resumed.result(), full.result()
-    np.testing.assert_array_equal(res.X, ref.X)
-    np.testing.assert_array_equal(res.F, ref.F)
-    np.testing.assert_array_equal(resumed.pop.get("X"), full.pop.get("X"))

@@ -42,7 +42,7 @@ from casadrone.config import load_airframe  # noqa: E402
 from casadrone.configio import load  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
 from casadrone.guidance import TrackConfig  # noqa: E402
-from casadrone.limitlap import LimitLapOptions, limit_lap  # noqa: E402
+from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 

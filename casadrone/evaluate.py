@@ -51,7 +51,7 @@ class EvaluationSetup:
         """The limit laps of ``limit_references``, solved once per process: every worker holds
         the same ones (same inputs, deterministic IPOPT), so warm-starting a candidate from them
         gives the same result on every backend and in any evaluation order."""
-        from casadrone.limitlap import limit_lap
+        from casadrone.limit.lap import limit_lap
 
         laps = []
         for theta in self.limit_references:
@@ -185,7 +185,7 @@ def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory
     every worker, so the result does not depend on the backend or the evaluation order); from
     its closed-loop lap when no reference solved or every warm start failed, then from
     ``fallback_reference`` (only in that cold call: the references were tried already)."""
-    from casadrone.limitlap import limit_lap
+    from casadrone.limit.lap import limit_lap
 
     cold = replace(setup.limit, guess_trajectory=traj, starts=("closed-loop", "point-mass"),
                    warm_starts=(), sensitivities=False)

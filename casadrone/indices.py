@@ -44,7 +44,7 @@ from casadrone.simulate import Trajectory, row_norm
 Sense = Literal["min", "max"]
 IndexFunction = Callable[[Trajectory], float]
 #: What an index is computed from: the closed-loop lap (a Trajectory) or the limit lap (a
-#: :class:`~casadrone.limitlap.LimitLap`, computed by the evaluation only when asked for).
+#: :class:`~casadrone.limit.lap.LimitLap`, computed by the evaluation only when asked for).
 Source = Literal["lap", "limit"]
 
 
@@ -216,7 +216,7 @@ def max_pitch(traj: Trajectory) -> float:
 
 def limit_lap_time(lap) -> float:
     """J3_limit: the limit lap (s), the minimum time from the start to the last waypoint over
-    every command history the airframe can fly (:func:`casadrone.limitlap.limit_lap`)."""
+    every command history the airframe can fly (:func:`casadrone.limit.lap.limit_lap`)."""
     return lap.lap_time_s
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import casadi as ca
 
@@ -85,27 +86,62 @@ class QuadrotorModel:
     param_names: tuple[str, ...] = PARAM_NAMES
 
 
-def implicit_residual(xdot, x, u, p):
-    """F(ẋ, x, u, p) of DESIGN.md §5 as an SX/MX expression (16 rows)."""
-    g, J, r, s, cda = unpack_params(p)
-    m, kappa, rho, K, tau, grav = g["mass"], g["kappa"], g["rho"], g["K"], g["tau"], g["g"]
-    vel, omega, eul, T = x[VEL], x[RATE], x[EUL], x[THR]
-    R = rotation_matrix(eul[0], eul[1], eul[2])
-    ez = ca.DM([0, 0, 1])
+@dataclass(frozen=True)
+class AirframeTerms:
+    """The airframe's forces, torques and rotor dynamics in the body frame, gravity excluded: the
+    part of the model that does not depend on how attitude is represented (symbolic or numeric).
 
-    thrust_force = ca.sum1(T) * ez
-    gravity_body = R.T @ ca.vertcat(0, 0, -m * grav)
-    drag = -0.5 * rho * cda * ca.fabs(vel) * vel
-    torque = sum(
-        (ca.cross(r[i], T[i] * ez) + s[i] * kappa * T[i] * ez for i in range(4)), ca.DM.zeros(3)
+    Attributes:
+        thrust: rotor force on the body (N, body frame; the paper's model: Σ T_i along body z).
+        drag: airframe drag (N, body frame; −½ ρ CdA_i |v_i| v_i per body axis).
+        torque: rotor torque on the body (N·m; thrust moments r_i × T_i e_z and yaw reaction
+            torques s_i κ T_i e_z).
+        rotor_residual: the rotor states' implicit dynamics, zero along a flight (the paper's
+            model: τ Ṫ_i + T_i − K δ_i).
+    """
+
+    thrust: Any
+    drag: Any
+    torque: Any
+    rotor_residual: Any
+
+
+def airframe_terms(vel, omega, rotor, rotor_dot, u, p) -> AirframeTerms:
+    """:class:`AirframeTerms` at body velocity ``vel`` (m/s), body rates ``omega`` (rad/s), rotor
+    states ``rotor`` and their derivative ``rotor_dot``, ESC commands ``u`` and airframe vector
+    ``p``. Every attitude representation (the Euler model below, the limit lap's) is built on it;
+    the arithmetic is kept in the order of the paper model's residual so results stay bit-equal.
+    """
+    del omega  # the paper's thrust model has no inflow; a propeller model reads it
+    g, _, r, s, cda = unpack_params(p)
+    kappa, rho, K, tau = g["kappa"], g["rho"], g["K"], g["tau"]
+    T = rotor
+    ez = ca.DM([0, 0, 1])
+    return AirframeTerms(
+        thrust=ca.sum1(T) * ez,
+        drag=-0.5 * rho * cda * ca.fabs(vel) * vel,
+        torque=sum(
+            (ca.cross(r[i], T[i] * ez) + s[i] * kappa * T[i] * ez for i in range(4)),
+            ca.DM.zeros(3),
+        ),
+        rotor_residual=tau * rotor_dot + T - K * u,
     )
 
+
+def implicit_residual(xdot, x, u, p):
+    """F(ẋ, x, u, p) of DESIGN.md §5 as an SX/MX expression (16 rows)."""
+    g, J, _, _, _ = unpack_params(p)
+    m, grav = g["mass"], g["g"]
+    vel, omega, eul, T = x[VEL], x[RATE], x[EUL], x[THR]
+    R = rotation_matrix(eul[0], eul[1], eul[2])
+    terms = airframe_terms(vel, omega, T, xdot[THR], u, p)
+    gravity_body = R.T @ ca.vertcat(0, 0, -m * grav)
+
     res_pos = xdot[POS] - R @ vel
-    res_vel = m * xdot[VEL] + m * ca.cross(omega, vel) - thrust_force - gravity_body - drag
-    res_rate = J @ xdot[RATE] + ca.cross(omega, J @ omega) - torque
+    res_vel = m * xdot[VEL] + m * ca.cross(omega, vel) - terms.thrust - gravity_body - terms.drag
+    res_rate = J @ xdot[RATE] + ca.cross(omega, J @ omega) - terms.torque
     res_eul = xdot[EUL] - euler_rate_matrix(eul[0], eul[1]) @ omega
-    res_thr = tau * xdot[THR] + T - K * u
-    return ca.vertcat(res_pos, res_vel, res_rate, res_eul, res_thr)
+    return ca.vertcat(res_pos, res_vel, res_rate, res_eul, terms.rotor_residual)
 
 
 @lru_cache(maxsize=1)

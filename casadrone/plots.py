@@ -196,7 +196,7 @@ def time_histories(trajectories: Mapping[str, Trajectory], *, title: str | None 
 
 
 def limit_lap_trajectory(lap, waypoints) -> Trajectory:
-    """A limit lap (:class:`casadrone.limitlap.LimitLap`) as a Trajectory at its nodes, so the
+    """A limit lap (:class:`casadrone.limit.lap.LimitLap`) as a Trajectory at its nodes, so the
     track figures draw it beside closed-loop laps (commands repeated at the last node)."""
     n = len(lap.t)
     wp = np.atleast_2d(np.asarray(waypoints, float))

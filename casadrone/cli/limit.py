@@ -1,4 +1,4 @@
-"""``casadrone limit-lap``: the time-optimal lap of one airframe (:mod:`casadrone.limitlap`)."""
+"""``casadrone limit-lap``: the time-optimal lap of one airframe (:mod:`casadrone.limit.lap`)."""
 
 from __future__ import annotations
 
@@ -53,7 +53,7 @@ def limit_lap_command(
     from casadrone.configio import load, resolve_config
     from casadrone.evaluate import DEFAULT_TRACK
     from casadrone.guidance import TrackConfig
-    from casadrone.limitlap import LimitLapOptions, limit_lap
+    from casadrone.limit.lap import LimitLapOptions, limit_lap
 
     cfg = load_airframe(airframe, overrides or [])
     trk = load(TrackConfig, resolve_config(track, "tracks") if track else DEFAULT_TRACK)
@@ -73,7 +73,7 @@ def _figures(cfg, trk, lap, folder) -> list[str]:
         return []
     from casadrone import plots
     from casadrone.airframe import build_airframe
-    from casadrone.limitlap import closed_loop_lap
+    from casadrone.limit.lap import closed_loop_lap
 
     traj = closed_loop_lap(build_airframe(cfg), trk)
     return save_figures(plots.limit_lap_figures(lap, traj, trk.waypoints_m), folder)

@@ -127,7 +127,7 @@ def limit_setup(problem: ProblemConfig, template) -> dict:
     if not limit_index_names(names):
         return {}
     from casadrone.evaluate import theta_of
-    from casadrone.limitlap import LimitLapOptions
+    from casadrone.limit.lap import LimitLapOptions
 
     keys = [v.name for v in problem.variables]
     centre = {v.name: 0.5 * (v.lower + v.upper) for v in problem.variables}

@@ -14,7 +14,7 @@ from casadrone.config import load_airframe
 from casadrone.configio import load
 from casadrone.evaluate import DEFAULT_TRACK, default_setup, evaluate, theta_of
 from casadrone.guidance import TrackConfig
-from casadrone.limitlap import LimitLapOptions, limit_lap
+from casadrone.limit.lap import LimitLapOptions, limit_lap
 
 pytestmark = pytest.mark.slow
 TRACK = load(TrackConfig, DEFAULT_TRACK)
@@ -76,8 +76,8 @@ def _reflect_state(X: np.ndarray) -> np.ndarray:
 def _reflect_lap(lap):
     """The lap's primal-dual point reflected (decision vector and multipliers alike: every
     constraint row maps to its mirror, so the multipliers permute and change sign with it)."""
-    from casadrone.limitlap import LimitLap
-    from casadrone.limitnlp import NlpPoint
+    from casadrone.limit.lap import LimitLap
+    from casadrone.limit.nlp import NlpPoint
 
     M, nx = len(lap.u), 16
     per = 1 + 4 + nx

@@ -16,9 +16,9 @@ from casadrone.config import load_airframe
 from casadrone.configio import ConfigError, load
 from casadrone.evaluate import DEFAULT_TRACK
 from casadrone.guidance import TrackConfig
-from casadrone.limitcheck import target_miss
-from casadrone.limitlap import LimitLapOptions, limit_lap, track_targets
-from casadrone.limitnlp import Layout, OcpModel, build_nlp, solve, target_vector
+from casadrone.limit.check import target_miss
+from casadrone.limit.lap import LimitLapOptions, limit_lap, track_targets
+from casadrone.limit.nlp import Layout, OcpModel, build_nlp, solve, target_vector
 
 TRACK = load(TrackConfig, DEFAULT_TRACK)
 
@@ -82,7 +82,7 @@ def test_assembled_derivatives_equal_casadi_ad():
     """The constraint Jacobian and Lagrangian Hessian assembled from the compiled interval
     blocks equal CasADi's own AD of the same NLP, entry by entry (ball and gate targets, a
     rest condition, 3 intervals per leg, random point and multipliers)."""
-    from casadrone.limitnlp import _shooting_nlp
+    from casadrone.limit.nlp import _shooting_nlp
 
     model = _nonlinear_toy()
     layout = Layout(("ball", "gate"), 3, substeps=2, end_at_rest=True)
@@ -169,7 +169,7 @@ def test_limit_lap_problem_sets_up_limit_options_and_references():
 def test_resampled_start_keeps_the_coarse_lap_on_a_finer_grid():
     """Grid refinement's start: on twice the intervals, every other node is a coarse node (same
     state), both halves of a coarse interval hold its command, and the leg durations stay."""
-    from casadrone.limitlap import LimitLap, guess_from_lap, node_times
+    from casadrone.limit.lap import LimitLap, guess_from_lap, node_times
 
     model = _double_integrator()
     coarse = build_nlp(model, Layout(("ball", "ball"), 4))
@@ -192,7 +192,7 @@ def test_assemble_sums_duplicate_triplets_like_numpy(seed):
     """The sparse assembly of the NLP's Jacobian and Hessian (values gathered into a CasADi
     sparsity) equals numpy's accumulation of the same triplets: duplicates (up to 4 per entry)
     are summed, every other entry is zero, and the pattern is the triplets' own."""
-    from casadrone.limitnlp import _assemble
+    from casadrone.limit.nlp import _assemble
 
     rng = np.random.default_rng(seed)
     nrow, ncol, n = 7, 9, 60

@@ -12,7 +12,7 @@ import numpy as np
 from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
 from casadrone.config import AirframeConfig
 from casadrone.configio import ConfigError
-from casadrone.limitnlp import TARGET_SIZE
+from casadrone.limit.nlp import TARGET_SIZE
 from casadrone.model import NP, NU, NX, quadrotor_model
 
 

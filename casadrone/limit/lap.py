@@ -1,6 +1,6 @@
 """The limit lap: the minimum-time flight of an airframe through a track (DESIGN.md §7a).
 
-``limit_lap(airframe, track, options) -> LimitLap``. The NLP (:mod:`casadrone.limitnlp`) is built
+``limit_lap(airframe, track, options) -> LimitLap``. The NLP (:mod:`casadrone.limit.nlp`) is built
 once per track layout on the one symbolic model; the airframe enters only as the parameter p.
 Legs are the track's route segments (start → climb point → waypoints, or start → gates); a leg
 ends inside the waypoint's acceptance ball or through the gate's opening. Start: hover at the
@@ -48,7 +48,7 @@ import numpy as np
 from casadrone.airframe import Airframe
 from casadrone.config import AirframeConfig, ControllerConfig
 from casadrone.guidance import TrackConfig, segment_headings
-from casadrone.limitnlp import (
+from casadrone.limit.nlp import (
     Layout,
     Nlp,
     NlpPoint,
@@ -73,7 +73,7 @@ class LimitLapOptions:
     # changed the lap by 0.13 %, 40 -> 80 by 0.02 % (the acceptance is < 0.1 %); 40 with 2 RK4
     # steps per interval instead of 3 changed by up to 0.16 %.
     intervals: int = 40
-    method: Literal["shooting", "collocation"] = "shooting"  # see casadrone.limitnlp
+    method: Literal["shooting", "collocation"] = "shooting"  # see casadrone.limit.nlp
     substeps: int = 3  # RK4 steps per interval (shooting)
     degree: int = 3  # Radau collocation points per interval (collocation)
     starts: tuple[Start, ...] = ("closed-loop", "point-mass")
@@ -404,7 +404,7 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     decision-variable keys (chain θ → p through the same build as the evaluation).
     """
     from casadrone.airframe import build_airframe
-    from casadrone.limitcheck import bang_bang_fraction, resimulation_miss, theta_sensitivities
+    from casadrone.limit.check import bang_bang_fraction, resimulation_miss, theta_sensitivities
 
     start = time.perf_counter()
     cfg = airframe if isinstance(airframe, AirframeConfig) else None

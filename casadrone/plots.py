@@ -566,3 +566,54 @@ def save_figure(fig: Figure, path_without_suffix: str | Path,
                     pad_inches=PAD_INCHES)
         paths.append(path)
     return paths
+
+
+def propulsion_fit_figures(fit, log) -> dict[str, Figure]:
+    """``fit-propulsion``'s figures: the steady points against the fitted propeller, motor and
+    battery laws (``steady``), and each fitted step response over the logged speed (``steps``).
+
+    Args:
+        fit: a :class:`casadrone.thruststand.PropulsionFit`. log: the
+            :class:`~casadrone.thruststand.StandLog` it was fitted from.
+    """
+    p = fit.plateaus
+    w = np.array([q.speed_rad_s for q in p])
+    rho, D = fit.air_density_kg_m3, fit.diameter_m
+    grid = np.linspace(0.0, 1.05 * float(w.max()), 100)
+    ng = grid / (2 * np.pi)
+    steady = Figure(figsize=(11, 3.4), layout="constrained")
+    ax1, ax2, ax3 = steady.subplots(1, 3)
+    rpm = 60 / (2 * np.pi)
+    ax1.plot(w * rpm, [q.thrust_n for q in p], "o", label="steady points")
+    ax1.plot(grid * rpm, fit.ct0 * rho * ng**2 * D**4, "-", label=f"C_T0 = {fit.ct0:.4f}")
+    ax1.set(xlabel="rotor speed (rpm)", ylabel="thrust (N)", title="propeller thrust")
+    ax2.plot(w * rpm, np.abs([q.torque_nm for q in p]), "o", label="steady points")
+    ax2.plot(grid * rpm, fit.cp0 * rho * ng**2 * D**5 / (2 * np.pi), "-",
+             label=f"C_P0 = {fit.cp0:.4f}")
+    ax2.set(xlabel="rotor speed (rpm)", ylabel="shaft torque (N·m)", title="propeller torque")
+    current = np.array([q.current_a for q in p])
+    ax3.plot(current, [q.voltage_v for q in p], "o", label="steady points")
+    ig = np.linspace(0.0, 1.05 * float(current.max()), 50)
+    ax3.plot(ig, fit.open_circuit_voltage_v - fit.internal_resistance_ohm * ig, "-",
+             label=f"R_int = {1e3 * fit.internal_resistance_ohm:.1f} mΩ")
+    ax3.set(xlabel="bus current (A)", ylabel="bus voltage (V)", title="battery sag")
+    for ax in (ax1, ax2, ax3):
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    figures = {"propulsion-fit-steady": steady}
+    if fit.steps:
+        fig, ax = _figure_axes(None, (6, 3.6))
+        for step, colour in zip(fit.steps, _colours(len(fit.steps)), strict=True):
+            k = int(np.searchsorted(log.time_s, step.time_s))
+            t = log.time_s[k - 1:k + int(8 * step.time_constant_s / np.median(np.diff(log.time_s)))]
+            w_log = log.speed_rad_s[k - 1:k - 1 + len(t)]
+            t0 = t[0]
+            w0, winf = w_log[0], w_log[-1]
+            ax.plot(1e3 * (t - t0), w_log * rpm, ".", ms=2, color=colour)
+            ax.plot(1e3 * (t - t0), (winf + (w0 - winf) * np.exp(-(t - t0) / step.time_constant_s))
+                    * rpm, "-", color=colour, lw=1)
+        ax.set(xlabel="time after the step (ms)", ylabel="rotor speed (rpm)",
+               title=f"step responses: τ = {1e3 * fit.time_constant_s:.1f} ms (median)")
+        ax.grid(True, alpha=0.3)
+        figures["propulsion-fit-steps"] = fig
+    return figures

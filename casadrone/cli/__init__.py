@@ -8,6 +8,7 @@ inside the commands, so ``casadrone validate`` stays fast.
 The commands are grouped by layer: :mod:`~casadrone.cli.design` (validate, trim, linearise, lqr),
 :mod:`~casadrone.cli.flight` (simulate, benchmark), :mod:`~casadrone.cli.limit` (limit-lap),
 :mod:`~casadrone.cli.massprops` (massprops),
+:mod:`~casadrone.cli.propulsion` (fit-propulsion),
 :mod:`~casadrone.cli.optimisation` (run, resume, decide, compare, report) and
 :mod:`~casadrone.cli.export` (export), all registered on the one :data:`app` of
 :mod:`~casadrone.cli.common`, the console entry point ``casadrone.cli:app``.
@@ -24,6 +25,7 @@ from casadrone.cli import (  # noqa: F401 (importing registers the commands)
     limit,
     massprops,
     optimisation,
+    propulsion,
 )
 from casadrone.cli.common import app
 

@@ -1,0 +1,452 @@
+"""A `propulsion:` section fitted from a thrust-stand log (``casadrone fit-propulsion``).
+
+The log is a CSV as the common stands' software writes it (Tyto Robotics / RCbenchmark
+Series 1520/1580/1585 and their clones): one row per sample, one column per sensor, the unit in
+the header (``Thrust (kgf)``, ``Torque (N·m)``, ``Motor Optical Speed (RPM)`` …). The unit is
+read from the header and converted to SI; a column in a unit casadrone does not know is refused,
+never guessed.
+
+What is fitted, and from which part of the log:
+
+- **Steady points.** A *plateau* is a run of rows with the same ESC signal lasting at least
+  ``min_plateau_s``; its steady value is the mean of its last ``settled_fraction`` (the first part
+  holds the step response). From the steady points:
+
+  - static propeller coefficients, by least squares through the origin of the momentum-theory
+    scalings ``T = C_T0 ρ n² D⁴`` and ``P = 2π n Q = C_P0 ρ n³ D⁵`` (n in rev/s; the coefficient
+    definitions of the UIUC propeller database, Brandt & Selig 2011, AIAA 2011-1255);
+  - the DC motor of Drela's first-order model (M. Drela, "First-Order DC Electric Motor Model",
+    MIT 16.50 notes, 2007): terminal voltage ``V_m = ω / K_v + I_m R`` (a linear regression of
+    V_m on ω and I_m gives K_v and R) and shaft torque ``Q = (I_m − I_0) / K_v`` (I_0 from the
+    mean of ``I_m − K_v Q``). The motor's voltage and current are not measured: the ESC is taken
+    as a lossless buck converter, ``V_m = d V_bus`` and ``I_m = I_bus / d``, with the duty d the
+    ESC signal's fraction of its range ``[esc_min_us, esc_max_us]`` (the throttle mapping of
+    BLHeli-family ESCs without thrust linearisation);
+  - the battery's internal resistance and open-circuit voltage, ``V_bus = V_oc − R_int I_bus``
+    (linear regression over the steady points).
+
+- **Step tests.** At each change of the ESC signal the rotor speed's response is fitted with a
+  first-order step ``ω(t) = ω_∞ + (ω_0 − ω_∞) e^(−(t − t_0)/τ)`` (scipy least squares); the
+  motor time constant is the median over the steps. A step whose response the sampling cannot
+  resolve (fewer than ``MIN_STEP_SAMPLES`` samples within three time constants) is not used; with
+  no resolved step the time constant is reported as not measured, never invented.
+
+The shape of C_T and C_P against the advance ratio J cannot be measured on a static stand: the
+section carries the static coefficients as ``ct_coefficients: [C_T0]`` and
+``cp_coefficients: [C_P0]`` unless a propeller of the package's data is named as the shape
+(``shape``), whose polynomial is then scaled to the fitted static values.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: Standard gravity (m/s²): the stands' kgf and gf are kilogram- and gram-force.
+G0 = 9.80665
+#: International Standard Atmosphere sea-level air density (kg/m³): the default of ``air_density``.
+RHO_ISA = 1.225
+#: Fewest samples inside three time constants for a step response to count.
+MIN_STEP_SAMPLES = 5
+#: Largest log read (bytes): a stand's log at 1 kHz for an hour is ~100 MB of text; beyond that
+#: the file is not a log.
+MAX_LOG_BYTES = 200 * 1024 * 1024
+
+
+class LogError(ValueError):
+    """A log that cannot be fitted: the message names the file and the column or row."""
+
+
+# ------------------------------------------------------------------------------------------------
+# Columns: quantity, header pattern, units
+# ------------------------------------------------------------------------------------------------
+
+#: Factor to SI of each unit a stand writes, per quantity. The µ of "µs" is also accepted as
+#: "us" and as the mojibake some exports carry (a non-ASCII run before "s").
+UNITS: dict[str, dict[str, float]] = {
+    "time": {"s": 1.0, "ms": 1e-3},
+    "esc": {"µs": 1.0, "us": 1.0},
+    "thrust": {"n": 1.0, "kgf": G0, "kg": G0, "gf": G0 * 1e-3, "g": G0 * 1e-3,
+               "lbf": 4.4482216152605},
+    "torque": {"n·m": 1.0, "n-m": 1.0, "nm": 1.0, "n.m": 1.0, "n*m": 1.0, "n·mm": 1e-3,
+               "nmm": 1e-3, "kgf·cm": G0 * 1e-2},
+    "voltage": {"v": 1.0},
+    "current": {"a": 1.0},
+    "optical_rpm": {"rpm": 2 * math.pi / 60},
+    "electrical_rpm": {"rpm": 2 * math.pi / 60},
+}
+#: Header name (before the unit) of each quantity, lower case.
+NAMES: dict[str, tuple[str, ...]] = {
+    "time": ("time",),
+    "esc": ("esc signal", "esc"),
+    "thrust": ("thrust",),
+    "torque": ("torque",),
+    "voltage": ("voltage",),
+    "current": ("current",),
+    "optical_rpm": ("motor optical speed",),
+    "electrical_rpm": ("motor electrical speed",),
+}
+REQUIRED = ("time", "esc", "thrust", "torque", "voltage", "current")
+_HEADER = re.compile(r"^\s*(?P<name>[^()]*?)\s*\((?P<unit>[^()]*)\)\s*$")
+
+
+def _unit_key(quantity: str, unit: str) -> str:
+    key = unit.strip().lower().replace(" ", "")
+    if quantity == "esc" and key not in UNITS["esc"] and key.endswith("s") and len(key) <= 4:
+        return "µs"  # "탎", "Âµs": the µ mis-decoded by an export
+    return key
+
+
+@dataclass(frozen=True)
+class StandLog:
+    """A thrust-stand log in SI units (one entry per sample, in time order).
+
+    Attributes:
+        source: the file's name (no directory: results carry no machine path).
+        time_s, esc_us, thrust_n, torque_nm, voltage_v, current_a: the samples.
+        speed_rad_s: rotor (mechanical) speed, from the optical sensor or the electrical speed
+            divided by the motor's pole pairs.
+    """
+
+    source: str
+    time_s: np.ndarray
+    esc_us: np.ndarray
+    thrust_n: np.ndarray
+    torque_nm: np.ndarray
+    voltage_v: np.ndarray
+    current_a: np.ndarray
+    speed_rad_s: np.ndarray
+
+
+def _columns(header: list[str], source: str) -> dict[str, tuple[int, float]]:
+    """quantity → (column index, factor to SI), from the header's names and units."""
+    found: dict[str, tuple[int, float]] = {}
+    for j, text in enumerate(header):
+        m = _HEADER.match(text)
+        if not m:
+            continue
+        name = m["name"].strip().lower()
+        for quantity, names in NAMES.items():
+            if name in names and quantity not in found:
+                unit = _unit_key(quantity, m["unit"])
+                if unit not in UNITS[quantity]:
+                    known = ", ".join(UNITS[quantity])
+                    raise LogError(f"{source}: column '{text}': unit '{m['unit']}' not known for "
+                                   f"{quantity} (known: {known})")
+                found[quantity] = (j, UNITS[quantity][unit])
+    for quantity in REQUIRED:
+        if quantity not in found:
+            raise LogError(f"{source}: column missing: {quantity} (e.g. "
+                           f"'{NAMES[quantity][0].capitalize()} (unit)')")
+    return found
+
+
+def _read_rows(path: Path) -> list[list[str]]:
+    if not path.is_file():
+        raise LogError(f"{path.name}: file not found")
+    if path.stat().st_size > MAX_LOG_BYTES:
+        raise LogError(f"{path.name}: larger than {MAX_LOG_BYTES // 2**20} MB, not a stand log")
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        text = raw.decode("latin-1")  # Windows exports: units still parse, "µ" may be mangled
+    rows = list(csv.reader(text.splitlines()))
+    if len(rows) < 2:
+        raise LogError(f"{path.name}: no data rows")
+    return rows
+
+
+def read_log(path: str | Path, motor_poles: int | None = None) -> StandLog:
+    """Read a stand log (units from the header) into SI arrays.
+
+    Rotor speed comes from ``Motor Optical Speed (RPM)`` when it holds data, else from
+    ``Motor Electrical Speed (RPM)`` divided by the pole pairs (``motor_poles`` / 2, which must
+    then be given: a 5-inch racing motor has 14 poles, but that is the user's motor to state).
+    A row with a missing or non-numeric value in a used column is refused with its row number.
+    """
+    path = Path(path)
+    rows = _read_rows(path)
+    source = path.name
+    cols = _columns(rows[0], source)
+    if "optical_rpm" not in cols and "electrical_rpm" not in cols:
+        raise LogError(f"{source}: column missing: rotor speed ('Motor Optical Speed (RPM)' or "
+                       "'Motor Electrical Speed (RPM)')")
+    data = {q: [] for q in cols}
+    for i, row in enumerate(rows[1:], start=2):
+        if not any(cell.strip() for cell in row):
+            continue
+        for q, (j, factor) in cols.items():
+            cell = row[j].strip() if j < len(row) else ""
+            try:
+                value = float(cell) if cell else (math.nan if q.endswith("rpm") else None)
+            except ValueError:
+                value = None
+            if value is None or (not q.endswith("rpm") and not math.isfinite(value)):
+                raise LogError(f"{source}: row {i}, column '{rows[0][j]}': "
+                               f"not a number: {cell!r}")
+            data[q].append(value * factor)
+    arrays = {q: np.asarray(v, dtype=float) for q, v in data.items()}
+    speed = _rotor_speed(arrays, motor_poles, source)
+    t = arrays["time"]
+    if len(t) < 10:
+        raise LogError(f"{source}: {len(t)} data rows; a fit needs a logged test (≥ 10 rows)")
+    if np.any(np.diff(t) <= 0):
+        row = int(np.argmax(np.diff(t) <= 0)) + 3
+        raise LogError(f"{source}: row {row}, column 'Time': time does not increase")
+    return StandLog(source, t, arrays["esc"], arrays["thrust"], arrays["torque"],
+                    arrays["voltage"], arrays["current"], speed)
+
+
+def _rotor_speed(arrays: dict[str, np.ndarray], motor_poles: int | None,
+                 source: str) -> np.ndarray:
+    optical = arrays.get("optical_rpm")
+    if optical is not None and np.nanmax(np.abs(optical), initial=0.0) > 0:
+        speed = optical
+    elif "electrical_rpm" in arrays:
+        if motor_poles is None:
+            raise LogError(f"{source}: column 'Motor Electrical Speed (RPM)': the rotor speed "
+                           "needs the motor's pole count (--motor-poles, e.g. 14)")
+        speed = arrays["electrical_rpm"] / (motor_poles / 2)
+    else:
+        raise LogError(f"{source}: column 'Motor Optical Speed (RPM)': no data")
+    if np.any(~np.isfinite(speed)):
+        row = int(np.argmax(~np.isfinite(speed))) + 2
+        raise LogError(f"{source}: row {row}, rotor speed column: not a number")
+    return np.abs(speed)
+
+
+# ------------------------------------------------------------------------------------------------
+# Segmentation: plateaus and steps
+# ------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Plateau:
+    """Rows ``[start, stop)`` held at one ESC signal, and their settled means (SI)."""
+
+    start: int
+    stop: int
+    esc_us: float
+    thrust_n: float
+    torque_nm: float
+    voltage_v: float
+    current_a: float
+    speed_rad_s: float
+
+
+def plateaus(log: StandLog, min_plateau_s: float = 0.5, settled_fraction: float = 0.5
+             ) -> list[Plateau]:
+    """The runs of constant ESC signal lasting ≥ ``min_plateau_s``, with the means of their
+    last ``settled_fraction``."""
+    change = np.flatnonzero(np.abs(np.diff(log.esc_us)) > 0.5) + 1
+    bounds = np.concatenate([[0], change, [len(log.esc_us)]])
+    out = []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        if b - a < 3 or log.time_s[b - 1] - log.time_s[a] < min_plateau_s:
+            continue
+        s = slice(a + int((b - a) * (1 - settled_fraction)), b)
+        out.append(Plateau(int(a), int(b), float(log.esc_us[a]),
+                           *(float(np.mean(x[s])) for x in (log.thrust_n, log.torque_nm,
+                                                            log.voltage_v, log.current_a,
+                                                            log.speed_rad_s))))
+    return out
+
+
+# ------------------------------------------------------------------------------------------------
+# Fits
+# ------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Residual:
+    """Goodness of one fit: RMS and largest absolute residual, in the fitted quantity's unit,
+    and the RMS relative to the data's RMS."""
+
+    quantity: str
+    unit: str
+    rms: float
+    max_abs: float
+    relative_rms: float
+    points: int
+
+
+def _residual(quantity: str, unit: str, data: np.ndarray, fit: np.ndarray) -> Residual:
+    r = data - fit
+    scale = float(np.sqrt(np.mean(data**2))) or 1.0
+    rms = float(np.sqrt(np.mean(r**2)))
+    return Residual(quantity, unit, rms, float(np.max(np.abs(r))), rms / scale, len(r))
+
+
+@dataclass(frozen=True)
+class StepFit:
+    """One step response: start time (s), ESC signal before and after (µs), fitted τ (s)."""
+
+    time_s: float
+    esc_from_us: float
+    esc_to_us: float
+    time_constant_s: float
+    rms_rad_s: float
+
+
+@dataclass(frozen=True)
+class PropulsionFit:
+    """Everything fitted from one log.
+
+    Attributes:
+        source: the log's file name. plateaus: the steady points used.
+        ct0, cp0: static thrust and power coefficients (UIUC definitions, n in rev/s).
+        kv_rpm_per_v, resistance_ohm, no_load_current_a: Drela's first-order motor.
+        open_circuit_voltage_v, internal_resistance_ohm: the battery (through its leads).
+        time_constant_s: median of the resolved step responses, or None.
+        steps: every step fitted. residuals: one per fit.
+    """
+
+    source: str
+    diameter_m: float
+    air_density_kg_m3: float
+    plateaus: tuple[Plateau, ...]
+    ct0: float
+    cp0: float
+    kv_rpm_per_v: float
+    resistance_ohm: float
+    no_load_current_a: float
+    open_circuit_voltage_v: float
+    internal_resistance_ohm: float
+    time_constant_s: float | None
+    steps: tuple[StepFit, ...]
+    residuals: tuple[Residual, ...]
+    duty: np.ndarray = field(repr=False)
+
+    def section(self) -> dict[str, Any]:
+        """The airframe's ``propulsion:`` section (the keys of the propeller model)."""
+        motor: dict[str, Any] = {
+            "kind": "dc",
+            "kv_rpm_per_v": _round(self.kv_rpm_per_v),
+            "resistance_ohm": _round(self.resistance_ohm),
+            "no_load_current_a": _round(self.no_load_current_a),
+        }
+        if self.time_constant_s is not None:
+            motor["time_constant_s"] = _round(self.time_constant_s)
+        return {
+            "model": "propeller",
+            "propeller": {
+                "diameter_m": _round(self.diameter_m),
+                "ct_coefficients": [_round(self.ct0)],
+                "cp_coefficients": [_round(self.cp0)],
+            },
+            "motor": motor,
+            "battery": {
+                "open_circuit_voltage_v": _round(self.open_circuit_voltage_v),
+                "internal_resistance_ohm": _round(self.internal_resistance_ohm),
+            },
+        }
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready summary: the section, every residual, every step."""
+        return {
+            "source": self.source,
+            "plateaus": len(self.plateaus),
+            "propulsion": self.section(),
+            "residuals": [vars(r) for r in self.residuals],
+            "steps": [vars(s) for s in self.steps],
+        }
+
+
+def _round(x: float) -> float:
+    return float(f"{x:.6g}")
+
+
+def _fit_propeller(p: list[Plateau], D: float, rho: float) -> tuple[float, float, list[Residual]]:
+    n = np.array([q.speed_rad_s for q in p]) / (2 * math.pi)
+    T = np.array([q.thrust_n for q in p])
+    Q = np.abs(np.array([q.torque_nm for q in p]))
+    xT = rho * n**2 * D**4
+    xQ = rho * n**2 * D**5 / (2 * math.pi)  # Q = C_P ρ n² D⁵ / 2π
+    ct0 = float(xT @ T / (xT @ xT))
+    cp0 = float(xQ @ Q / (xQ @ xQ))
+    return ct0, cp0, [_residual("thrust", "N", T, ct0 * xT),
+                      _residual("torque", "N·m", Q, cp0 * xQ)]
+
+
+def _fit_motor(p: list[Plateau], duty: np.ndarray) -> tuple[float, float, float, list[Residual]]:
+    w = np.array([q.speed_rad_s for q in p])
+    Vm = duty * np.array([q.voltage_v for q in p])
+    Im = np.array([q.current_a for q in p]) / duty
+    Q = np.abs(np.array([q.torque_nm for q in p]))
+    A = np.column_stack([w, Im])
+    (inv_kv, R), *_ = np.linalg.lstsq(A, Vm, rcond=None)
+    kv = 1.0 / inv_kv  # rad/s per V
+    i0 = float(np.mean(Im - kv * Q))
+    return (kv * 60 / (2 * math.pi), float(R), i0,
+            [_residual("motor voltage", "V", Vm, A @ np.array([inv_kv, R])),
+             _residual("motor current", "A", Im, kv * Q + i0)])
+
+
+def _fit_battery(p: list[Plateau]) -> tuple[float, float, Residual]:
+    V = np.array([q.voltage_v for q in p])
+    I = np.array([q.current_a for q in p])
+    slope, v0 = np.polyfit(I, V, 1)
+    return float(v0), float(-slope), _residual("bus voltage", "V", V, v0 + slope * I)
+
+
+def _fit_step(log: StandLog, before: Plateau, after: Plateau) -> StepFit | None:
+    from scipy.optimize import least_squares
+
+    s = slice(after.start, after.stop)
+    t = log.time_s[s] - log.time_s[after.start - 1]  # the step is applied at the previous sample
+    w = log.speed_rad_s[s]
+    w0, winf = before.speed_rad_s, after.speed_rad_s
+    if abs(winf - w0) < 0.05 * max(winf, w0, 1.0):
+        return None  # too small a step to see a time constant through the noise
+
+    def model(tau):
+        return winf + (w0 - winf) * np.exp(-t / tau[0])
+
+    dt = float(np.median(np.diff(t)))
+    sol = least_squares(lambda x: model(x) - w, x0=[max(3 * dt, 0.02)], bounds=([1e-4], [5.0]))
+    tau = float(sol.x[0])
+    if np.count_nonzero(t <= 3 * tau) < MIN_STEP_SAMPLES:
+        return None  # the sampling does not resolve this response
+    rms = float(np.sqrt(np.mean((model(sol.x) - w) ** 2)))
+    return StepFit(float(log.time_s[after.start]), before.esc_us, after.esc_us, tau, rms)
+
+
+def fit_propulsion(log: StandLog, diameter_m: float, air_density_kg_m3: float = RHO_ISA,
+                   esc_min_us: float = 1000.0, esc_max_us: float = 2000.0,
+                   min_plateau_s: float = 0.5) -> PropulsionFit:
+    """Fit the propeller, motor, battery and motor time constant of :mod:`this module's
+    <casadrone.thruststand>` docstring from a stand log.
+
+    Raises:
+        LogError: fewer than three powered steady points, or a point outside the ESC range.
+    """
+    if not 0.02 <= diameter_m <= 2.0:
+        raise LogError(f"{log.source}: propeller diameter {diameter_m} m outside 0.02-2 m")
+    if not 0.3 <= air_density_kg_m3 <= 1.5:
+        raise LogError(f"{log.source}: air density {air_density_kg_m3} kg/m³ outside 0.3-1.5")
+    allp = plateaus(log, min_plateau_s)
+    powered = [q for q in allp if q.esc_us > esc_min_us and q.speed_rad_s > 0 and q.current_a > 0]
+    if len(powered) < 3:
+        raise LogError(f"{log.source}: {len(powered)} powered steady points (ESC signal held "
+                       f"≥ {min_plateau_s} s above {esc_min_us:g} µs); a fit needs ≥ 3")
+    duty = np.array([(q.esc_us - esc_min_us) / (esc_max_us - esc_min_us) for q in powered])
+    if np.any(duty > 1.0 + 1e-9):
+        bad = powered[int(np.argmax(duty))]
+        raise LogError(f"{log.source}: row {bad.start + 2}, column 'ESC signal': {bad.esc_us:g} µs "
+                       f"above the ESC range's top {esc_max_us:g} µs (--esc-max-us)")
+    ct0, cp0, res_prop = _fit_propeller(powered, diameter_m, air_density_kg_m3)
+    kv, R, i0, res_motor = _fit_motor(powered, duty)
+    v0, r_int, res_batt = _fit_battery(powered)
+    steps = tuple(s for a, b in zip(allp[:-1], allp[1:], strict=True)
+                  if b.start == a.stop and (s := _fit_step(log, a, b)) is not None)
+    tau = float(np.median([s.time_constant_s for s in steps])) if steps else None
+    return PropulsionFit(log.source, diameter_m, air_density_kg_m3, tuple(powered), ct0, cp0,
+                         kv, R, i0, v0, r_int, tau, steps,
+                         (*res_prop, *res_motor, res_batt), duty)

@@ -22,6 +22,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.configio",
     "casadrone.massprops",
     "casadrone.config",
+    "casadrone.thruststand",
     "casadrone.airframe",
     "casadrone.model",
     "casadrone.trim",

@@ -167,8 +167,7 @@ def read_log(path: str | Path, motor_poles: int | None = None) -> StandLog:
     """Read a stand log (units from the header) into SI arrays.
 
     Rotor speed comes from ``Motor Optical Speed (RPM)`` when it holds data, else from
-    ``Motor Electrical Speed (RPM)`` divided by the pole pairs (``motor_poles`` / 2, which must
-    then be given: a 5-inch racing motor has 14 poles, but that is the user's motor to state).
+    ``Motor Electrical Speed (RPM)`` (see :func:`_rotor_speed` for ``motor_poles``).
     A row with a missing or non-numeric value in a used column is refused with its row number.
     """
     path = Path(path)
@@ -197,23 +196,29 @@ def read_log(path: str | Path, motor_poles: int | None = None) -> StandLog:
     t = arrays["time"]
     if len(t) < 10:
         raise LogError(f"{source}: {len(t)} data rows; a fit needs a logged test (≥ 10 rows)")
-    if np.any(np.diff(t) <= 0):
-        row = int(np.argmax(np.diff(t) <= 0)) + 3
-        raise LogError(f"{source}: row {row}, column 'Time': time does not increase")
-    return StandLog(source, t, arrays["esc"], arrays["thrust"], arrays["torque"],
-                    arrays["voltage"], arrays["current"], speed)
+    # The stands' software stamps each sample; its first samples can be written out of order
+    # (seen in published RCbenchmark logs): sort by time, refuse only a repeated stamp.
+    order = np.argsort(t, kind="stable")
+    if np.any(np.diff(t[order]) <= 0):
+        row = int(order[int(np.argmax(np.diff(t[order]) <= 0)) + 1]) + 2
+        raise LogError(f"{source}: row {row}, column 'Time': time stamp repeated")
+    return StandLog(source, t[order], *(x[order] for x in (
+        arrays["esc"], arrays["thrust"], arrays["torque"], arrays["voltage"],
+        arrays["current"], speed)))
 
 
 def _rotor_speed(arrays: dict[str, np.ndarray], motor_poles: int | None,
                  source: str) -> np.ndarray:
+    """Rotor speed (rad/s): the optical sensor where it holds data, else the electrical speed
+    column. Tyto/RCbenchmark software writes that column already in rotor rpm (it divides by the
+    pole count set in its settings; checked on a published 9-inch log, whose fit gives C_T0 ≈ 0.11
+    this way and 49× that divided again by 7 pole pairs): it is divided by the pole pairs only
+    when ``motor_poles`` is given, for a log of the raw commutation frequency."""
     optical = arrays.get("optical_rpm")
     if optical is not None and np.nanmax(np.abs(optical), initial=0.0) > 0:
         speed = optical
     elif "electrical_rpm" in arrays:
-        if motor_poles is None:
-            raise LogError(f"{source}: column 'Motor Electrical Speed (RPM)': the rotor speed "
-                           "needs the motor's pole count (--motor-poles, e.g. 14)")
-        speed = arrays["electrical_rpm"] / (motor_poles / 2)
+        speed = arrays["electrical_rpm"] / (motor_poles / 2 if motor_poles else 1.0)
     else:
         raise LogError(f"{source}: column 'Motor Optical Speed (RPM)': no data")
     if np.any(~np.isfinite(speed)):
@@ -366,7 +371,7 @@ def _round(x: float) -> float:
 def _fit_propeller(p: list[Plateau], D: float, rho: float) -> tuple[float, float, list[Residual]]:
     n = np.array([q.speed_rad_s for q in p]) / (2 * math.pi)
     T = np.array([q.thrust_n for q in p])
-    Q = np.abs(np.array([q.torque_nm for q in p]))
+    Q = np.array([q.torque_nm for q in p])
     xT = rho * n**2 * D**4
     xQ = rho * n**2 * D**5 / (2 * math.pi)  # Q = C_P ρ n² D⁵ / 2π
     ct0 = float(xT @ T / (xT @ xT))
@@ -379,7 +384,7 @@ def _fit_motor(p: list[Plateau], duty: np.ndarray) -> tuple[float, float, float,
     w = np.array([q.speed_rad_s for q in p])
     Vm = duty * np.array([q.voltage_v for q in p])
     Im = np.array([q.current_a for q in p]) / duty
-    Q = np.abs(np.array([q.torque_nm for q in p]))
+    Q = np.array([q.torque_nm for q in p])
     A = np.column_stack([w, Im])
     (inv_kv, R), *_ = np.linalg.lstsq(A, Vm, rcond=None)
     kv = 1.0 / inv_kv  # rad/s per V
@@ -418,6 +423,44 @@ def _fit_step(log: StandLog, before: Plateau, after: Plateau) -> StepFit | None:
     return StepFit(float(log.time_s[after.start]), before.esc_us, after.esc_us, tau, rms)
 
 
+def _tared(points: list[Plateau], esc_min_us: float) -> list[Plateau]:
+    """Load-cell readings relative to the unpowered plateaus' mean (the stand's tare), signed so
+    that thrust and torque are positive at the highest ESC signal (a stand logs them with the sign
+    of its mounting)."""
+    import dataclasses
+
+    idle = [q for q in points if q.esc_us <= esc_min_us]
+    t0 = float(np.mean([q.thrust_n for q in idle])) if idle else 0.0
+    q0 = float(np.mean([q.torque_nm for q in idle])) if idle else 0.0
+    top = max(points, key=lambda q: q.esc_us)  # the sign where the loads are far above noise
+    st = np.sign(top.thrust_n - t0) or 1.0
+    sq = np.sign(top.torque_nm - q0) or 1.0
+    return [dataclasses.replace(q, thrust_n=float(st * (q.thrust_n - t0)),
+                                torque_nm=float(sq * (q.torque_nm - q0))) for q in points]
+
+
+#: Physically possible range of each fitted value, and the columns it comes from: a fit outside
+#: is refused (a sign or unit problem of the log), never written into an airframe.
+PHYSICAL: dict[str, tuple[str, float, float, str]] = {
+    "ct0": ("static thrust coefficient C_T0", 0.01, 0.4, "Thrust, rotor speed"),
+    "cp0": ("static power coefficient C_P0", 0.005, 0.4, "Torque, rotor speed"),
+    "kv": ("motor KV (rpm/V)", 50.0, 30000.0, "Voltage, Current, rotor speed, ESC signal"),
+    "R": ("motor resistance (Ω)", 1e-3, 5.0, "Voltage, Current, rotor speed, ESC signal"),
+    "i0": ("no-load current (A)", 0.0, 20.0, "Current, Torque"),
+    "v0": ("open-circuit voltage (V)", 1.0, 60.0, "Voltage, Current"),
+    "r_int": ("battery internal resistance (Ω)", 0.0, 1.0, "Voltage, Current"),
+}
+
+
+def _check_physical(source: str, values: dict[str, float]) -> None:
+    for key, value in values.items():
+        name, lo, hi, columns = PHYSICAL[key]
+        if not lo <= value <= hi:
+            raise LogError(f"{source}: columns {columns}: the fitted {name} is {value:.4g}, "
+                           f"outside the physical {lo:g}-{hi:g} (check the columns' signs, "
+                           "units and tare)")
+
+
 def fit_propulsion(log: StandLog, diameter_m: float, air_density_kg_m3: float = RHO_ISA,
                    esc_min_us: float = 1000.0, esc_max_us: float = 2000.0,
                    min_plateau_s: float = 0.5) -> PropulsionFit:
@@ -425,13 +468,14 @@ def fit_propulsion(log: StandLog, diameter_m: float, air_density_kg_m3: float = 
     <casadrone.thruststand>` docstring from a stand log.
 
     Raises:
-        LogError: fewer than three powered steady points, or a point outside the ESC range.
+        LogError: fewer than three powered steady points, a point outside the ESC range, or a
+            fitted value outside :data:`PHYSICAL`.
     """
     if not 0.02 <= diameter_m <= 2.0:
         raise LogError(f"{log.source}: propeller diameter {diameter_m} m outside 0.02-2 m")
     if not 0.3 <= air_density_kg_m3 <= 1.5:
         raise LogError(f"{log.source}: air density {air_density_kg_m3} kg/m³ outside 0.3-1.5")
-    allp = plateaus(log, min_plateau_s)
+    allp = _tared(plateaus(log, min_plateau_s), esc_min_us)
     powered = [q for q in allp if q.esc_us > esc_min_us and q.speed_rad_s > 0 and q.current_a > 0]
     if len(powered) < 3:
         raise LogError(f"{log.source}: {len(powered)} powered steady points (ESC signal held "
@@ -444,6 +488,7 @@ def fit_propulsion(log: StandLog, diameter_m: float, air_density_kg_m3: float = 
     ct0, cp0, res_prop = _fit_propeller(powered, diameter_m, air_density_kg_m3)
     kv, R, i0, res_motor = _fit_motor(powered, duty)
     v0, r_int, res_batt = _fit_battery(powered)
+    _check_physical(log.source, dict(ct0=ct0, cp0=cp0, kv=kv, R=R, i0=i0, v0=v0, r_int=r_int))
     steps = tuple(s for a, b in zip(allp[:-1], allp[1:], strict=True)
                   if b.start == a.stop and (s := _fit_step(log, a, b)) is not None)
     tau = float(np.median([s.time_constant_s for s in steps])) if steps else None

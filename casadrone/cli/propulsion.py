@@ -33,7 +33,8 @@ def fit_propulsion_command(
         "--air-density", help="air density during the test (kg/m³; ISA sea level 1.225)")] = 1.225,
     motor_poles: Annotated[int | None, typer.Option(
         "--motor-poles", min=2, max=64,
-        help="motor poles, when only 'Motor Electrical Speed (RPM)' is logged (e.g. 14)")] = None,
+        help="motor poles, to turn a raw commutation frequency logged as 'Motor Electrical Speed "
+        "(RPM)' into rotor speed (Tyto/RCbenchmark software already logs rotor rpm there)")] = None,
     esc_min_us: Annotated[float, typer.Option(
         "--esc-min-us", help="ESC signal at zero duty (µs)")] = 1000.0,
     esc_max_us: Annotated[float, typer.Option(

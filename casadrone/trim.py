@@ -1,20 +1,31 @@
-"""Trim: the operating point (x0, u0) of hover or level forward flight, by three solvers.
+"""Trim: the operating point (x0, u0) of a steady flight condition, by three solvers.
 
-Formulation (the same for every solver). Level flight with world velocity (V, 0, 0), heading
-ψ = 0 and body rates p = q = r = 0 leaves six unknowns
+Conditions (one registry, :data:`CONDITION_REGISTRY`): ``hover``; ``forward``, level flight at
+speed V along world +x; ``climb``, straight flight at speed V along a path inclined by the climb
+angle γ (negative: descent); ``turn``, a coordinated level turn at speed V whose heading turns
+at the rate Ω (positive: left, counter-clockwise seen from above), the nose along the velocity.
+Each is a value of the operating-point vector (V, γ, Ω); hover is V = 0.
+
+Formulation (the same for every solver and condition). With heading ψ = 0 at the instant
+considered, world velocity V (cos γ, 0, sin γ) and body rates ω = W(φ, θ)⁻¹ (0, 0, Ω) (the heading
+turns at Ω, roll and pitch stay put: p = −Ω sin θ, q = Ω sin φ cos θ, r = Ω cos φ cos θ), six
+unknowns remain
 
     Z = (φ, θ, δ1, δ2, δ3, δ4)        (rad, rad, ESC commands)
 
-from which the whole state follows: body velocity (u, v, w) = R(φ, θ, 0)ᵀ (V, 0, 0), rotor
-thrusts T = K δ (the first-order thrust model at rest), position 0. The six residuals Q(Z) are
-the body-velocity and body-rate rows of the explicit model f(x, u, p): v̇ = 0 (m/s²) and ω̇ = 0
-(rad/s²). The Euler-angle rows vanish because ω = 0 and the thrust rows because T = K δ, so the
-system is square, 6 × 6. Hover is V = 0. Positive θ is nose-down: in forward flight θ > 0.
+from which the whole state follows: body velocity (u, v, w) = R(φ, θ, 0)ᵀ V (cos γ, 0, sin γ),
+rotor thrusts T = K δ (the first-order thrust model at rest), position 0. The six residuals Q(Z)
+are the body-velocity and body-rate rows of the explicit model f(x, u, p): v̇ = 0 (m/s²) and
+ω̇ = 0 (rad/s²); in a turn the body velocity and rates are constant while the heading turns, so
+these rows carry the centripetal and gyroscopic terms. The Euler-angle rows hold by the choice
+of ω (φ̇ = θ̇ = 0, ψ̇ = Ω) and the thrust rows because T = K δ, so the system is square, 6 × 6.
+Positive θ is nose-down: in forward flight θ > 0; a left turn banks left, φ < 0.
 
 Every solver reports the same ``residual_norm``: the 2-norm of all 13 non-position rows of
-f(x0, u0, p), evaluated by one compiled Function after the solver has finished.
+f(x0, u0, p) minus their steady values (zero, except ψ̇ = Ω), evaluated by one compiled Function
+after the solver has finished.
 
-Solvers (all built once per process and option set, with p and V as parameters):
+Solvers (all built once per process and option set, with p and (V, γ, Ω) as parameters):
 
 * ``ipopt`` — CasADi ``nlpsol`` feasibility problem: objective 0, g(Z) = Q(Z) = 0.
 * ``newton`` — CasADi ``rootfinder`` (Newton) on Q(Z) = 0.
@@ -42,6 +53,7 @@ from scipy.optimize import minimize
 
 from casadrone.airframe import PARAM_NAMES, Airframe
 from casadrone.codegen import ZeroCopyCall
+from casadrone.conditions import CONDITION_REGISTRY, CONDITIONS, operating_vector
 from casadrone.model import (
     EUL,
     INPUT_NAMES,
@@ -56,11 +68,13 @@ from casadrone.model import (
 )
 
 Solver = Literal["ipopt", "nelder-mead", "newton"]
-Condition = Literal["hover", "forward"]
+Condition = Literal["hover", "forward", "climb", "turn"]
 SOLVERS: tuple[str, ...] = ("ipopt", "nelder-mead", "newton")
-CONDITIONS: tuple[str, ...] = ("hover", "forward")
 UNKNOWN_NAMES = ("phi", "theta", "delta1", "delta2", "delta3", "delta4")
 _K = PARAM_NAMES.index("K")
+_PSI_ROW = STATE_NAMES.index("psi")
+__all__ = ["CONDITION_REGISTRY", "CONDITIONS", "SOLVERS", "TrimOptions", "TrimPoint",
+           "initial_guess", "operating_vector", "trim", "trim_all"]
 
 
 @dataclass(frozen=True)
@@ -104,10 +118,12 @@ class TrimPoint:
     """An operating point and how it was found.
 
     Attributes:
-        solver, condition, speed_mps: what was asked (speed in m/s, world x).
+        solver, condition, speed_mps, climb_angle_deg, turn_rate_dps: what was asked (speed in
+            m/s along the flight path, climb angle in deg, heading rate in deg/s).
         x0: state (16, STATE_NAMES order); u0: ESC commands (4); thrusts: rotor thrusts (N),
             equal to ``x0[12:16]``.
-        residual_norm: 2-norm of the 13 non-position rows of f(x0, u0, p).
+        residual_norm: 2-norm of the 13 non-position rows of f(x0, u0, p) minus their steady
+            values (ψ̇ = Ω in a turn, zero otherwise).
         iterations: iterations reported by the solver (Nelder–Mead: summed over restarts).
         wall_time_s: wall time of the solve, residual evaluation included (s).
         success, message: whether the trim is usable, and why not.
@@ -125,6 +141,8 @@ class TrimPoint:
     success: bool
     message: str
     airframe: str = ""
+    climb_angle_deg: float = 0.0
+    turn_rate_dps: float = 0.0
     state_names: tuple[str, ...] = field(default=STATE_NAMES)
     input_names: tuple[str, ...] = field(default=INPUT_NAMES)
 
@@ -146,54 +164,58 @@ class TrimPoint:
 
 @dataclass(frozen=True)
 class _TrimFunctions:
-    state: ca.Function  # state(z, p, V) -> (x, u)
-    residual: ca.Function  # residual(z, p, V) -> Q (6)
-    cost: ca.Function  # cost(z, p, V, h) -> QᵀHQ
-    residual_norm: ca.Function  # residual_norm(x, u, p) -> ‖f[3:16]‖₂
-    point: ZeroCopyCall  # point(z, p, V) -> (x, u, ‖f[3:16]‖₂) in one zero-copy call
+    state: ca.Function  # state(z, p, op) -> (x, u)
+    residual: ca.Function  # residual(z, p, op) -> Q (6)
+    cost: ZeroCopyCall  # cost(z, p, op, h) -> QᵀHQ
+    qnorm: ZeroCopyCall  # qnorm(z, p, op) -> ‖Q‖₂
+    point: ZeroCopyCall  # point(z, p, op) -> (x, u, residual norm) in one zero-copy call
 
 
-def _state_expr(z, p, V):
-    """(x, u) of the unknowns Z at world speed V (symbolic)."""
+def _state_expr(z, p, op, level: bool):
+    """(x, u, steady ẋ) of the unknowns Z at the operating point op = (V, γ, Ω) (symbolic).
+    ``level``: γ = Ω = 0 as constants, so level flight keeps the expression graph (and the
+    results, bit for bit) of the level-only formulation this generalises."""
     phi, theta, delta = z[0], z[1], z[2:6]
+    V, gamma, Omega = (op[0], 0, 0) if level else (op[0], op[1], op[2])
     R = rotation_matrix(phi, theta, 0)
+    omega = Omega * ca.vertcat(-ca.sin(theta), ca.sin(phi) * ca.cos(theta),
+                               ca.cos(phi) * ca.cos(theta))
     x = ca.vertcat(
-        ca.SX.zeros(3), R.T @ ca.vertcat(V, 0, 0), ca.SX.zeros(3), phi, theta, 0, p[_K] * delta
+        ca.SX.zeros(3), R.T @ ca.vertcat(V * ca.cos(gamma), 0, V * ca.sin(gamma)), omega, phi,
+        theta, 0, p[_K] * delta,
     )
-    return x, delta
+    steady = ca.vertcat(ca.SX.zeros(_PSI_ROW), Omega, ca.SX.zeros(NX - _PSI_ROW - 1))
+    return x, delta, steady
 
 
-@lru_cache(maxsize=1)
-def _functions() -> _TrimFunctions:
+@lru_cache(maxsize=2)
+def _functions(level: bool) -> _TrimFunctions:
+    """The compiled trim Functions; ``level``: for conditions without climb or turn."""
     f = quadrotor_model().f
-    z, p, V = ca.SX.sym("z", 6), ca.SX.sym("p", NP), ca.SX.sym("V")
+    z, p, op = ca.SX.sym("z", 6), ca.SX.sym("p", NP), ca.SX.sym("op", 3)
     h = ca.SX.sym("h", 6)
-    x, u = _state_expr(z, p, V)
+    x, u, steady = _state_expr(z, p, op, level)
     xdot = f(x, u, p)
     Q = ca.vertcat(xdot[VEL], xdot[RATE])
-    xs, us = ca.SX.sym("x", NX), ca.SX.sym("u", 4)
-    rows = f(xs, us, p)[3:]
+    names = ["z", "p", "op"]
     return _TrimFunctions(
-        state=ca.Function("trim_state", [z, p, V], [x, u], ["z", "p", "V"], ["x", "u"]),
-        residual=ca.Function("trim_residual", [z, p, V], [Q], ["z", "p", "V"], ["Q"]),
-        cost=ca.Function(
-            "trim_cost", [z, p, V, h], [ca.dot(Q, h * Q)], ["z", "p", "V", "h"], ["cost"]
-        ),
-        residual_norm=ca.Function(
-            "trim_residual_norm", [xs, us, p], [ca.norm_2(rows)], ["x", "u", "p"], ["norm"]
-        ),
+        state=ca.Function("trim_state", [z, p, op], [x, u], names, ["x", "u"]),
+        residual=ca.Function("trim_residual", [z, p, op], [Q], names, ["Q"]),
+        cost=ZeroCopyCall(ca.Function(
+            "trim_cost", [z, p, op, h], [ca.dot(Q, h * Q)], [*names, "h"], ["cost"])),
+        qnorm=ZeroCopyCall(ca.Function("trim_qnorm", [z, p, op], [ca.norm_2(Q)], names, ["q"])),
         point=ZeroCopyCall(ca.Function(
-            "trim_point", [z, p, V], [x, u, ca.norm_2(f(x, u, p)[3:])], ["z", "p", "V"],
+            "trim_point", [z, p, op], [x, u, ca.norm_2((xdot - steady)[3:])], names,
             ["x", "u", "norm"],
         )),
     )
 
 
-@lru_cache(maxsize=8)
-def _ipopt(tol: float, max_iter: int) -> ca.Function:
-    fn = _functions()
-    z, pv = ca.SX.sym("z", 6), ca.SX.sym("pv", NP + 1)
-    g = fn.residual(z, pv[:NP], pv[NP])
+@lru_cache(maxsize=16)
+def _ipopt(tol: float, max_iter: int, level: bool) -> ca.Function:
+    fn = _functions(level)
+    z, pv = ca.SX.sym("z", 6), ca.SX.sym("pv", NP + 3)
+    g = fn.residual(z, pv[:NP], pv[NP:])
     opts = {
         "print_time": False,
         "ipopt.print_level": 0,
@@ -206,11 +228,11 @@ def _ipopt(tol: float, max_iter: int) -> ca.Function:
     return ca.nlpsol("trim_ipopt", "ipopt", {"x": z, "p": pv, "f": 0, "g": g}, opts)
 
 
-@lru_cache(maxsize=8)
-def _newton(tol: float, max_iter: int) -> ca.Function:
-    fn = _functions()
-    z, pv = ca.SX.sym("z", 6), ca.SX.sym("pv", NP + 1)
-    g = ca.Function("trim_g", [z, pv], [fn.residual(z, pv[:NP], pv[NP])])
+@lru_cache(maxsize=16)
+def _newton(tol: float, max_iter: int, level: bool) -> ca.Function:
+    fn = _functions(level)
+    z, pv = ca.SX.sym("z", 6), ca.SX.sym("pv", NP + 3)
+    g = ca.Function("trim_g", [z, pv], [fn.residual(z, pv[:NP], pv[NP:])])
     opts = {
         "abstol": min(tol * 1e-3, 1e-12),
         "abstolStep": 1e-14,
@@ -221,38 +243,43 @@ def _newton(tol: float, max_iter: int) -> ca.Function:
 
 
 # ---------------------------------------------------------------------------------------------
-# Solvers: each maps (Z0, p, V, options) -> (Z, iterations, solver message)
+# Solvers: each maps (Z0, p, op, options) -> (Z, iterations, solver message)
 # ---------------------------------------------------------------------------------------------
 
 
-def _solve_ipopt(z0, p, V, o: TrimOptions):
-    solver = _ipopt(o.tolerance, o.max_iterations)
-    sol = solver(x0=z0, p=np.append(p, V), lbg=0, ubg=0)
+def _level(op: np.ndarray) -> bool:
+    """Whether the operating point has no climb and no turn (the level Functions serve it)."""
+    return bool(op[1] == 0 and op[2] == 0)
+
+
+def _solve_ipopt(z0, p, op, o: TrimOptions):
+    solver = _ipopt(o.tolerance, o.max_iterations, _level(op))
+    sol = solver(x0=z0, p=np.append(p, op), lbg=0, ubg=0)
     st = solver.stats()
     return np.asarray(sol["x"]).ravel(), int(st.get("iter_count", 0)), str(st["return_status"])
 
 
-@lru_cache(maxsize=8)
-def _newton_call(tol: float, max_iter: int) -> ZeroCopyCall:
-    return ZeroCopyCall(_newton(tol, max_iter))
+@lru_cache(maxsize=16)
+def _newton_call(tol: float, max_iter: int, level: bool) -> ZeroCopyCall:
+    return ZeroCopyCall(_newton(tol, max_iter, level))
 
 
-def _solve_newton(z0, p, V, o: TrimOptions):
-    rf = _newton_call(o.tolerance, o.max_iterations)
-    (z,) = rf(z0, np.append(p, V))
+def _solve_newton(z0, p, op, o: TrimOptions):
+    rf = _newton_call(o.tolerance, o.max_iterations, _level(op))
+    (z,) = rf(z0, np.append(p, op))
     st = rf.stats()
     return z.ravel().copy(), int(st.get("iter_count", 0)), str(st["return_status"])
 
 
-def _solve_nelder_mead(z0, p, V, o: TrimOptions):
-    fn = _functions()
-    pd, hd = ca.DM(p), ca.DM(o.nelder_mead_weights)  # convert once: each call costs ~40 µs
+def _solve_nelder_mead(z0, p, op, o: TrimOptions):
+    fn = _functions(_level(op))
+    h = np.asarray(o.nelder_mead_weights, dtype=float)
 
-    def cost(z):
-        return float(fn.cost.call([z, pd, V, hd])[0])
+    def cost(z):  # zero-copy: a few µs a call, where a DM call costs tens
+        return float(fn.cost(z, p, op, h)[0][0, 0])
 
     def qnorm(z):
-        return float(ca.norm_2(fn.residual.call([z, pd, V])[0]))
+        return float(fn.qnorm(z, p, op)[0][0, 0])
 
     # Aim below the acceptance tolerance so the reported 13-row norm passes with margin.
     target = 0.1 * o.nelder_mead_tolerance
@@ -295,16 +322,30 @@ _SOLVE = {"ipopt": _solve_ipopt, "newton": _solve_newton, "nelder-mead": _solve_
 # ---------------------------------------------------------------------------------------------
 
 
-def initial_guess(airframe: Airframe, speed_mps: float = 0.0) -> np.ndarray:
-    """Analytic guess of Z = (φ, θ, δ1…δ4): hover thrusts, pitch from a small-angle drag balance.
+def initial_guess(
+    airframe: Airframe, speed_mps: float = 0.0, *, climb_angle_deg: float = 0.0,
+    turn_rate_dps: float = 0.0,
+) -> np.ndarray:
+    """Analytic guess of Z = (φ, θ, δ1…δ4) from a point-mass force balance.
 
-    θ = atan(½ ρ CdA_x V|V| / (m g)); total thrust m g / cos θ split like the hover thrusts.
+    The thrust must supply F = m g e_z + m a_c + D v̂ (world frame): weight, the centripetal
+    acceleration of a turn a_c = V Ω e_y, and a drag D = ½ ρ CdA_x V² along the flight path v̂
+    (the nose-on drag area for every direction, small-angle). Its direction gives θ = atan2(F_x,
+    F_z) and φ = −atan2(F_y, √(F_x² + F_z²)); its size, |F| = F_z / (cos θ cos φ), scales the hover
+    thrusts (which balance the moments). In level forward flight this is θ = atan(D / (m g)).
     """
     a = airframe
+    V, gamma, Omega = operating_vector(
+        "climb" if turn_rate_dps == 0 else "turn", abs(speed_mps), climb_angle_deg, turn_rate_dps
+    )
     drag = 0.5 * a.air_density * a.drag_area[0] * speed_mps * abs(speed_mps)
-    theta = math.atan2(drag, a.mass * a.gravity)
-    delta = a.hover_thrusts() / math.cos(theta) / a.thrust_gain
-    return np.concatenate([[0.0, theta], delta])
+    weight = a.mass * a.gravity
+    fx, fy = drag * math.cos(gamma), a.mass * V * Omega
+    fz = weight + drag * math.sin(gamma)
+    theta = math.atan2(fx, fz)
+    phi = 0.0 - math.atan2(fy, math.hypot(fx, fz))  # 0.0 - : no negative zero in level flight
+    delta = a.hover_thrusts() / (math.cos(theta) * math.cos(phi)) * (fz / weight)
+    return np.concatenate([[phi, theta], delta / a.thrust_gain])
 
 
 def trim(
@@ -313,53 +354,40 @@ def trim(
     speed_mps: float = 0.0,
     solver: Solver = "ipopt",
     options: TrimOptions | None = None,
+    *,
+    climb_angle_deg: float = 0.0,
+    turn_rate_dps: float = 0.0,
 ) -> TrimPoint:
-    """Trim ``airframe`` in hover or level forward flight at ``speed_mps`` (world +x, m/s).
+    """Trim ``airframe`` in a condition of :data:`CONDITION_REGISTRY` at ``speed_mps`` (m/s along
+    the flight path), ``climb_angle_deg`` (climb) and ``turn_rate_dps`` (turn).
 
     Never raises for a case the solver cannot solve: the TrimPoint then has ``success=False``
-    and a message. Unknown ``condition`` or ``solver``, or hover with a speed, raise ValueError.
+    and a message. An unknown ``condition`` or ``solver``, or a parameter the condition does not
+    take (hover with a speed), raise ValueError.
     """
     if solver not in _SOLVE:
         raise ValueError(f"unknown trim solver '{solver}'; choose one of {', '.join(SOLVERS)}")
-    if condition not in CONDITIONS:
-        raise ValueError(f"unknown condition '{condition}'; choose 'hover' or 'forward'")
-    if condition == "hover" and speed_mps != 0:
-        raise ValueError("hover: speed_mps must be 0 (use condition='forward')")
-    if not math.isfinite(speed_mps):
-        raise ValueError("speed_mps must be finite")
+    op = operating_vector(condition, speed_mps, climb_angle_deg, turn_rate_dps)
     o = options or TrimOptions()
-    fn = _functions()
-    p, V = airframe.p, float(speed_mps)
-    z0 = np.asarray(o.initial_guess if o.initial_guess is not None else initial_guess(airframe, V))
+    fn = _functions(_level(op))
+    p = airframe.p
+    z0 = np.asarray(o.initial_guess if o.initial_guess is not None else initial_guess(
+        airframe, speed_mps, climb_angle_deg=climb_angle_deg, turn_rate_dps=turn_rate_dps))
 
     start = time.perf_counter()
     try:
-        z, iterations, status = _SOLVE[solver](z0, p, V, o)
+        z, iterations, status = _SOLVE[solver](z0, p, op, o)
         error = None
     except Exception as exc:  # a solver crash is a failed trim, never an exception
         z, iterations, status, error = z0, 0, "", f"{type(exc).__name__}: {exc}"
-    x, u, norm = fn.point(z, p, V)
+    x, u, norm = fn.point(z, p, op)
     x0, u0, residual = x.ravel().copy(), u.ravel().copy(), float(norm[0, 0])
     wall = time.perf_counter() - start
-
-    tol = o.nelder_mead_tolerance if solver == "nelder-mead" else o.tolerance
-    tilt = math.degrees(max(abs(z[0]), abs(z[1])))
-    if error is not None:
-        success, message = False, f"{solver} failed: {error}"
-    elif not (np.all(np.isfinite(z)) and math.isfinite(residual)):
-        success, message = False, f"{solver} returned non-finite values ({status})"
-    elif residual > tol:
-        success, message = False, f"residual {residual:.3g} above tolerance {tol:.3g} ({status})"
-    elif tilt > o.max_tilt_deg:
-        success, message = False, f"tilt {tilt:.1f} deg beyond max_tilt_deg {o.max_tilt_deg:g}"
-    else:
-        success, message = True, f"converged ({status})"
-        if np.any(u0 < 0) or np.any(u0 > 1):
-            message += f"; commands outside [0, 1] (max {u0.max():.3f}): they saturate in flight"
+    success, message = _verdict(solver, o, z, u0, residual, status, error)
     return TrimPoint(
         solver=solver,
         condition=condition,
-        speed_mps=V,
+        speed_mps=float(speed_mps),
         x0=x0,
         u0=u0,
         thrusts=x0[THR].copy(),
@@ -369,7 +397,29 @@ def trim(
         success=success,
         message=message,
         airframe=airframe.name,
+        climb_angle_deg=float(climb_angle_deg),
+        turn_rate_dps=float(turn_rate_dps),
     )
+
+
+def _verdict(solver: str, o: TrimOptions, z, u0, residual: float, status: str,
+             error: str | None) -> tuple[bool, str]:
+    """Whether a solve is a usable trim, and the message saying why (not)."""
+    tol = o.nelder_mead_tolerance if solver == "nelder-mead" else o.tolerance
+    finite = bool(np.all(np.isfinite(z))) and math.isfinite(residual)
+    if error is not None:
+        return False, f"{solver} failed: {error}"
+    if not finite:
+        return False, f"{solver} returned non-finite values ({status})"
+    if residual > tol:
+        return False, f"residual {residual:.3g} above tolerance {tol:.3g} ({status})"
+    tilt = math.degrees(max(abs(z[0]), abs(z[1])))
+    if tilt > o.max_tilt_deg:
+        return False, f"tilt {tilt:.1f} deg beyond max_tilt_deg {o.max_tilt_deg:g}"
+    message = f"converged ({status})"
+    if np.any(u0 < 0) or np.any(u0 > 1):
+        message += f"; commands outside [0, 1] (max {u0.max():.3f}): they saturate in flight"
+    return True, message
 
 
 def trim_all(
@@ -378,6 +428,8 @@ def trim_all(
     speed_mps: float = 0.0,
     solvers: tuple[str, ...] = SOLVERS,
     options: TrimOptions | None = None,
+    **operating_point: float,
 ) -> list[TrimPoint]:
-    """Trim with each of ``solvers`` (same airframe, condition and options), for comparison."""
-    return [trim(airframe, condition, speed_mps, s, options) for s in solvers]
+    """Trim with each of ``solvers`` (same airframe, condition and options), for comparison;
+    ``operating_point``: ``climb_angle_deg`` or ``turn_rate_dps`` as in :func:`trim`."""
+    return [trim(airframe, condition, speed_mps, s, options, **operating_point) for s in solvers]

@@ -24,12 +24,11 @@ from casadrone.cli.common import (
     reports_config_errors,
     save_figures,
 )
+from casadrone.conditions import CONDITION_REGISTRY, CONDITIONS
 from casadrone.configio import ConfigError
 
-
-class Condition(StrEnum):
-    hover = "hover"
-    forward = "forward"
+#: The trim conditions, from their one registry (:mod:`casadrone.conditions`).
+Condition = StrEnum("Condition", {name: name for name in CONDITIONS})  # type: ignore[misc]
 
 
 class TrimSolver(StrEnum):
@@ -128,27 +127,33 @@ def trim(
     overrides: OverridesArg = None,
     condition: Annotated[Condition, typer.Option(help="operating point")] = Condition.hover,
     speed: Annotated[
-        float | None, typer.Option(help="forward speed (m/s), required with forward")
+        float | None, typer.Option(help="speed along the flight path (m/s), required with "
+                                   "forward, climb and turn")
     ] = None,
+    climb_angle: Annotated[float | None, typer.Option(
+        help="climb: angle of the path above the horizon (deg, negative: descent)")] = None,
+    turn_rate: Annotated[float | None, typer.Option(
+        help="turn: heading rate (deg/s, positive: left)")] = None,
     solver: Annotated[
         TrimSolver, typer.Option(help="trim solver, or all to compare them")
     ] = TrimSolver.ipopt,
     as_json: JsonOpt = False,
 ) -> None:
-    """Trim an airframe in hover or level forward flight; --solver all compares the solvers."""
-    speed_mps = _check_speed(condition.value, speed)
+    """Trim an airframe in hover, level forward flight, a climb or descent, or a coordinated
+    turn; --solver all compares the solvers."""
+    point = operating_point_options(condition.value, speed, climb_angle, turn_rate)
     cfg, frame = load_airframe_or_exit(airframe, overrides)
     # the module, not the package attribute: ``casadrone.trim`` is also the public function
     trim_mod = importlib.import_module("casadrone.trim")
 
     if solver is TrimSolver.all:
-        points = trim_mod.trim_all(frame, condition.value, speed_mps)
+        points = trim_mod.trim_all(frame, condition.value, **point)
     else:
-        points = [trim_mod.trim(frame, condition.value, speed_mps, solver.value)]
+        points = [trim_mod.trim(frame, condition.value, solver=solver.value, **point)]
     result = {
         "airframe": frame.name,
         "condition": condition.value,
-        "speed_mps": speed_mps,
+        **point,
         "mass_kg": frame.mass,
         "kappa_m": frame.kappa,
         "rotor_positions_m": frame.rotor_positions,
@@ -161,23 +166,40 @@ def trim(
         typer.echo(_trim_table(result))
 
 
-def _check_speed(condition: str, speed: float | None) -> float:
-    if speed is not None and not math.isfinite(speed):
-        raise bad_input([f"--speed: must be a finite number (got {speed})"])
-    if condition == "hover":
-        if speed not in (None, 0.0):
-            raise bad_input([f"--speed: hover has no speed (got {speed}); use --condition forward"])
-        return 0.0
-    if speed is None:
-        raise bad_input(["--speed: required with --condition forward (m/s)"])
-    if not 0.0 < speed <= MAX_SPEED_MPS:
-        raise bad_input([f"--speed: forward flight needs 0 < speed <= {MAX_SPEED_MPS:g} m/s "
-                         f"(got {speed:g})"])
-    return float(speed)
+#: The option of each operating-point parameter of :mod:`casadrone.conditions`.
+_OPTION_OF = {"speed_mps": "--speed", "climb_angle_deg": "--climb-angle",
+              "turn_rate_dps": "--turn-rate"}
 
 
-#: Fastest forward flight trimmed (m/s): racing quadrotors fly below about 60 m/s; beyond this
-#: the quadratic drag model and the small-angle controller are meaningless.
+def operating_point_options(condition: str, speed: float | None, climb_angle: float | None,
+                            turn_rate: float | None) -> dict[str, float]:
+    """The keyword arguments of :func:`casadrone.trim.trim` for a condition's options; exit 2
+    naming the option when one is missing, not finite, foreign to the condition or out of
+    range."""
+    given = {"speed_mps": speed, "climb_angle_deg": climb_angle, "turn_rate_dps": turn_rate}
+    wanted = CONDITION_REGISTRY[condition].parameters
+    for key, value in given.items():
+        option = _OPTION_OF[key]
+        if value is not None and not math.isfinite(value):
+            raise bad_input([f"{option}: must be a finite number (got {value})"])
+        if key not in wanted and value not in (None, 0.0):
+            hint = "; use --condition forward" if key == "speed_mps" else ""
+            raise bad_input([f"{option}: {condition} has no {option[2:]} (got {value:g}){hint}"])
+        if key in wanted and value is None:
+            raise bad_input([f"{option}: required with --condition {condition}"])
+    point = {key: float(given[key] or 0.0) for key in wanted}
+    v = point.get("speed_mps", 0.0)
+    moving = condition == "forward"  # level flight at no speed is hover; a turn on the spot is not
+    if not (0.0 < v if moving else 0.0 <= v) or v > MAX_SPEED_MPS:
+        what = "forward flight needs 0 <" if moving else f"{condition} needs 0 <="
+        raise bad_input([f"--speed: {what} speed <= {MAX_SPEED_MPS:g} m/s (got {v:g})"])
+    if abs(point.get("climb_angle_deg", 0.0)) > 90:
+        raise bad_input([f"--climb-angle: must lie in [-90, 90] deg (got {climb_angle:g})"])
+    return point
+
+
+#: Fastest flight trimmed (m/s): racing quadrotors fly below about 60 m/s; beyond this the
+#: quadratic drag model and the small-angle controller are meaningless.
 MAX_SPEED_MPS = 100.0
 
 
@@ -202,12 +224,14 @@ def _trim_table(r: dict) -> str:
     rotors = zip(("FR", "FL", "RL", "RR"), pos, strict=True)
     lines = [
         f"{r['airframe']}: {r['condition']}"
-        + (f" at {r['speed_mps']:g} m/s" if r["condition"] == "forward" else "")
+        + (f" at {r['speed_mps']:g} m/s" if "speed_mps" in r else "")
+        + (f", climb angle {r['climb_angle_deg']:g} deg" if "climb_angle_deg" in r else "")
+        + (f", turn rate {r['turn_rate_dps']:g} deg/s" if "turn_rate_dps" in r else "")
         + f", mass {r['mass_kg']:.3f} kg, kappa {r['kappa_m']:.4f} m",
         "rotors (mm, body x fwd, y left): "
         + "  ".join(f"{n}({x:.1f}, {y:.1f})" for n, (x, y, _) in rotors),
         "",
-        f"{'solver':<12}{'ok':<4}{'residual':>11}{'iter':>7}{'time (s)':>10}  "
+        f"{'solver':<12}{'ok':<4}{'residual':>11}{'iter':>7}{'time (s)':>10}  {'phi (deg)':>9}  "
         f"{'theta (deg)':>11}  {'u0 (delta1..4)':<31}{'T (N)':<27}{'max|du0|':>9}",
     ]
     ok = [res for res in r["results"] if res["success"]]
@@ -218,7 +242,7 @@ def _trim_table(r: dict) -> str:
         lines.append(
             f"{res['solver']:<12}{'yes' if res['success'] else 'NO':<4}"
             f"{res['residual_norm']:>11.2e}{res['iterations']:>7d}{res['wall_time_s']:>10.4f}  "
-            f"{math.degrees(res['x0']['theta']):>11.4f}  "
+            f"{math.degrees(res['x0']['phi']):>9.4f}  {math.degrees(res['x0']['theta']):>11.4f}  "
             + " ".join(f"{v:7.5f}" for v in u0) + "  "
             + " ".join(f"{v:6.4f}" for v in res["thrusts_N"]) + f"{agree}"
         )
@@ -244,16 +268,18 @@ def linearise(
         LinMethod, typer.Option(help="exact (AD), fd (finite differences) or both, compared")
     ] = LinMethod.exact,
     condition: Annotated[Condition, typer.Option(help="operating point")] = Condition.hover,
-    speed: Annotated[float | None, typer.Option(help="forward speed (m/s)")] = None,
+    speed: Annotated[float | None, typer.Option(help="speed along the path (m/s)")] = None,
+    climb_angle: Annotated[float | None, typer.Option(help="climb angle (deg)")] = None,
+    turn_rate: Annotated[float | None, typer.Option(help="turn rate (deg/s)")] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Linearise about the (ipopt) trim point: E, A′, B′ and A, B with state and input names."""
-    speed_mps = _check_speed(condition.value, speed)
+    point = operating_point_options(condition.value, speed, climb_angle, turn_rate)
     cfg, frame = load_airframe_or_exit(airframe, overrides)
     lin_mod = importlib.import_module("casadrone.linearise")  # the module, as in trim
     from casadrone.trim import trim as trim_fn
 
-    tp = trim_fn(frame, condition.value, speed_mps, "ipopt")
+    tp = trim_fn(frame, condition.value, solver="ipopt", **point)
     if not tp.success:
         raise bad_input([f"{cfg.name}: trim: {tp.message}"])
     first = "fd" if method is LinMethod.fd else "exact"

@@ -25,6 +25,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.thruststand",
     "casadrone.airframe",
     "casadrone.model",
+    "casadrone.conditions",
     "casadrone.trim",
     "casadrone.linearise",
     "casadrone.control",

@@ -231,6 +231,6 @@ def test_bad_arguments_raise(frames):
     with pytest.raises(ValueError, match="unknown trim solver"):
         trim(frame, solver="bfgs")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="unknown condition"):
-        trim(frame, condition="climb")  # type: ignore[arg-type]
+        trim(frame, condition="loop")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="hover"):
         trim(frame, "hover", 5.0)

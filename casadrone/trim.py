@@ -74,7 +74,7 @@ UNKNOWN_NAMES = ("phi", "theta", "delta1", "delta2", "delta3", "delta4")
 _K = PARAM_NAMES.index("K")
 _PSI_ROW = STATE_NAMES.index("psi")
 __all__ = ["CONDITION_REGISTRY", "CONDITIONS", "SOLVERS", "TrimOptions", "TrimPoint",
-           "initial_guess", "operating_vector", "trim", "trim_all"]
+           "initial_guess", "operating_vector", "residual_norm", "trim", "trim_all"]
 
 
 @dataclass(frozen=True)
@@ -380,6 +380,7 @@ def trim(
         error = None
     except Exception as exc:  # a solver crash is a failed trim, never an exception
         z, iterations, status, error = z0, 0, "", f"{type(exc).__name__}: {exc}"
+    z = _wrap_angles(z)
     x, u, norm = fn.point(z, p, op)
     x0, u0, residual = x.ravel().copy(), u.ravel().copy(), float(norm[0, 0])
     wall = time.perf_counter() - start
@@ -402,6 +403,16 @@ def trim(
     )
 
 
+def _wrap_angles(z: np.ndarray) -> np.ndarray:
+    """Z with φ and θ beyond ±π brought back by whole turns (the same attitude: a solver may end
+    a turn away from its start); angles within ±π are left untouched, bit for bit."""
+    z = np.array(z, dtype=float)
+    for i in (0, 1):
+        if np.isfinite(z[i]) and abs(z[i]) > math.pi:
+            z[i] -= 2 * math.pi * round(z[i] / (2 * math.pi))
+    return z
+
+
 def _verdict(solver: str, o: TrimOptions, z, u0, residual: float, status: str,
              error: str | None) -> tuple[bool, str]:
     """Whether a solve is a usable trim, and the message saying why (not)."""
@@ -420,6 +431,16 @@ def _verdict(solver: str, o: TrimOptions, z, u0, residual: float, status: str,
     if np.any(u0 < 0) or np.any(u0 > 1):
         message += f"; commands outside [0, 1] (max {u0.max():.3f}): they saturate in flight"
     return True, message
+
+
+def residual_norm(
+    airframe: Airframe, z: np.ndarray, condition: Condition = "hover", speed_mps: float = 0.0,
+    *, climb_angle_deg: float = 0.0, turn_rate_dps: float = 0.0,
+) -> float:
+    """The ``residual_norm`` a TrimPoint would report at unknowns ``z`` (an unsolved start, for
+    instance): the 13 non-position rows of f minus their steady values, 2-norm (SI)."""
+    op = operating_vector(condition, speed_mps, climb_angle_deg, turn_rate_dps)
+    return float(_functions(_level(op)).point(_wrap_angles(z), airframe.p, op)[2][0, 0])
 
 
 def trim_all(

@@ -83,7 +83,8 @@ class OperatingPoint:
 
     @property
     def label(self) -> str:
-        """Short name: ``hover``, ``forward 10 m/s``, ``climb 10 m/s +30°``, ``turn 10 m/s 60°/s``."""
+        """Short name: ``hover``, ``forward 10 m/s``, ``climb 10 m/s +30°``, ``turn 10 m/s 60°/s``
+        (speed, climb angle, turn rate)."""
         text = self.condition
         if "speed_mps" in CONDITION_REGISTRY[self.condition].parameters:
             text += f" {self.speed_mps:g} m/s"

@@ -285,8 +285,11 @@ def _solve_nelder_mead(z0, p, op, o: TrimOptions):
     target = 0.1 * o.nelder_mead_tolerance
     z, step, nit, runs = np.asarray(z0, dtype=float), o.nelder_mead_step, 0, 0
     status = "iteration cap reached"
-    if qnorm(z) <= target:
+    q0 = qnorm(z)
+    if q0 <= target:
         return z, 0, "initial guess already within tolerance"
+    if not math.isfinite(q0):  # a simplex of non-finite costs cannot move
+        return z, 0, "non-finite residual at the initial guess"
     while nit < o.nelder_mead_max_iterations:
         simplex = z + np.vstack([np.zeros(6), step * np.eye(6)])
         res = minimize(

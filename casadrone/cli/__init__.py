@@ -7,7 +7,7 @@ inside the commands, so ``casadrone validate`` stays fast.
 
 The commands are grouped by layer: :mod:`~casadrone.cli.design` (validate, trim, linearise, lqr),
 :mod:`~casadrone.cli.flight` (simulate, benchmark), :mod:`~casadrone.cli.limit` (limit-lap),
-:mod:`~casadrone.cli.massprops` (massprops),
+:mod:`~casadrone.cli.massprops` (massprops), :mod:`~casadrone.cli.trimstudy` (trim-study),
 :mod:`~casadrone.cli.propulsion` (fit-propulsion),
 :mod:`~casadrone.cli.optimisation` (run, resume, decide, compare, report) and
 :mod:`~casadrone.cli.export` (export), all registered on the one :data:`app` of
@@ -26,6 +26,7 @@ from casadrone.cli import (  # noqa: F401 (importing registers the commands)
     massprops,
     optimisation,
     propulsion,
+    trimstudy,
 )
 from casadrone.cli.common import app
 

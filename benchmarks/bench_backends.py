@@ -38,8 +38,8 @@ import numpy as np
 
 from benchmarks.machine import markdown
 from casadrone.optimise.backends import ProcessBackend, guided_chunks, guided_sizes
+from casadrone.optimise.checks import load_problem
 from casadrone.optimise.problem import Study, evaluate_rows
-from casadrone.problemconfig import load_problem
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "RESULTS-backends.md"

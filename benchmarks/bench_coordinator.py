@@ -47,7 +47,7 @@ class Enough(Exception):
 
 
 def problem(generations: int):
-    from casadrone.problemconfig import ProblemConfig
+    from casadrone.config.problem import ProblemConfig
 
     return ProblemConfig.model_validate({
         "name": "coordinator-dtlz2-5",
@@ -65,7 +65,7 @@ def measure(run_dir: Path, archive: int, generations: int) -> tuple[list[dict], 
     from casadrone.optimise.timings import read_timings
 
     runner.BACKGROUND_WRITES = False  # see the module docstring
-    from casadrone.problemconfig import BackendConfig
+    from casadrone.config.problem import BackendConfig
 
     def progress(gen: int, stats: dict) -> None:
         print(f"gen {gen:>3}  archive {stats['archive_size']:>6}", file=sys.stderr, flush=True)

@@ -38,7 +38,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from benchmarks.machine import describe  # noqa: E402
 from casadrone import airframe  # noqa: E402
 from casadrone.airframe import build_airframe, with_theta  # noqa: E402
-from casadrone.config import load_airframe, load_controller  # noqa: E402
+from casadrone.config.airframe import load_airframe  # noqa: E402
+from casadrone.config.controller import load_controller  # noqa: E402
 from casadrone.control import design_lqri  # noqa: E402
 from casadrone.linearise import linearise  # noqa: E402
 from casadrone.trim import SOLVERS, trim  # noqa: E402

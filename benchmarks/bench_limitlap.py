@@ -38,10 +38,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.machine import markdown  # noqa: E402
 from casadrone.airframe import TABLE1_BOUNDS, build_airframe, random_thetas, with_theta  # noqa: E402
-from casadrone.config import load_airframe  # noqa: E402
-from casadrone.configio import load  # noqa: E402
+from casadrone.config.airframe import load_airframe  # noqa: E402
+from casadrone.config.io import load  # noqa: E402
+from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
-from casadrone.guidance import TrackConfig  # noqa: E402
 from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
 
 HERE = Path(__file__).resolve().parent

@@ -28,10 +28,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.machine import markdown  # noqa: E402
+from casadrone.config.problem import BackendConfig  # noqa: E402
 from casadrone.optimise.backends import ProcessBackend, SerialBackend  # noqa: E402
+from casadrone.optimise.checks import load_problem  # noqa: E402
 from casadrone.optimise.problem import Study  # noqa: E402
 from casadrone.optimise.runner import run  # noqa: E402
-from casadrone.problemconfig import BackendConfig, load_problem  # noqa: E402
 
 PAPER_EVALS = 850 + 350 * 850
 

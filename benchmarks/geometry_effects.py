@@ -42,7 +42,7 @@ from casadrone.airframe import (  # noqa: E402
     random_thetas,
     with_theta,
 )
-from casadrone.config import min_rotor_gap_mm  # noqa: E402
+from casadrone.config.airframe import min_rotor_gap_mm  # noqa: E402
 from casadrone.evaluate import default_setup, evaluate  # noqa: E402
 from casadrone.indices import BUILTIN_NAMES, INDICES  # noqa: E402
 
@@ -225,7 +225,7 @@ def run_summary(run_dir: Path) -> tuple[list, str]:
     """A/B/C candidates of a run, and how many of its front and completed evaluations are
     impossible bodies (Izz > Ixx + Iyy or a sibling inequality)."""
     from casadrone.compare import run_candidates
-    from casadrone.configio import read_yaml
+    from casadrone.config.io import read_yaml
     from casadrone.optimise.store import RunStore
 
     def impossible(ixx, iyy, izz):

@@ -26,10 +26,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from benchmarks.machine import markdown  # noqa: E402
 from casadrone.airframe import TABLE1_BOUNDS, THETA_KEYS, build_airframe, random_thetas, with_theta
 from casadrone.benchmark import DEFAULT_TRACK
-from casadrone.config import load_airframe, load_controller
-from casadrone.configio import load
+from casadrone.config.airframe import load_airframe
+from casadrone.config.controller import load_controller
+from casadrone.config.io import load
+from casadrone.config.track import TrackConfig
 from casadrone.control import design_for
-from casadrone.guidance import TrackConfig
 from casadrone.indices import BUILTIN_NAMES, INDICES, compute_indices, lap_mask
 from casadrone.simulate import SimOptions, simulate
 

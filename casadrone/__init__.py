@@ -16,6 +16,8 @@ slower than one thread, so the BLAS thread pools default to one thread unless se
 
 import importlib as _importlib
 import os as _os
+import sys as _sys
+import types as _types
 
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     _os.environ.setdefault(_var, "1")
@@ -23,10 +25,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 __version__ = "0.1.0"
 
 _API = {
-    "casadrone.configio": ["ConfigError", "load"],
-    "casadrone.config": ["load_airframe", "load_controller", "AirframeConfig", "ControllerConfig"],
-    "casadrone.problemconfig": ["load_problem", "ProblemConfig", "BackendConfig"],
-    "casadrone.validation": ["validate_file"],
+    "casadrone.config.io": ["ConfigError", "load"],
+    "casadrone.config.airframe": ["load_airframe", "AirframeConfig"],
+    "casadrone.config.controller": ["load_controller", "ControllerConfig"],
+    "casadrone.config.problem": ["ProblemConfig", "BackendConfig"],
+    "casadrone.config.track": ["TrackConfig"],
+    "casadrone.optimise.checks": ["load_problem", "validate_file"],
     "casadrone.massprops": ["mass_properties", "MassProperties"],
     "casadrone.airframe": ["Airframe", "build_airframe", "with_theta", "TABLE1_BOUNDS",
                            "THETA_KEYS"],
@@ -35,7 +39,6 @@ _API = {
     "casadrone.linearise": ["linearise", "LinearModel"],
     "casadrone.control": ["design_lqri", "design_for", "robustness_ensemble", "hover_point",
                           "LQRIDesign"],
-    "casadrone.guidance": ["TrackConfig"],
     "casadrone.simulate": ["simulate", "Trajectory", "SimOptions"],
     "casadrone.indices": ["compute_indices", "interval_table", "register_index",
                           "unregister_index", "INDICES"],
@@ -49,15 +52,26 @@ _API = {
     "casadrone.report": ["write_report"],
 }
 _WHERE = {name: module for module, names in _API.items() for name in names}
+
+#: Stage functions named like their modules (``casadrone.trim.trim`` …). Importing a submodule
+#: makes Python set the package attribute of its name to the module, which would shadow the
+#: function; the facade's module class refuses that, so the names stay lazy and ``import
+#: casadrone.config`` imports no CasADi.
+_STAGE_FUNCTIONS = {"decide": "casadrone.decide", "evaluate": "casadrone.evaluate",
+                    "linearise": "casadrone.linearise", "simulate": "casadrone.simulate",
+                    "trim": "casadrone.trim"}
+_WHERE.update(_STAGE_FUNCTIONS)
 __all__ = sorted(_WHERE)
 
-# Stage functions named like their modules (casadrone.trim.trim …) are bound eagerly: importing a
-# submodule makes Python set the package attribute to the module, which would shadow a lazy name.
-from casadrone.decide import decide as decide  # noqa: E402
-from casadrone.evaluate import evaluate as evaluate  # noqa: E402
-from casadrone.linearise import linearise as linearise  # noqa: E402
-from casadrone.simulate import simulate as simulate  # noqa: E402
-from casadrone.trim import trim as trim  # noqa: E402
+
+class _Facade(_types.ModuleType):
+    def __setattr__(self, name: str, value: object) -> None:
+        if name in _STAGE_FUNCTIONS and isinstance(value, _types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+_sys.modules[__name__].__class__ = _Facade
 
 
 def __getattr__(name: str):

@@ -12,8 +12,8 @@ from typing import Literal
 
 import numpy as np
 
-from casadrone.config import AirframeConfig
-from casadrone.configio import ConfigError
+from casadrone.config.airframe import TABLE1_BOUNDS, AirframeConfig
+from casadrone.config.io import ConfigError
 from casadrone.massprops import rotor_positions_mm
 
 #: Names and order of the decision vector θ (paper Table 1) and their config keys.
@@ -30,16 +30,6 @@ THETA_KEYS = (
 #: The decision variables of ``mass_model: components``: the geometry alone (mass and inertia
 #: follow from the parts).
 GEOMETRY_KEYS = THETA_KEYS[:4]
-#: Paper Table 1 bounds, in config units (mm, deg, kg·m²).
-TABLE1_BOUNDS = {
-    "lambda_a_mm": (100.0, 150.0),
-    "lambda_b_mm": (100.0, 150.0),
-    "alpha_deg": (65.0, 90.0),
-    "beta_deg": (65.0, 90.0),
-    "ixx_kgm2": (0.0014, 0.0030),
-    "iyy_kgm2": (0.0012, 0.0021),
-    "izz_kgm2": (0.0027, 0.0042),
-}
 
 #: Order of the model parameter vector p (see :mod:`casadrone.model`).
 PARAM_NAMES = (
@@ -178,7 +168,7 @@ def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = 
     ``cfg.model_dump()`` if the caller already has it (an optimiser keeps it per study)."""
     from pydantic import ValidationError
 
-    from casadrone.configio import format_errors
+    from casadrone.config.io import format_errors
 
     fast = _replace_valid(cfg, theta, name)
     if fast is not None:
@@ -196,7 +186,7 @@ def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = 
 @cache
 def _field_validator(key: str):
     """The strict validator of one airframe field (built once per key)."""
-    from casadrone.configio import field_adapter
+    from casadrone.config.io import field_adapter
 
     return field_adapter(AirframeConfig, key)
 

@@ -19,79 +19,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import Field
 
 from casadrone.airframe import build_airframe
-from casadrone.config import AirframeConfig, ControllerConfig, load_airframe, load_controller
-from casadrone.configio import CONFIG_DIR, Schema, load, resolve_config
+from casadrone.config.airframe import AirframeConfig, load_airframe
+from casadrone.config.controller import ControllerConfig, load_controller
+from casadrone.config.io import load, resolve_config
+from casadrone.config.reference import MeasuredAirframe, Table4Reference, load_reference
+from casadrone.config.track import DEFAULT_TRACK, TrackConfig
 from casadrone.control import design_for
-from casadrone.guidance import TrackConfig
 from casadrone.indices import INDICES, Interval, compute_indices, interval_table
 from casadrone.simulate import Integrator, simulate
 
 #: The paper's reference airframes (Table 4), as names of configs/airframes/ files.
 REFERENCE_NAMES: tuple[str, ...] = ("SY250", "SY220", "HS200", "HS210", "NSY200")
-DEFAULT_REFERENCE = CONFIG_DIR / "references" / "paper-table4.yaml"
-DEFAULT_TRACK = CONFIG_DIR / "tracks" / "paper-rectangle.yaml"
 MEASURED_LABEL = "measured (paper Table 4, different time base)"
 SIMULATED_LABEL = "simulated (casadrone)"
-
-
-# --------------------------------------------------------------------------------------------
-# Reference file schema (configs/references/)
-# --------------------------------------------------------------------------------------------
-
-
-class MeasuredAirframe(Schema):
-    """One airframe's measured per-interval values (interval j = the flight to waypoint j)."""
-
-    airframe: str = Field(description="the casadrone airframe config the row refers to")
-    split_times_s: list[float] = Field(min_length=1, description="time at each waypoint (s)")
-    effort_v: list[float] = Field(min_length=1, description="signed controller effort (V)")
-    pair_thrust_max_n: list[float] = Field(min_length=1, description="opposing-pair max (N)")
-    pair_thrust_min_n: list[float] = Field(min_length=1, description="opposing-pair min (N)")
-
-    @classmethod
-    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
-        found: list[tuple[str, str]] = []
-        keys = ("split_times_s", "effort_v", "pair_thrust_max_n", "pair_thrust_min_n")
-        lengths = {k: len(v[k]) for k in keys if k in v}
-        n = lengths.get("split_times_s")
-        for k, m in lengths.items():
-            if n is not None and m != n:
-                found.append((k, f"expected {n} values (one per waypoint, like split_times_s), "
-                              f"got {m}"))
-        s = v.get("split_times_s")
-        if s is not None and any(b < a for a, b in zip(s, s[1:], strict=False)):
-            found.append(("split_times_s", "split times must not decrease (they are cumulative)"))
-        hi, lo = v.get("pair_thrust_max_n"), v.get("pair_thrust_min_n")
-        if hi is not None and lo is not None and len(hi) == len(lo):
-            bad = [j + 1 for j, (a, b) in enumerate(zip(hi, lo, strict=True)) if b > a]
-            if bad:
-                found.append(("pair_thrust_min_n", f"above pair_thrust_max_n at interval(s) {bad}"))
-        return found
-
-
-class Table4Reference(Schema):
-    """Measured per-interval benchmark values (paper Table 4), keyed by airframe name."""
-
-    name: str
-    source: str = ""
-    airframes: dict[str, MeasuredAirframe] = Field(min_length=1)
-
-    @classmethod
-    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
-        rows = v.get("airframes") or {}
-        counts = {len(r.split_times_s) for r in rows.values() if isinstance(r, MeasuredAirframe)}
-        if len(counts) > 1:
-            return [("airframes", f"every airframe needs the same number of intervals, got "
-                     f"{sorted(counts)}")]
-        return []
-
-
-def load_reference(path: str | Path | None = None) -> Table4Reference:
-    """Load a measured reference table (default: ``configs/references/paper-table4.yaml``)."""
-    return load(Table4Reference, resolve_config(path, "references") if path else DEFAULT_REFERENCE)
 
 
 # --------------------------------------------------------------------------------------------

@@ -16,8 +16,9 @@ from typing import Literal
 
 import numpy as np
 
-from casadrone.benchmark import Table4Reference, _f, load_reference
-from casadrone.config import load_airframe
+from casadrone.benchmark import _f
+from casadrone.config.airframe import load_airframe
+from casadrone.config.reference import Table4Reference, load_reference
 from casadrone.indices import Interval
 
 # --------------------------------------------------------------------------------------------

@@ -16,7 +16,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from casadrone.airframe import Airframe
-from casadrone.config import ControllerConfig
+from casadrone.config.controller import ControllerConfig
 from casadrone.linearise import LinearModel, linearise
 from casadrone.model import IDX, NX, STATE_NAMES, THR
 

@@ -17,10 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from casadrone.airframe import Airframe, build_airframe, decision_keys, with_theta
-from casadrone.config import AirframeConfig, ControllerConfig, load_airframe, load_controller
-from casadrone.configio import CONFIG_DIR, ConfigError, load
+from casadrone.config.airframe import AirframeConfig, load_airframe
+from casadrone.config.controller import ControllerConfig, load_controller
+from casadrone.config.io import CONFIG_DIR, ConfigError, load
+from casadrone.config.track import TrackConfig
 from casadrone.control import design_for
-from casadrone.guidance import TrackConfig
 from casadrone.simulate import SimOptions, Trajectory, simulate
 from casadrone.trim import trim
 

@@ -30,8 +30,9 @@ import numpy as np
 
 from casadrone.airframe import Airframe
 from casadrone.codegen import ZeroCopyCall, compile_function
+from casadrone.config.track import TrackConfig
 from casadrone.control import LQRIDesign
-from casadrone.guidance import GuidanceLayout, TrackConfig, guidance, track_vector, wrap
+from casadrone.guidance import GuidanceLayout, guidance, track_vector, wrap
 from casadrone.lapdriver import LapDriver
 from casadrone.model import NP, NU, NX, quadrotor_model, rotation_matrix
 

@@ -11,7 +11,7 @@ from typing import Annotated, Any
 
 import typer
 
-from casadrone.configio import ConfigError
+from casadrone.config.io import ConfigError
 
 
 class _App(typer.Typer):
@@ -206,7 +206,7 @@ def print_json(obj: Any) -> None:
 def load_airframe_or_exit(airframe: str, overrides: list[str] | None):
     """(config, Airframe) of an airframe path or name with overrides; ConfigError propagates."""
     from casadrone.airframe import build_airframe
-    from casadrone.config import load_airframe
+    from casadrone.config.airframe import load_airframe
 
     cfg = load_airframe(airframe, overrides or [])
     return cfg, build_airframe(cfg)

@@ -25,7 +25,7 @@ from casadrone.cli.common import (
     save_figures,
 )
 from casadrone.conditions import CONDITION_REGISTRY, CONDITIONS
-from casadrone.configio import ConfigError
+from casadrone.config.io import ConfigError
 
 #: The trim conditions, from their one registry (:mod:`casadrone.conditions`).
 Condition = StrEnum("Condition", {name: name for name in CONDITIONS})  # type: ignore[misc]
@@ -63,8 +63,8 @@ def _yaml_files(paths: list[Path]) -> list[Path]:
     """The files given, with a folder expanded to every YAML below it (sorted), and a bare name
     that is no file here taken as the shipped config of that name (``SY250``, ``quick``) or the
     shipped folder (``configs``, ``problems``)."""
-    from casadrone.configio import DATA_DIR, kind_dir
-    from casadrone.validation import SCHEMAS_BY_FOLDER
+    from casadrone.config.io import DATA_DIR, kind_dir
+    from casadrone.config.validation import SCHEMAS_BY_FOLDER
 
     out: list[Path] = []
     for p in paths:
@@ -89,12 +89,17 @@ def validate(
     as_json: JsonOpt = False,
 ) -> None:
     """Validate config files: exit 0 when all are valid, 2 otherwise (one line per problem)."""
-    from casadrone.validation import validate_file
+    from casadrone.config.problem import ProblemConfig
+    from casadrone.config.validation import check_config_file
 
     report = []
     for path in _yaml_files(files):
         try:
-            validate_file(path)
+            config = check_config_file(path)
+            if isinstance(config, ProblemConfig):  # the optimiser's checks: import it only now
+                from casadrone.optimise.checks import check_problem
+
+                check_problem(config, path)
             report.append({"file": str(path), "valid": True, "problems": []})
         except ConfigError as exc:
             report.append({"file": str(path), "valid": False, "problems": exc.lines})
@@ -348,7 +353,7 @@ def lqr(
     """
     import numpy as np
 
-    from casadrone.config import load_controller
+    from casadrone.config.controller import load_controller
 
     check_plot_dir(plot)
     cfg, frame = load_airframe_or_exit(airframe, overrides)

@@ -64,10 +64,10 @@ def simulate(
     """
     check_plot_dir(plot)
     cfg, _ = load_airframe_or_exit(airframe, overrides)
-    from casadrone.config import load_controller
-    from casadrone.configio import load, resolve_config
+    from casadrone.config.controller import load_controller
+    from casadrone.config.io import load, resolve_config
+    from casadrone.config.track import TrackConfig
     from casadrone.evaluate import DEFAULT_TRACK, EvaluationSetup, evaluate, theta_of
-    from casadrone.guidance import TrackConfig
     from casadrone.indices import INDICES
 
     setup = EvaluationSetup(

@@ -49,10 +49,10 @@ def limit_lap_command(
     commands over time.
     """
     check_plot_dir(plot)
-    from casadrone.config import load_airframe
-    from casadrone.configio import load, resolve_config
+    from casadrone.config.airframe import load_airframe
+    from casadrone.config.io import load, resolve_config
+    from casadrone.config.track import TrackConfig
     from casadrone.evaluate import DEFAULT_TRACK
-    from casadrone.guidance import TrackConfig
     from casadrone.limit.lap import LimitLapOptions, limit_lap
 
     cfg = load_airframe(airframe, overrides or [])

@@ -21,7 +21,7 @@ def massprops(airframe: AirframeArg, overrides: OverridesArg = None, as_json: Js
     of mass, body axes x nose, y left, z up) of an airframe: given (mass_model free) or computed
     from its parts for its geometry (mass_model components, e.g. SY250-components
     lambda_a_mm=140)."""
-    from casadrone.config import load_airframe
+    from casadrone.config.airframe import load_airframe
     from casadrone.massprops import mass_properties
 
     cfg = load_airframe(airframe, overrides or [])

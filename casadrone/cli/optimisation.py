@@ -57,8 +57,8 @@ ReferenceOpt = Annotated[
 def backend_config(base, name: BackendName | None, workers: int | None,
                    scheduler: str | None):
     """The problem's backend section with the command-line choices applied (validated)."""
-    from casadrone.configio import validate_data
-    from casadrone.problemconfig import BackendConfig
+    from casadrone.config.io import validate_data
+    from casadrone.config.problem import BackendConfig
 
     if scheduler is not None:
         if name not in (None, BackendName.dask):
@@ -180,8 +180,8 @@ def run_command(
     'casadrone resume DIR' and ends exactly as an uninterrupted one.
     """
     from casadrone.optimise import runner
+    from casadrone.optimise.checks import load_problem
     from casadrone.optimise.store import NotARunDirectory, check_new_run_dir
-    from casadrone.problemconfig import load_problem
 
     if quiet and verbose:
         raise bad_input(["--quiet and --verbose: choose one"])

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
-from casadrone.config import AirframeConfig, load_airframe
+from casadrone.config.airframe import AirframeConfig, load_airframe
 
 #: Decision letters of ``casadrone decide`` and the methods they name.
 LETTERS = {"A": "utopian", "B": "compromise", "C": "extreme"}
@@ -48,7 +48,7 @@ def airframe_source(airframe: str | Path, overrides: list[str] | None = None) ->
     Raises:
         ConfigError: a missing or invalid file, or a bad override.
     """
-    from casadrone.configio import resolve_config
+    from casadrone.config.io import resolve_config
 
     path = resolve_config(airframe, "airframes")
     cfg = load_airframe(path, overrides or [])

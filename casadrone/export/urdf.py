@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from xml.sax.saxutils import escape, quoteattr
 
-from casadrone.config import ROTOR_LABELS
+from casadrone.config.airframe import ROTOR_LABELS
 from casadrone.export.mixers import LABELS, spin_word
 from casadrone.export.source import ExportSource
 

@@ -10,8 +10,8 @@ import casadi as ca
 import numpy as np
 
 from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
-from casadrone.config import AirframeConfig
-from casadrone.configio import ConfigError
+from casadrone.config.airframe import AirframeConfig
+from casadrone.config.io import ConfigError
 from casadrone.limit.nlp import TARGET_SIZE
 from casadrone.model import NP, NU, NX, quadrotor_model
 

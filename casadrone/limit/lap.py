@@ -46,8 +46,10 @@ from typing import Literal
 import numpy as np
 
 from casadrone.airframe import Airframe
-from casadrone.config import AirframeConfig, ControllerConfig
-from casadrone.guidance import TrackConfig, segment_headings
+from casadrone.config.airframe import AirframeConfig
+from casadrone.config.controller import ControllerConfig
+from casadrone.config.track import TrackConfig
+from casadrone.guidance import segment_headings
 from casadrone.limit.nlp import (
     Layout,
     Nlp,
@@ -252,7 +254,8 @@ def closed_loop_lap(airframe: Airframe, track: TrackConfig,
                     controller: ControllerConfig | None = None):
     """casadrone's closed-loop lap of this frame (a :class:`Trajectory`), or None if the frame
     cannot be trimmed or controlled."""
-    from casadrone.config import load_airframe, load_controller
+    from casadrone.config.airframe import load_airframe
+    from casadrone.config.controller import load_controller
     from casadrone.control import design_for
     from casadrone.simulate import simulate
     from casadrone.trim import trim
@@ -381,7 +384,7 @@ def reference_lap(name: str, track: TrackConfig, options: LimitLapOptions) -> Li
     """The limit lap of the shipped airframe ``name`` on ``track`` with ``options`` (its own
     cold starts only, no lower bound or sensitivities), solved once per process and cached:
     deterministic, so a cache hit is the same result as a new solve."""
-    from casadrone.config import load_airframe
+    from casadrone.config.airframe import load_airframe
 
     ref_options = replace(options, warm_starts=(), guess_trajectory=None, lower_bound=False,
                           sensitivities=False, fallback_reference=None,

@@ -14,10 +14,10 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from casadrone.config.problem import BackendConfig
 from casadrone.optimise.lifeline import worker_init
 from casadrone.optimise.mainguard import SpawnWithoutMainContext
 from casadrone.optimise.problem import Record, Study, evaluate_rows
-from casadrone.problemconfig import BackendConfig
 
 
 def guided_sizes(rows: int, workers: int) -> list[int]:

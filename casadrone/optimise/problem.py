@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from pymoo.core.problem import Problem
 
-from casadrone.problemconfig import ProblemConfig
+from casadrone.config.problem import ProblemConfig
 
 #: Constraint violation of a failed candidate, by the stage where it failed: earlier failures are
 #: worse, so feasibility-first selection moves the search towards candidates that fly.
@@ -93,14 +93,15 @@ _SETUPS: dict[str, object] = {}
 def _setup(key: str, problem: ProblemConfig):
     """The evaluation setup of a problem, built once per process (the model and compiled lap are
     cached inside the chain's modules, so the first evaluation pays for them only once)."""
-    from casadrone.config import load_airframe, load_controller
-    from casadrone.configio import load
+    from casadrone.config.airframe import load_airframe
+    from casadrone.config.controller import load_controller
+    from casadrone.config.io import load
+    from casadrone.config.track import TrackConfig
     from casadrone.evaluate import DEFAULT_TRACK, EvaluationSetup
-    from casadrone.guidance import TrackConfig
 
     if key in _SETUPS:
         return _SETUPS[key]
-    from casadrone.problemconfig import import_plugin
+    from casadrone.optimise.checks import import_plugin
 
     for plugin in problem.plugins:  # workers start fresh: register custom indices here too
         import_plugin(plugin)

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from casadrone.config.problem import BackendConfig, ProblemConfig
 from casadrone.optimise.algorithms import seeded_defaults
 from casadrone.optimise.backends import make_backend
 from casadrone.optimise.checkpoint import dumps
@@ -39,7 +40,6 @@ from casadrone.optimise.mainguard import unguarded_main_call, unguarded_message
 from casadrone.optimise.problem import CandidateProblem, Record, Study, objectives_and_constraints
 from casadrone.optimise.store import RunDamaged, RunStore, now, record_of
 from casadrone.optimise.writer import GenerationWriter
-from casadrone.problemconfig import BackendConfig, ProblemConfig
 
 
 class Interrupted(KeyboardInterrupt):

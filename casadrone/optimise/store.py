@@ -40,8 +40,8 @@ from pathlib import Path
 
 import yaml
 
+from casadrone.config.problem import ProblemConfig
 from casadrone.optimise.problem import Record
-from casadrone.problemconfig import ProblemConfig
 
 CONFIG, MANIFEST, HISTORY, CHECKPOINT, PARETO = (
     "config.yaml", "manifest.json", "history.sqlite", "checkpoint.pkl", "pareto.csv")
@@ -111,14 +111,14 @@ def snapshot_inputs(problem: ProblemConfig, path: Path) -> ProblemConfig:
     """Copy the airframe, track and controller files (and a frozen gain's reference airframe)
     into ``path/inputs/`` and point the problem at the copies (relative to the run directory), so
     resuming or reporting a run never depends on files edited after it started."""
-    from casadrone.configio import CONFIG_DIR, read_yaml, resolve_config
+    from casadrone.config.io import CONFIG_DIR, read_yaml, resolve_config
 
     if problem.test_problem is not None:
         return problem
     inputs = path / "inputs"
     inputs.mkdir(exist_ok=True)
     if problem.plugins:  # import each plugin now: an unimportable one fails before any work
-        from casadrone.problemconfig import import_plugin
+        from casadrone.optimise.checks import import_plugin
 
         for plugin in problem.plugins:
             import_plugin(plugin)
@@ -259,7 +259,7 @@ class RunStore:
 
     def problem(self) -> ProblemConfig:
         """The resolved problem of this run (its input files from the run's own ``inputs/``)."""
-        from casadrone.configio import load
+        from casadrone.config.io import load
 
         return load(ProblemConfig, self.path / CONFIG)
 

@@ -56,7 +56,7 @@ def _reproduction(run: Run, cands: list[Candidate]) -> Html:
 def _exports(run: Run, c: Candidate, folder: Path) -> str:
     """Write the candidate's exports under ``folder`` (beside report.html) and link them; the
     page stays self-contained, the files are optional extras."""
-    from casadrone.configio import ConfigError
+    from casadrone.config.io import ConfigError
     from casadrone.export import FORMATS, write_export
     from casadrone.export.source import candidate_source
     from casadrone.optimise.problem import study_setup
@@ -192,7 +192,7 @@ def section_airframes(run: Run, cands: list[Candidate], references, figs: Figure
     if not cands:
         return empty_front(run)
     from casadrone.airframe import build_airframe, with_theta
-    from casadrone.config import load_airframe
+    from casadrone.config.airframe import load_airframe
     from casadrone.optimise.problem import study_setup
 
     setup = study_setup(run.study)

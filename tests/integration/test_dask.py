@@ -13,10 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from casadrone.config.problem import BackendConfig
+from casadrone.optimise.checks import load_problem
 from casadrone.optimise.problem import Study, evaluate_rows
 from casadrone.optimise.runner import run
 from casadrone.optimise.store import RunStore
-from casadrone.problemconfig import BackendConfig, load_problem
 
 distributed = pytest.importorskip("distributed")
 

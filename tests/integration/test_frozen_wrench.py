@@ -53,7 +53,7 @@ def test_integrators_agree_on_an_asymmetric_parts_frame_under_frozen_wrench():
     the mapped gain, flown by rk4, CVODES and IDAS: every index within 1 % (lap time 0.5 %), and
     in fact much closer."""
     from casadrone.airframe import build_airframe, with_theta
-    from casadrone.config import load_controller
+    from casadrone.config.controller import load_controller
     from casadrone.control import design_for
     from casadrone.indices import compute_indices
     from casadrone.simulate import simulate

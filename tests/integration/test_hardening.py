@@ -18,11 +18,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from casadrone.configio import ConfigError
+from casadrone.config.io import ConfigError
+from casadrone.config.problem import BackendConfig, ProblemConfig
 from casadrone.optimise.algorithms import ALGORITHM_NAMES, REFUSED
+from casadrone.optimise.checks import load_problem
 from casadrone.optimise.runner import resume, run
 from casadrone.optimise.store import NotARunDirectory, RunDamaged, RunInProgress, RunStore
-from casadrone.problemconfig import BackendConfig, ProblemConfig, load_problem
 
 QUICK = "problems/quick.yaml"
 TINY = ["algorithm.population=12", "algorithm.generations=3", "algorithm.settings.n_ind_ga=6"]
@@ -549,7 +550,8 @@ KILLED_WHILE_CREATING = """
 import os, signal, sys
 from casadrone.optimise import store
 from casadrone.optimise.runner import run
-from casadrone.problemconfig import BackendConfig, load_problem
+from casadrone.config.problem import BackendConfig
+from casadrone.optimise.checks import load_problem
 
 def killed(self, data):  # SIGKILL (no cleanup can run) just before the manifest is written
     os.kill(os.getpid(), signal.SIGKILL)

@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 
 from casadrone.airframe import build_airframe
-from casadrone.config import load_airframe, load_controller
-from casadrone.configio import load
+from casadrone.config.airframe import load_airframe
+from casadrone.config.controller import load_controller
+from casadrone.config.io import load
+from casadrone.config.track import TrackConfig
 from casadrone.control import design_for
-from casadrone.guidance import TrackConfig
 from casadrone.simulate import chunk_function, simulate, step_function
 
 REFERENCES = ["SY250", "SY220", "HS200", "HS210", "NSY200"]

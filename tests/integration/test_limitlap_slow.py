@@ -10,10 +10,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from casadrone.config import load_airframe
-from casadrone.configio import load
+from casadrone.config.airframe import load_airframe
+from casadrone.config.io import load
+from casadrone.config.track import TrackConfig
 from casadrone.evaluate import DEFAULT_TRACK, default_setup, evaluate, theta_of
-from casadrone.guidance import TrackConfig
 from casadrone.limit.lap import LimitLapOptions, limit_lap
 
 pytestmark = pytest.mark.slow
@@ -153,8 +153,8 @@ def test_cli_json_keys_exactly(cli_runner):
 def test_optimisation_same_front_serial_and_processes(tmp_path):
     """Same seed ⇒ same evaluations on both backends: every candidate warm-starts only from the
     per-study references, which each worker solves identically."""
+    from casadrone.optimise.checks import load_problem
     from casadrone.optimise.runner import run
-    from casadrone.problemconfig import load_problem
 
     for backend in ("serial", "processes"):
         problem = load_problem("limit-lap", ["algorithm.population=4", "algorithm.generations=1",

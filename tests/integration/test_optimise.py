@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
-from casadrone.configio import ConfigError
+from casadrone.config.io import ConfigError
+from casadrone.config.problem import BackendConfig
+from casadrone.optimise.checks import load_problem
 from casadrone.optimise.runner import resume, run
 from casadrone.optimise.store import RunStore
-from casadrone.problemconfig import BackendConfig, load_problem
 
 QUICK = "problems/quick.yaml"
 TINY = ["algorithm.population=16", "algorithm.generations=3", "algorithm.settings.n_ind_ga=8"]
@@ -193,7 +194,7 @@ def test_run_keeps_its_own_copies_of_input_files(uninterrupted, tmp_path):
     problem = RunStore(uninterrupted).problem()
     assert problem.airframe == inputs / "airframe.yaml"
     assert problem.track == inputs / "track.yaml"
-    from casadrone.config import load_controller
+    from casadrone.config.controller import load_controller
 
     ctrl = load_controller(problem.controller)
     assert ctrl.gain_policy == "frozen-wrench"

@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from casadrone.config.problem import BackendConfig
+from casadrone.optimise.checks import load_problem
 from casadrone.optimise.runner import run
-from casadrone.problemconfig import BackendConfig, load_problem
 from casadrone.report import write_report
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 from pymoo.indicators.hv import HV
 
+from casadrone.config.problem import BackendConfig
+from casadrone.optimise.checks import load_problem
 from casadrone.optimise.hypervolume import (
     HV_SAMPLES,
     REFERENCE,
@@ -13,7 +15,6 @@ from casadrone.optimise.hypervolume import (
 from casadrone.optimise.runner import resume, run
 from casadrone.optimise.store import RunStore
 from casadrone.optimise.timings import FIELDS, read_timings
-from casadrone.problemconfig import BackendConfig, load_problem
 
 TINY = ["algorithm.population=16", "algorithm.generations=3", "algorithm.settings.n_ind_ga=8"]
 STEPS = ("ask_s", "evaluate_s", "advance_s", "statistics_s", "history_s", "checkpoint_s")

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 import casadrone.optimise.runner as runner_mod
+from casadrone.config.problem import BackendConfig, ProblemConfig
 from casadrone.optimise.checkpoint import loads
 from casadrone.optimise.runner import run
 from casadrone.optimise.store import RunStore
 from casadrone.optimise.timings import FIELDS, append_timings, read_timings
-from casadrone.problemconfig import BackendConfig, ProblemConfig
 
 SERIAL = BackendConfig(name="serial")
 

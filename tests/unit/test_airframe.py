@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from casadrone.airframe import TABLE1_BOUNDS, build_airframe, family, from_paper_frame, with_theta
-from casadrone.config import load_airframe
-from casadrone.configio import ConfigError
+from casadrone.config.airframe import load_airframe
+from casadrone.config.io import ConfigError
 
 
 def paper_rotors(la, lb, alpha_deg, beta_deg):
@@ -65,7 +65,7 @@ def test_allocation_matrix_maps_thrusts_to_force_and_moments():
 
 def test_random_thetas_inside_table1_with_valid_geometry():
     from casadrone.airframe import TABLE1_BOUNDS, random_thetas
-    from casadrone.config import min_rotor_gap_mm
+    from casadrone.config.airframe import min_rotor_gap_mm
 
     base = load_airframe("SY250")
     thetas, rejected = random_thetas(base, 40, seed=3)
@@ -85,7 +85,7 @@ def test_with_theta_fast_path_equals_full_validation():
     (and every refusal, with its message) must be the full schema's."""
     from pydantic import ValidationError
 
-    from casadrone.config import AirframeConfig, load_airframe
+    from casadrone.config.airframe import AirframeConfig, load_airframe
 
     template = load_airframe("SY250")
     rng = np.random.default_rng(3)

@@ -9,21 +9,19 @@ import numpy as np
 import pytest
 
 from casadrone.benchmark import (
-    DEFAULT_REFERENCE,
     DEFAULT_TRACK,
     MEASURED_LABEL,
     REFERENCE_NAMES,
-    Table4Reference,
     format_table,
-    load_reference,
     run_benchmark,
     to_json,
 )
 from casadrone.compare import gain_pct
-from casadrone.config import load_airframe
-from casadrone.configio import load
-from casadrone.guidance import TrackConfig
-from casadrone.validation import validate_file
+from casadrone.config.airframe import load_airframe
+from casadrone.config.io import load
+from casadrone.config.reference import DEFAULT_REFERENCE, Table4Reference, load_reference
+from casadrone.config.track import TrackConfig
+from casadrone.optimise.checks import validate_file
 
 
 def test_eq21_on_hand_numbers():

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from casadrone.cli import app
-from casadrone.configio import CONFIG_DIR
+from casadrone.config.io import CONFIG_DIR
 
 ROOT = Path(__file__).resolve().parents[2]
 BAD = ROOT / "tests" / "data" / "bad"
@@ -318,7 +318,7 @@ def test_simulate_json_shape_and_values(cli_runner):
 
 
 def test_simulate_same_chain_as_evaluate_and_overrides_apply(cli_runner):
-    from casadrone.config import load_airframe
+    from casadrone.config.airframe import load_airframe
     from casadrone.evaluate import default_setup, evaluate, theta_of
 
     out = run_json(cli_runner, "simulate", "SY250", "alpha_deg=80", "beta_deg=85")
@@ -452,9 +452,9 @@ def test_dask_backend_without_extra_exits_2(cli_runner, tmp_path, monkeypatch):
 
 def make_run_dir(path: Path, finished: bool = True, checkpoint: bool = False) -> Path:
     """A run directory of the quick problem with a hand-made two-design front."""
+    from casadrone.optimise.checks import load_problem
     from casadrone.optimise.problem import Study
     from casadrone.optimise.store import RunStore
-    from casadrone.problemconfig import load_problem
 
     problem = load_problem(QUICK, ["objectives=[{index: J3, sense: min}, {index: J4}]"])
     study = Study(problem)
@@ -564,7 +564,7 @@ def test_version(cli_runner):
 
 def test_validate_configs_problems_outside_the_checkout_checks_the_shipped_files(
         cli_runner, tmp_path, monkeypatch):
-    from casadrone.configio import DATA_DIR
+    from casadrone.config.io import DATA_DIR
 
     monkeypatch.chdir(tmp_path)  # no configs/ or problems/ here: the shipped ones are meant
     shipped = sorted(DATA_DIR.rglob("*.yaml"))

@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 
 from casadrone import benchmark
-from casadrone.benchmark import load_reference
 from casadrone.compare import (
     CANDIDATE_LABELS,
     NUMERICAL_ZERO,
@@ -24,11 +23,12 @@ from casadrone.compare import (
     magnitude_gain_pct,
     run_candidates,
 )
+from casadrone.config.reference import load_reference
 from casadrone.evaluate import Evaluation
 from casadrone.indices import Interval
+from casadrone.optimise.checks import load_problem
 from casadrone.optimise.problem import Study
 from casadrone.optimise.store import RunStore
-from casadrone.problemconfig import load_problem
 
 #: the module (``casadrone.evaluate`` as an attribute of the package is the function)
 evaluate_mod = importlib.import_module("casadrone.evaluate")

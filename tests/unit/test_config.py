@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from casadrone import config as C
-from casadrone import problemconfig as P
 from casadrone.airframe import TABLE1_BOUNDS
-from casadrone.config import AirframeConfig, ControllerConfig, load_airframe, load_controller
-from casadrone.configio import CONFIG_DIR, ConfigError, Schema, apply_overrides, validate_data
-from casadrone.validation import validate_file
+from casadrone.config import airframe as C
+from casadrone.config import problem as P
+from casadrone.config.airframe import AirframeConfig, load_airframe
+from casadrone.config.controller import ControllerConfig, load_controller
+from casadrone.config.io import CONFIG_DIR, ConfigError, Schema, apply_overrides, validate_data
+from casadrone.optimise.checks import validate_file
 
 ROOT = Path(__file__).resolve().parents[2]
 BAD = ROOT / "tests" / "data" / "bad"
@@ -259,12 +260,32 @@ def _all_schemas(cls=Schema):
 
 
 def test_every_schema_is_frozen_and_forbids_extra_keys():
-    schemas = [s for s in _all_schemas()
-               if s.__module__ in ("casadrone.config", "casadrone.problemconfig")]
-    assert {AirframeConfig, ControllerConfig, C.StateWeights, C.ThrustModelConfig,
-            P.ProblemConfig, P.VariableConfig, P.AlgorithmConfig} <= set(schemas)
+    from casadrone.config import controller, reference, track
+
+    schemas = [s for s in _all_schemas() if s.__module__.startswith("casadrone.config.")]
+    assert {AirframeConfig, ControllerConfig, controller.StateWeights, C.ThrustModelConfig,
+            P.ProblemConfig, P.VariableConfig, P.AlgorithmConfig, track.TrackConfig,
+            track.GateConfig, reference.Table4Reference} <= set(schemas)
     for s in schemas:
         assert s.model_config["frozen"] is True and s.model_config["extra"] == "forbid", s
+
+
+def test_every_schema_lives_in_the_config_package():
+    # read from the source: a pydantic model defined anywhere else in casadrone would be a YAML
+    # schema outside casadrone/config (which imports no solver and feeds the YAML reference)
+    import ast
+
+    package = Path(C.__file__).resolve().parents[1]
+    outside = []
+    for path in package.rglob("*.py"):
+        if "config" in path.relative_to(package).parts[:1]:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ClassDef) and any(
+                    getattr(b, "id", getattr(b, "attr", "")) in ("Schema", "BaseModel")
+                    for b in node.bases):
+                outside.append(f"{path.relative_to(package)}:{node.lineno} {node.name}")
+    assert outside == []
 
 
 def test_configs_are_frozen():

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from casadrone.airframe import build_airframe
-from casadrone.config import ControllerConfig, load_airframe, load_controller
+from casadrone.config.airframe import load_airframe
+from casadrone.config.controller import ControllerConfig, load_controller
 from casadrone.control import (
     augment,
     certify,
@@ -248,7 +249,7 @@ def test_frozen_wrench_scales_with_the_thrust_gain():
 def test_perturbed_inertia_stays_a_possible_body():
     """Scaling Ixx, Iyy, Izz independently by ±30 % can break Izz ≤ Ixx + Iyy (SY250: 0.0036 ·
     1.3 > 0.0039 · 0.7); the ensemble perturbs the body's second moments instead."""
-    from casadrone.config import inertia_problems
+    from casadrone.config.airframe import inertia_problems
     from casadrone.control import perturb_inertia
 
     J = build_airframe(load_airframe("SY250")).inertia

@@ -9,7 +9,7 @@ from dataclasses import replace
 import pytest
 
 from casadrone.airframe import THETA_KEYS
-from casadrone.config import load_airframe
+from casadrone.config.airframe import load_airframe
 from casadrone.evaluate import Theta, default_setup, evaluate, theta_of
 
 

@@ -6,8 +6,9 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from casadrone.configio import load
-from casadrone.guidance import GuidanceLayout, TrackConfig, guidance, segment_headings, track_vector
+from casadrone.config.io import load
+from casadrone.config.track import TrackConfig
+from casadrone.guidance import GuidanceLayout, guidance, segment_headings, track_vector
 from casadrone.simulate import split_times
 
 TRACK = "configs/tracks/paper-rectangle.yaml"

@@ -12,10 +12,10 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from casadrone.config import load_airframe
-from casadrone.configio import ConfigError, load
+from casadrone.config.airframe import load_airframe
+from casadrone.config.io import ConfigError, load
+from casadrone.config.track import TrackConfig
 from casadrone.evaluate import DEFAULT_TRACK
-from casadrone.guidance import TrackConfig
 from casadrone.limit.check import target_miss
 from casadrone.limit.lap import LimitLapOptions, limit_lap, track_targets
 from casadrone.limit.nlp import Layout, OcpModel, build_nlp, solve, target_vector
@@ -154,8 +154,8 @@ def test_j3_limit_is_a_limit_index_outside_closed_loop_indices():
 
 
 def test_limit_lap_problem_sets_up_limit_options_and_references():
+    from casadrone.optimise.checks import load_problem
     from casadrone.optimise.problem import limit_setup
-    from casadrone.problemconfig import load_problem
 
     problem = load_problem("limit-lap")
     template = load_airframe(problem.airframe)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from casadrone.airframe import build_airframe
-from casadrone.config import load_airframe
+from casadrone.config.airframe import load_airframe
 from casadrone.control import hover_point
 from casadrone.linearise import compare, linearise
 from casadrone.model import IDX

@@ -12,7 +12,7 @@ import pytest
 
 from casadrone.airframe import GEOMETRY_KEYS, TABLE1_BOUNDS, build_airframe, random_thetas
 from casadrone.cli import app
-from casadrone.config import inertia_problems, load_airframe
+from casadrone.config.airframe import inertia_problems, load_airframe
 from casadrone.evaluate import theta_of
 from casadrone.massprops import box_inertia, mass_properties, rod_inertia
 
@@ -200,7 +200,7 @@ def test_trim_and_linearisation_use_the_full_tensor(asymmetric):
 
 
 def test_lap_feels_the_products_of_inertia(asymmetric):
-    from casadrone.config import load_controller
+    from casadrone.config.controller import load_controller
     from casadrone.control import design_for
     from casadrone.evaluate import default_setup
     from casadrone.indices import compute_indices
@@ -241,7 +241,7 @@ def test_schema_mass_of_the_parts_is_the_mass_model_mass(parts_cfg):
         arms = c.arm_linear_density_kgpm * 2 * (theta["lambda_a_mm"] + theta["lambda_b_mm"]) / 1e3
         total = c.body_mass_kg + c.battery_mass_kg + 4 * c.motor_mass_kg + arms
         assert mass_properties(parts_cfg, theta).mass_kg == pytest.approx(total, rel=1e-12)
-    from casadrone.configio import ConfigError
+    from casadrone.config.io import ConfigError
 
     with pytest.raises(ConfigError) as info:
         load_airframe("SY250-components", ["components.battery_mass_kg=4.0"])

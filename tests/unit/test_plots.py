@@ -12,7 +12,8 @@ from matplotlib.patches import Circle
 
 from casadrone import plots
 from casadrone.airframe import build_airframe
-from casadrone.config import ControllerConfig, load_airframe
+from casadrone.config.airframe import load_airframe
+from casadrone.config.controller import ControllerConfig
 from casadrone.control import design_for, disturbance_response, robustness_ensemble
 from casadrone.model import IDX
 from casadrone.simulate import Trajectory

@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 
 from casadrone.compare import run_candidates
+from casadrone.config.problem import BackendConfig
 from casadrone.decide import decide
+from casadrone.optimise.checks import load_problem
 from casadrone.optimise.runner import run
 from casadrone.optimise.store import RunStore
-from casadrone.problemconfig import BackendConfig, load_problem
 from casadrone.report import write_report
 from casadrone.report.analysis import (
     choose_candidates,

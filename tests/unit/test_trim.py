@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from casadrone.airframe import build_airframe, random_thetas, with_theta
-from casadrone.config import load_airframe
+from casadrone.config.airframe import load_airframe
 from casadrone.model import STATE_NAMES
 from casadrone.trim import SOLVERS, TrimOptions, TrimPoint, initial_guess, trim, trim_all
 

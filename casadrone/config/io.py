@@ -1,7 +1,7 @@
 """Reading config files: YAML, ``key=value`` overrides, referenced files and complete error reports.
 
 The generic half of the configuration: :class:`Schema`, the base of every schema (the schemas
-themselves are in :mod:`casadrone.config` and :mod:`casadrone.problemconfig`), and the loader that
+themselves are in the other modules of :mod:`casadrone.config`), and the loader that
 validates a YAML file against one. Loading a file reports every problem at once, one line each,
 as ``FILE: dotted.key: message``: field errors and cross-field (geometry) errors together, a "did
 you mean" hint for misspelt keys at any depth, the line of malformed YAML, and the name of any
@@ -34,7 +34,7 @@ from pydantic import (
 )
 
 #: The checkout (or, installed, site-packages): relative paths in configs resolve here too.
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 #: The shipped data (package data, so a non-editable install has it): ``configs/`` and
 #: ``problems/``. The checkout's top-level ``configs`` and ``problems`` are links into it.
 DATA_DIR = Path(str(resources.files("casadrone") / "data"))
@@ -438,6 +438,18 @@ def check_paths(data: dict[str, Any], base: Path, source: str) -> tuple[dict, li
     return walk(data, ""), errors
 
 
+def problem_lines(pairs: list[tuple[str, str]], source: str,
+                  overrides: list[str] | None = None) -> list[str]:
+    """``FILE: dotted.key: message`` per (key, message); a key set by a ``key=value`` override
+    says so."""
+    set_by = {o.partition("=")[0].strip(): o for o in overrides or [] if "=" in o}
+    lines = []
+    for key, msg in dict.fromkeys(pairs):
+        origin = next((o for k, o in set_by.items() if key == k or key.startswith(k + ".")), None)
+        lines.append(f"{source}: {key}: {msg}" + (f" [override {origin}]" if origin else ""))
+    return lines
+
+
 def validate_data(
     model: type[M],
     data: dict[str, Any],
@@ -456,10 +468,7 @@ def validate_data(
     except ValidationError as exc:
         pairs = error_pairs(exc, model) + partial_problems(model, data)
         return_value = None
-    set_by = {o.partition("=")[0].strip(): o for o in overrides or [] if "=" in o}
-    for key, msg in dict.fromkeys(pairs):
-        origin = next((o for k, o in set_by.items() if key == k or key.startswith(k + ".")), None)
-        errors.append(f"{source}: {key}: {msg}" + (f" [override {origin}]" if origin else ""))
+    errors += problem_lines(pairs, source, overrides)
     if errors:
         raise ConfigError(errors)
     return return_value

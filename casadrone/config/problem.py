@@ -1,24 +1,28 @@
 """Optimisation problems (``problems/*.yaml``, DESIGN.md §9): what varies, what is flown, what
 is optimised, and with which algorithm and backend.
 
-Schemas like those of :mod:`casadrone.config` (frozen, unknown keys rejected); a problem names an
-airframe template, so this module sits above :mod:`casadrone.config` and below the chain stages it
-only names (their registries are imported when a problem is checked).
+Schemas like the airframe's (frozen, unknown keys rejected), checked here against the other configs
+only: the airframe keys, the referenced files and the search box. The checks against the optimiser
+(index and algorithm names, algorithm settings, plugins) need its registries, so they live beside
+it, in :mod:`casadrone.optimise.checks`, whose ``load_problem`` runs both; :func:`read_problem`
+is this half alone.
 """
 
 from __future__ import annotations
 
 import difflib
+import itertools
 from pathlib import Path
 from typing import Any, Literal
 
 from pydantic import Field, ValidationError
 
-from casadrone.config import MASS_KEYS, AirframeConfig
-from casadrone.configio import (
-    ROOT,
+from casadrone.config.airframe import MASS_KEYS, TABLE1_BOUNDS, AirframeConfig, load_airframe
+from casadrone.config.controller import load_controller
+from casadrone.config.io import (
     ConfigError,
     Schema,
+    error_pairs,
     field_adapter,
     has_keys,
     load,
@@ -26,6 +30,7 @@ from casadrone.configio import (
     resolve_config,
     scalar_types,
 )
+from casadrone.config.track import TrackConfig
 
 
 class VariableConfig(Schema):
@@ -61,8 +66,6 @@ class VariableConfig(Schema):
 
 
 def _table1_variables() -> list[VariableConfig]:
-    from casadrone.airframe import TABLE1_BOUNDS
-
     return [VariableConfig(name=k, lower=lo, upper=hi) for k, (lo, hi) in TABLE1_BOUNDS.items()]
 
 
@@ -90,25 +93,13 @@ class ConstraintConfig(Schema):
 
 
 class AlgorithmConfig(Schema):
-    """The optimiser: ``evmoga`` or any pymoo algorithm by name, with its settings."""
+    """The optimiser: ``evmoga`` or any pymoo algorithm by name, with its settings (both checked
+    against the optimiser by :func:`casadrone.optimise.checks.problem_problems`)."""
 
     name: str = "evmoga"
     population: int = Field(100, ge=2, description="ev-MOGA n_ind_p / pymoo pop_size")
     generations: int = Field(50, ge=1, description="generations after the initial population")
     settings: dict[str, Any] = Field(default_factory=dict, description="algorithm keywords")
-
-    @classmethod
-    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
-        if "name" not in v:
-            return []
-        from casadrone.optimise.algorithms import ALGORITHM_NAMES as ALGORITHMS
-
-        if v["name"].strip().lower() not in ALGORITHMS:
-            close = difflib.get_close_matches(v["name"], list(ALGORITHMS), 1)
-            hint = f"did you mean '{close[0]}'? " if close else ""
-            return [("name", f"unknown algorithm '{v['name']}' ({hint}known: "
-                     f"{', '.join(ALGORITHMS)})")]
-        return []
 
 
 class BackendConfig(Schema):
@@ -161,27 +152,12 @@ class ProblemConfig(Schema):
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
         found: list[tuple[str, str]] = []
-        for i, plugin in enumerate(v.get("plugins") or []):
-            try:
-                import_plugin(plugin)
-            except Exception as exc:  # noqa: BLE001 - any import failure is a config problem
-                found.append((f"plugins.{i}", f"cannot import '{plugin}': {exc}"))
         test = v.get("test_problem")
         if test is None:
             if v.get("airframe", 0) is None:
                 found.append(("airframe", "required (or give test_problem)"))
             if "objectives" in v and len(v["objectives"]) < 1:
                 found.append(("objectives", "give at least one objective"))
-            from casadrone.config import AirframeConfig
-            from casadrone.indices import INDICES
-
-            for group in ("objectives", "constraints"):
-                for i, o in enumerate(v.get(group) or []):
-                    if o.index not in INDICES:
-                        close = difflib.get_close_matches(o.index, list(INDICES), 1)
-                        hint = f"did you mean '{close[0]}'? " if close else ""
-                        found.append((f"{group}.{i}.index", f"unknown index '{o.index}' ({hint}"
-                                      f"known: {', '.join(INDICES)})"))
             names = [o.index for o in v.get("objectives") or []]
             for dup in sorted({n for n in names if names.count(n) > 1}):
                 found.append(("objectives", f"objective '{dup}' is listed twice"))
@@ -196,29 +172,7 @@ class ProblemConfig(Schema):
             found += _computed_variables(v)
             if not found and v.get("airframe") is not None:
                 found += _input_problems(v)
-        found += _algorithm_problems(v)
         return found
-
-
-def _algorithm_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
-    """The algorithm section against the algorithm's own parameters (and the objectives)."""
-    from casadrone.optimise.algorithms import REFUSED, settings_problems
-
-    a = v.get("algorithm")
-    if a is None:
-        return []
-    key = a.name.strip().lower()
-    if key in REFUSED:
-        return [("algorithm.name", f"{key} cannot run a casadrone problem: {REFUSED[key]}")]
-    test = v.get("test_problem")
-    if test is not None:
-        n_obj = test.n_obj if test.name == "dtlz2" else 2
-    elif v.get("objectives"):
-        n_obj = len(v["objectives"])
-    else:
-        return []
-    return [(f"algorithm.settings.{k}" if not k.startswith("(") else "algorithm.settings", m)
-            for k, m in settings_problems(key, a.settings, a.population, n_obj)]
 
 
 def _first(exc: Exception) -> str:
@@ -231,11 +185,6 @@ def _input_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
     template, and the search box able to produce an airframe: every bound a possible value on
     its own (checked per variable), and the full airframe schema met at the box's centre or at
     one of its corners (a box where neither holds would only give failed evaluations)."""
-    import itertools
-
-    from casadrone.config import AirframeConfig, load_airframe, load_controller
-    from casadrone.configio import ConfigError, error_pairs
-
     found: list[tuple[str, str]] = []
     try:
         template = load_airframe(v["airframe"])
@@ -276,9 +225,7 @@ def _input_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
                      f"centre nor any corner is one); at the centre: {first_problem}")]
 
 
-def _load_track(path):
-    from casadrone.guidance import TrackConfig
-
+def _load_track(path: str | Path) -> TrackConfig:
     return load(TrackConfig, path)
 
 
@@ -299,38 +246,8 @@ def _computed_variables(v: dict[str, Any]) -> list[tuple[str, str]]:
             for i, x in enumerate(v["variables"]) if x.name in MASS_KEYS]
 
 
-_PLUGINS: dict[str, Any] = {}
-
-
-def import_plugin(plugin: str) -> Any:
-    """Import a plugin once per process: a module name, or a path to a ``.py`` file (relative
-    paths from the working directory, then the project root)."""
-    import importlib
-    import importlib.util
-
-    if plugin in _PLUGINS:
-        return _PLUGINS[plugin]
-    if plugin.endswith(".py"):
-        path = Path(plugin)
-        if not path.is_file():
-            path = ROOT / plugin
-        if not path.is_file():
-            raise FileNotFoundError(f"no such file: {plugin}")
-        name = f"casadrone_plugin_{path.stem}"
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        _PLUGINS[plugin] = module  # before exec: a failing plugin is not imported twice
-        try:
-            spec.loader.exec_module(module)
-        except Exception:
-            del _PLUGINS[plugin]
-            raise
-    else:
-        _PLUGINS[plugin] = importlib.import_module(plugin)
-    return _PLUGINS[plugin]
-
-
-def load_problem(path: str | Path, overrides: list[str] | None = None) -> ProblemConfig:
-    """Load a problem YAML (a path, or a shipped problem's name: ``quick``) with
-    ``dotted.key=value`` overrides (``algorithm.generations=20``)."""
+def read_problem(path: str | Path, overrides: list[str] | None = None) -> ProblemConfig:
+    """Read a problem YAML (a path, or a shipped problem's name: ``quick``) with
+    ``dotted.key=value`` overrides (``algorithm.generations=20``), checked against the other
+    configs; :func:`casadrone.optimise.checks.load_problem` adds the optimiser's checks."""
     return load(ProblemConfig, resolve_config(path, "problems"), overrides)

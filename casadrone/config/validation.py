@@ -1,9 +1,9 @@
-"""The check of any config file (``casadrone validate``): find its schema, validate it and the
-config files it references, report every problem as ``FILE: dotted.key: message``.
+"""The check of any config file: find its schema, validate it and the config files it references,
+report every problem as ``FILE: dotted.key: message``.
 
-It sits above the schemas it checks (:mod:`casadrone.config`, :mod:`casadrone.problemconfig`); the
-schemas of heavier modules (tracks, Table 4 references) are named as ``"module:Class"`` and imported
-only when a file of that kind is validated.
+Every schema is in this package, so checking any file imports neither CasADi nor pymoo. A problem
+file is checked here against the other configs; ``casadrone validate`` and ``cd.validate_file``
+(:func:`casadrone.optimise.checks.validate_file`) add the optimiser's checks.
 """
 
 from __future__ import annotations
@@ -13,8 +13,9 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from casadrone.config import AirframeConfig, ControllerConfig
-from casadrone.configio import (
+from casadrone.config.airframe import AirframeConfig
+from casadrone.config.controller import ControllerConfig
+from casadrone.config.io import (
     PATH_KEYS,
     ConfigError,
     check_paths,
@@ -22,36 +23,27 @@ from casadrone.configio import (
     read_yaml,
     validate_data,
 )
-from casadrone.problemconfig import ProblemConfig
+from casadrone.config.problem import ProblemConfig
+from casadrone.config.reference import Table4Reference
+from casadrone.config.track import TrackConfig
 
-# Schemas by config folder name, for ``casadrone validate``; later layers register theirs. A
-# value is a schema class, or "module:Class" for a schema defined in a heavier module (imported
-# only when a file of that kind is validated).
-SCHEMAS_BY_FOLDER: dict[str, type[BaseModel] | str] = {
+#: Schemas by config folder name, for ``casadrone validate``.
+SCHEMAS_BY_FOLDER: dict[str, type[BaseModel]] = {
     "airframes": AirframeConfig,
     "controllers": ControllerConfig,
-    "tracks": "casadrone.guidance:TrackConfig",
-    "references": "casadrone.benchmark:Table4Reference",
+    "tracks": TrackConfig,
+    "references": Table4Reference,
     "problems": ProblemConfig,
 }
-# Fallback when the folder says nothing: a key that only that schema has.
-SCHEMAS_BY_KEY: dict[str, type[BaseModel] | str] = {
+#: Fallback when the folder says nothing: a key that only that schema has.
+SCHEMAS_BY_KEY: dict[str, type[BaseModel]] = {
     "lambda_a_mm": AirframeConfig,
     "sample_time_s": ControllerConfig,
     "gain_policy": ControllerConfig,
-    "waypoints_m": "casadrone.guidance:TrackConfig",
+    "waypoints_m": TrackConfig,
+    "gates": TrackConfig,
     "objectives": ProblemConfig,
 }
-
-
-def schema_class(entry: type[BaseModel] | str) -> type[BaseModel]:
-    """A registered schema: the class itself, or imported from its "module:Class" string."""
-    if isinstance(entry, str):
-        import importlib
-
-        module, _, name = entry.partition(":")
-        return getattr(importlib.import_module(module), name)
-    return entry
 
 
 def detect_schema(path: Path, data: dict[str, Any]) -> type[BaseModel] | None:
@@ -59,12 +51,11 @@ def detect_schema(path: Path, data: dict[str, Any]) -> type[BaseModel] | None:
     else the known schema sharing the most top-level keys (so misspelt files are still checked)."""
     for part in reversed(Path(path).resolve().parts[:-1]):
         if part in SCHEMAS_BY_FOLDER:
-            return schema_class(SCHEMAS_BY_FOLDER[part])
+            return SCHEMAS_BY_FOLDER[part]
     for key, entry in SCHEMAS_BY_KEY.items():
         if key in data:
-            return schema_class(entry)
-    entries = dict.fromkeys(e for e in (*SCHEMAS_BY_FOLDER.values(), *SCHEMAS_BY_KEY.values())
-                            if not isinstance(e, str))  # never import heavy modules to guess
+            return entry
+    entries = dict.fromkeys((*SCHEMAS_BY_FOLDER.values(), *SCHEMAS_BY_KEY.values()))
     scored = sorted(((len(set(data) & set(m.model_fields)), m) for m in entries),
                     key=lambda t: -t[0])
     if scored and scored[0][0] > 0 and (len(scored) == 1 or scored[0][0] > scored[1][0]):
@@ -72,7 +63,7 @@ def detect_schema(path: Path, data: dict[str, Any]) -> type[BaseModel] | None:
     return None
 
 
-def validate_file(path: str | Path) -> BaseModel:
+def check_config_file(path: str | Path) -> BaseModel:
     """Validate any known config file, and the config files it references; ConfigError lists
     every problem."""
     path = Path(path)
@@ -93,9 +84,9 @@ def validate_file(path: str | Path) -> BaseModel:
         ref = resolved.get(key)
         if isinstance(ref, str) and Path(ref).is_file() and kind in SCHEMAS_BY_FOLDER:
             try:
-                load(schema_class(SCHEMAS_BY_FOLDER[kind]), ref)
+                load(SCHEMAS_BY_FOLDER[kind], ref)
             except ConfigError as exc:
                 errors += [f"{path}: {key}: referenced file is invalid"] + exc.lines
-    if errors:
+    if errors or obj is None:
         raise ConfigError(errors)
     return obj

@@ -13,9 +13,9 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field
 
-from casadrone.configio import Schema, has_keys, load, resolve_config
+from casadrone.config.io import Schema, has_keys, load, resolve_config
 from casadrone.massprops import inertia_tensor, mass_properties_of, rotor_positions_mm
 
 Positive = Annotated[float, Field(gt=0)]
@@ -26,6 +26,16 @@ Spin = Literal[-1, 1]
 MAX_ARM_MM = 5000.0  # arm length or prop diameter (mm)
 MAX_INERTIA = 1000.0  # any inertia-tensor element (kg·m²)
 DragArea = Annotated[float, Field(ge=0, le=100)]  # C_d·A (m²)
+#: Paper Table 1 bounds, in config units (mm, deg, kg·m²).
+TABLE1_BOUNDS = {
+    "lambda_a_mm": (100.0, 150.0),
+    "lambda_b_mm": (100.0, 150.0),
+    "alpha_deg": (65.0, 90.0),
+    "beta_deg": (65.0, 90.0),
+    "ixx_kgm2": (0.0014, 0.0030),
+    "iyy_kgm2": (0.0012, 0.0021),
+    "izz_kgm2": (0.0027, 0.0042),
+}
 
 
 # --------------------------------------------------------------------------------------------
@@ -269,94 +279,7 @@ def min_rotor_gap_mm(la: float, lb: float, alpha_deg: float, beta_deg: float) ->
     return min(math.dist(r[i], r[j]) for i in range(4) for j in range(i + 1, 4))
 
 
-# --------------------------------------------------------------------------------------------
-# Controller
-# --------------------------------------------------------------------------------------------
-
-
-class StateWeights(Schema):
-    """Diagonal LQR state weights, one per state group (units: 1/unit² of the state)."""
-
-    position: tuple[NonNegative, NonNegative, NonNegative] = (0.5, 0.5, 1.0)
-    velocity: tuple[NonNegative, NonNegative, NonNegative] = (0.2, 0.2, 0.2)
-    rates: tuple[NonNegative, NonNegative, NonNegative] = (0.05, 0.05, 0.05)
-    attitude: tuple[NonNegative, NonNegative, NonNegative] = (2.0, 2.0, 4.0)
-    thrust: tuple[NonNegative, NonNegative, NonNegative, NonNegative] = (0.0, 0.0, 0.0, 0.0)
-
-
-class RobustnessConfig(Schema):
-    """Perturbed-plant ensemble of paper Appendix B."""
-
-    n_plants: int = Field(50, ge=1, le=10000)
-    dynamics_pct: float = Field(30.0, ge=0, lt=100, description="mass, inertia, drag spread (%)")
-    coupling_pct: float = Field(
-        20.0, ge=0, lt=100, description="thrust gain, time constant, arm geometry, κ spread (%)"
-    )
-    seed: int = 0
-
-
-#: Gain policies (DESIGN.md §6). ``redesign``: every candidate's own LQR-I gain. ``frozen-command``:
-#: the reference airframe's gain K (ESC commands from state error) flies every candidate as is, so
-#: each is mixed as the reference would be. ``frozen-wrench``: the reference's gain, re-expressed
-#: from state error to [collective thrust, roll, pitch, yaw torque] and mapped to each candidate's
-#: four commands by its own allocation inverse (:func:`casadrone.control.frozen_wrench_gain`).
-GainPolicy = Literal["redesign", "frozen-command", "frozen-wrench"]
-FROZEN_POLICIES = ("frozen-command", "frozen-wrench")
-
-
-class ControllerConfig(Schema):
-    """LQR-I controller: discrete design at ``sample_time_s``, identical for every candidate."""
-
-    name: str = "default"
-    sample_time_s: float = Field(0.01, gt=0, le=0.1)
-    q: StateWeights = StateWeights()
-    q_integral: tuple[NonNegative, NonNegative, NonNegative, NonNegative] = Field(
-        (0.05, 0.05, 0.1, 0.05), description="weights of ∫e for x, y, z, yaw"
-    )
-    r: tuple[Positive, Positive, Positive, Positive] = Field((10.0, 10.0, 10.0, 10.0))
-    gain_policy: GainPolicy = Field("redesign", description="redesign: each candidate's own "
-                                    "gain; frozen-command / frozen-wrench: the reference's gain")
-    reference_airframe: Path | None = Field(
-        None, description="airframe YAML whose gain is frozen for all (frozen-* gain policies)"
-    )
-    robustness: RobustnessConfig = RobustnessConfig()
-
-    @field_validator("gain_policy", mode="before")
-    @classmethod
-    def _renamed_policy(cls, value: Any) -> Any:
-        if value == "frozen":
-            raise ValueError("'frozen' is now called 'frozen-command' (the reference gain frozen "
-                             "in ESC-command space, flown through the reference's mixer); or use "
-                             "'frozen-wrench' (frozen in thrust and torque space, each frame "
-                             "mixed by its own allocation)")
-        return value
-
-    @property
-    def frozen_gain(self) -> bool:
-        """True when one reference gain flies every candidate (a frozen-* gain policy)."""
-        return self.gain_policy in FROZEN_POLICIES
-
-    @classmethod
-    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
-        policy = v.get("gain_policy")
-        if policy in FROZEN_POLICIES and v.get("reference_airframe", 0) is None:
-            return [("reference_airframe", f"required when gain_policy is '{policy}'")]
-        return []
-
-
-# --------------------------------------------------------------------------------------------
-# Loading by kind
-# --------------------------------------------------------------------------------------------
-
-
 def load_airframe(path: str | Path, overrides: list[str] | None = None) -> AirframeConfig:
     """Load an airframe: a YAML path or a reference name (``SY250``), with ``key=value``
     overrides (``alpha_deg=75``) validated like the file."""
     return load(AirframeConfig, resolve_config(path, "airframes"), overrides)
-
-
-def load_controller(
-    path: str | Path | None = None, overrides: list[str] | None = None
-) -> ControllerConfig:
-    """Load a controller YAML or name; ``None`` gives ``configs/controllers/default.yaml``."""
-    return load(ControllerConfig, resolve_config(path or "default", "controllers"), overrides)

@@ -1,0 +1,124 @@
+"""A problem checked against the optimiser that runs it, when the problem is loaded.
+
+:mod:`casadrone.config.problem` checks a problem against the other configs (airframe keys,
+referenced files, the search box) and imports neither CasADi nor pymoo. What only the optimiser
+knows is checked here, beside it: the plugins import, every objective and constraint names a
+registered index (:data:`casadrone.indices.INDICES`, after the plugins have registered theirs),
+and the algorithm is one casadrone can run, with settings its class accepts
+(:mod:`casadrone.optimise.algorithms`). :func:`load_problem` (``cd.load_problem``, ``casadrone
+run``) and :func:`validate_file` (``cd.validate_file``, ``casadrone validate``) run both halves.
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib
+import importlib.util
+from pathlib import Path
+from types import ModuleType
+
+from pydantic import BaseModel
+
+from casadrone.config.io import ROOT, ConfigError, problem_lines, resolve_config
+from casadrone.config.problem import ProblemConfig, read_problem
+from casadrone.config.validation import check_config_file
+from casadrone.indices import INDICES
+from casadrone.optimise.algorithms import ALGORITHM_NAMES, REFUSED, settings_problems
+
+_PLUGINS: dict[str, ModuleType] = {}
+
+
+def import_plugin(plugin: str) -> ModuleType:
+    """Import a plugin once per process: a module name, or a path to a ``.py`` file (relative
+    paths from the working directory, then the project root)."""
+    if plugin in _PLUGINS:
+        return _PLUGINS[plugin]
+    if plugin.endswith(".py"):
+        path = Path(plugin)
+        if not path.is_file():
+            path = ROOT / plugin
+        if not path.is_file():
+            raise FileNotFoundError(f"no such file: {plugin}")
+        name = f"casadrone_plugin_{path.stem}"
+        spec = importlib.util.spec_from_file_location(name, path)
+        if spec is None or spec.loader is None:
+            raise ImportError(f"cannot load {plugin} as a Python module")
+        module = importlib.util.module_from_spec(spec)
+        _PLUGINS[plugin] = module  # before exec: a failing plugin is not imported twice
+        try:
+            spec.loader.exec_module(module)
+        except Exception:
+            del _PLUGINS[plugin]
+            raise
+    else:
+        _PLUGINS[plugin] = importlib.import_module(plugin)
+    return _PLUGINS[plugin]
+
+
+def problem_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
+    """What keeps the optimiser from running ``problem``, as (dotted key, message) pairs."""
+    found: list[tuple[str, str]] = []
+    for i, plugin in enumerate(problem.plugins):
+        try:
+            import_plugin(plugin)
+        except Exception as exc:  # noqa: BLE001 - any import failure is a config problem
+            found.append((f"plugins.{i}", f"cannot import '{plugin}': {exc}"))
+    if problem.test_problem is None:
+        for group in ("objectives", "constraints"):
+            for i, o in enumerate(getattr(problem, group)):
+                if o.index not in INDICES:
+                    close = difflib.get_close_matches(o.index, list(INDICES), 1)
+                    hint = f"did you mean '{close[0]}'? " if close else ""
+                    found.append((f"{group}.{i}.index", f"unknown index '{o.index}' ({hint}"
+                                  f"known: {', '.join(INDICES)})"))
+    return found + _algorithm_problems(problem)
+
+
+def _algorithm_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
+    """The algorithm section against the algorithm's own parameters (and the objectives)."""
+    a = problem.algorithm
+    key = a.name.strip().lower()
+    if key not in ALGORITHM_NAMES:
+        close = difflib.get_close_matches(a.name, list(ALGORITHM_NAMES), 1)
+        hint = f"did you mean '{close[0]}'? " if close else ""
+        return [("algorithm.name", f"unknown algorithm '{a.name}' ({hint}known: "
+                 f"{', '.join(ALGORITHM_NAMES)})")]
+    if key in REFUSED:
+        return [("algorithm.name", f"{key} cannot run a casadrone problem: {REFUSED[key]}")]
+    test = problem.test_problem
+    if test is not None:
+        n_obj = test.n_obj if test.name == "dtlz2" else 2
+    elif problem.objectives:
+        n_obj = len(problem.objectives)
+    else:
+        return []
+    return [(f"algorithm.settings.{k}" if not k.startswith("(") else "algorithm.settings", m)
+            for k, m in settings_problems(key, a.settings, a.population, n_obj)]
+
+
+def check_problem(problem: ProblemConfig, source: str | Path,
+                  overrides: list[str] | None = None) -> ProblemConfig:
+    """``problem`` when the optimiser can run it; else ConfigError, one ``FILE: key: message``
+    line per problem (``source`` names the file)."""
+    found = problem_problems(problem)
+    if found:
+        raise ConfigError(problem_lines(found, str(source), overrides))
+    return problem
+
+
+def load_problem(path: str | Path, overrides: list[str] | None = None) -> ProblemConfig:
+    """Load a problem YAML (a path, or a shipped problem's name: ``quick``) with
+    ``dotted.key=value`` overrides (``algorithm.generations=20``), checked against the configs
+    and the optimiser; ConfigError lists every problem."""
+    problem = read_problem(path, overrides)
+    return check_problem(problem, resolve_config(path, "problems"), overrides)
+
+
+def validate_file(path: str | Path) -> BaseModel:
+    """Validate any known config file and the files it references
+    (:func:`casadrone.config.validation.check_config_file`), and a problem also against the
+    optimiser; ConfigError lists every problem."""
+    config = check_config_file(path)
+    if isinstance(config, ProblemConfig):
+        check_problem(config, path)
+    return config

@@ -84,7 +84,7 @@ def box_inertia(mass: float, size: np.ndarray) -> np.ndarray:
 
 
 def components_mass_properties(parts: Any, rotors_m: np.ndarray) -> MassProperties:
-    """Mass properties of the parts (a :class:`casadrone.config.ComponentsConfig`) with the rotors
+    """Mass properties of the parts (a :class:`casadrone.config.airframe.ComponentsConfig`) with the rotors
     at ``rotors_m`` (4×3, m, from the hub)."""
     rotors_m = np.asarray(rotors_m, float)
     arms = parts.arm_linear_density_kgpm * np.linalg.norm(rotors_m, axis=1)
@@ -119,7 +119,7 @@ def mass_properties_of(values: Mapping[str, Any]) -> MassProperties:
 
 
 def mass_properties(config: Any, theta: Mapping[str, float] | None = None) -> MassProperties:
-    """Mass properties of ``config`` (a :class:`casadrone.config.AirframeConfig`) with the
+    """Mass properties of ``config`` (a :class:`casadrone.config.airframe.AirframeConfig`) with the
     decision variables ``theta`` (config keys, e.g.
     ``{"lambda_a_mm": 140}``) replaced; a pure function, no validation (see
     :func:`casadrone.airframe.with_theta` for that)."""

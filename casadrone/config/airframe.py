@@ -1,10 +1,9 @@
-"""YAML configuration of airframes and controllers: pydantic v2 schemas and their loaders.
+"""The airframe YAML (``configs/airframes/``): geometry, mass model, drag and thrust, and its loader.
 
 Every schema is frozen and forbids unknown keys; cross-field (geometry) checks report every problem
 at once. File reading, ``key=value`` overrides and the ``FILE: dotted.key: message`` error reports
-live in :mod:`casadrone.configio`, the problem schemas in :mod:`casadrone.problemconfig`, the check
-of any config file (``casadrone validate``) in :mod:`casadrone.validation`. Numbers carry their unit
-in the key when it is not SI-obvious (``lambda_a_mm``, ``alpha_deg``).
+live in :mod:`casadrone.config.io`. Numbers carry their unit in the key when it is not SI-obvious
+(``lambda_a_mm``, ``alpha_deg``).
 """
 
 from __future__ import annotations

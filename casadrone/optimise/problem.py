@@ -1,7 +1,7 @@
 """The pymoo problem over the evaluation chain (or over a pymoo test problem).
 
 A :class:`Study` is the picklable description shared by the coordinator and the workers: the
-resolved :class:`~casadrone.problemconfig.ProblemConfig`. Workers turn it into an evaluation setup
+resolved :class:`~casadrone.config.problem.ProblemConfig`. Workers turn it into an evaluation setup
 once per process (:func:`study_setup`, cached), then evaluate rows of decision vectors into
 :class:`Record` objects. :class:`CandidateProblem` maps records to pymoo's F (minimised) and G
 (≤ 0 feasible): a failed candidate is infeasible with its reason kept, never NaN in F.

@@ -27,9 +27,15 @@ What is fitted, and from which part of the log:
 
 - **Step tests.** At each change of the ESC signal the rotor speed's response is fitted with a
   first-order step ``ω(t) = ω_∞ + (ω_0 − ω_∞) e^(−(t − t_0)/τ)`` (scipy least squares); the
-  motor time constant is the median over the steps. A step whose response the sampling cannot
-  resolve (fewer than ``MIN_STEP_SAMPLES`` samples within three time constants) is not used; with
-  no resolved step the time constant is reported as not measured, never invented.
+  motor time constant is the median over the steps. The DC motor's rotor inertia follows from
+  each τ by linearising ``J_r ω̇ = Q_m(ω) − Q_p(ω)`` at the step's end point:
+  ``J_r = τ (∂Q_p/∂ω − ∂Q_m/∂ω) = τ (2 Q_p/ω + 1 / (K_v² (R + R_int d²)))`` (the propeller's
+  torque grows with ω²; the motor's falls with the back-EMF through the winding and the battery
+  seen through the ESC); the median over the steps. The linearisation holds for small steps:
+  a stand's step test of 50 µs increments is what to log. A step whose response the sampling
+  cannot resolve (fewer than ``MIN_STEP_SAMPLES`` samples within three time constants) is not
+  used; with no resolved step the time constant and inertia are reported as not measured, never
+  invented.
 
 The shape of C_T and C_P against the advance ratio J cannot be measured on a static stand: the
 section carries the static coefficients as ``ct_coefficients: [C_T0]`` and
@@ -291,12 +297,14 @@ def _residual(quantity: str, unit: str, data: np.ndarray, fit: np.ndarray) -> Re
 
 @dataclass(frozen=True)
 class StepFit:
-    """One step response: start time (s), ESC signal before and after (µs), fitted τ (s)."""
+    """One step response: start time (s), ESC signal before and after (µs), fitted τ (s), the
+    speed it settles at (rad/s), the RMS of the fit (rad/s)."""
 
     time_s: float
     esc_from_us: float
     esc_to_us: float
     time_constant_s: float
+    final_speed_rad_s: float
     rms_rad_s: float
 
 
@@ -310,6 +318,7 @@ class PropulsionFit:
         kv_rpm_per_v, resistance_ohm, no_load_current_a: Drela's first-order motor.
         open_circuit_voltage_v, internal_resistance_ohm: the battery (through its leads).
         time_constant_s: median of the resolved step responses, or None.
+        rotor_inertia_kgm2: the rotor's inertia from the steps (module docstring), or None.
         steps: every step fitted. residuals: one per fit.
     """
 
@@ -325,31 +334,36 @@ class PropulsionFit:
     open_circuit_voltage_v: float
     internal_resistance_ohm: float
     time_constant_s: float | None
+    rotor_inertia_kgm2: float | None
     steps: tuple[StepFit, ...]
     residuals: tuple[Residual, ...]
     duty: np.ndarray = field(repr=False)
 
     def section(self) -> dict[str, Any]:
         """The airframe's ``propulsion:`` section (the keys of the propeller model)."""
-        motor: dict[str, Any] = {
-            "kind": "dc",
-            "kv_rpm_per_v": _round(self.kv_rpm_per_v),
-            "resistance_ohm": _round(self.resistance_ohm),
-            "no_load_current_a": _round(self.no_load_current_a),
+        source = f"{self.source} (casadrone fit-propulsion)"
+        propeller: dict[str, Any] = {
+            "diameter_m": _round(self.diameter_m),
+            "ct_coefficients": [_round(self.ct0)],
+            "cp_coefficients": [_round(self.cp0)],
         }
-        if self.time_constant_s is not None:
-            motor["time_constant_s"] = _round(self.time_constant_s)
+        if self.rotor_inertia_kgm2 is not None:
+            propeller["rotor_inertia_kgm2"] = _round(self.rotor_inertia_kgm2)
+        propeller["data"] = f"{source}: static coefficients only (a static stand sees J = 0)"
         return {
             "model": "propeller",
-            "propeller": {
-                "diameter_m": _round(self.diameter_m),
-                "ct_coefficients": [_round(self.ct0)],
-                "cp_coefficients": [_round(self.cp0)],
+            "propeller": propeller,
+            "motor": {
+                "kind": "dc",
+                "kv_rpm_per_v": _round(self.kv_rpm_per_v),
+                "resistance_ohm": _round(self.resistance_ohm),
+                "no_load_current_a": _round(self.no_load_current_a),
+                "data": source,
             },
-            "motor": motor,
             "battery": {
                 "open_circuit_voltage_v": _round(self.open_circuit_voltage_v),
                 "internal_resistance_ohm": _round(self.internal_resistance_ohm),
+                "data": source,
             },
         }
 
@@ -420,16 +434,18 @@ def _fit_step(log: StandLog, before: Plateau, after: Plateau) -> StepFit | None:
     if np.count_nonzero(t <= 3 * tau) < MIN_STEP_SAMPLES:
         return None  # the sampling does not resolve this response
     rms = float(np.sqrt(np.mean((model(sol.x) - w) ** 2)))
-    return StepFit(float(log.time_s[after.start]), before.esc_us, after.esc_us, tau, rms)
+    return StepFit(float(log.time_s[after.start]), before.esc_us, after.esc_us, tau, winf, rms)
 
 
 def _tared(points: list[Plateau], esc_min_us: float) -> list[Plateau]:
-    """Load-cell readings relative to the unpowered plateaus' mean (the stand's tare), signed so
+    """Load-cell readings relative to the mean of the unpowered plateaus with the rotor at rest
+    (the stand's tare; a rotor still coasting down still loads the cells), signed so
     that thrust and torque are positive at the highest ESC signal (a stand logs them with the sign
     of its mounting)."""
     import dataclasses
 
-    idle = [q for q in points if q.esc_us <= esc_min_us]
+    top_speed = max(q.speed_rad_s for q in points)
+    idle = [q for q in points if q.esc_us <= esc_min_us and q.speed_rad_s < 0.01 * top_speed]
     t0 = float(np.mean([q.thrust_n for q in idle])) if idle else 0.0
     q0 = float(np.mean([q.torque_nm for q in idle])) if idle else 0.0
     top = max(points, key=lambda q: q.esc_us)  # the sign where the loads are far above noise
@@ -492,6 +508,25 @@ def fit_propulsion(log: StandLog, diameter_m: float, air_density_kg_m3: float = 
     steps = tuple(s for a, b in zip(allp[:-1], allp[1:], strict=True)
                   if b.start == a.stop and (s := _fit_step(log, a, b)) is not None)
     tau = float(np.median([s.time_constant_s for s in steps])) if steps else None
+    inertia = _rotor_inertia(steps, cp0, kv, R, r_int, diameter_m, air_density_kg_m3,
+                             esc_min_us, esc_max_us)
     return PropulsionFit(log.source, diameter_m, air_density_kg_m3, tuple(powered), ct0, cp0,
-                         kv, R, i0, v0, r_int, tau, steps,
+                         kv, R, i0, v0, r_int, tau, inertia, steps,
                          (*res_prop, *res_motor, res_batt), duty)
+
+
+def _rotor_inertia(steps: tuple[StepFit, ...], cp0: float, kv_rpm_per_v: float, R: float,
+                   r_int: float, D: float, rho: float, esc_min_us: float, esc_max_us: float
+                   ) -> float | None:
+    """Median over the powered steps of τ (∂Q_p/∂ω − ∂Q_m/∂ω) at the step's end (module
+    docstring)."""
+    kv = kv_rpm_per_v * 2 * math.pi / 60
+    values = []
+    for s in steps:
+        d = (s.esc_to_us - esc_min_us) / (esc_max_us - esc_min_us)
+        w = s.final_speed_rad_s
+        if d <= 0 or w <= 0:
+            continue
+        qp = cp0 * rho * (w / (2 * math.pi)) ** 2 * D**5 / (2 * math.pi)
+        values.append(s.time_constant_s * (2 * qp / w + 1 / (kv**2 * (R + r_int * d**2))))
+    return float(np.median(values)) if values else None

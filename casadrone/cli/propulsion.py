@@ -46,8 +46,8 @@ def fit_propulsion_command(
     plot: PlotOpt = None,
     as_json: JsonOpt = False,
 ):
-    """Fit a propulsion: section (propeller CT0/CP0, DC motor KV/R/I0, battery resistance, motor
-    time constant) from a thrust-stand log, print the fit residuals.
+    """Fit a propulsion: section (propeller CT0/CP0, DC motor KV/R/I0, battery resistance, rotor
+    inertia from step tests) from a thrust-stand log, print the fit residuals.
 
     Examples:
 
@@ -104,15 +104,16 @@ def section_yaml(fit) -> str:
 
 
 def _print_text(fit) -> None:
-    s = fit.section()
     typer.echo(f"{fit.source}: {len(fit.plateaus)} steady points, {len(fit.steps)} step responses")
     typer.echo(f"propeller  CT0 {fit.ct0:.5f}  CP0 {fit.cp0:.5f}  (D {fit.diameter_m:.4f} m, "
                f"rho {fit.air_density_kg_m3:g} kg/m³)")
     typer.echo(f"motor      KV {fit.kv_rpm_per_v:.1f} rpm/V  R {fit.resistance_ohm * 1e3:.1f} mΩ  "
                f"I0 {fit.no_load_current_a:.3f} A")
-    tau = s["motor"].get("time_constant_s")
-    typer.echo("           time constant " + (f"{tau * 1e3:.1f} ms" if tau is not None else
-                                               "not measured (no resolved step response)"))
+    if fit.time_constant_s is None:
+        typer.echo("           time constant and rotor inertia not measured (no resolved step)")
+    else:
+        typer.echo(f"           time constant {fit.time_constant_s * 1e3:.1f} ms (median of "
+                   f"{len(fit.steps)} steps), rotor inertia {fit.rotor_inertia_kgm2:.3g} kg·m²")
     typer.echo(f"battery    Voc {fit.open_circuit_voltage_v:.3f} V  "
                f"R_int {fit.internal_resistance_ohm * 1e3:.1f} mΩ")
     typer.echo("residuals:")

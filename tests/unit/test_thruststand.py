@@ -1,11 +1,12 @@
 """fit-propulsion against logs generated here from a known motor, propeller and battery.
 
-The generator below is written from the physics, not from :mod:`casadrone.thruststand`: for each
-ESC duty it solves the steady torque balance of Drela's first-order DC motor behind a lossless ESC
-and a battery with internal resistance (a root of one scalar equation, scipy's brentq), lets the
-rotor speed follow each step with a first-order lag, derives thrust, torque, bus current and
-voltage from it, adds sensor noise and writes the CSV as a Tyto/RCbenchmark stand does (units in
-the header). The fit must recover every coefficient within 2 % (the issue's acceptance).
+The generator below is written from the physics, not from :mod:`casadrone.thruststand`: Drela's
+first-order DC motor behind a lossless ESC and a battery with internal resistance drives a rotor
+of inertia J_r against the propeller's torque, ``J_r ω̇ = (I_m − I_0)/K_v − Q_p(ω)``, integrated
+through every ESC step by scipy's solve_ivp (steady speeds checked against the torque balance's
+root by brentq); thrust, reaction torque, bus current and voltage follow from ω, sensor noise is
+added and the CSV is written as a Tyto/RCbenchmark stand does (units in the header). The fit must
+recover every coefficient within 2 % (the issue's acceptance).
 """
 
 from __future__ import annotations
@@ -18,13 +19,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from casadrone.thruststand import LogError, fit_propulsion, read_log
 
 TRUE = dict(ct0=0.115, cp0=0.058, kv_rpm_per_v=1950.0, resistance_ohm=0.065,
             no_load_current_a=1.3, open_circuit_voltage_v=16.4, internal_resistance_ohm=0.022,
-            time_constant_s=0.035)
+            rotor_inertia_kgm2=7.5e-6)
 D, RHO = 0.1295, 1.225  # a 5.1-inch propeller at sea level
 
 
@@ -42,43 +44,49 @@ def steady_speed(duty: float) -> float:
     return brentq(imbalance, 1.0, duty * v0 * kv)
 
 
-def sensors(duty: float, w: np.ndarray) -> dict[str, np.ndarray]:
+def motor_current(duty: float, w):
+    """Motor current I_m (A) at rotor speed ``w`` (rad/s): the winding and the battery's
+    resistance seen through the ESC (V_bus = V0 − rb · duty · I_m)."""
     kv = TRUE["kv_rpm_per_v"] * 2 * math.pi / 60
-    R, v0, rb = TRUE["resistance_ohm"], TRUE["open_circuit_voltage_v"], \
-        TRUE["internal_resistance_ohm"]
-    n = w / (2 * math.pi)
-    im = (duty * v0 - w / kv) / (R + rb * duty**2)
-    ib = duty * im
-    return {"thrust": TRUE["ct0"] * RHO * n**2 * D**4,
-            "torque": TRUE["cp0"] * RHO * n**2 * D**5 / (2 * math.pi),
-            "current": ib, "voltage": v0 - rb * ib}
+    return (duty * TRUE["open_circuit_voltage_v"] - w / kv) / (
+        TRUE["resistance_ohm"] + TRUE["internal_resistance_ohm"] * duty**2)
 
 
-def write_log(path: Path, seed: int = 0, rate_hz: float = 1000.0, hold_s: float = 1.5,
+def prop_torque(w):
+    return TRUE["cp0"] * RHO * (w / (2 * math.pi)) ** 2 * D**5 / (2 * math.pi)
+
+
+def motor_torque(duty: float, w):
+    kv = TRUE["kv_rpm_per_v"] * 2 * math.pi / 60
+    return (motor_current(duty, w) - TRUE["no_load_current_a"]) / kv if duty > 0 else 0.0 * w
+
+
+def write_log(path: Path, seed: int = 0, rate_hz: float = 1000.0, hold_s: float = 0.6,
               header: list[str] | None = None) -> Path:
     rng = np.random.default_rng(seed)
-    steps_us = [1000, 1150, 1300, 1450, 1600, 1750, 1900, 2000, 1700, 1400, 1100, 1000]
+    steps_us = [1000, *range(1200, 2001, 50), *range(1950, 1149, -50), 1000]
     per = int(hold_s * rate_hz)
     blocks, w_end = [], 0.0
     for k, esc in enumerate(steps_us):
         duty = (esc - 1000) / 1000
-        target = steady_speed(duty) if duty > 0 else 0.0
-        t = (k * per + np.arange(1, per + 1)) / rate_hz
-        w = target + (w_end - target) * np.exp(-(np.arange(1, per + 1) / rate_hz)
-                                               / TRUE["time_constant_s"])
-        w_end = float(w[-1])
+        t_rel = np.arange(1, per + 1) / rate_hz
+        sol = solve_ivp(lambda _t, w, d=duty: [(motor_torque(d, w[0]) - prop_torque(w[0]))
+                                               / TRUE["rotor_inertia_kgm2"]],
+                        (0.0, hold_s), [w_end], t_eval=t_rel, rtol=1e-10, atol=1e-8,
+                        method="LSODA")
+        w = np.maximum(sol.y[0], 0.0)
         if duty > 0:
-            s = sensors(duty, w)
-        else:
-            zero = np.zeros(per)
-            s = {"thrust": zero, "torque": zero, "current": zero,
-                 "voltage": zero + TRUE["open_circuit_voltage_v"]}
+            assert w[-1] == pytest.approx(steady_speed(duty), rel=1e-6)  # settled in the hold
+        w_end = float(w[-1])
+        ib = duty * motor_current(duty, w) if duty > 0 else np.zeros(per)
         blocks.append(np.column_stack([
-            t, np.full(per, esc),
-            -(s["torque"] + rng.normal(0, 0.0008, per)),  # stands log the reaction torque
-            (s["thrust"] + rng.normal(0, 0.03, per)) / 9.80665,  # kgf
-            s["voltage"] + rng.normal(0, 0.01, per),
-            s["current"] + rng.normal(0, 0.08, per),
+            k * hold_s + t_rel, np.full(per, esc),
+            -(motor_torque(duty, w) + rng.normal(0, 0.0008, per)),  # the stator's reaction
+            (TRUE["ct0"] * RHO * (w / (2 * math.pi)) ** 2 * D**4
+             + rng.normal(0, 0.03, per)) / 9.80665,  # kgf
+            TRUE["open_circuit_voltage_v"] - TRUE["internal_resistance_ohm"] * ib
+            + rng.normal(0, 0.01, per),
+            ib + rng.normal(0, 0.08, per),
             (w + rng.normal(0, 3.0, per)) * 60 / (2 * math.pi),
         ]))
     fmt = ["%.4f", "%d", "%.5f", "%.5f", "%.4f", "%.4f", "%.1f"]
@@ -104,8 +112,8 @@ def test_every_coefficient_is_recovered_within_two_percent(tmp_path, seed):
                resistance_ohm=fit.resistance_ohm, no_load_current_a=fit.no_load_current_a,
                open_circuit_voltage_v=fit.open_circuit_voltage_v,
                internal_resistance_ohm=fit.internal_resistance_ohm,
-               time_constant_s=fit.time_constant_s)
-    for key, true in TRUE.items():
+               rotor_inertia_kgm2=fit.rotor_inertia_kgm2)
+    for key, true in TRUE.items():  # observed: within 0.35 % (seeds 0 and 1)
         assert got[key] == pytest.approx(true, rel=0.02), key
 
 
@@ -134,7 +142,7 @@ def test_units_are_read_from_the_header(tmp_path):
      "'Thrust (stone)'"),
     (lambda rows: rows[:40] + [rows[40][:3] + ["heavy"] + rows[40][4:]] + rows[41:], "row 41"),
     (lambda rows: rows[:30] + [rows[29]] + rows[30:], "row 31, column 'Time'"),
-    (lambda rows: rows[:1] + rows[1:1500], "powered steady points"),
+    (lambda rows: rows[:1] + rows[1:1700], "powered steady points"),
 ])
 def test_a_malformed_log_is_refused_naming_the_column_or_row(tmp_path, log_file, edit, needle):
     rows = list(csv.reader(log_file.open(encoding="utf-8")))

@@ -201,7 +201,7 @@ def limit_lap_trajectory(lap, waypoints) -> Trajectory:
     n = len(lap.t)
     wp = np.atleast_2d(np.asarray(waypoints, float))
     return Trajectory(
-        status="completed", reason="", integrator="limit lap", t=lap.t, x=lap.x,
+        status="completed", reason="", integrator="limit lap", t=lap.t, x=lap.x_euler,
         u=np.vstack([lap.u, lap.u[-1:]]), p_ref=np.zeros((n, 3)), v_ref=np.zeros((n, 3)),
         psi_ref=np.zeros(n), acceleration=np.zeros((n, 3)), segment=np.zeros(n, int),
         u0=np.zeros(4), battery_voltage=1.0, waypoints=wp, straight=(True,) * len(wp),

@@ -21,9 +21,9 @@ from casadrone.cli.common import (
 )
 
 #: The keys of ``--json``, in order.
-LIMIT_KEYS = ("status", "reason", "lap_time_s", "lower_bound_s", "split_times_s",
-              "bang_bang_fraction", "resimulation_miss_m", "sensitivities", "iterations",
-              "wall_time_s")
+LIMIT_KEYS = ("status", "reason", "lap_time_s", "point_mass_reference_s", "split_times_s",
+              "lap_times_s", "certainty", "spread_s", "start", "attitude", "bang_bang_fraction",
+              "resimulation_miss_m", "sensitivities", "iterations", "wall_time_s")
 
 
 @app.command("limit-lap")
@@ -33,13 +33,20 @@ def limit_lap_command(
     overrides: OverridesArg = None,
     track: TrackOpt = None,
     intervals: Annotated[int, typer.Option(min=2, help="shooting intervals per leg")] = 40,
+    attitude: Annotated[str, typer.Option(
+        help="euler (ZYX angles) or quaternion (no singularity: split-S, loops)")] = "euler",
+    tilt: Annotated[str, typer.Option(
+        help="tilt limit at the track's max_tilt_deg: axes (|φ|, |θ| each; euler only), cone "
+             "(total tilt) or none")] = "axes",
     as_json: JsonOpt = False,
     plot: PlotOpt = None,
 ) -> None:
     """Fly the limit lap: the minimum-time lap of the airframe through the track's waypoints
     (or gates), with ESC commands in [0, 1], thrust lag and the track's tilt limit.
 
-    Prints the lap time, the lower bound (attitude dynamics removed), split times, the share of
+    Prints the lap time, the point-mass reference (attitude dynamics removed; the best of a few
+    local optima of that relaxation, not a bound), split and lap times, whether the starts
+    agree (certainty), the share of
     saturated commands, the re-simulation miss and dT/dθ per decision variable (s per unit). A
     lap the solver cannot find (an unreachable gate, no convergence) is a result with status
     "failed" and a reason, exit code 0; a bad config (a malformed track, a frame too heavy to
@@ -50,14 +57,21 @@ def limit_lap_command(
     """
     check_plot_dir(plot)
     from casadrone.config.airframe import load_airframe
-    from casadrone.config.io import load, resolve_config
+    from casadrone.config.io import ConfigError, load, resolve_config
     from casadrone.config.track import TrackConfig
     from casadrone.evaluate import DEFAULT_TRACK
     from casadrone.limit.lap import LimitLapOptions, limit_lap
 
     cfg = load_airframe(airframe, overrides or [])
     trk = load(TrackConfig, resolve_config(track, "tracks") if track else DEFAULT_TRACK)
-    lap = limit_lap(cfg, trk, LimitLapOptions(intervals=intervals))
+    if attitude not in ("euler", "quaternion") or tilt not in ("axes", "cone", "none"):
+        raise ConfigError([f"--attitude {attitude} --tilt {tilt}: attitude is euler or quaternion, "
+                       "tilt is axes, cone or none"])
+    if attitude == "quaternion" and tilt == "axes":
+        raise ConfigError(["--tilt axes bounds Euler angles: with --attitude quaternion use cone "
+                       "or none"])
+    lap = limit_lap(cfg, trk, LimitLapOptions(intervals=intervals, attitude=attitude,
+                                              tilt_limit=tilt))
     result = {k: getattr(lap, k) for k in LIMIT_KEYS}
     if plot is not None:
         result["figures"] = _figures(cfg, trk, lap, plot)
@@ -85,9 +99,11 @@ def _text(name: str, track: str, r: dict) -> str:
     splits = ", ".join(f"{t:.3f}" for t in r["split_times_s"])
     lines = [
         f"{name} on {track}: limit lap {r['lap_time_s']:.3f} s "
-        f"(lower bound {r['lower_bound_s']:.3f} s; {r['iterations']} iterations, "
+        f"(point-mass reference {r['point_mass_reference_s']:.3f} s; start {r['start']}, "
+        f"{r['certainty']}; {r['iterations']} iterations, "
         f"{r['wall_time_s']:.1f} s wall time)",
         f"  split times (s): {splits}",
+        f"  lap times (s): {', '.join(f'{t:.3f}' for t in r['lap_times_s'])}",
         f"  bang-bang fraction: {r['bang_bang_fraction']:.2f}; re-simulation miss: "
         f"{r['resimulation_miss_m']:.4f} m",
         "  sensitivity dT/dθ (s per unit):",

@@ -6,7 +6,9 @@ track imports no CasADi.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -23,13 +25,63 @@ MIN_LEG_M = 0.01
 
 
 class GateConfig(Schema):
-    """A race gate: a vertical rectangular opening, flown through along its heading."""
+    """A race gate: an opening flown through along its through direction (the gate frame's x
+    axis): vertical along ``heading_deg``, or of any orientation by ``rpy_deg``."""
 
     centre_m: Vec3 = Field(description="centre of the opening (world, m)")
-    heading_deg: float = Field(description="direction of travel through the gate (0 = east, "
-                               "counter-clockwise)")
+    heading_deg: float | None = Field(None, description="direction of travel through a "
+                                      "vertical gate (0 = east, counter-clockwise)")
+    rpy_deg: Vec3 | None = Field(None, description="roll, pitch, yaw (ZYX, deg) of the gate "
+                                 "frame: x through the gate, y left, z up in the opening; "
+                                 "instead of heading_deg ([0, 0, h] is heading h; pitch 90 is "
+                                 "a horizontal gate flown downwards)")
+    shape: Literal["rectangle", "circle", "polygon"] = Field(
+        "rectangle", description="opening: width_m x height_m, a circle of diameter width_m "
+        "(= height_m), or the convex polygon vertices_m")
     width_m: float = Field(gt=0, description="inner width of the opening (m)")
     height_m: float = Field(gt=0, description="inner height of the opening (m)")
+    vertices_m: list[tuple[float, float]] | None = Field(
+        None, description="polygon: vertices (left, up; m from the centre, in the gate plane), "
+        "counter-clockwise, convex, 3 to 8")
+
+    @model_validator(mode="after")
+    def _one_orientation_and_a_shape(self) -> GateConfig:
+        if (self.heading_deg is None) == (self.rpy_deg is None):
+            raise ValueError("give heading_deg or rpy_deg (one of them)")
+        if self.shape == "circle" and self.width_m != self.height_m:
+            raise ValueError("shape: a circle's width_m and height_m are its diameter (equal)")
+        if (self.shape == "polygon") != (self.vertices_m is not None):
+            raise ValueError("vertices_m: give them with shape: polygon (only)")
+        if self.vertices_m is not None:
+            v = np.asarray(self.vertices_m, float)
+            if not 3 <= len(v) <= 8:
+                raise ValueError(f"vertices_m: 3 to 8 vertices, got {len(v)}")
+            e = np.roll(v, -1, axis=0) - v
+            cross = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+            if np.any(cross <= 0):
+                raise ValueError("vertices_m: not a convex polygon given counter-clockwise")
+        return self
+
+    @property
+    def rpy_rad(self) -> tuple[float, float, float]:
+        """Roll, pitch, yaw of the gate frame (rad)."""
+        r, p, y = self.rpy_deg if self.rpy_deg is not None else (0.0, 0.0, self.heading_deg)
+        return math.radians(r), math.radians(p), math.radians(y)
+
+
+class BodyRateLimit(Schema):
+    """Largest body rates (rad/s) the limit lap may fly (a rate-mode flight controller's
+    configured maximum)."""
+
+    roll_pitch: float = Field(gt=0, description="largest |p| and |q| (rad/s)")
+    yaw: float = Field(gt=0, description="largest |r| (rad/s)")
+
+
+class StartConfig(Schema):
+    """The limit lap's start state: at ``start_position_m``, level at ``start_yaw_deg``, rotors
+    at hover thrust, moving at ``velocity_mps`` (a flying start; default at rest)."""
+
+    velocity_mps: Vec3 = Field((0.0, 0.0, 0.0), description="world velocity at the start (m/s)")
 
 
 class TrackConfig(Schema):
@@ -61,6 +113,24 @@ class TrackConfig(Schema):
     time_limit_s: float = Field(60.0, gt=0, le=3600, description="lap time limit (s); the "
                                 "compiled lap allocates every controller step up to it")
     max_tilt_deg: float = Field(80.0, gt=0, lt=90, description="attitude limit → failed lap")
+    # Constraints of the limit lap only (the closed loop flies one lap through the acceptance
+    # radius); they state what the field's time-optimal planners state.
+    tolerance_m: float | list[float] | None = Field(
+        None, description="limit lap: radius (m) of each waypoint's ball, one for all or one "
+        "per waypoint; None: acceptance_radius_m")
+    max_body_rate_rad_s: BodyRateLimit | None = Field(
+        None, description="limit lap: largest body rates (rad/s); None: unlimited")
+    floor_m: float | None = Field(None, description="limit lap: lowest altitude (m); None: "
+                                  "0.1 m below the start or the ground")
+    ceiling_m: float | None = Field(None, description="limit lap: highest altitude (m)")
+    laps: int = Field(1, ge=1, le=20, description="limit lap: laps through the waypoints, the "
+                      "time of each reported")
+    end: Literal["free", "rest", "velocity"] = Field(
+        "free", description="limit lap: state at the last waypoint (any speed, at rest, or "
+        "end_velocity_mps)")
+    end_velocity_mps: Vec3 = Field((0.0, 0.0, 0.0), description="limit lap: world velocity "
+                                   "(m/s) at the end with end: velocity")
+    start: StartConfig = Field(default_factory=StartConfig, description="limit lap: start state")
 
     @model_validator(mode="before")
     @classmethod
@@ -81,6 +151,21 @@ class TrackConfig(Schema):
                 raise ValueError("give gates or waypoints_m, not both")
         if len(self.straight) != len(self.waypoints_m):
             raise ValueError("straight: needs one entry per waypoint (or gate)")
+        if isinstance(self.tolerance_m, list) and len(self.tolerance_m) != len(self.waypoints_m):
+            raise ValueError(f"tolerance_m: needs one entry per waypoint ({len(self.waypoints_m)})"
+                             f", got {len(self.tolerance_m)}")
+        if self.tolerance_m is not None and min(np.atleast_1d(self.tolerance_m)) < 0:
+            raise ValueError("tolerance_m: a radius cannot be negative")
+        if self.floor_m is not None and self.ceiling_m is not None \
+                and self.ceiling_m <= self.floor_m:
+            raise ValueError(f"ceiling_m: {self.ceiling_m:g} m is not above floor_m "
+                             f"{self.floor_m:g} m")
+        if self.floor_m is not None and self.start_position_m[2] < self.floor_m:
+            raise ValueError(f"floor_m: the start ({self.start_position_m[2]:g} m) is below "
+                             f"the floor ({self.floor_m:g} m)")
+        if self.ceiling_m is not None and self.start_position_m[2] > self.ceiling_m:
+            raise ValueError(f"ceiling_m: the start ({self.start_position_m[2]:g} m) is above "
+                             f"the ceiling ({self.ceiling_m:g} m)")
         route = self.route
         legs = np.linalg.norm(np.diff(route, axis=0), axis=1)
         if np.any(legs < MIN_LEG_M):

@@ -12,8 +12,8 @@ import numpy as np
 from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.io import ConfigError
-from casadrone.limit.nlp import TARGET_SIZE
-from casadrone.model import NP, NU, NX, quadrotor_model
+from casadrone.limit.gates import TARGET_SIZE, target_miss  # noqa: F401 (re-exported)
+from casadrone.model import NP, NU, quadrotor_model
 
 
 def bang_bang_fraction(u: np.ndarray, tol: float) -> float:
@@ -22,33 +22,30 @@ def bang_bang_fraction(u: np.ndarray, tol: float) -> float:
     return float(np.mean((u <= tol) | (u >= 1 - tol))) if u.size else float("nan")
 
 
-@lru_cache(maxsize=2)
-def scaled_cvodes(rtol: float = 1e-10, atol: float = 1e-10) -> ca.Function:
+@lru_cache(maxsize=4)
+def scaled_cvodes(rtol: float = 1e-10, atol: float = 1e-10, attitude: str = "euler"
+                  ) -> ca.Function:
     """CVODES on ẋ = h f(x, u, p) over [0, 1]: one interval of length h with a held command
     (the same explicit f and SUNDIALS integrator as the closed loop's reference, time-scaled so
-    that one Function serves every interval length)."""
-    x = ca.SX.sym("x", NX)
+    that one Function serves every interval length); ``attitude`` picks the Euler model or the
+    quaternion model (:mod:`casadrone.limit.attitude`)."""
+    if attitude == "quaternion":
+        from casadrone.limit.attitude import quaternion_f
+
+        f = quaternion_f()
+    else:
+        f = quadrotor_model().f
+    x = ca.SX.sym("x", f.size1_in(0))
     uph = ca.SX.sym("uph", NU + NP + 1)
     u, p, h = uph[:NU], uph[NU:NU + NP], uph[NU + NP]
-    dae = {"x": x, "p": uph, "ode": h * quadrotor_model().f(x, u, p)}
-    return ca.integrator("limit_resim", "cvodes", dae, 0.0, 1.0, {"abstol": atol, "reltol": rtol})
-
-
-def target_miss(pos: np.ndarray, tp: np.ndarray, kind: str) -> float:
-    """Distance (m) from ``pos`` to a target: outside the ball, or off the gate's opening (off
-    its plane, or beyond its shrunk half width / half height)."""
-    c, n, hw, hh, r = tp[0:3], tp[3:5], tp[5], tp[6], tp[7]
-    d = pos - c
-    if kind == "ball":
-        return max(0.0, float(np.linalg.norm(d)) - r)
-    along = n[0] * d[0] + n[1] * d[1]
-    lateral = -n[1] * d[0] + n[0] * d[1]
-    return float(np.linalg.norm([along, max(0.0, abs(lateral) - hw), max(0.0, abs(d[2]) - hh)]))
+    dae = {"x": x, "p": uph, "ode": h * f(x, u, p)}
+    return ca.integrator(f"limit_resim_{attitude}", "cvodes", dae, 0.0, 1.0,
+                         {"abstol": atol, "reltol": rtol})
 
 
 def resimulate(airframe: Airframe, lap) -> np.ndarray:
     """Node states of the lap's commands integrated by CVODES from its start state."""
-    step = scaled_cvodes()
+    step = scaled_cvodes(attitude=getattr(lap, "attitude", "euler"))
     h = np.diff(lap.t)
     X = np.zeros_like(lap.x)
     X[0] = lap.x[0]

@@ -12,11 +12,12 @@ receives and what the re-simulation integrates.
 
 Phases: one per leg (route segment), each with its own free duration T_k and ``intervals``
 uniform intervals of length T_k / N. The end node of leg k must lie in target k: a **ball**
-(|p − c| ≤ r) or a **gate** (on the gate's vertical plane, inside its opening shrunk by a
-clearance, crossing it forwards). Objective: Σ T_k.
+(|p − c| ≤ r) or a **gate** (rectangle, circle or polygon of any orientation: on its plane,
+inside its opening shrunk by a clearance, crossing it forwards; :mod:`casadrone.limit.gates`).
+Objective: Σ T_k.
 
 Everything that varies between airframes or track geometries is an NLP *parameter*
-``P = [p (model parameters), x_start (start state), targets (8 per leg)]``; bounds (tilt,
+``P = [p (model parameters), x_start (start state), targets (TARGET_SIZE per leg)]``; bounds (tilt,
 ground, command range) are solver inputs. So one NLP and one IPOPT instance serve every
 candidate on a track layout (number and kind of legs), and ``lam_p`` of the solution is
 ∂(lap)/∂P by the envelope theorem.
@@ -25,27 +26,38 @@ candidate on a track layout (number and kind of legs), and ``lam_p`` of the solu
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import casadi as ca
 import numpy as np
 
+from casadrone.limit.gates import (  # noqa: F401 (re-exported: the NLP's target layout)
+    TARGET_SIZE,
+    TargetKind,
+    target_rows,
+    target_vector,
+)
 from casadrone.model import NP, quadrotor_model, rotation_matrix, unpack_params
-
-TargetKind = Literal["ball", "gate"]
-#: Parameters per target: centre (3), unit normal in the horizontal plane (2), half width,
-#: half height (both already shrunk by the clearance), ball radius.
-TARGET_SIZE = 8
 
 
 @dataclass(frozen=True)
 class OcpModel:
-    """Dynamics ``f(x, u, p) -> xdot`` of an optimal-control model and how to read its state."""
+    """Dynamics ``f(x, u, p) -> xdot`` of an optimal-control model and how to read its state.
+
+    ``rates`` and ``rotor`` are the state slices of the body rates and the rotor states (None
+    where the model has none); ``up_z(x)`` is the world-vertical component of the body z axis,
+    cos(total tilt), for the tilt cone (None: the model has no attitude state); ``attitude``
+    names the representation ("euler", "quaternion", or "none").
+    """
 
     name: str
     f: ca.Function
     world_velocity: Callable  # (x: SX) -> SX (3,), world-frame velocity (m/s)
+    rates: slice | None = None
+    rotor: slice | None = None
+    up_z: Callable | None = None
+    attitude: str = "none"
 
     @property
     def nx(self) -> int:
@@ -61,12 +73,31 @@ class OcpModel:
 
 
 def quadrotor_ocp_model() -> OcpModel:
-    """The 16-state model of :mod:`casadrone.model` (thrust lag included)."""
+    """The 16-state ZYX-Euler model of :mod:`casadrone.model` (thrust lag included)."""
 
     def vw(x):
         return rotation_matrix(x[9], x[10], x[11]) @ x[3:6]
 
-    return OcpModel("quadrotor", quadrotor_model().f, vw)
+    return OcpModel("quadrotor", quadrotor_model().f, vw, rates=slice(6, 9),
+                    rotor=slice(12, 16), up_z=lambda x: ca.cos(x[9]) * ca.cos(x[10]),
+                    attitude="euler")
+
+
+def quaternion_ocp_model() -> OcpModel:
+    """The 17-state quaternion model of :mod:`casadrone.limit.attitude`: no singularity."""
+    from casadrone.limit.attitude import QUAT, quat_rotation, quaternion_f
+
+    def up_z(x):
+        q = x[QUAT]
+        return (q[0] ** 2 + q[3] ** 2 - q[1] ** 2 - q[2] ** 2) / ca.sumsqr(q)
+
+    return OcpModel("quadrotor-quat", quaternion_f(), lambda x: quat_rotation(x[QUAT]) @ x[3:6],
+                    rates=slice(6, 9), rotor=slice(13, 17), up_z=up_z, attitude="quaternion")
+
+
+#: Full-state models of the limit lap, by attitude representation.
+ATTITUDE_MODELS: dict[str, Callable[[], OcpModel]] = {
+    "euler": quadrotor_ocp_model, "quaternion": quaternion_ocp_model}
 
 
 def point_mass_ocp_model() -> OcpModel:
@@ -106,7 +137,8 @@ class Layout:
     def n_coll(self) -> int:
         """Collocation states per interval (none for shooting)."""
         return self.degree if self.method == "collocation" else 0
-    end_at_rest: bool = False  # zero world velocity at the last target
+    end_at_rest: bool = False  # world velocity fixed at the last target (at rest by default)
+    tilt_cone: bool = False  # a row per node after the start: up_z(x) ≥ cos(largest tilt)
 
     @property
     def n_legs(self) -> int:
@@ -127,6 +159,23 @@ class Nlp:
     warm: ca.Function
     lbg: np.ndarray
     ubg: np.ndarray
+    #: The symbolic NLP ``{"x": w, "p": P, "f": objective, "g": constraints}`` as given to
+    #: ``nlpsol`` (co-design wraps it: θ appended to w, p = p(θ) substituted); its row bounds are
+    #: :meth:`row_bounds`, the box on w the limit lap's ``bounds``.
+    problem: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def row_bounds(self, cos_tilt: float = -np.inf, end_velocity: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """(lbg, ubg) with the tilt cone's rows at ``cos_tilt`` (cos of the largest total tilt)
+        and the end rows at the world ``end_velocity`` (m/s; default at rest)."""
+        lbg, ubg = self.lbg.copy(), self.ubg.copy()
+        n_path = self.layout.n_intervals if self.layout.tilt_cone else 0
+        if n_path:
+            lbg[len(lbg) - n_path:] = cos_tilt
+        if self.layout.end_at_rest and end_velocity is not None:
+            at = slice(len(lbg) - n_path - 3, len(lbg) - n_path)
+            lbg[at] = ubg[at] = np.asarray(end_velocity, float)
+        return lbg, ubg
 
     def pack(self, T: np.ndarray, X: np.ndarray, U: np.ndarray, Z: np.ndarray | None = None
              ) -> np.ndarray:
@@ -196,32 +245,21 @@ def collocation_interval(model: OcpModel, degree: int) -> ca.Function:
                        ["x", "z", "u", "p", "h"], ["res", "x_end"])
 
 
-def _target_rows(x, vw, tp, kind: TargetKind):
-    """Constraint rows (expression, lower, upper) of passing target ``tp`` at node state x."""
-    c, n, hw, hh, r = tp[0:3], tp[3:5], tp[5], tp[6], tp[7]
-    d = x[0:3] - c
-    if kind == "ball":
-        return [(ca.sumsqr(d) - r**2, -np.inf, 0.0)]
-    along = n[0] * d[0] + n[1] * d[1]  # signed distance to the gate plane (m)
-    lateral = -n[1] * d[0] + n[0] * d[1]  # in the plane, left of the direction of travel (m)
-    return [
-        (along, 0.0, 0.0),
-        (lateral - hw, -np.inf, 0.0), (-lateral - hw, -np.inf, 0.0),
-        (d[2] - hh, -np.inf, 0.0), (-d[2] - hh, -np.inf, 0.0),
-        (n[0] * vw[0] + n[1] * vw[1], 0.0, np.inf),  # crossing forwards
-    ]
-
-
 def _leg_end_rows(model: OcpModel, layout: Layout, X, targets) -> list:
     """Constraint rows of every leg's end node (its target) and, if asked, rest at the end."""
     N = layout.intervals
     rows = []
     for k, kind in enumerate(layout.kinds):
         xe = X[:, (k + 1) * N]
-        rows += _target_rows(xe, model.world_velocity(xe),
+        rows += target_rows(xe, model.world_velocity(xe),
                              targets[TARGET_SIZE * k:TARGET_SIZE * (k + 1)], kind)
     if layout.end_at_rest:
         rows.append((model.world_velocity(X[:, layout.n_intervals]), 0.0, 0.0))
+    if layout.tilt_cone:  # the bound (cos of the largest tilt) is set by Nlp.row_bounds
+        if model.up_z is None:
+            raise ValueError(f"model {model.name} has no attitude for a tilt cone")
+        rows.append((ca.vertcat(*[model.up_z(X[:, i]) for i in range(1, layout.n_intervals + 1)]),
+                     -np.inf, np.inf))
     return rows
 
 
@@ -438,7 +476,7 @@ def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int 
                 cold=ca.nlpsol(name, "ipopt", nlp, ipopt_options(tol, max_iter, False) | extra),
                 warm=ca.nlpsol(name + "_warm", "ipopt", nlp,
                                ipopt_options(tol, max_iter, True) | extra),
-                lbg=lbg, ubg=ubg)
+                lbg=lbg, ubg=ubg, problem=dict(nlp))
     _NLPS[key] = built
     return built
 
@@ -466,12 +504,15 @@ class NlpSolution:
 
 
 def solve(nlp: Nlp, w0: np.ndarray, P: np.ndarray, lbx: np.ndarray, ubx: np.ndarray,
-          warm: NlpPoint | None = None) -> NlpSolution:
-    """Solve from ``w0`` (or from a primal-dual ``warm`` point); never raises."""
+          warm: NlpPoint | None = None, lbg: np.ndarray | None = None,
+          ubg: np.ndarray | None = None) -> NlpSolution:
+    """Solve from ``w0`` (or from a primal-dual ``warm`` point); never raises. Row bounds
+    default to the NLP's own (:meth:`Nlp.row_bounds` gives others)."""
     import time
 
     start = time.perf_counter()
-    args = dict(x0=np.clip(w0, lbx, ubx), p=P, lbx=lbx, ubx=ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+    args = dict(x0=np.clip(w0, lbx, ubx), p=P, lbx=lbx, ubx=ubx,
+                lbg=nlp.lbg if lbg is None else lbg, ubg=nlp.ubg if ubg is None else ubg)
     solver = nlp.cold
     if warm is not None:
         solver = nlp.warm
@@ -489,16 +530,3 @@ def solve(nlp: Nlp, w0: np.ndarray, P: np.ndarray, lbx: np.ndarray, ubx: np.ndar
         point = NlpPoint(np.asarray(w0, float), np.zeros(len(lbx)), np.zeros(len(nlp.lbg)),
                          np.zeros(len(P)))
     return NlpSolution(success, status, f, point, iters, time.perf_counter() - start)
-
-
-def target_vector(centres: np.ndarray, kinds: tuple[TargetKind, ...], headings: np.ndarray,
-                  half_widths: np.ndarray, half_heights: np.ndarray, radius: float) -> np.ndarray:
-    """The ``targets`` part of P for legs ending at ``centres`` (L × 3, m)."""
-    out = np.zeros((len(kinds), TARGET_SIZE))
-    for k in range(len(kinds)):
-        out[k, 0:3] = centres[k]
-        out[k, 3:5] = np.cos(headings[k]), np.sin(headings[k])
-        out[k, 5:7] = half_widths[k], half_heights[k]
-        out[k, 7] = radius
-    return out.ravel()
-

@@ -135,7 +135,7 @@ def limit_setup(problem: ProblemConfig, template) -> dict:
     template_theta = {k: float(getattr(template, k)) for k in keys} if keys else theta_of(template)
     # resimulate: every converged warm start is flown by CVODES (~30 ms) and counts only if it
     # passes the targets, so a lap that exploits the discretisation never reaches the front.
-    return {"limit": LimitLapOptions(starts=("closed-loop",), lower_bound=False,
+    return {"limit": LimitLapOptions(starts=("closed-loop",), point_mass_reference=False,
                                      resimulate=True, sensitivities=False),
             "limit_references": (template_theta, centre)}
 

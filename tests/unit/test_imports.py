@@ -39,6 +39,8 @@ STAGES: tuple[str, ...] = (
     "casadrone.guidance",
     "casadrone.lapdriver",
     "casadrone.simulate",
+    "casadrone.limit.attitude",
+    "casadrone.limit.gates",
     "casadrone.limit.nlp",
     "casadrone.limit.check",
     "casadrone.limit.lap",

@@ -107,12 +107,19 @@ def test_assembled_derivatives_equal_casadi_ad():
 
 def test_gate_miss_geometry():
     """A gate 2 m wide (half 1 m) facing north: inside → 0; 0.5 m beside the opening → 0.5 m;
-    0.3 m in front of the plane → 0.3 m."""
-    tp = np.array([0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, 0.0])
-    assert target_miss(np.array([0.9, 0.0, 1.5]), tp, "gate") == 0.0
+    0.3 m in front of the plane → 0.3 m; the same gate given by its frame (rpy) or heading."""
+    from casadrone.limit.gates import gate_frame
+
+    tp = target_vector(np.array([[0.0, 0.0, 1.0]]), ("gate",), np.array([math.pi / 2]),
+                       np.array([1.0]), np.array([1.0]), 0.0)
+    assert target_miss(np.array([0.9, 0.0, 1.5]), tp, "gate") < 1e-15
     np.testing.assert_allclose(target_miss(np.array([-1.5, 0.0, 1.0]), tp, "gate"), 0.5)
     np.testing.assert_allclose(target_miss(np.array([0.0, -0.3, 1.0]), tp, "gate"), 0.3)
-    ball = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.5])
+    same = target_vector(np.array([[0.0, 0.0, 1.0]]), ("gate",), np.zeros(1), np.array([1.0]),
+                         np.array([1.0]), 0.0, frames=[gate_frame(0, 0, math.pi / 2)])
+    np.testing.assert_allclose(same, tp, atol=1e-15)
+    ball = target_vector(np.zeros((1, 3)), ("ball",), np.zeros(1), np.zeros(1), np.zeros(1),
+                         0.5)
     np.testing.assert_allclose(target_miss(np.array([0.0, 2.0, 0.0]), ball, "ball"), 1.5)
 
 
@@ -206,3 +213,183 @@ def test_assemble_sums_duplicate_triplets_like_numpy(seed):
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-14)
     assert A.nnz() == len(set(zip(rows.tolist(), cols.tolist(), strict=True)))
     assert np.bincount(rows * ncol + cols).max() >= 3  # duplicates were exercised
+
+
+def test_double_integrator_with_rate_limit_and_floor_matches_its_analytic_time():
+    """Vertical out and back under |a| ≤ A and |v| ≤ V (the rate limit) with a floor at z = 0:
+    rest at H = 3V²/A, touch the floor, climb back to H (free end). Down, rest to rest:
+    accelerate V/A, cruise 2V/A, brake V/A (4V/A); up from rest: V/A then cruise (H − V²/2A)/V
+    = 2.5V/A: T = 7.5 V/A (without the rate limit it would be (2√3 + √6) V/A = 5.9 V/A). With
+    28 intervals per leg every switch falls on a node, so the grid's optimum is the analytic
+    one. A floor 1 cm above the target makes it unreachable: IPOPT says infeasible."""
+    A, V = 2.0, 3.0
+    H = 3 * V**2 / A
+    model = _double_integrator()
+    kinds = ("ball", "ball")
+    N, L = 28, 2
+    M = N * L
+    nlp = build_nlp(model, Layout(kinds, N))
+    P = np.concatenate([[0.0], [0, 0, H, 0, 0, 0], target_vector(
+        np.array([[0, 0, 0], [0, 0, H]], float), kinds, np.zeros(L), np.zeros(L), np.zeros(L),
+        0.0)])
+
+    def run(floor):
+        xl, xu = np.full((M + 1, 6), -np.inf), np.full((M + 1, 6), np.inf)
+        xl[:, 3:6], xu[:, 3:6] = -V, V
+        xl[:, 2] = floor
+        xl[0] = xu[0] = [0, 0, H, 0, 0, 0]
+        lbx = nlp.pack(np.full(L, 1e-2), xl, np.full((M, 3), -A))
+        ubx = nlp.pack(np.full(L, 1e2), xu, np.full((M, 3), A))
+        X0 = np.zeros((M + 1, 6))
+        X0[:, 2] = np.r_[np.linspace(H, 0, N + 1), np.linspace(0, H, N + 1)[1:]]
+        return solve(nlp, nlp.pack(np.full(L, 3.0), X0, np.zeros((M, 3))), P, lbx, ubx)
+
+    sol = run(0.0)
+    assert sol.success, sol.return_status
+    T, X, _ = nlp.unpack(sol.point.w)
+    np.testing.assert_allclose(T, [4 * V / A, 3.5 * V / A], rtol=1e-6)  # observed 1e-9
+    assert X[:, 2].min() >= -1e-6 and np.abs(X[:, 5]).max() <= V * (1 + 1e-7)  # IPOPT relaxes
+    # its bounds by 1e-8 relative
+    assert not run(0.01).success
+
+
+def test_quaternion_model_equals_euler_model_where_both_hold():
+    """On random states away from θ = ±90° the quaternion model's derivative equals the Euler
+    model's: positions, body velocities, rates and rotors directly, the quaternion's rate
+    against the central difference of q(Euler angles) along the Euler rates."""
+    from casadrone.airframe import build_airframe
+    from casadrone.limit.attitude import (
+        euler_rotation_np,
+        euler_states_to_quat,
+        euler_to_quat,
+        quat_rotation,
+        quat_states_to_euler,
+        quaternion_f,
+    )
+    from casadrone.model import quadrotor_model
+
+    frame = build_airframe(load_airframe("SY250"))
+    rng = np.random.default_rng(7)
+    fe, fq = quadrotor_model().f, quaternion_f()
+    same = [*range(9), 12, 13, 14, 15]
+    for _ in range(20):
+        x = rng.normal(size=16)
+        x[9:12] = rng.uniform(-3, 3), rng.uniform(-1.4, 1.4), rng.uniform(-3, 3)
+        x[12:16] = rng.uniform(0, 8, 4)
+        u = rng.uniform(0, 1, 4)
+        de = np.array(fe(x, u, frame.p)).ravel()
+        xq = euler_states_to_quat(x)[0]
+        dq = np.array(fq(xq, u, frame.p)).ravel()
+        np.testing.assert_allclose(dq[[*range(9), 13, 14, 15, 16]], de[same], rtol=1e-12,
+                                   atol=1e-11)  # observed 4e-15
+        h = 1e-6
+        fd = (euler_to_quat(*(x[9:12] + h * de[9:12]))
+              - euler_to_quat(*(x[9:12] - h * de[9:12]))) / (2 * h)
+        np.testing.assert_allclose(dq[9:13], fd, atol=1e-7)  # observed 1e-9
+        np.testing.assert_allclose(np.array(quat_rotation(xq[9:13])),
+                                   euler_rotation_np(*x[9:12]), atol=1e-14)
+        np.testing.assert_allclose(quat_states_to_euler(xq)[0], x, atol=1e-12)
+    # R(q) is a rotation for any non-zero q (normalised inside)
+    R = np.array(quat_rotation(3.0 * np.array([0.3, -0.5, 0.7, 0.1])))
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-14)
+
+
+def test_track_limits_enter_the_bounds_and_targets():
+    """floor_m, ceiling_m, max_body_rate_rad_s and tolerance_m land on the right entries of the
+    decision vector's box and the targets; laps repeat the waypoints; the tilt cone rows get
+    cos(max tilt) and the end rows the end velocity."""
+    from casadrone.airframe import build_airframe
+    from casadrone.limit.lap import bounds, row_bounds
+    from casadrone.limit.nlp import TARGET_SIZE, quaternion_ocp_model
+
+    trk = load(TrackConfig, DEFAULT_TRACK, [
+        "floor_m=-0.5", "ceiling_m=30", "max_body_rate_rad_s={roll_pitch: 12, yaw: 3}",
+        "tolerance_m=[0.3, 0.4, 0.5, 0.6]", "laps=2", "end=velocity",
+        "end_velocity_mps=[1, 2, 3]"])
+    opts = LimitLapOptions(attitude="quaternion", tilt_limit="cone", intervals=2)
+    tg = track_targets(trk, opts)
+    assert len(tg.kinds) == 1 + 4 + 4  # climb, two laps of four
+    radii = tg.vector.reshape(-1, TARGET_SIZE)[:, 14]
+    np.testing.assert_allclose(radii, [1.0, 0.3, 0.4, 0.5, 0.6, 0.3, 0.4, 0.5, 0.6])
+    assert tg.lap_ends == (4, 8)
+    frame = build_airframe(load_airframe("SY250"))
+    # collocation: the same rows and box, built without compiling the shooting blocks
+    nlp = build_nlp(quaternion_ocp_model(), Layout(tg.kinds, 2, degree=1, method="collocation",
+                                                   end_at_rest=True, tilt_cone=True))
+    lbx, ubx = bounds(nlp, frame, trk, opts, point_mass=False)
+    _, xl, ul = nlp.unpack(lbx)
+    _, xu, uu = nlp.unpack(ubx)
+    assert np.all(xl[1:, 2] == -0.5) and np.all(xu[1:, 2] == 30)
+    np.testing.assert_array_equal(xu[1:, 6:9], np.tile([12, 12, 3], (len(xu) - 1, 1)))
+    np.testing.assert_array_equal(xl[1:, 13:17], 0.0)
+    np.testing.assert_allclose(xu[1:, 13:17], frame.thrust_gain)
+    np.testing.assert_allclose(np.linalg.norm(xl[0, 9:13]), 1.0)  # the start's quaternion
+    assert np.all(ul == 0) and np.all(uu == 1)
+    lbg, ubg = row_bounds(nlp, trk, opts)
+    M = nlp.layout.n_intervals
+    np.testing.assert_allclose(lbg[-M:], math.cos(math.radians(80.0)))
+    np.testing.assert_allclose(lbg[-M - 3:-M], [1, 2, 3])
+    np.testing.assert_allclose(ubg[-M - 3:-M], [1, 2, 3])
+
+
+@pytest.mark.parametrize("override, key", [
+    (["tolerance_m=[0.3, 0.4]"], "tolerance_m"),
+    (["floor_m=2", "ceiling_m=1"], "ceiling_m"),
+    (["floor_m=1"], "floor_m"),
+    (["max_body_rate_rad_s={roll_pitch: -1, yaw: 3}"], "roll_pitch"),
+    (["end=upside-down"], "end"),
+    (["laps=0"], "laps"),
+])
+def test_bad_track_limits_are_refused_naming_the_key(override, key):
+    with pytest.raises(ConfigError) as err:
+        load(TrackConfig, DEFAULT_TRACK, override)
+    assert key in str(err.value)
+
+
+def _gate_lap(kind, half, edges=None):
+    """Double integrator (|a| ≤ 2 per axis) from rest at the origin through a gate at x = 5
+    (centre 6 m to the left, flown east: the sideways flight sets the time) to (10, 0, 0)."""
+    from casadrone.limit.gates import MAX_EDGES
+
+    model = _double_integrator()
+    kinds = (kind, "ball")
+    N, L = 20, 2
+    M = N * L
+    nlp = build_nlp(model, Layout(kinds, N))
+    E = np.tile([0.0, 0.0, 1.0], (L, MAX_EDGES, 1))
+    if edges is not None:
+        E[0] = edges
+    P = np.concatenate([[0.0], np.zeros(6), target_vector(
+        np.array([[5, 6, 0], [10, 0, 0]], float), kinds, np.zeros(L), np.array([half, 0]),
+        np.array([half, 0]), 0.0, edges=E)])
+    lbx = nlp.pack(np.full(L, 1e-2), np.r_[np.zeros((1, 6)), np.full((M, 6), -np.inf)],
+                   np.full((M, 3), -2.0))
+    ubx = nlp.pack(np.full(L, 1e2), np.r_[np.zeros((1, 6)), np.full((M, 6), np.inf)],
+                   np.full((M, 3), 2.0))
+    X0 = np.zeros((M + 1, 6))
+    X0[:, 0] = np.linspace(0, 10, M + 1)
+    sol = solve(nlp, nlp.pack(np.full(L, 1.5), X0, np.zeros((M, 3))), P, lbx, ubx)
+    assert sol.success, sol.return_status
+    return nlp.unpack(sol.point.w)
+
+
+def test_polygon_gate_equal_to_its_bounding_rectangle():
+    """A polygon gate whose vertices are a rectangle's corners gives the rectangle's lap (the
+    same constraint set, other rows); the opening binds (a wide gate is faster), and the lap
+    passes at the opening's edge nearest the line (y = 6 − 0.5)."""
+    from casadrone.limit.gates import polygon_edges
+
+    T_rect, X_rect, _ = _gate_lap("gate", 0.5)
+    square = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]])
+    T_poly, X_poly, _ = _gate_lap("polygon", 0.5, polygon_edges(square, 0.0))
+    np.testing.assert_allclose(T_poly, T_rect, rtol=1e-7)  # observed 1e-10
+    np.testing.assert_allclose(X_poly[20, 1], X_rect[20, 1], atol=1e-6)  # x has slack: only
+    # the time and the sideways pass are unique
+    np.testing.assert_allclose(X_rect[20, 1], 5.5, atol=1e-6)  # on the opening's edge
+    T_wide, _, _ = _gate_lap("gate", 3.0)
+    assert T_wide.sum() < T_rect.sum() - 1e-3
+    # the inscribed circle: a subset of the square touching it where the lap passes, so no
+    # faster and barely slower (observed 1.7 mm off the touching point, 1e-6 relative slower)
+    T_circle, X_circle, _ = _gate_lap("circle", 0.5)
+    assert X_circle[20, 1] >= 5.5 - 1e-6
+    assert T_rect.sum() * (1 - 1e-8) <= T_circle.sum() <= T_rect.sum() * (1 + 1e-4)

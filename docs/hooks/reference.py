@@ -1,0 +1,380 @@
+"""mkdocs hook: the pages written from the code, not by hand.
+
+A page holding one of the markers below gets it replaced, at every build, by text generated from
+what the package says now:
+
+- ``<!-- generated: yaml-reference -->``: every key of every YAML schema (pydantic), with its
+  type, unit, bounds, default and description, walked from the schemas ``casadrone validate``
+  knows, nested sections included;
+- ``<!-- generated: cli-reference -->``: every command of the typer app, with its usage, help,
+  examples, arguments and options;
+- ``<!-- generated: benchmarks -->``: the recorded benchmark results (``benchmarks/RESULTS-*.md``,
+  in the order of ``benchmarks/collect.py``);
+- ``<!-- generated: changelog -->``: ``CHANGELOG.md``.
+
+The same walk over the schemas is what ``tests/unit/test_docs_reference.py`` checks: a key without
+a description fails it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import json
+import re
+import sys
+import types
+import typing
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel
+from pydantic.fields import FieldInfo
+
+ROOT = Path(__file__).resolve().parents[2]
+if str(ROOT) not in sys.path:  # the checkout's package and benchmarks, whatever the install
+    sys.path.insert(0, str(ROOT))
+
+#: The unit a key's suffix names (the project's rule: units in keys), longest suffix first.
+UNIT_SUFFIXES: tuple[tuple[str, str], ...] = (
+    ("_rpm_per_v", "rpm/V"), ("_kgm3", "kg/m³"), ("_kgm2", "kg·m²"), ("_kgpm", "kg/m"),
+    ("_mps2", "m/s²"), ("_radps", "rad/s"), ("_degps", "deg/s"), ("_mps", "m/s"), ("_ohm", "Ω"),
+    ("_deg", "deg"), ("_rad", "rad"), ("_kg", "kg"), ("_mm", "mm"), ("_m2", "m²"), ("_hz", "Hz"),
+    ("_pct", "%"), ("_n", "N"), ("_nm", "N·m"), ("_v", "V"), ("_a", "A"), ("_w", "W"),
+    ("_s", "s"), ("_m", "m"), ("_g", "g"),
+)
+
+#: Where each top-level schema's files live, for the page's headings.
+FOLDER_TITLES = {
+    "airframes": "Airframes",
+    "controllers": "Controllers",
+    "tracks": "Tracks",
+    "references": "Reference measurements (paper Table 4)",
+    "problems": "Problems",
+}
+
+
+# --------------------------------------------------------------------------------------------
+# YAML reference
+# --------------------------------------------------------------------------------------------
+
+
+def top_level_schemas() -> list[tuple[str, type[BaseModel]]]:
+    """(folder, schema) of every kind of YAML file ``casadrone validate`` knows."""
+    for name in ("casadrone.config.validation", "casadrone.validation"):
+        try:
+            module = importlib.import_module(name)
+        except ImportError:
+            continue
+        if hasattr(module, "SCHEMAS_BY_FOLDER"):
+            return [(folder, module.schema_class(entry))
+                    for folder, entry in module.SCHEMAS_BY_FOLDER.items()]
+    raise ImportError("no module of casadrone holds SCHEMAS_BY_FOLDER")
+
+
+def _strip(annotation: Any) -> Any:
+    """The annotation without ``Annotated[...]`` metadata."""
+    while typing.get_origin(annotation) is typing.Annotated:
+        annotation = typing.get_args(annotation)[0]
+    return annotation
+
+
+def nested_models(annotation: Any) -> Iterator[tuple[str, type[BaseModel]]]:
+    """Schemas inside a field's annotation, with the path step that reaches them (``""`` for the
+    field itself, ``"[]"`` for items of a list, ``"{}"`` for values of a mapping)."""
+    annotation = _strip(annotation)
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        yield "", annotation
+        return
+    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin in (list, tuple, set, frozenset) or origin is typing.Sequence:
+        for arg in args:
+            for step, model in nested_models(arg):
+                yield "[]" + step, model
+    elif origin is dict or origin is typing.Mapping:
+        for step, model in nested_models(args[-1] if args else Any):
+            yield "{}" + step, model
+    elif origin in (typing.Union, types.UnionType):
+        for arg in args:
+            yield from nested_models(arg)
+
+
+def walk(model: type[BaseModel], prefix: str = "",
+         seen: tuple[type, ...] = ()) -> Iterator[tuple[str, type[BaseModel], str, FieldInfo]]:
+    """Every key of ``model`` and of the schemas nested in it, depth first: (dotted path, the
+    schema holding the key, the key, its field)."""
+    for name, field in model.model_fields.items():
+        path = f"{prefix}{name}"
+        yield path, model, name, field
+        for step, sub in dict.fromkeys(nested_models(field.annotation)):
+            if sub not in seen and sub is not model:
+                yield from walk(sub, f"{path}{step}.", (*seen, model))
+
+
+def unit_of(key: str) -> str:
+    """The unit named by the key's suffix (``lambda_a_mm`` → mm), or ``""``."""
+    for suffix, unit in UNIT_SUFFIXES:
+        if key.endswith(suffix):
+            return unit
+    return ""
+
+
+_BOUND_SIGNS = {"gt": ">", "ge": "≥", "lt": "<", "le": "≤"}
+
+
+def _bounds(metadata: list[Any]) -> list[str]:
+    out = []
+    for item in metadata:
+        if isinstance(item, FieldInfo):
+            out += _bounds(item.metadata)
+            continue
+        for attr, sign in _BOUND_SIGNS.items():
+            value = getattr(item, attr, None)
+            if value is not None:
+                out.append(f"{sign} {value:g}" if isinstance(value, int | float) else
+                           f"{sign} {value}")
+        for attr, word in (("min_length", "at least {} items"), ("max_length", "at most {} items")):
+            value = getattr(item, attr, None)
+            if value is not None:
+                out.append(word.format(value))
+    return out
+
+
+def bounds_of(field: FieldInfo) -> str:
+    """The field's bounds as text, including those on the items of a tuple or list."""
+    own = _bounds(field.metadata)
+    inner: list[str] = []
+    for arg in typing.get_args(_strip(field.annotation)):
+        if typing.get_origin(arg) is typing.Annotated:
+            inner = _bounds(list(typing.get_args(arg)[1:]))
+            break
+    text = ", ".join(own)
+    if inner:
+        text = ", ".join(filter(None, [text, "each " + ", ".join(inner)]))
+    return text
+
+
+def type_name(annotation: Any) -> str:
+    """A short, readable name of a field's type."""
+    annotation = _strip(annotation)
+    if annotation is type(None):
+        return "null"
+    if isinstance(annotation, type):
+        if issubclass(annotation, BaseModel):
+            return "section"
+        return {"str": "text", "float": "number", "int": "integer", "bool": "true/false",
+                "Path": "path", "PosixPath": "path"}.get(annotation.__name__, annotation.__name__)
+    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin is typing.Literal:
+        return " | ".join(f"`{a}`" for a in args)
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(dict.fromkeys(type_name(a) for a in args))
+    if origin is tuple:
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"list of {type_name(args[0])}"
+        names = [type_name(a) for a in args]
+        return (f"{len(names)} × {names[0]}" if len(set(names)) == 1
+                else "(" + ", ".join(names) + ")")
+    if origin in (list, set, frozenset) or origin is typing.Sequence:
+        return f"list of {type_name(args[0]) if args else 'any'}"
+    if origin is dict or origin is typing.Mapping:
+        return f"mapping of {type_name(args[-1]) if args else 'any'}"
+    return str(annotation).replace("typing.", "")
+
+
+def default_of(field: FieldInfo) -> str:
+    """The default as a YAML reader would write it, ``required`` when there is none."""
+    if field.is_required():
+        return "required"
+    value = field.get_default(call_default_factory=True)
+    if isinstance(value, BaseModel):
+        return "(its defaults)"
+    if isinstance(value, Path):
+        value = str(value)
+    if isinstance(value, tuple):
+        value = list(value)
+    try:
+        text = json.dumps(value, ensure_ascii=False, default=str)
+    except (TypeError, ValueError):
+        text = repr(value)
+    return f"`{text}`" if len(text) <= 60 else f"`{text[:57]}…`"
+
+
+def _cell(text: str) -> str:
+    return " ".join(str(text).split()).replace("|", "\\|")
+
+
+def _doc(model: type[BaseModel]) -> str:
+    doc = inspect.getdoc(model) or ""
+    if doc == inspect.getdoc(BaseModel) or model.__doc__ is None:
+        return ""
+    return doc
+
+
+def yaml_reference() -> str:
+    """The YAML reference page's body: one section per kind of file, one table row per key."""
+    out: list[str] = []
+    for folder, schema in top_level_schemas():
+        title = FOLDER_TITLES.get(folder, folder.capitalize())
+        out += [f"## {title}", "",
+                f"Files in `{folder}/` (schema `{schema.__module__}.{schema.__qualname__}`). "
+                f"Check any of them with `casadrone validate FILE`.", ""]
+        doc = _doc(schema)
+        if doc:
+            out += [doc, ""]
+        out += ["| key | type | unit | bounds | default | description |",
+                "|---|---|---|---|---|---|"]
+        for path, _, name, field in walk(schema):
+            out.append("| " + " | ".join([
+                f"`{path}`", _cell(type_name(field.annotation)), unit_of(name),
+                _cell(bounds_of(field)), _cell(default_of(field)),
+                _cell(field.description or "")]) + " |")
+        out.append("")
+        sections = dict.fromkeys((model, path.rsplit(".", 1)[0]) for path, model, _, _ in
+                                 walk(schema) if model is not schema)
+        notes = [(model, where) for model, where in sections if _doc(model)]
+        if notes:
+            out += ["Sections:", ""]
+            out += [f"- `{where}` ({model.__qualname__}): {' '.join(_doc(model).split())}"
+                    for model, where in notes]
+            out.append("")
+    return "\n".join(out)
+
+
+# --------------------------------------------------------------------------------------------
+# CLI reference
+# --------------------------------------------------------------------------------------------
+
+
+def _click_app():
+    import typer
+
+    from casadrone.cli import app
+
+    return typer.main.get_command(app)
+
+
+def _param_row(param: Any, ctx: Any) -> str:
+    import enum
+
+    kind = type(param).__name__
+    if "Argument" in kind:
+        name = f"`{(param.metavar or param.name).upper()}`"
+    else:
+        name = ", ".join(f"`{o}`" for o in (*param.opts, *param.secondary_opts))
+    if getattr(param, "is_flag", False):
+        ptype = "flag"
+    elif hasattr(param, "display_type"):  # typer >= 0.20: its own parameter classes
+        ptype = param.display_type(ctx).strip("<>").replace("|", " | ")
+        ptype = re.sub(r"^list\[(\w+)\]$", r"\1", ptype)
+        ptype = {"str": "text", "Path": "path", "float": "number", "int": "integer",
+                 "int range": "integer"}.get(ptype, ptype)
+    else:
+        ptype = param.type.name
+    if getattr(param, "multiple", False) or param.nargs == -1:
+        ptype += " (repeatable)"
+    value = param.default.value if isinstance(param.default, enum.Enum) else param.default
+    if param.required:
+        default = "required"
+    elif value is None or value == () or value is False or value == []:
+        default = ""
+    else:
+        default = f"`{value}`"
+    help_text = getattr(param, "help", "") or ""
+    return f"| {name} | {_cell(ptype)} | {_cell(default)} | {_cell(help_text)} |"
+
+
+def _paragraphs(text: str) -> str:
+    """Click's help text as Markdown: ``\\b`` blocks (kept verbatim) become code blocks."""
+    out = []
+    for block in re.split(r"\n\s*\n", inspect.cleandoc(text)):
+        if block.startswith("\b"):
+            out.append("```text\n" + block.lstrip("\b").strip("\n") + "\n```")
+        else:
+            out.append(block)
+    return "\n\n".join(out)
+
+
+def cli_reference() -> str:
+    """The CLI reference page's body: one section per command of ``casadrone``."""
+    group = _click_app()
+    root = group.context_class(group, info_name="casadrone")
+    out = [f"`casadrone --help`: {group.help}", ""]
+    for name in group.list_commands(root):
+        command = group.get_command(root, name)
+        if command is None or command.hidden:
+            continue
+        ctx = command.context_class(command, info_name=name, parent=root)
+        usage = " ".join(command.collect_usage_pieces(ctx))
+        usage = re.sub(r"[{\[](\w+)[}\]]", lambda m: m.group(0)[0].replace("{", "")
+                       + m.group(1).upper() + m.group(0)[-1].replace("}", ""), usage)
+        out += [f"## `casadrone {name}`", "", f"```text\ncasadrone {name} {usage}\n```", ""]
+        if command.help:
+            out += [_paragraphs(command.help), ""]
+        params = [p for p in command.params if p.name != "help"]
+        if params:
+            out += ["| argument or option | type | default | meaning |", "|---|---|---|---|"]
+            out += [_param_row(p, ctx) for p in params]
+            out.append("")
+        if command.epilog:
+            out += [_paragraphs(command.epilog), ""]
+    return "\n".join(out)
+
+
+# --------------------------------------------------------------------------------------------
+# Benchmarks and changelog
+# --------------------------------------------------------------------------------------------
+
+
+def benchmark_results() -> str:
+    """The recorded benchmark results, each file's headings placed under the page's."""
+    from benchmarks.collect import ORDER
+
+    out = []
+    for name, title, command in ORDER:
+        path = ROOT / "benchmarks" / f"RESULTS-{name}.md"
+        if not path.exists():
+            continue
+        out += [f"### {title}", "", f"Reproduce: `{command}` (file: `benchmarks/{path.name}`)", ""]
+        body = path.read_text(encoding="utf-8").strip().splitlines()
+        out += [("###" + ln) if re.match(r"#+ ", ln) else ln for ln in body]
+        out.append("")
+    return "\n".join(out)
+
+
+def changelog() -> str:
+    """``CHANGELOG.md`` without its title (the page has one)."""
+    text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+    text = text.replace("](docs/", "](")  # links into the docs, from the site's root
+    return re.sub(r"\A# .*\n", "", text)
+
+
+def api_reference() -> str:
+    """The Python API page's body: mkdocstrings directives for the public names of ``casadrone``
+    (its ``_API`` table: module → names), one section per module, in the order of the chain."""
+    import casadrone
+
+    out = []
+    for module, names in casadrone._API.items():
+        out += [f"## `{module}`", "", f"::: {module}", "    options:",
+                "      show_root_heading: false", "      show_root_toc_entry: false",
+                "      members:"]
+        out += [f"        - {name}" for name in names]
+        out.append("")
+    return "\n".join(out)
+
+
+GENERATORS = {
+    "api-reference": api_reference,
+    "yaml-reference": yaml_reference,
+    "cli-reference": cli_reference,
+    "benchmarks": benchmark_results,
+    "changelog": changelog,
+}
+
+
+def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
+    """mkdocs hook: replace each ``<!-- generated: NAME -->`` marker by its generated text."""
+    return re.sub(r"<!-- generated: ([a-z-]+) -->", lambda m: GENERATORS[m.group(1)](),
+                  markdown)

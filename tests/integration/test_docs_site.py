@@ -1,0 +1,146 @@
+"""The documentation site in a real browser: every page of the built site (``mkdocs build
+--strict``) is loaded in headless Chromium from a local HTTP server; each renders its heading and
+figures without a console error or a failed request, and every internal link (page, file and
+``#anchor``) resolves.
+
+``.ci/run`` builds the site once and passes it in ``CASADRONE_DOCS_SITE``; without it the test
+builds the site itself. In CI a missing browser or mkdocs fails the test (see ``chromium.py``).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import urllib.error
+import urllib.request
+from collections import deque
+from pathlib import Path
+from urllib.parse import urldefrag, urlparse
+
+import pytest
+from chromium import PAGE_PROBE, Chromium, browser_required, find_chromium
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory) -> Path:
+    """The built site: ``CASADRONE_DOCS_SITE`` when given, else built here, strictly."""
+    given = os.environ.get("CASADRONE_DOCS_SITE")
+    if given:
+        path = Path(given).resolve()
+        assert (path / "index.html").is_file(), f"CASADRONE_DOCS_SITE={given} holds no site"
+        return path
+    try:
+        import mkdocs  # noqa: F401
+    except ImportError:
+        message = "mkdocs is not installed (pip install -e '.[docs]')"
+        if browser_required():
+            pytest.fail(message)
+        pytest.skip(message)
+    out = tmp_path_factory.mktemp("site")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT),
+                                                                      os.environ.get("PYTHONPATH")]))}
+    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-d",
+                           str(out)], cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr[-4000:]
+    return out
+
+
+@pytest.fixture(scope="module")
+def server(site):
+    """A local HTTP server of the site (the way a user or a host serves it); its base URL."""
+    proc = subprocess.Popen([sys.executable, "-u", "-m", "http.server", "0", "--bind",
+                             "127.0.0.1", "--directory", str(site)],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        line = proc.stdout.readline()
+        port = re.search(r"port (\d+)", line)
+        assert port, f"http.server said {line!r}"
+        yield f"http://127.0.0.1:{port.group(1)}/"
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+
+
+def is_page(url: str) -> bool:
+    path = urlparse(url).path
+    return path.endswith("/") or path.endswith(".html")
+
+
+def test_every_page_renders_with_its_figures_and_every_link_resolves(site, server, tmp_path):
+    chromium = find_chromium()
+    seen: dict[str, dict] = {}
+    anchors: list[tuple[str, str, str]] = []  # (from page, target page, fragment)
+    files: set[str] = set()
+    problems: list[str] = []
+    queue = deque([server])
+    with Chromium(chromium, tmp_path / "profile") as browser:
+        while queue:
+            url = queue.popleft()
+            if url in seen:
+                continue
+            report = browser.load(url, PAGE_PROBE)
+            probe = seen[url] = report.probe
+            where = url[len(server) - 1:]
+            problems += [f"{where}: {e}" for e in report.errors + report.failed_requests]
+            if probe.get("h1", 0) < 1 or probe.get("text", 0) < 200:
+                problems.append(f"{where}: no heading or almost no text ({probe.get('text')})")
+            problems += [f"{where}: image not rendered: {i['src']}"
+                         for i in probe.get("imgs", []) if not i["ok"]]
+            problems += [f"{where}: empty figure ({s})" for s in probe.get("svgs", [])
+                         if not (s["w"] > 50 and s["h"] > 50 and s["shapes"] > 5)]
+            for link in probe.get("links", []):
+                target, fragment = urldefrag(link)
+                if not target.startswith(server):
+                    continue  # outside the site: not followed (no network in CI)
+                if is_page(target):
+                    queue.append(target)
+                    if fragment:
+                        anchors.append((where, target, fragment))
+                else:
+                    files.add(target)
+        for where, target, fragment in anchors:
+            if fragment not in seen[target].get("ids", []):
+                problems.append(f"{where}: link to {target[len(server) - 1:]}#{fragment}: "
+                                "no such anchor")
+    for url in sorted(files):
+        try:
+            with urllib.request.urlopen(url, timeout=10) as response:
+                assert response.status == 200
+        except (urllib.error.URLError, AssertionError) as exc:
+            problems.append(f"link to {url[len(server) - 1:]}: {exc}")
+    assert not problems, "\n".join(problems)
+
+    # every page of the site was reached from the home page through its links
+    pages = {server + str(p.relative_to(site).parent).replace(".", "").strip("/") + "/"
+             for p in site.rglob("index.html")}
+    pages = {p.replace("//", "/").replace("http:/", "http://") for p in pages}
+    assert pages <= set(seen), f"pages no link reaches: {sorted(pages - set(seen))}"
+    # the figures this test exists for are there: the executed tutorial's lap, the concepts'
+    # airframes, the home page's picture
+    assert seen[server + "tutorial/"]["svgs"], "the tutorial's lap figure is missing"
+    assert seen[server + "concepts/chain/"]["svgs"], "the concept page's airframes are missing"
+    assert any(i["src"].endswith(".png") for i in seen[server]["imgs"])
+    assert len(seen) >= 15
+
+
+def test_the_browser_check_sees_what_it_must_refuse(tmp_path):
+    """The harness itself: a page with a console error, an uncaught exception, a missing image
+    and a working figure is reported as such (so a clean report above means something)."""
+    page = tmp_path / "bad.html"
+    page.write_text("<html><body><h1>bad</h1><img src='missing.png'>"
+                    "<img src='data:image/gif;base64,R0lGODlhAQABAIAAAAAAAP///yH5BAEAAAAALAAAAAABAAEAAAIBRAA7' alt=''>"
+                    "<svg width='100' height='100'><path d='M0 0L9 9'/></svg>"
+                    "<script>console.error('broken on purpose'); undefined_function();</script>"
+                    "</body></html>", encoding="utf-8")
+    with Chromium(find_chromium(), tmp_path / "profile") as browser:
+        report = browser.load(page.as_uri(), PAGE_PROBE)
+    assert any("broken on purpose" in e for e in report.errors), report.errors
+    assert any("undefined_function" in e for e in report.errors), report.errors
+    assert any("missing.png" in r for r in report.failed_requests + report.errors), report
+    assert [i["ok"] for i in report.probe["imgs"]] == [False, True]
+    assert report.probe["svgs"] == [{"w": 100, "h": 100, "shapes": 1}]

@@ -378,3 +378,11 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
     """mkdocs hook: replace each ``<!-- generated: NAME -->`` marker by its generated text."""
     return re.sub(r"<!-- generated: ([a-z-]+) -->", lambda m: GENERATORS[m.group(1)](),
                   markdown)
+
+
+_SPHINX_ROLE = re.compile(r":(?:mod|class|func|meth|data|attr|exc|obj):(<code[^>]*>)~?")
+
+
+def on_page_content(html: str, page: Any, config: Any, files: Any) -> str:
+    """mkdocs hook: the docstrings' Sphinx roles (``:func:`name```) shown as plain code."""
+    return _SPHINX_ROLE.sub(r"\1", html)

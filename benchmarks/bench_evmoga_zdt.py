@@ -1,7 +1,7 @@
 """ev-MOGA vs NSGA-II on pymoo's ZDT1, ZDT2 (4 variables) and DTLZ2 (3 objectives, 5 variables).
 
 Both algorithms get the same budget of 20 000 evaluations; each runs with 10 seeds and the table
-reports medians (EVMOGA.md: "judge it on the median of at least 10 seeds").
+reports medians (docs/concepts/evmoga.md: "judge it on the median of at least 10 seeds").
 
 Settings and why:
 
@@ -12,7 +12,7 @@ Settings and why:
   the first ~1 % of the generations). ``n_div = 200`` for two objectives (the paper's value; at
   most 201 archive members). For DTLZ2 ``n_div = 20``: with three objectives the archive can hold
   O(n_div²) members and insertion is O(|A|) per child, so 200 would be slow and far denser than
-  NSGA-II's 100 points. Everything else at EVMOGA.md defaults (p_m 0.2, dd 0.25→0.1,
+  NSGA-II's 100 points. Everything else at docs/concepts/evmoga.md defaults (p_m 0.2, dd 0.25→0.1,
   σ 20→0.1 %).
 - NSGA-II: pymoo defaults (pop 100, SBX η 15, PM η 20), termination ``("n_eval", 20 000)``
   = 200 generations.

@@ -1,6 +1,6 @@
 """casadrone: racing-drone airframe optimisation on CasADi and pymoo.
 
-The public API, one function per stage of the chain (DESIGN.md §1)::
+The public API, one function per stage of the chain (docs/concepts/chain.md)::
 
     import casadrone as cd
     frame = cd.build_airframe(cd.load_airframe("SY250", ["alpha_deg=80"]))

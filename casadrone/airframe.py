@@ -1,7 +1,8 @@
 """Airframe: geometry θ and physical data → rotor layout, allocation, model parameter vector.
 
-Frames (DESIGN.md §3–4): body x forward (nose), y left, z up; rotors FR, FL, RL, RR. The paper
-draws the nose on body +y (x to the right): :func:`from_paper_frame` converts at this boundary.
+Frames (docs/concepts/conventions.md): body x forward (nose), y left, z up; rotors FR, FL, RL, RR.
+The paper draws the nose on body +y (x to the right): :func:`from_paper_frame` converts at this
+boundary.
 """
 
 from __future__ import annotations

@@ -30,7 +30,8 @@ DEFAULT_TRACK = CONFIG_DIR / "tracks" / "paper-rectangle.yaml"
 
 @dataclass(frozen=True)
 class EvaluationSetup:
-    """Everything shared by the candidates of one study (control invariance, DESIGN.md §1)."""
+    """Everything shared by the candidates of one study (control invariance,
+    docs/concepts/chain.md)."""
 
     template: AirframeConfig
     controller: ControllerConfig

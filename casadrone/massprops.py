@@ -34,7 +34,8 @@ import numpy as np
 def rotor_positions_mm(
     la: float, lb: float, alpha_deg: float, beta_deg: float
 ) -> list[list[float]]:
-    """Rotor centres (mm) in the body frame (x nose, y left): FR, FL, RL, RR (DESIGN.md §4)."""
+    """Rotor centres (mm) in the body frame (x nose, y left): FR, FL, RL, RR
+    (docs/concepts/conventions.md)."""
     a, b = math.radians(alpha_deg) / 2, math.radians(beta_deg) / 2
     return [
         [la * math.cos(a), -la * math.sin(a), 0.0],

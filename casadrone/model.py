@@ -129,7 +129,7 @@ def airframe_terms(vel, omega, rotor, rotor_dot, u, p) -> AirframeTerms:
 
 
 def implicit_residual(xdot, x, u, p):
-    """F(ẋ, x, u, p) of DESIGN.md §5 as an SX/MX expression (16 rows)."""
+    """F(ẋ, x, u, p) of docs/concepts/chain.md#model as an SX/MX expression (16 rows)."""
     g, J, _, _, _ = unpack_params(p)
     m, grav = g["mass"], g["g"]
     vel, omega, eul, T = x[VEL], x[RATE], x[EUL], x[THR]

@@ -1,4 +1,4 @@
-"""casadrone command line: a thin typer layer over the public API (DESIGN.md §10).
+"""casadrone command line: a thin typer layer over the public API (docs/reference/cli.md).
 
 Every command that prints results also takes ``--json``. Bad input (a config problem, a bad
 ``key=value`` override, an unknown option) prints one ``FILE: key: message`` line per problem on

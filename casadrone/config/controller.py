@@ -36,11 +36,12 @@ class RobustnessConfig(Schema):
     seed: int = 0
 
 
-#: Gain policies (DESIGN.md §6). ``redesign``: every candidate's own LQR-I gain. ``frozen-command``:
-#: the reference airframe's gain K (ESC commands from state error) flies every candidate as is, so
-#: each is mixed as the reference would be. ``frozen-wrench``: the reference's gain, re-expressed
-#: from state error to [collective thrust, roll, pitch, yaw torque] and mapped to each candidate's
-#: four commands by its own allocation inverse (:func:`casadrone.control.frozen_wrench_gain`).
+#: Gain policies (docs/concepts/chain.md#control). ``redesign``: every candidate's own LQR-I gain.
+#: ``frozen-command``: the reference airframe's gain K (ESC commands from state error) flies every
+#: candidate as is, so each is mixed as the reference would be. ``frozen-wrench``: the reference's
+#: gain, re-expressed from state error to [collective thrust, roll, pitch, yaw torque] and mapped
+#: to each candidate's four commands by its own allocation inverse
+#: (:func:`casadrone.control.frozen_wrench_gain`).
 GainPolicy = Literal["redesign", "frozen-command", "frozen-wrench"]
 FROZEN_POLICIES = ("frozen-command", "frozen-wrench")
 

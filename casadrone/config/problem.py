@@ -1,5 +1,5 @@
-"""Optimisation problems (``problems/*.yaml``, DESIGN.md §9): what varies, what is flown, what
-is optimised, and with which algorithm and backend.
+"""Optimisation problems (``problems/*.yaml``, docs/concepts/chain.md#optimise): what varies, what
+is flown, what is optimised, and with which algorithm and backend.
 
 Schemas like the airframe's (frozen, unknown keys rejected), checked here against the other configs
 only: the airframe keys, the referenced files and the search box. The checks against the optimiser
@@ -127,7 +127,8 @@ class PymooProblemConfig(Schema):
 
 
 class ProblemConfig(Schema):
-    """An optimisation problem (DESIGN.md §9): what varies, what is flown, what is optimised."""
+    """An optimisation problem (docs/concepts/chain.md#optimise): what varies, what is flown, what
+    is optimised."""
 
     name: str
     description: str = ""

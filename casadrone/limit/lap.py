@@ -1,4 +1,5 @@
-"""The limit lap: the minimum-time flight of an airframe through a track (DESIGN.md §7a).
+"""The limit lap: the minimum-time flight of an airframe through a track
+(docs/concepts/limit-lap.md).
 
 ``limit_lap(airframe, track, options) -> LimitLap``. The NLP (:mod:`casadrone.limit.nlp`) is built
 once per track layout on the one symbolic model; the airframe enters only as the parameter p.

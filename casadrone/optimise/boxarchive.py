@@ -1,17 +1,19 @@
-"""ev-MOGA's ε-box archive A held as plain numpy arrays, updated by the rules of ``EVMOGA.md``.
+"""ev-MOGA's ε-box archive A held as plain numpy arrays, updated by the rules of
+``docs/concepts/evmoga.md#insertion``.
 
 The archive keeps its members as row-aligned arrays (``rows``: ``"X"``, ``"F"``, ``"G"``, ... of
 one length; ``F`` holds the minimised objectives) and their box indices ``box`` on the current
 grid (``grid_min``, ``grid_max``, ``eps``). Children are offered one at a time (:meth:`offer`),
-exactly as the sequential rules of ``EVMOGA.md`` say, and each step is vectorised over the
-archive: its cost is O(|A| m) numpy work, never a Python loop over the members. A generation's
-children are offered together (:meth:`offer_many`): each run of them inside the grid, which none
-of them can move, is settled by one vectorised re-insertion (below) instead of one insert each,
-with the same result.
+exactly as the sequential rules of ``docs/concepts/evmoga.md`` say, and each step is vectorised
+over the archive: its cost is O(|A| m) numpy work, never a Python loop over the members. A
+generation's children are offered together (:meth:`offer_many`): each run of them inside the grid,
+which none of them can move, is settled by one vectorised re-insertion (below) instead of one
+insert each, with the same result.
 
-When a child moves the grid, EVMOGA.md rebuilds A by re-inserting its members one at a time on the
-new grid. :meth:`fill` gives the same result in one vectorised pass, from this characterisation of
-inserting items 1…n in order into an empty archive on a fixed grid (proved in its docstring):
+When a child moves the grid, the rules (docs/concepts/evmoga.md#generation) rebuild A by
+re-inserting its members one at a time on the new grid. :meth:`fill` gives the same result in one
+vectorised pass, from this characterisation of inserting items 1…n in order into an empty archive
+on a fixed grid (proved in its docstring):
 
 - the boxes that survive are exactly the boxes of the items that no other item's box dominates;
 - they appear in the order of their first item;
@@ -90,7 +92,8 @@ def centre_distance(f: np.ndarray, b: np.ndarray, f_min: np.ndarray, eps: np.nda
 
 def challenger_wins(f: np.ndarray, f_k: np.ndarray, b: np.ndarray, f_min: np.ndarray,
                     eps: np.ndarray) -> bool:
-    """EVMOGA.md case 3: whether ``f`` replaces the member ``f_k`` of its own box ``b``.
+    """Insertion case 3 (docs/concepts/evmoga.md#insertion): whether ``f`` replaces the member
+    ``f_k`` of its own box ``b``.
 
     It does if it Pareto-dominates the member; it does not if the member dominates it or they are
     equal; otherwise the one closer to the box centre (in ε units) stays, the member on a tie.
@@ -372,11 +375,12 @@ class BoxArchive:
     def _only(self, row: Mapping[str, np.ndarray], b: np.ndarray) -> None:
         self._set({k: self._row(row, k)[None, :].copy() for k in self._rows}, b[:, None])
 
-    # ---- EVMOGA.md rules ----------------------------------------------------------------------
+    # ---- ev-MOGA's rules (docs/concepts/evmoga.md) -------------------------------------------
 
     def offer(self, row: Mapping[str, np.ndarray]) -> None:
         """Offer one feasible child (``row[k]``: its values of each row array), recomputing the
-        grid when it moves the extremes (EVMOGA.md "archive each child in turn")."""
+        grid when it moves the extremes ("archive each child in turn",
+        docs/concepts/evmoga.md#generation)."""
         f = np.asarray(row["F"], dtype=float).ravel()
         m = len(f)
         if self._n == 0 and self.grid_min is None:
@@ -467,7 +471,8 @@ class BoxArchive:
         self._rebuild(changed_only=True)
 
     def insert(self, row: Mapping[str, np.ndarray]) -> bool:
-        """Insert with the current grid (EVMOGA.md cases 1-4); return whether the child entered."""
+        """Insert with the current grid (insertion cases 1-4, docs/concepts/evmoga.md#insertion);
+        return whether the child entered."""
         f = np.asarray(row["F"], dtype=float).ravel()
         b = box_index(f, self.grid_min, self.eps)[0]
         if self._n == 0:
@@ -521,9 +526,10 @@ class BoxArchive:
 
     def _rebuild(self, changed_only: bool) -> None:
         """Re-insert the members, in order, into an empty archive on the current grid (vectorised
-        equivalent of EVMOGA.md's re-insertion loop, see :meth:`fill`). With ``changed_only`` the
-        stored boxes are the members' boxes on the previous grid, where they were distinct and
-        mutually non-dominated: only pairs with a member whose box changed are compared."""
+        equivalent of the re-insertion loop of docs/concepts/evmoga.md#generation, see
+        :meth:`fill`). With ``changed_only`` the stored boxes are the members' boxes on the
+        previous grid, where they were distinct and mutually non-dominated: only pairs with a
+        member whose box changed are compared."""
         n, F = self._n, self.F
         old = self._box[:, :n]
         new = self._box_columns(F)

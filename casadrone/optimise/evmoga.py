@@ -1,8 +1,9 @@
 """ev-MOGA: elitist multi-objective GA with an epsilon-box archive, as a pymoo ``Algorithm``.
 
-Implements ``design/EVMOGA.md`` (Herrero, Martínez-Iranzo, Blasco, Sanchis; MATLAB toolbox
-``evMOGA.m``). Three sets: the main population P (``n_ind_p``), the archive A (the ε-Pareto set,
-at most one member per ε-box, **the result**), and the children G (``n_ind_ga`` per generation).
+Implements ev-MOGA as ``docs/concepts/evmoga.md`` states it (Herrero, Martínez-Iranzo, Blasco,
+Sanchis; MATLAB toolbox ``evMOGA.m``). Three sets: the main population P (``n_ind_p``), the archive
+A (the ε-Pareto set, at most one member per ε-box, **the result**), and the children G
+(``n_ind_ga`` per generation).
 
 pymoo counts the initialisation (evaluating P) as generation 1, so ev-MOGA's ``G`` generations are
 ``("n_gen", G + 1)``; a run costs ``n_ind_p + G * n_ind_ga`` evaluations. The crossover extension
@@ -116,10 +117,11 @@ def constrained_dominance_matrix(F: np.ndarray, cv: np.ndarray, F_b: np.ndarray,
 
 def replacements(pop_F: np.ndarray, pop_cv: np.ndarray, F: np.ndarray, cv: np.ndarray,
                  random_state: np.random.Generator) -> dict[int, int]:
-    """EVMOGA.md "update P with each child", for the children ``(F, cv)`` in order: each draws a
-    start index in P (``random_state.integers(len(P))``, one draw per child, in order), scans P
-    circularly from it for the first member it strictly dominates (feasibility first) and takes
-    its slot; if none, it is dropped. Returns ``{slot of P: child now in it}``; P is not edited.
+    """ev-MOGA's "update P with each child" (docs/concepts/evmoga.md#generation), for the children
+    ``(F, cv)`` in order: each draws a start index in P (``random_state.integers(len(P))``, one
+    draw per child, in order), scans P circularly from it for the first member it strictly
+    dominates (feasibility first) and takes its slot; if none, it is dropped. Returns ``{slot of P:
+    child now in it}``; P is not edited.
 
     Vectorised: the child-over-P and child-over-child dominance matrices are computed once; the
     row a child scans is P's row of the matrix with each taken slot's column replaced by its
@@ -177,7 +179,7 @@ def shrinking_schedule(v_ini: float, v_fin: float, t: int, n_gen: int) -> float:
 
 
 class EvMOGA(Algorithm):
-    """ev-MOGA (``design/EVMOGA.md``): main population P, ε-box archive A, children G.
+    """ev-MOGA (``docs/concepts/evmoga.md``): main population P, ε-box archive A, children G.
 
     Args:
         n_ind_p: Size of the main population P (paper: 850).

@@ -1,4 +1,5 @@
-"""The run directory (DESIGN.md §9): everything needed to read, report and resume a run.
+"""The run directory (docs/architecture.md#runs): everything needed to read, report and resume a
+run.
 
 - ``config.yaml``: the fully resolved problem;
 - ``manifest.json``: config hash, seed, versions, git revision, host, backend, times, status;

@@ -1,4 +1,5 @@
-"""The HTML run report (DESIGN.md §9–10): one self-contained file that opens in any browser.
+"""The HTML run report (docs/architecture.md#runs): one self-contained file that opens in any
+browser.
 
 :func:`write_report` reads a run directory (``config.yaml``, ``manifest.json``,
 ``history.sqlite``, ``pareto.csv``) and writes ``report.html`` with seven sections: the resolved

@@ -206,7 +206,8 @@ PAGE_PROBE = """(() => {
   const svgs = [...document.querySelectorAll('svg[width]')]
       .filter(s => s.closest('.md-header, .md-nav, .md-footer, button, label, a') === null)
       .map(s => { const b = s.getBoundingClientRect();
-                  return {w: b.width, h: b.height, shapes: s.querySelectorAll('path, use').length}; });
+                  const shapes = s.querySelectorAll('path, use').length;
+                  return {w: b.width, h: b.height, shapes}; });
   const links = [...document.querySelectorAll('a[href]')].map(a => a.href);
   const ids = [...document.querySelectorAll('[id]')].map(e => e.id)
       .concat([...document.querySelectorAll('a[name]')].map(a => a.name));

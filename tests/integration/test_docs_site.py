@@ -132,8 +132,9 @@ def test_the_browser_check_sees_what_it_must_refuse(tmp_path):
     """The harness itself: a page with a console error, an uncaught exception, a missing image
     and a working figure is reported as such (so a clean report above means something)."""
     page = tmp_path / "bad.html"
+    gif = "R0lGODlhAQABAIAAAAAAAP///yH5BAEAAAAALAAAAAABAAEAAAIBRAA7"  # a valid 1×1 GIF
     page.write_text("<html><body><h1>bad</h1><img src='missing.png'>"
-                    "<img src='data:image/gif;base64,R0lGODlhAQABAIAAAAAAAP///yH5BAEAAAAALAAAAAABAAEAAAIBRAA7' alt=''>"
+                    f"<img src='data:image/gif;base64,{gif}' alt=''>"
                     "<svg width='100' height='100'><path d='M0 0L9 9'/></svg>"
                     "<script>console.error('broken on purpose'); undefined_function();</script>"
                     "</body></html>", encoding="utf-8")

@@ -46,7 +46,8 @@ def box_dominates_rows(B: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 class SequentialArchive:
-    """EVMOGA.md's archive rules, one member at a time (the code before vectorisation)."""
+    """The archive rules of docs/concepts/evmoga.md, one member at a time (the code before
+    vectorisation)."""
 
     def __init__(self, n_div, widths) -> None:
         self.n_div = np.asarray(n_div, dtype=np.int64)

@@ -1,4 +1,4 @@
-"""Tests of ev-MOGA (casadrone.optimise.evmoga) against design/EVMOGA.md.
+"""Tests of ev-MOGA (casadrone.optimise.evmoga) against docs/concepts/evmoga.md.
 
 Oracles: hand-built archives for the insertion and extreme-value cases, the analytic ZDT1 front
 (HV = 1.1 * 1.1 - integral_0^1 (1 - sqrt(f1)) df1 = 1.21 - 1/3 = 0.87667 for reference (1.1, 1.1)),
@@ -46,7 +46,8 @@ def hv2d(F: np.ndarray, ref: np.ndarray) -> float:
 
 
 def assert_archive_invariants(alg: EvMOGA | BoxArchive) -> None:
-    """EVMOGA.md invariants on the archive A of ``alg`` (any number of objectives)."""
+    """The archive invariants of docs/concepts/evmoga.md on the archive A of ``alg`` (any number of
+    objectives)."""
     if isinstance(alg, EvMOGA):
         A = alg.archive_pop
         assert len(A) == len(alg.archive_F)

@@ -14,8 +14,9 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[2] / "casadrone"
 
-#: The chain, earliest first (DESIGN.md §1). A module may import only from its own stage or an
-#: earlier one; a subpackage's modules share the stage given for their prefix unless listed.
+#: The chain, earliest first (docs/architecture.md#layers). A module may import only from its own
+#: stage or an earlier one; a subpackage's modules share the stage given for their prefix unless
+#: listed.
 STAGES: tuple[str, ...] = (
     "casadrone.data",
     "casadrone.codegen",

@@ -1,4 +1,5 @@
-"""The vectorised "update P with each child" of ev-MOGA equals the per-child rule of EVMOGA.md.
+"""The vectorised "update P with each child" of ev-MOGA equals the per-child rule of
+docs/concepts/evmoga.md.
 
 Oracle: ``per_child_update`` below, the per-child loop ``EvMOGA._advance`` ran before (git
 8c4e08e): each child draws a random start, scans P (as edited by the earlier children) circularly

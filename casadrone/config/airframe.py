@@ -92,7 +92,7 @@ class AirframeConfig(Schema):
     triangle inequalities.
     """
 
-    name: str
+    name: str = Field(description="name of the airframe, shown in tables, figures and exports")
     lambda_a_mm: float = Field(gt=0, le=MAX_ARM_MM,
                                description="hub (free: CoM) to front motors (mm)")
     lambda_b_mm: float = Field(gt=0, le=MAX_ARM_MM,
@@ -108,9 +108,18 @@ class AirframeConfig(Schema):
                                    description="pitch inertia (kg·m²); free only")
     izz_kgm2: float | None = Field(None, gt=0, le=MAX_INERTIA,
                                    description="yaw inertia (kg·m²); free only")
-    ixy_kgm2: float = Field(0.0, ge=-MAX_INERTIA, le=MAX_INERTIA)
-    ixz_kgm2: float = Field(0.0, ge=-MAX_INERTIA, le=MAX_INERTIA)
-    iyz_kgm2: float = Field(0.0, ge=-MAX_INERTIA, le=MAX_INERTIA)
+    ixy_kgm2: float = Field(
+        0.0, ge=-MAX_INERTIA, le=MAX_INERTIA,
+        description="product of inertia xy about the centre of mass (kg·m²); mass_model free only",
+    )
+    ixz_kgm2: float = Field(
+        0.0, ge=-MAX_INERTIA, le=MAX_INERTIA,
+        description="product of inertia xz about the centre of mass (kg·m²); mass_model free only",
+    )
+    iyz_kgm2: float = Field(
+        0.0, ge=-MAX_INERTIA, le=MAX_INERTIA,
+        description="product of inertia yz about the centre of mass (kg·m²); mass_model free only",
+    )
     mass_kg: float | None = Field(None, gt=0, le=1000, description="total mass (kg); free only")
     components: ComponentsConfig | None = Field(
         None, description="the parts (mass_model: components only)")
@@ -118,15 +127,30 @@ class AirframeConfig(Schema):
         (0.012, 0.012, 0.025), description="C_d·A along body x, y, z (m²)"
     )
     kappa_m: float = Field(0.016, gt=0, le=1, description="rotor yaw torque per unit thrust (m)")
-    battery_voltage_v: float = Field(14.8, gt=0, le=1000)
-    prop_diameter_mm: float = Field(127.0, gt=0, le=MAX_ARM_MM)
+    battery_voltage_v: float = Field(
+        14.8, gt=0, le=1000,
+        description="battery voltage the ESC commands scale: ESC voltage = δ · this (V; 4S: 14.8)",
+    )
+    prop_diameter_mm: float = Field(
+        127.0, gt=0, le=MAX_ARM_MM,
+        description="propeller diameter (mm): the rotor-overlap check, figures and exports",
+    )
     rotor_spins: tuple[Spin, Spin, Spin, Spin] = Field(
         (-1, 1, -1, 1),
         description="sign of each rotor's reaction yaw torque about body +z, rotors FR, FL, RL, RR",
     )
-    thrust: ThrustModelConfig = ThrustModelConfig()
-    air_density_kgm3: float = Field(1.225, gt=0, le=2)
-    gravity_mps2: float = Field(9.81, ge=0.1, le=30)
+    thrust: ThrustModelConfig = Field(
+        ThrustModelConfig(),
+        description="the paper's identified first-order thrust model of one rotor",
+    )
+    air_density_kgm3: float = Field(
+        1.225, gt=0, le=2,
+        description="air density ρ of the drag model (kg/m³; sea level 1.225)",
+    )
+    gravity_mps2: float = Field(
+        9.81, ge=0.1, le=30,
+        description="gravitational acceleration g (m/s²)",
+    )
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:

@@ -18,22 +18,43 @@ NonNegative = Annotated[float, Field(ge=0)]
 class StateWeights(Schema):
     """Diagonal LQR state weights, one per state group (units: 1/unit² of the state)."""
 
-    position: tuple[NonNegative, NonNegative, NonNegative] = (0.5, 0.5, 1.0)
-    velocity: tuple[NonNegative, NonNegative, NonNegative] = (0.2, 0.2, 0.2)
-    rates: tuple[NonNegative, NonNegative, NonNegative] = (0.05, 0.05, 0.05)
-    attitude: tuple[NonNegative, NonNegative, NonNegative] = (2.0, 2.0, 4.0)
-    thrust: tuple[NonNegative, NonNegative, NonNegative, NonNegative] = (0.0, 0.0, 0.0, 0.0)
+    position: tuple[NonNegative, NonNegative, NonNegative] = Field(
+        (0.5, 0.5, 1.0),
+        description="weights of the position error x, y, z (1/m²)",
+    )
+    velocity: tuple[NonNegative, NonNegative, NonNegative] = Field(
+        (0.2, 0.2, 0.2),
+        description="weights of the body velocity u, v, w (s²/m²)",
+    )
+    rates: tuple[NonNegative, NonNegative, NonNegative] = Field(
+        (0.05, 0.05, 0.05),
+        description="weights of the body rates p, q, r (s²/rad²)",
+    )
+    attitude: tuple[NonNegative, NonNegative, NonNegative] = Field(
+        (2.0, 2.0, 4.0),
+        description="weights of the Euler angles φ, θ, ψ (1/rad²)",
+    )
+    thrust: tuple[NonNegative, NonNegative, NonNegative, NonNegative] = Field(
+        (0.0, 0.0, 0.0, 0.0),
+        description="weights of the rotor thrusts T1…T4 (1/N²)",
+    )
 
 
 class RobustnessConfig(Schema):
     """Perturbed-plant ensemble of paper Appendix B."""
 
-    n_plants: int = Field(50, ge=1, le=10000)
+    n_plants: int = Field(
+        50, ge=1, le=10000,
+        description="number of perturbed plants in the ensemble",
+    )
     dynamics_pct: float = Field(30.0, ge=0, lt=100, description="mass, inertia, drag spread (%)")
     coupling_pct: float = Field(
         20.0, ge=0, lt=100, description="thrust gain, time constant, arm geometry, κ spread (%)"
     )
-    seed: int = 0
+    seed: int = Field(
+        0,
+        description="random seed of the perturbations (the same seed gives the same plants)",
+    )
 
 
 #: Gain policies (docs/concepts/chain.md#control). ``redesign``: every candidate's own LQR-I gain.
@@ -49,19 +70,31 @@ FROZEN_POLICIES = ("frozen-command", "frozen-wrench")
 class ControllerConfig(Schema):
     """LQR-I controller: discrete design at ``sample_time_s``, identical for every candidate."""
 
-    name: str = "default"
-    sample_time_s: float = Field(0.01, gt=0, le=0.1)
-    q: StateWeights = StateWeights()
+    name: str = Field("default", description="name of the controller, shown in reports")
+    sample_time_s: float = Field(
+        0.01, gt=0, le=0.1,
+        description="controller period Ts of the discrete LQR-I (s; paper: 100–240 Hz)",
+    )
+    q: StateWeights = Field(
+        StateWeights(),
+        description="diagonal LQR state weights, per state group",
+    )
     q_integral: tuple[NonNegative, NonNegative, NonNegative, NonNegative] = Field(
         (0.05, 0.05, 0.1, 0.05), description="weights of ∫e for x, y, z, yaw"
     )
-    r: tuple[Positive, Positive, Positive, Positive] = Field((10.0, 10.0, 10.0, 10.0))
+    r: tuple[Positive, Positive, Positive, Positive] = Field(
+        (10.0, 10.0, 10.0, 10.0),
+        description="LQR weights of the four ESC commands δ1…δ4 (dimensionless)",
+    )
     gain_policy: GainPolicy = Field("redesign", description="redesign: each candidate's own "
                                     "gain; frozen-command / frozen-wrench: the reference's gain")
     reference_airframe: Path | None = Field(
         None, description="airframe YAML whose gain is frozen for all (frozen-* gain policies)"
     )
-    robustness: RobustnessConfig = RobustnessConfig()
+    robustness: RobustnessConfig = Field(
+        RobustnessConfig(),
+        description="the perturbed-plant ensemble of the robustness check (paper Appendix B)",
+    )
 
     @field_validator("gain_policy", mode="before")
     @classmethod

@@ -36,9 +36,11 @@ from casadrone.config.track import TrackConfig
 class VariableConfig(Schema):
     """A decision variable: an airframe config key (with its unit) and its bounds."""
 
-    name: str
-    lower: float
-    upper: float
+    name: str = Field(
+        description="an airframe key, with its unit (lambda_a_mm, alpha_deg, ixx_kgm2, ...)",
+    )
+    lower: float = Field(description="lower bound, in the key's unit")
+    upper: float = Field(description="upper bound, in the key's unit (above lower)")
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
@@ -72,16 +74,19 @@ def _table1_variables() -> list[VariableConfig]:
 class ObjectiveConfig(Schema):
     """An objective: a registered index and its sense (default: the index's own)."""
 
-    index: str
-    sense: Literal["min", "max"] | None = None
+    index: str = Field(description="a registered index (J1…J5, Jp, J3_limit, or a plugin's)")
+    sense: Literal["min", "max"] | None = Field(
+        None,
+        description="min or max (default: the index's own sense)",
+    )
 
 
 class ConstraintConfig(Schema):
     """A limit on an index (the lap-completed constraint is always on)."""
 
-    index: str
-    min: float | None = None
-    max: float | None = None
+    index: str = Field(description="a registered index")
+    min: float | None = Field(None, description="lower limit, in the index's unit")
+    max: float | None = Field(None, description="upper limit, in the index's unit")
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
@@ -96,7 +101,10 @@ class AlgorithmConfig(Schema):
     """The optimiser: ``evmoga`` or any pymoo algorithm by name, with its settings (both checked
     against the optimiser by :func:`casadrone.optimise.checks.problem_problems`)."""
 
-    name: str = "evmoga"
+    name: str = Field(
+        "evmoga",
+        description="evmoga, or a pymoo algorithm by name (nsga2, nsga3, ...)",
+    )
     population: int = Field(100, ge=2, description="ev-MOGA n_ind_p / pymoo pop_size")
     generations: int = Field(50, ge=1, description="generations after the initial population")
     settings: dict[str, Any] = Field(default_factory=dict, description="algorithm keywords")
@@ -105,7 +113,10 @@ class AlgorithmConfig(Schema):
 class BackendConfig(Schema):
     """Where candidates are evaluated: this process, a process pool, or a Dask cluster."""
 
-    name: Literal["serial", "processes", "dask"] = "serial"
+    name: Literal["serial", "processes", "dask"] = Field(
+        "serial",
+        description="serial (this process), processes (a local pool) or dask (a cluster)",
+    )
     workers: int = Field(1, ge=1, le=1024, description="processes (or LocalCluster workers)")
     scheduler: str | None = Field(None, description="Dask scheduler address; None: LocalCluster")
 
@@ -121,8 +132,8 @@ class BackendConfig(Schema):
 class PymooProblemConfig(Schema):
     """A pymoo test problem with a known front, to check algorithm settings."""
 
-    name: Literal["zdt1", "zdt2", "zdt3", "dtlz2"]
-    n_var: int = Field(4, ge=2)
+    name: Literal["zdt1", "zdt2", "zdt3", "dtlz2"] = Field(description="the pymoo test problem")
+    n_var: int = Field(4, ge=2, description="number of decision variables")
     n_obj: int = Field(3, ge=2, description="dtlz2 only")
 
 
@@ -130,20 +141,47 @@ class ProblemConfig(Schema):
     """An optimisation problem (docs/concepts/chain.md#optimise): what varies, what is flown, what
     is optimised."""
 
-    name: str
-    description: str = ""
+    name: str = Field(description="name of the problem, shown in the run's manifest and report")
+    description: str = Field("", description="free text: what the problem studies")
     airframe: Path | None = Field(None, description="template airframe YAML (fixed parameters)")
-    variables: list[VariableConfig] = Field(default_factory=_table1_variables, min_length=1)
+    variables: list[VariableConfig] = Field(
+        default_factory=_table1_variables, min_length=1,
+        description="decision variables and their bounds (default: the paper's Table 1)",
+    )
     fixed: dict[str, Any] = Field(default_factory=dict, description="airframe key overrides")
-    track: Path | None = None
-    controller: Path | None = None
-    integrator: Literal["rk4", "cvodes", "idas"] = "rk4"
-    objectives: list[ObjectiveConfig] = Field(default_factory=list)
-    constraints: list[ConstraintConfig] = Field(default_factory=list)
-    algorithm: AlgorithmConfig = Field(default_factory=AlgorithmConfig)
+    track: Path | None = Field(
+        None,
+        description="track YAML or shipped name (default: the paper's track)",
+    )
+    controller: Path | None = Field(
+        None,
+        description="controller YAML or shipped name (default: configs/controllers/default.yaml)",
+    )
+    integrator: Literal["rk4", "cvodes", "idas"] = Field(
+        "rk4",
+        description="closed-loop integrator: rk4 (compiled, fast), cvodes or idas (SUNDIALS)",
+    )
+    objectives: list[ObjectiveConfig] = Field(
+        default_factory=list,
+        description="indices to optimise, each with its sense",
+    )
+    constraints: list[ConstraintConfig] = Field(
+        default_factory=list,
+        description="limits on indices (the lap-completed constraint is always on)",
+    )
+    algorithm: AlgorithmConfig = Field(
+        default_factory=AlgorithmConfig,
+        description="the optimiser and its budget",
+    )
     seed: int = Field(1, ge=0, le=2**32 - 1, description="random seed (numpy: 0 … 2³² − 1)")
-    backend: BackendConfig = Field(default_factory=BackendConfig)
-    test_problem: PymooProblemConfig | None = None
+    backend: BackendConfig = Field(
+        default_factory=BackendConfig,
+        description="where candidates are evaluated",
+    )
+    test_problem: PymooProblemConfig | None = Field(
+        None,
+        description="a pymoo test problem with a known front instead of the drone chain",
+    )
     plugins: list[str] = Field(
         default_factory=list,
         description="modules or .py files imported in every process before evaluation "

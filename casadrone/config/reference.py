@@ -46,9 +46,12 @@ class MeasuredAirframe(Schema):
 class Table4Reference(Schema):
     """Measured per-interval benchmark values (paper Table 4), keyed by airframe name."""
 
-    name: str
-    source: str = ""
-    airframes: dict[str, MeasuredAirframe] = Field(min_length=1)
+    name: str = Field(description="name of the reference set")
+    source: str = Field("", description="where the values come from (paper, table, page)")
+    airframes: dict[str, MeasuredAirframe] = Field(
+        min_length=1,
+        description="measured values per airframe name (SY250, HS200, ...)",
+    )
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:

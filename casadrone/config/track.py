@@ -87,9 +87,15 @@ class StartConfig(Schema):
 class TrackConfig(Schema):
     """A race track and the guidance settings flown on it (identical for every airframe)."""
 
-    name: str
-    start_position_m: Vec3 = (0.0, 0.0, 0.0)
-    start_yaw_deg: float = 0.0
+    name: str = Field(description="name of the track, shown in tables and figures")
+    start_position_m: Vec3 = Field(
+        (0.0, 0.0, 0.0),
+        description="take-off position in the world frame, x east, y north, z up (m)",
+    )
+    start_yaw_deg: float = Field(
+        0.0,
+        description="heading at take-off (deg, from world x towards y)",
+    )
     climb_to_m: Vec3 | None = Field(None, description="route point before the first waypoint")
     climb_speed_mps: float = Field(
         5.0, gt=0, description="speed cap on the climb; the climb brakes to rest at its top"
@@ -100,12 +106,21 @@ class TrackConfig(Schema):
         None, description="gates in order, instead of waypoints_m: closed-loop guidance flies "
         "through their centres, the limit lap through their openings")
     straight: list[bool] = Field(description="leg ending at each waypoint is a straight sector")
-    acceptance_radius_m: float = Field(1.0, gt=0)
-    look_ahead_m: float = Field(3.0, gt=0)
+    acceptance_radius_m: float = Field(
+        1.0, gt=0,
+        description="switch to the next segment within this distance of its end (m)",
+    )
+    look_ahead_m: float = Field(
+        3.0, gt=0,
+        description="line-of-sight look-ahead distance Δ along the segment (m)",
+    )
     speed_mps: float = Field(15.0, gt=0, description="reference speed V on the track")
     corner_speed_mps: float = Field(4.0, ge=0, description="speed V_c to brake to at waypoints")
     brake_mps2: float = Field(6.0, gt=0, description="braking deceleration a_b of the profile")
-    max_yaw_error_deg: float = Field(45.0, gt=0, le=180)
+    max_yaw_error_deg: float = Field(
+        45.0, gt=0, le=180,
+        description="clamp of the yaw error fed to the LQR-I (deg)",
+    )
     max_position_error_m: float = Field(5.0, gt=0, description="clamp of the error fed to LQR")
     max_accel_mps2: float = Field(
         10.0, gt=0, description="rate limit of the velocity reference (reference shaping)"

@@ -68,9 +68,16 @@ def top_level_schemas() -> list[tuple[str, type[BaseModel]]]:
         except ImportError:
             continue
         if hasattr(module, "SCHEMAS_BY_FOLDER"):
-            return [(folder, module.schema_class(entry))
-                    for folder, entry in module.SCHEMAS_BY_FOLDER.items()]
+            return [(folder, _schema(entry)) for folder, entry in module.SCHEMAS_BY_FOLDER.items()]
     raise ImportError("no module of casadrone holds SCHEMAS_BY_FOLDER")
+
+
+def _schema(entry: type[BaseModel] | str) -> type[BaseModel]:
+    """A registered schema: the class, or a ``"module:Class"`` string naming it."""
+    if isinstance(entry, str):
+        module, _, name = entry.partition(":")
+        return getattr(importlib.import_module(module), name)
+    return entry
 
 
 def _strip(annotation: Any) -> Any:
@@ -134,7 +141,7 @@ def _bounds(metadata: list[Any]) -> list[str]:
             if value is not None:
                 out.append(f"{sign} {value:g}" if isinstance(value, int | float) else
                            f"{sign} {value}")
-        for attr, word in (("min_length", "at least {} items"), ("max_length", "at most {} items")):
+        for attr, word in (("min_length", "length ≥ {}"), ("max_length", "length ≤ {}")):
             value = getattr(item, attr, None)
             if value is not None:
                 out.append(word.format(value))
@@ -190,12 +197,10 @@ def default_of(field: FieldInfo) -> str:
     value = field.get_default(call_default_factory=True)
     if isinstance(value, BaseModel):
         return "(its defaults)"
-    if isinstance(value, Path):
-        value = str(value)
-    if isinstance(value, tuple):
-        value = list(value)
+    from pydantic_core import to_jsonable_python
+
     try:
-        text = json.dumps(value, ensure_ascii=False, default=str)
+        text = json.dumps(to_jsonable_python(value), ensure_ascii=False)
     except (TypeError, ValueError):
         text = repr(value)
     return f"`{text}`" if len(text) <= 60 else f"`{text[:57]}…`"

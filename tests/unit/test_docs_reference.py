@@ -1,0 +1,79 @@
+"""The generated references of the documentation (``docs/hooks/reference.py``): every key of every
+YAML schema has a description, and the generated pages hold every key and every command, with the
+unit and bounds the schema states (oracles: the pydantic models' own fields and the typer app's
+own command list, read directly)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def reference():
+    spec = importlib.util.spec_from_file_location("docs_reference",
+                                                  ROOT / "docs" / "hooks" / "reference.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_every_schema_key_has_a_description(reference):
+    missing = [f"{schema.__name__}.{name} ({folder}: {path})"
+               for folder, top in reference.top_level_schemas()
+               for path, schema, name, field in reference.walk(top)
+               if not (field.description or "").strip()]
+    assert not missing, "keys without a description (Field(description=...)):\n" + "\n".join(
+        missing)
+
+
+def test_the_walk_reaches_every_nested_schema(reference):
+    from pydantic import BaseModel
+
+    for _, top in reference.top_level_schemas():
+        walked = {schema for _, schema, _, _ in reference.walk(top)}
+        # an independent walk: pydantic's own JSON schema lists every model it contains
+        defs = top.model_json_schema(mode="validation").get("$defs", {})
+        named = {m.__name__ for m in walked} | {top.__name__}
+        assert set(defs) <= named, f"{top.__name__}: not walked: {set(defs) - named}"
+        assert all(issubclass(m, BaseModel) for m in walked)
+
+
+def test_yaml_page_lists_every_key_with_unit_and_bounds(reference):
+    page = reference.yaml_reference()
+    for _, top in reference.top_level_schemas():
+        for name in top.model_fields:
+            assert f"| `{name}` |" in page, f"{top.__name__}.{name} missing from the page"
+    from casadrone.config.airframe import AirframeConfig
+
+    alpha = AirframeConfig.model_fields["alpha_deg"]
+    gt = next(m.gt for m in alpha.metadata if hasattr(m, "gt"))
+    lt = next(m.lt for m in alpha.metadata if hasattr(m, "lt"))
+    row = next(line for line in page.splitlines() if line.startswith("| `alpha_deg` |"))
+    assert f"> {gt:g}" in row and f"< {lt:g}" in row and "| deg |" in row
+
+
+@pytest.mark.parametrize(("key", "unit"), [("lambda_a_mm", "mm"), ("ixx_kgm2", "kg·m²"),
+                                           ("gravity_mps2", "m/s²"), ("time_constant_s", "s"),
+                                           ("kappa_m", "m"), ("name", "")])
+def test_unit_from_the_key_suffix(reference, key, unit):
+    assert reference.unit_of(key) == unit
+
+
+def test_cli_page_lists_every_command_and_option(reference):
+    import typer
+
+    from casadrone.cli import app
+
+    group = typer.main.get_command(app)
+    page = reference.cli_reference()
+    for name, command in group.commands.items():
+        assert f"## `casadrone {name}`" in page
+        for param in command.params:
+            for opt in getattr(param, "opts", []):
+                if opt.startswith("-"):
+                    assert f"`{opt}`" in page, f"{name} {opt} missing"

@@ -74,3 +74,40 @@ def test_guarded_call_is_left_alone(tmp_path):
     assert done.returncode == 0, done.stderr
     lines = done.stdout.splitlines()
     assert lines[0] == f"top {script}:4" and lines[1] == "guarded None"
+
+
+def test_readme_fits_a_screen_and_every_link_and_figure_exists():
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 150
+    targets = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", text)
+    local = [t for t in targets if "://" not in t]
+    assert any(t.startswith("docs/") for t in local), "the README links into the documentation"
+    missing = [t for t in local if not (ROOT / t).exists()]
+    assert not missing, f"README links to missing files: {missing}"
+
+
+def test_readme_figures_name_the_command_that_draws_them():
+    """Each figure is followed, in its caption, by the casadrone command that reproduces it and
+    the file that command writes under the same name as the figure's source."""
+    lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    figures = [i for i, line in enumerate(lines) if line.startswith("![")]
+    assert figures
+    for i in figures:
+        caption = " ".join(lines[i + 1:i + 4])
+        assert "`casadrone " in caption, f"figure on line {i + 1} has no command beside it"
+        assert re.search(r"writes it as `[^`]+\.png`", caption), caption
+
+
+def test_readme_figure_is_what_its_command_draws(tmp_path, cli_runner):
+    """The README's lap figure, redrawn by the command its caption names, at the defaults."""
+    from matplotlib.image import imread
+
+    from casadrone.cli import app
+
+    done = cli_runner.invoke(app, ["simulate", "SY250", "--plot", str(tmp_path)])
+    assert done.exit_code == 0, done.output
+    new = imread(tmp_path / "track-top-view.png")
+    shipped = imread(ROOT / "docs" / "sy250-lap.png")
+    assert new.shape == shipped.shape
+    differs = (abs(new - shipped).max(axis=2) > 0.1).mean()
+    assert differs < 0.002, f"{differs:.4%} of the pixels differ"  # observed: 0 (same drawing)

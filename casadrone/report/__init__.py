@@ -79,7 +79,8 @@ SECTIONS = (("problem", "Problem"), ("convergence", "Convergence"), ("pareto", "
 
 
 def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
-                 out: str | Path | None = None, trim_sample: int = 200) -> Path:
+                 out: str | Path | None = None, trim_sample: int = 200,
+                 trim_study_starts: int = 4) -> Path:
     """Write the self-contained HTML report of a run and return its path.
 
     Args:
@@ -89,6 +90,8 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
         out: the HTML file to write (default ``run_dir/report.html``); figures go to ``plots/``
             beside it, as PNG and SVG.
         trim_sample: at most this many evaluations are trimmed again for the trim section.
+        trim_study_starts: random starts per operating point and solver of the trim section's
+            solver study (besides the analytic guess); negative: no study.
     """
     path = Path(out) if out is not None else Path(run_dir) / REPORT
     if path.is_dir() or (path.exists() and not path.is_file()):
@@ -110,7 +113,7 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
                        else note("A pymoo test problem has no trajectories.")),
         "airframes": section_airframes(run, cands, tuple(references), figs),
         "failures": section_failures(run, figs),
-        "trim": section_trim(run, cands, figs, trim_sample),
+        "trim": section_trim(run, cands, figs, trim_sample, trim_study_starts),
     }
     m = run.manifest
     stamp = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")

@@ -258,9 +258,17 @@ def _trims(setup, theta: dict[str, float]) -> dict:
     return out
 
 
-def section_trim(run: Run, cands: list[Candidate], figs: Figures, sample: int) -> str:
+def section_trim(run: Run, cands: list[Candidate], figs: Figures, sample: int,
+                 study_starts: int = 4) -> str:
     if run.test_problem:
         return note("A pymoo test problem has no trim.")
+    from casadrone.report.trimstudy import trim_study_part
+
+    return _hover_trims(run, cands, figs, sample) + trim_study_part(run, cands, figs,
+                                                                    study_starts)
+
+
+def _hover_trims(run: Run, cands: list[Candidate], figs: Figures, sample: int) -> str:
     from casadrone.optimise.problem import study_setup
     from casadrone.trim import TrimOptions
 

@@ -305,3 +305,18 @@ def test_no_figure_is_clipped(report):
         border = np.concatenate([img[:2].reshape(-1, 3), img[-2:].reshape(-1, 3),
                                  img[:, :2].reshape(-1, 3), img[:, -2:].reshape(-1, 3)])
         assert np.all(border > 0.99), f"{png.name}: ink touches the image border (clipped)"
+
+
+def test_trim_section_holds_the_solver_study(report):
+    run_dir, html = report
+    trim = section(html, "trim")
+    assert "Trim solvers across the envelope" in trim
+    # one row per operating point and solver, each with its outcomes summed to the starts
+    from casadrone.conditions import envelope
+    from casadrone.report.trimstudy import POINTS
+
+    labels = [p.label for p in envelope(POINTS)]
+    for label in labels:
+        assert trim.count(f"<td>{label}</td>") == 3, label
+    for name in ("trim-study-envelope", "trim-study-basins", "trim-study-residuals"):
+        assert (run_dir / "plots" / f"{name}.png").is_file()

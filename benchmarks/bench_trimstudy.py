@@ -1,0 +1,165 @@
+"""Benchmark: the trim-solver study, its cost and what it finds across airframes.
+
+1. Timing target: one airframe (HS210, asymmetric), the default envelope (hover, level flight
+   5…40 m/s, climb and descent at ±30°, two turns: 13 points), 100 random starts plus the
+   analytic guess per point and solver, on one core. Target: under a minute. Wall time and the
+   process's CPU time are both recorded (the machine may be shared; CPU time is what one core
+   spends).
+2. What the study finds: the five reference airframes and N random paper Table 1 frames, the
+   same envelope and spreads with fewer starts; per frame and solver the success rate over the
+   envelope, the outcomes, median iterations and the point where the solver did worst.
+
+Writes ``benchmarks/RESULTS-trimstudy.md`` (machine, load, the command, tables).
+
+Run: ``python benchmarks/bench_trimstudy.py [--starts 100] [--frame-starts 20] [--random 5]
+[--seed 0] [--no-write]``.
+"""
+
+from __future__ import annotations
+
+import os
+
+# One core: pin BLAS/OpenMP thread pools before numpy, scipy or casadi are imported.
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
+    os.environ[_var] = "1"
+if hasattr(os, "sched_setaffinity"):
+    os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from benchmarks.machine import markdown  # noqa: E402
+from casadrone.airframe import build_airframe, random_thetas, with_theta  # noqa: E402
+from casadrone.config import load_airframe  # noqa: E402
+from casadrone.trimstudy import StudyOptions, TrimStudy, trim_study  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parent / "RESULTS-trimstudy.md"
+REFERENCE = ("SY250", "SY220", "HS200", "HS210", "NSY200")
+ENVELOPE = "hover,forward,climb,turn"
+
+
+def timed_study(frame, options: StudyOptions) -> tuple[TrimStudy, float, float]:
+    """The study, its wall time and CPU time (s)."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    study = trim_study(frame, ENVELOPE, options)
+    return study, time.perf_counter() - wall, time.process_time() - cpu
+
+
+def solver_totals(study: TrimStudy) -> list[str]:
+    """Per solver over the envelope: starts, success, outcomes, iterations, time spent."""
+    rows = ["| solver | starts | success | converged | other trim | non-physical | failed | "
+            "diverged | iterations median (q25–q75) | time per start median (ms) | time spent (s) "
+            "|", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for solver in study.options.solvers:
+        res = [r for p in study.points for r in p.results if r.solver == solver]
+        its = [r.iterations for r in res if r.success]
+        t = np.array([r.wall_time_s for r in res])
+        n = {o: sum(r.outcome == o for r in res) for o in
+             ("converged", "other-trim", "non-physical", "failed", "diverged")}
+        q = np.percentile(its, [25, 50, 75]) if its else [np.nan] * 3
+        rows.append(f"| {solver} | {len(res)} | {100 * np.mean([r.success for r in res]):.1f} % "
+                    f"| {n['converged']} | {n['other-trim']} | {n['non-physical']} | "
+                    f"{n['failed']} | {n['diverged']} | {q[1]:.0f} ({q[0]:.0f}–{q[2]:.0f}) | "
+                    f"{1e3 * np.median(t):.2f} | {t.sum():.1f} |")
+    return rows
+
+
+def point_table(study: TrimStudy) -> list[str]:
+    """Success rate (%) per point and solver, and the distinct roots found."""
+    solvers = study.options.solvers
+    rows = ["| point | " + " | ".join(f"{s} success" for s in solvers)
+            + " | " + " | ".join(f"{s} iterations" for s in solvers) + " | roots (in domain) |",
+            "|---|" + "---:|" * (2 * len(solvers) + 1)]
+    for p in study.points:
+        s = [p.summary(x) for x in solvers]
+        rows.append(f"| {p.point.label} | "
+                    + " | ".join(f"{100 * x.success_rate:.0f}" for x in s) + " | "
+                    + " | ".join(f"{x.iterations_median:.0f}" for x in s)
+                    + f" | {len(p.solutions)} ({sum(x.physical for x in p.solutions)}) |")
+    return rows
+
+
+def frames(n_random: int, seed: int):
+    out = [build_airframe(load_airframe(name)) for name in REFERENCE]
+    base = load_airframe("SY250")
+    thetas, _ = random_thetas(base, n_random, seed)
+    out += [build_airframe(with_theta(base, th, name=f"table1-{i}"))
+            for i, th in enumerate(thetas)]
+    return out
+
+
+def frame_rows(study: TrimStudy, wall: float) -> list[str]:
+    rows = []
+    for solver in study.options.solvers:
+        s = [p.summary(solver) for p in study.points]
+        rate = np.mean([x.success_rate for x in s])
+        worst = min(study.points, key=lambda p: p.summary(solver).success_rate)
+        n = {o: sum(x.outcomes[o] for x in s) for o in ("non-physical", "failed", "diverged")}
+        rows.append(f"| {study.airframe} | {solver} | {100 * rate:.1f} % | {n['non-physical']} "
+                    f"| {n['failed']} | {n['diverged']} | "
+                    f"{np.median([x.iterations_median for x in s]):.0f} | "
+                    f"{worst.point.label} ({100 * worst.summary(solver).success_rate:.0f} %) | "
+                    f"{wall:.1f} |")
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--starts", type=int, default=100)
+    ap.add_argument("--frame-starts", type=int, default=20)
+    ap.add_argument("--random", type=int, default=5)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--no-write", action="store_true")
+    args = ap.parse_args()
+    command = "python benchmarks/bench_trimstudy.py " + " ".join(sys.argv[1:])
+
+    hs210 = build_airframe(load_airframe("HS210"))
+    trim_study(hs210, "forward:10", StudyOptions(starts=1))  # warm-up: build every solver once
+    target = StudyOptions(starts=args.starts, seed=args.seed)
+    study, wall, cpu = timed_study(hs210, target)
+    o = target
+    part1 = [
+        f"## 1. One airframe, the whole envelope, {o.starts} starts per point and solver",
+        "",
+        f"HS210, {len(study.points)} operating points × {len(o.solvers)} solvers × "
+        f"{o.starts + 1} starts (the analytic guess and {o.starts} draws, seed {o.seed}: roll, "
+        f"pitch ±{o.angle_spread_deg:g}°, commands ±{100 * o.command_spread:g} %), one core.",
+        "",
+        f"**Wall time {wall:.1f} s, CPU time {cpu:.1f} s** (target: under 60 s).",
+        "",
+        *solver_totals(study),
+        "",
+        *point_table(study),
+    ]
+    print("\n".join(part1), flush=True)
+
+    part2 = [
+        f"## 2. Reference and random Table 1 frames, {args.frame_starts} starts per point",
+        "",
+        "Success: trims (at the reference or another trim) per start, averaged over the "
+        "envelope's points; worst point: where the solver's success rate was lowest.",
+        "",
+        "| frame | solver | success | non-physical | failed | diverged | iterations (median "
+        "of point medians) | worst point | study wall time (s) |",
+        "|---|---|---:|---:|---:|---:|---:|---|---:|",
+    ]
+    for frame in frames(args.random, args.seed):
+        st, w, _ = timed_study(frame, StudyOptions(starts=args.frame_starts, seed=args.seed))
+        rows = frame_rows(st, w)
+        part2 += rows
+        print("\n".join(rows), flush=True)
+
+    text = "\n".join(["# Trim-solver study", "", f"Command: `{command}`", "", markdown(), "",
+                      *part1, "", *part2, ""])
+    if not args.no_write:
+        RESULTS.write_text(text)
+        print(f"wrote {RESULTS}")
+
+
+if __name__ == "__main__":
+    main()

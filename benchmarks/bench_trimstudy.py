@@ -52,7 +52,7 @@ def timed_study(frame, options: StudyOptions) -> tuple[TrimStudy, float, float]:
 
 def solver_totals(study: TrimStudy) -> list[str]:
     """Per solver over the envelope: starts, success, outcomes, iterations, time spent."""
-    rows = ["| solver | starts | success | converged | other trim | non-physical | failed | "
+    rows = ["| solver | starts | success | converged | other trim | out-of-domain | failed | "
             "diverged | iterations median (q25–q75) | time per start median (ms) | time spent (s) "
             "|", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for solver in study.options.solvers:
@@ -60,10 +60,10 @@ def solver_totals(study: TrimStudy) -> list[str]:
         its = [r.iterations for r in res if r.success]
         t = np.array([r.wall_time_s for r in res])
         n = {o: sum(r.outcome == o for r in res) for o in
-             ("converged", "other-trim", "non-physical", "failed", "diverged")}
+             ("converged", "other-trim", "out-of-domain", "failed", "diverged")}
         q = np.percentile(its, [25, 50, 75]) if its else [np.nan] * 3
         rows.append(f"| {solver} | {len(res)} | {100 * np.mean([r.success for r in res]):.1f} % "
-                    f"| {n['converged']} | {n['other-trim']} | {n['non-physical']} | "
+                    f"| {n['converged']} | {n['other-trim']} | {n['out-of-domain']} | "
                     f"{n['failed']} | {n['diverged']} | {q[1]:.0f} ({q[0]:.0f}–{q[2]:.0f}) | "
                     f"{1e3 * np.median(t):.2f} | {t.sum():.1f} |")
     return rows
@@ -80,7 +80,7 @@ def point_table(study: TrimStudy) -> list[str]:
         rows.append(f"| {p.point.label} | "
                     + " | ".join(f"{100 * x.success_rate:.0f}" for x in s) + " | "
                     + " | ".join(f"{x.iterations_median:.0f}" for x in s)
-                    + f" | {len(p.solutions)} ({sum(x.physical for x in p.solutions)}) |")
+                    + f" | {len(p.solutions)} ({sum(x.in_domain for x in p.solutions)}) |")
     return rows
 
 
@@ -100,10 +100,10 @@ def frame_rows(study: TrimStudy, wall: float) -> list[str]:
         rate = np.mean([x.success_rate for x in s])
         worst = min(study.points, key=lambda p: p.summary(solver).success_rate)
         n = {o: sum(x.outcomes[o] for x in s)
-             for o in ("other-trim", "non-physical", "failed", "diverged")}
+             for o in ("other-trim", "out-of-domain", "failed", "diverged")}
         guess = sum(x.from_guess == "converged" for x in s)
         rows.append(f"| {study.airframe} | {solver} | {100 * rate:.1f} % | {guess}/{len(s)} | "
-                    f"{n['other-trim']} | {n['non-physical']} | {n['failed']} | {n['diverged']} | "
+                    f"{n['other-trim']} | {n['out-of-domain']} | {n['failed']} | {n['diverged']} | "
                     f"{np.median([x.iterations_median for x in s]):.0f} | "
                     f"{worst.point.label} ({100 * worst.summary(solver).success_rate:.0f} %) | "
                     f"{wall:.1f} |")
@@ -149,7 +149,7 @@ def main() -> None:
         "the solver's success rate was lowest.",
         "",
         "| frame | solver | success | analytic guess converged (points) | other trim | "
-        "non-physical | failed | diverged | iterations (median of point medians) | worst point "
+        "out-of-domain | failed | diverged | iterations (median of point medians) | worst point "
         "| study wall time (s) |",
         "|---|---|---:|---:|---:|---:|---:|---:|---:|---|---:|",
     ]

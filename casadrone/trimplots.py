@@ -19,7 +19,7 @@ from casadrone.trimstudy import OUTCOMES, BasinSlice, ResidualHistory, TrimStudy
 SOLVER_COLOURS = {"ipopt": "C0", "nelder-mead": "C1", "newton": "C2"}
 #: One colour per outcome: green at the reference, blue another trim, purple a root outside the
 #: domain, orange no root, red ran away.
-OUTCOME_COLOURS = {"converged": "#2ca02c", "other-trim": "#1f77b4", "non-physical": "#9467bd",
+OUTCOME_COLOURS = {"converged": "#2ca02c", "other-trim": "#1f77b4", "out-of-domain": "#9467bd",
                    "failed": "#ff7f0e", "diverged": "#d62728"}
 #: Marker of each kind of operating point (level flight, hover included, is a line).
 _MARKERS = {"climb": "^", "descent": "v", "turn": "s"}

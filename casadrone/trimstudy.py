@@ -12,8 +12,9 @@ Each solve is :func:`casadrone.trim.trim` itself, timed by it, and ends in one o
 
 * ``converged`` — a trim (residual within the solver's tolerance) at the reference solution;
 * ``other-trim`` — a trim elsewhere (another root of the equations inside the model's domain);
-* ``non-physical`` — a root of the equations outside the domain: a tilt beyond ``max_tilt_deg``,
-  such as flying inverted on negative thrust (φ = π, commands < 0);
+* ``out-of-domain`` — a root of the equations outside the trim's domain, with a tilt beyond
+  ``max_tilt_deg``: inverted on negative thrust (φ = π, commands < 0), or the same flight tail
+  first (φ = π, θ − π: the attitude with the heading reversed, which ψ = 0 excludes);
 * ``failed`` — no root: the iteration cap or a stall with a finite residual above tolerance;
 * ``diverged`` — the iterate ran away: non-finite values.
 
@@ -45,8 +46,8 @@ from casadrone.trim import (
     trim,
 )
 
-Outcome = Literal["converged", "other-trim", "non-physical", "failed", "diverged"]
-OUTCOMES: tuple[str, ...] = ("converged", "other-trim", "non-physical", "failed", "diverged")
+Outcome = Literal["converged", "other-trim", "out-of-domain", "failed", "diverged"]
+OUTCOMES: tuple[str, ...] = ("converged", "other-trim", "out-of-domain", "failed", "diverged")
 
 
 @dataclass(frozen=True)
@@ -141,7 +142,7 @@ class SolverSummary:
             costs time too).
         residual_median, residual_max: over the trims; distance_max: largest distance of a
             trim from the reference; solutions: distinct roots this solver found (trims and
-            non-physical roots).
+            out-of-domain roots).
         from_guess: outcome from the analytic guess.
     """
 
@@ -175,7 +176,7 @@ class Solution:
     z: np.ndarray
     distance: float
     found_by: dict[str, int]
-    physical: bool
+    in_domain: bool
     commands_in_range: bool
 
     def as_dict(self) -> dict[str, Any]:
@@ -266,7 +267,7 @@ def outcome_of(tp: TrimPoint, distance: float, options: StudyOptions) -> str:
     if tp.residual_norm > tol:
         return "failed"
     if math.degrees(float(np.max(np.abs(tp.x0[9:11])))) > o.max_tilt_deg:
-        return "non-physical"
+        return "out-of-domain"
     if math.isnan(distance) or distance <= options.distinct_tolerance:
         return "converged"
     return "other-trim"
@@ -354,7 +355,7 @@ def _solution(j: int, rep: np.ndarray, results, reference, options: StudyOptions
             found[r.solver] = found.get(r.solver, 0) + 1
     tilt = math.degrees(float(np.max(np.abs(rep[:2]))))
     return Solution(z=rep, distance=_distance(rep, reference), found_by=found,
-                    physical=tilt <= options.trim.max_tilt_deg,
+                    in_domain=tilt <= options.trim.max_tilt_deg,
                     commands_in_range=bool(np.all((rep[2:] >= 0) & (rep[2:] <= 1))))
 
 

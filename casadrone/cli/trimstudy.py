@@ -142,15 +142,15 @@ def study_text(study) -> str:
     lines = [f"{study.airframe}: trim solvers from {o.starts} random starts and the analytic "
              f"guess per point (seed {o.seed}; roll, pitch ±{o.angle_spread_deg:g} deg, "
              f"commands ±{100 * o.command_spread:g} %); {study.wall_time_s:.1f} s",
-             "outcomes: conv = at the reference, other = another trim, nonphys = a root outside "
+             "outcomes: conv = at the reference, other = another trim, outside = a root beyond "
              "the domain (tilt), fail = no root, div = non-finite"]
-    head = (f"  {'solver':<12}{'success':>8}{'conv':>6}{'other':>6}{'nonphys':>8}{'fail':>6}"
+    head = (f"  {'solver':<12}{'success':>8}{'conv':>6}{'other':>6}{'outside':>8}{'fail':>6}"
             f"{'div':>5}  {'iterations med [q25-q75]':>25}{'time ms med [q25-q75]':>24}"
             f"{'residual med':>13}{'max dist':>10}{'roots':>6}")
     for p in study.points:
         ref = f"reference by {p.reference_solver}" if p.reference is not None else "no reference"
         lines += ["", f"{p.point.label} ({ref}; {len(p.solutions)} distinct root(s), "
-                  f"{sum(s.physical for s in p.solutions)} in the domain)", head]
+                  f"{sum(s.in_domain for s in p.solutions)} in the domain)", head]
         for s in p.summaries:
             c = s.outcomes
             its = f"{s.iterations_median:.0f} [{s.iterations_q25:.0f}-{s.iterations_q75:.0f}]"
@@ -158,7 +158,7 @@ def study_text(study) -> str:
                   f"{1e3 * s.wall_time_q75_s:.2f}]")
             lines.append(
                 f"  {s.solver:<12}{100 * s.success_rate:>7.0f}%{c['converged']:>6}"
-                f"{c['other-trim']:>6}{c['non-physical']:>8}{c['failed']:>6}{c['diverged']:>5}  "
+                f"{c['other-trim']:>6}{c['out-of-domain']:>8}{c['failed']:>6}{c['diverged']:>5}  "
                 f"{its:>25}{ms:>24}{s.residual_median:>13.1e}{s.distance_max:>10.1e}"
                 f"{s.solutions:>6}")
     return "\n".join(lines)

@@ -45,7 +45,7 @@ def trim_study_part(run: Run, cands: list[Candidate], figs: Figures, starts: int
     tol = {s: o.trim.nelder_mead_tolerance if s == "nelder-mead" else o.trim.tolerance
            for s in o.solvers}
     rows = [[p.point.label, s.solver, cell(100 * s.success_rate, ".0f"),
-             *(s.outcomes[k] for k in ("converged", "other-trim", "non-physical", "failed",
+             *(s.outcomes[k] for k in ("converged", "other-trim", "out-of-domain", "failed",
                                        "diverged")),
              cell(s.iterations_median, ".0f"), cell(1e3 * s.wall_time_median_s, ".2f"),
              cell(s.residual_median, ".1e")]
@@ -53,14 +53,14 @@ def trim_study_part(run: Run, cands: list[Candidate], figs: Figures, starts: int
     text = (f"Every solver trims {who} from the same {starts + 1} starts per operating point: "
             f"the analytic guess and {starts} draws (seed {o.seed}) with roll and pitch within "
             f"±{o.angle_spread_deg:g}° and commands within ±{100 * o.command_spread:g} % of it. "
-            "Outcomes: converged (to the reference trim), other trim, non-physical (a root of "
-            "the equations beyond the tilt limit, e.g. inverted on negative thrust), failed (no "
-            "root within the iteration cap), diverged (non-finite). The chain itself uses "
+            "Outcomes: converged (to the reference trim), other trim, out-of-domain (a root of "
+            "the equations beyond the tilt limit: inverted on negative thrust, or tail first), "
+            "failed (no root within the iteration cap), diverged (non-finite). The chain uses "
             f"'{setup.trim_solver}' from the analytic guess. Recompute with more starts: "
             f"casadrone trim-study with the candidate's θ as overrides.")
     parts: list[str] = [
         "<h4>Trim solvers across the envelope</h4>", note(text),
-        table(["point", "solver", "success (%)", "converged", "other trim", "non-physical",
+        table(["point", "solver", "success (%)", "converged", "other trim", "out-of-domain",
                "failed", "diverged", "iterations (median)", "time (ms, median)",
                "residual (median, SI)"], rows, "wide"),
         figs.embed(envelope_figure(study), "trim-study-envelope",

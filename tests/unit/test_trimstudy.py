@@ -119,14 +119,14 @@ def test_hover_reference_balances_weight_and_moments_by_hand(hs210, small_study)
     np.testing.assert_allclose(wrench[1:], 0.0, atol=1e-14)  # observed ~1e-17 N·m
 
 
-def test_inverted_hover_is_a_non_physical_root_with_negative_thrust(hs210):
+def test_inverted_hover_is_an_out_of_domain_root_with_negative_thrust(hs210):
     guess = initial_guess(hs210)
     z0 = np.r_[math.pi - 0.2, 0.1, -guess[2:]]
     tp = trim(hs210, solver="newton", options=TrimOptions(initial_guess=tuple(z0)))
     assert not tp.success and "tilt" in tp.message
     assert tp.residual_norm < 1e-9
     np.testing.assert_allclose(tp.thrusts.sum(), -hs210.mass * hs210.gravity, atol=1e-12)
-    assert outcome_of(tp, math.nan, StudyOptions()) == "non-physical"
+    assert outcome_of(tp, math.nan, StudyOptions()) == "out-of-domain"
 
 
 def test_a_diverging_start_is_an_outcome_not_an_exception(hs210):

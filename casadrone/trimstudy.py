@@ -111,7 +111,8 @@ class StartResult:
         iterations, wall_time_s, residual_norm: as the TrimPoint reports them.
         distance: ∞-norm to the reference solution in Z (nan without a trim or a reference).
         solution: index into the point's ``solutions`` (−1 without a trim).
-        z: the end point Z (angles wrapped); message: the trim's message.
+        z: where it ended, (φ, θ, δ1…δ4) (angles wrapped; the rotor states of another
+            propulsion model follow from the commands at rest); message: the trim's message.
     """
 
     start: int
@@ -213,7 +214,9 @@ class PointStudy:
 
 @dataclass(frozen=True)
 class TrimStudy:
-    """A trim-solver study of one airframe over operating points."""
+    """A trim-solver study of one airframe over operating points. ``unknown_names`` name the
+    columns of each point's ``starts``: (φ, θ, δ1…δ4), then the rotor states a propulsion model
+    adds to the unknowns."""
 
     airframe: str
     options: StudyOptions
@@ -396,7 +399,9 @@ def trim_study(
     pts = envelope(points) if isinstance(points, str) else tuple(points)
     start = time.perf_counter()
     studies = tuple(study_point(frame, p, o) for p in pts)
-    return TrimStudy(frame.name, o, studies, UNKNOWN_NAMES, time.perf_counter() - start)
+    nz = len(studies[0].guess) if studies else len(UNKNOWN_NAMES)
+    names = UNKNOWN_NAMES + tuple(f"rotor{i}" for i in range(1, nz - len(UNKNOWN_NAMES) + 1))
+    return TrimStudy(frame.name, o, studies, names, time.perf_counter() - start)
 
 
 # ---------------------------------------------------------------------------------------------

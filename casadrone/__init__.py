@@ -36,6 +36,8 @@ _API = {
                            "THETA_KEYS"],
     "casadrone.model": ["quadrotor_model", "STATE_NAMES", "INPUT_NAMES"],
     "casadrone.trim": ["trim", "trim_all", "TrimPoint", "TrimOptions"],
+    "casadrone.conditions": ["OperatingPoint", "CONDITIONS"],
+    "casadrone.trimstudy": ["trim_study", "StudyOptions", "TrimStudy"],
     "casadrone.linearise": ["linearise", "LinearModel"],
     "casadrone.control": ["design_lqri", "design_for", "robustness_ensemble", "hover_point",
                           "LQRIDesign"],

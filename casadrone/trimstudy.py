@@ -280,8 +280,9 @@ def _reference(frame: Airframe, point: OperatingPoint, options: StudyOptions):
     """(Z, solver) of the reference trim: ``reference_solver`` from the analytic guess, else
     the first other solver that succeeds there; (None, "") if none does."""
     order = [options.reference_solver, *(s for s in SOLVERS if s != options.reference_solver)]
+    analytic = replace(options.trim, initial_guess=None)
     for solver in order:
-        tp = trim(frame, point.condition, solver=solver, options=options.trim, **point.kwargs)
+        tp = trim(frame, point.condition, solver=solver, options=analytic, **point.kwargs)
         if tp.success:
             return _z_of(tp), solver
     return None, ""

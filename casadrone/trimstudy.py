@@ -3,8 +3,10 @@ starts, at operating points across the flight envelope.
 
 At each operating point every solver starts from the same N + 1 guesses: the analytic guess of
 :func:`casadrone.trim.initial_guess` and N draws around it, uniform in a box of stated size:
-φ0, θ0 = guess ± ``angle_spread_deg``; δ0_i = guess_i (1 ± ``command_spread``); further
-unknowns of another propulsion model are scaled like the commands. The draws come from
+φ0, θ0 = guess ± ``angle_spread_deg``; δ0_i = guess_i (1 ± ``command_spread``). These are the
+unknowns every propulsion model shares and ``TrimOptions.initial_guess`` takes; the rotor states
+a propulsion model adds to the unknowns (rotor speeds) start where the trim's own analytic
+guess puts them. The draws come from
 ``numpy.random.default_rng([seed, crc32(point label)])`` (PCG64: the same numbers on any
 machine), so a point's starts do not depend on which other points are studied.
 
@@ -215,8 +217,7 @@ class PointStudy:
 @dataclass(frozen=True)
 class TrimStudy:
     """A trim-solver study of one airframe over operating points. ``unknown_names`` name the
-    columns of each point's ``starts``: (φ, θ, δ1…δ4), then the rotor states a propulsion model
-    adds to the unknowns."""
+    columns of each point's ``starts`` and of every ``z``: (φ, θ, δ1…δ4)."""
 
     airframe: str
     options: StudyOptions
@@ -306,10 +307,16 @@ def _cluster(zs: list[np.ndarray], tol: float) -> tuple[list[int], list[np.ndarr
 # ---------------------------------------------------------------------------------------------
 
 
+def analytic_guess(frame: Airframe, point: OperatingPoint) -> np.ndarray:
+    """The trim's analytic guess of (φ, θ, δ1…δ4) at ``point`` (the unknowns the study varies)."""
+    full = initial_guess(frame, point.speed_mps, climb_angle_deg=point.climb_angle_deg,
+                         turn_rate_dps=point.turn_rate_dps)
+    return full[:len(UNKNOWN_NAMES)]
+
+
 def study_point(frame: Airframe, point: OperatingPoint, options: StudyOptions) -> PointStudy:
     """Every solver of ``options`` from every start at one operating point."""
-    guess = initial_guess(frame, point.speed_mps, climb_angle_deg=point.climb_angle_deg,
-                          turn_rate_dps=point.turn_rate_dps)
+    guess = analytic_guess(frame, point)
     starts = draw_starts(guess, point, options)
     reference, ref_solver = _reference(frame, point, options)
     runs = []
@@ -400,9 +407,7 @@ def trim_study(
     pts = envelope(points) if isinstance(points, str) else tuple(points)
     start = time.perf_counter()
     studies = tuple(study_point(frame, p, o) for p in pts)
-    nz = len(studies[0].guess) if studies else len(UNKNOWN_NAMES)
-    names = UNKNOWN_NAMES + tuple(f"rotor{i}" for i in range(1, nz - len(UNKNOWN_NAMES) + 1))
-    return TrimStudy(frame.name, o, studies, names, time.perf_counter() - start)
+    return TrimStudy(frame.name, o, studies, UNKNOWN_NAMES, time.perf_counter() - start)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -437,8 +442,7 @@ def basin_slice(frame: Airframe, point: OperatingPoint, options: StudyOptions | 
                 grid: int = 21) -> BasinSlice:
     """Every solver of ``options`` from a ``grid`` × ``grid`` lattice of (φ0, θ0) starts."""
     o = options or StudyOptions()
-    guess = initial_guess(frame, point.speed_mps, climb_angle_deg=point.climb_angle_deg,
-                          turn_rate_dps=point.turn_rate_dps)
+    guess = analytic_guess(frame, point)
     reference, _ = _reference(frame, point, o)
     offsets = np.linspace(-o.angle_spread_deg, o.angle_spread_deg, grid)
     outcomes, iterations = {}, {}
@@ -483,7 +487,10 @@ def residual_history(frame: Airframe, point: OperatingPoint, solver: str, z0: np
     n = max(full.iterations, 1)
     ks = np.unique(np.r_[np.arange(1, min(n, samples) + 1),
                          np.geomspace(1, n, samples).round().astype(int)])
-    res = [residual_norm(frame, z0, point.condition, **point.kwargs)]
+    everything = initial_guess(frame, point.speed_mps, climb_angle_deg=point.climb_angle_deg,
+                               turn_rate_dps=point.turn_rate_dps)
+    z_start = np.concatenate([z0, everything[len(z0):]])  # rotor states beyond z0, as trim does
+    res = [residual_norm(frame, z_start, point.condition, **point.kwargs)]
     for k in ks:
         capped = replace(o, max_iterations=int(k), nelder_mead_max_iterations=int(k))
         res.append(trim(frame, point.condition, solver=solver, options=capped,

@@ -113,13 +113,11 @@ def _fastest_level(study):
 
 def _figures(frame, study, point, grid: int, folder: Path) -> list[str]:
     """The envelope, basin and residual-history figures of a study, saved in ``folder``."""
-    from casadrone.trim import initial_guess
     from casadrone.trimplots import basin_figure, envelope_figure, residual_figure
-    from casadrone.trimstudy import basin_slice, draw_starts, residual_history
+    from casadrone.trimstudy import analytic_guess, basin_slice, draw_starts, residual_history
 
     o = study.options
-    guess = initial_guess(frame, point.speed_mps, climb_angle_deg=point.climb_angle_deg,
-                          turn_rate_dps=point.turn_rate_dps)
+    guess = analytic_guess(frame, point)
     starts = {"the analytic guess": guess}
     if o.starts:
         starts["random start 1"] = draw_starts(guess, point, o)[1]

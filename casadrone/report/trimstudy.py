@@ -20,10 +20,10 @@ def trim_study_part(run: Run, cands: list[Candidate], figs: Figures, starts: int
         return ""
     from casadrone.airframe import build_airframe, with_theta
     from casadrone.optimise.problem import study_setup
-    from casadrone.trim import initial_guess
     from casadrone.trimplots import basin_figure, envelope_figure, residual_figure
     from casadrone.trimstudy import (
         StudyOptions,
+        analytic_guess,
         basin_slice,
         draw_starts,
         residual_history,
@@ -37,7 +37,7 @@ def trim_study_part(run: Run, cands: list[Candidate], figs: Figures, starts: int
     o = StudyOptions(starts=starts, seed=0)
     study = trim_study(frame, POINTS, o)
     fast = study.points[[p.point.label for p in study.points].index("forward 40 m/s")]
-    guess = initial_guess(frame, 40.0)
+    guess = analytic_guess(frame, fast.point)
     histories = [residual_history(frame, fast.point, s, z0, o.trim, name)
                  for name, z0 in (("the analytic guess", guess),
                                   ("random start 1", draw_starts(guess, fast.point, o)[1]))

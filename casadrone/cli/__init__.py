@@ -7,6 +7,7 @@ inside the commands, so ``casadrone validate`` stays fast.
 
 The commands are grouped by layer: :mod:`~casadrone.cli.design` (validate, trim, linearise, lqr),
 :mod:`~casadrone.cli.flight` (simulate, benchmark), :mod:`~casadrone.cli.limit` (limit-lap),
+:mod:`~casadrone.cli.codesign` (codesign),
 :mod:`~casadrone.cli.massprops` (massprops), :mod:`~casadrone.cli.trimstudy` (trim-study),
 :mod:`~casadrone.cli.propulsion` (fit-propulsion),
 :mod:`~casadrone.cli.optimisation` (run, resume, decide, compare, report) and
@@ -23,6 +24,7 @@ from casadrone.cli import (  # noqa: F401 (importing registers the commands)
     export,
     flight,
     limit,
+    codesign,
     massprops,
     optimisation,
     propulsion,

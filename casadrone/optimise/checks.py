@@ -119,6 +119,14 @@ def validate_file(path: str | Path) -> BaseModel:
     (:func:`casadrone.config.validation.check_config_file`), and a problem also against the
     optimiser; ConfigError lists every problem."""
     config = check_config_file(path)
-    if isinstance(config, ProblemConfig):
+    from casadrone.config.codesign import CodesignProblemConfig
+
+    if isinstance(config, CodesignProblemConfig):  # checked against what co-design can hold
+        from casadrone.codesign.checks import codesign_index_problems
+
+        found = codesign_index_problems(config.objectives, config.constraints)
+        if found:
+            raise ConfigError(problem_lines(found, str(path)))
+    elif isinstance(config, ProblemConfig):
         check_problem(config, path)
     return config

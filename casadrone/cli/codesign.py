@@ -1,0 +1,75 @@
+"""``casadrone codesign``: the fastest frame of a problem in one NLP (:mod:`casadrone.codesign`)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from casadrone.cli.common import JsonOpt, app, bad_input, print_json, reports_config_errors
+
+
+@app.command("codesign")
+@reports_config_errors
+def codesign_command(
+    problem: Annotated[str, typer.Argument(help="co-design problem YAML, or a shipped name "
+                                           "(codesign-paper, codesign-season)")],
+    overrides: Annotated[list[str] | None, typer.Argument(
+        help="dotted key=value overrides, e.g. codesign.starts=2 codesign.intervals=20")] = None,
+    out: Annotated[Path | None, typer.Option(help="folder for result.json (and a front's run "
+                                             "directory); must be new or empty")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Co-design: the problem's decision variables become variables of the limit-lap NLP, so one
+    solve gives the frame with the fastest limit lap (on one track, or the weighted sum or the
+    worst of a season's tracks). Starts from the template's geometry and codesign.starts random
+    feasible frames (all reported), and certifies the result: the limit lap re-solved with the
+    frame fixed, the reduced gradient in θ with its multipliers, the CVODES re-simulation.
+
+    A problem with a closed-loop index (J1-J5, Jp) is refused by name (exit code 2).
+    """
+    from casadrone.codesign.checks import load_codesign_problem
+    from casadrone.codesign.driver import codesign
+
+    if out is not None and out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise bad_input([f"{out}: --out must be a new or empty folder (nothing is overwritten)"])
+    cfg = load_codesign_problem(problem, overrides or [])
+    result = codesign(cfg)
+    data = result.as_dict()
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        from casadrone.cli.common import jsonable
+
+        (out / "result.json").write_text(json.dumps(jsonable(data), indent=2) + "\n")
+    if as_json:
+        print_json(data)
+        return
+    typer.echo(text(result))
+
+
+def text(result) -> str:
+    """The result as lines: the frame, its laps, every start, the certificate."""
+    head = f"{result.problem}: co-design {result.status.upper()}"
+    if result.best is None:
+        return f"{head}: {result.reason}"
+    b = result.best
+    laps = ", ".join(f"{k} {v:.4f} s" for k, v in b.laps_s.items())
+    theta = ", ".join(f"{k} {v:.2f}" for k, v in b.theta.items())
+    lines = [f"{head}: objective {b.objective:.4f} s ({result.combine}; {laps})",
+             f"  frame: {theta}; mass {b.mass_kg:.4f} kg, span {b.span_m:.4f} m",
+             f"  CPU {result.cpu_s:.1f} s in all (build {result.build_cpu_s:.1f} s), wall "
+             f"{result.wall_time_s:.1f} s", "  starts:"]
+    for s in result.starts:
+        th = ", ".join(f"{v:.2f}" for v in s.theta.values())
+        lines.append(f"    {s.label:<10} {s.status:<28} {s.objective:>9.4f} s  θ = ({th})  "
+                     f"{s.iterations} it, {s.cpu_s:.1f} s CPU")
+    if len(result.distinct) > 1:
+        lines.append(f"  {len(result.distinct)} distinct local optima (differing by > 0.1 %):")
+        for p in result.distinct:
+            th = ", ".join(f"{v:.2f}" for v in p.theta.values())
+            lines.append(f"    {p.objective:.4f} s at ({th})")
+    if result.certificate is not None:
+        lines.append(result.certificate.text())
+    return "\n".join(lines)

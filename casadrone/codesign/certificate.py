@@ -1,0 +1,200 @@
+"""Certificates of a co-design point: why this frame, and proof that the lap is the frame's own.
+
+At a returned point (θ*, laps):
+
+1. **Lap**: each track's limit lap re-solved with θ fixed at θ*, twice: from the co-design point
+   (primal-dual warm start: the co-design optimum must be an optimum of the fixed-frame problem)
+   and by :func:`casadrone.limit.lap.limit_lap`'s own cold starts (a faster local optimum of the
+   fixed frame would show the co-design point is not the frame's best lap). The fixed-frame lap,
+   the better of both, must equal the co-design lap within :data:`LAP_RTOL`.
+2. **Reduced gradient**: dT/dθ of the fixed-frame optimum by the envelope theorem (its
+   multipliers of p and x_start, chained through :mod:`casadrone.massprops`' numbers by
+   :func:`casadrone.limit.check.theta_sensitivities`: a path independent of the symbolic frame),
+   plus the active feasibility and ε rows times their multipliers. Zero for a variable inside its
+   box, the sign of the bound at a bound (≥ 0 at the lower bound: moving in would slow the lap);
+   IPOPT's bound multiplier is its negative. These numbers are the "why" of the frame.
+3. **Re-simulation**: the fixed-frame lap's commands flown by CVODES pass every target within
+   the limit lap's ``max_miss_m``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from casadrone.airframe import build_airframe
+from casadrone.config.io import ConfigError
+from casadrone.limit.check import resimulation_miss, theta_sensitivities
+from casadrone.limit.lap import _bounds, _trajectory, limit_lap, start_state
+from casadrone.limit.nlp import NlpPoint, solve
+from casadrone.model import NP, NX
+
+#: Largest relative gap between the co-design lap and the fixed-frame lap (issue: 0.05 %).
+LAP_RTOL = 5e-4
+#: A reduced-gradient entry counts as zero below this fraction of the largest |dT/ds| over the
+#: variables (s per box width), or below GRAD_ATOL; both chosen from the agreement observed
+#: between the envelope-theorem gradient and IPOPT's multipliers (see the tests).
+GRAD_RTOL = 2e-2
+GRAD_ATOL = 1e-4
+#: A variable within this fraction of its box from a bound is at that bound.
+AT_BOUND = 1e-6
+
+
+@dataclass(frozen=True)
+class TrackCheck:
+    label: str
+    codesign_lap_s: float
+    fixed_warm_lap_s: float
+    fixed_cold_lap_s: float
+    fixed_lap_s: float
+    gap_pct: float
+    resimulation_miss_m: float
+    passed: bool
+
+
+@dataclass(frozen=True)
+class VariableCheck:
+    key: str
+    value: float
+    state: str  # interior | lower | upper
+    dT_dtheta: float  # s per unit of the key (combined objective)
+    reduced_gradient: float  # s per box width, constraint terms included
+    bound_multiplier: float  # IPOPT's, per box width
+    passed: bool
+
+
+@dataclass(frozen=True)
+class Certificate:
+    tracks: tuple[TrackCheck, ...]
+    variables: tuple[VariableCheck, ...]
+    active: dict[str, float]  # active feasibility / ε rows and their multipliers
+    passed: bool
+    reason: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"tracks": [asdict(t) for t in self.tracks],
+                "variables": [asdict(v) for v in self.variables],
+                "active_constraints": dict(self.active), "passed": self.passed,
+                "reason": self.reason}
+
+    def text(self) -> str:
+        """The certificate as lines for the terminal."""
+        lines = [f"certificate: {'PASSED' if self.passed else 'FAILED'}"
+                 + (f" ({self.reason})" if self.reason else "")]
+        for t in self.tracks:
+            lines.append(f"  {t.label}: co-design lap {t.codesign_lap_s:.4f} s, θ fixed "
+                         f"{t.fixed_lap_s:.4f} s (warm {t.fixed_warm_lap_s:.4f}, cold "
+                         f"{t.fixed_cold_lap_s:.4f}), gap {t.gap_pct:+.4f} %, re-simulation "
+                         f"miss {t.resimulation_miss_m:.4f} m")
+        lines.append("  why (reduced gradient: s per box width; bound multiplier from IPOPT):")
+        for v in self.variables:
+            lines.append(f"    {v.key:<13} {v.value:>10.4f} {v.state:<8} dT/dθ "
+                         f"{v.dT_dtheta:>+11.4g}  reduced {v.reduced_gradient:>+10.3g}  "
+                         f"multiplier {v.bound_multiplier:>+10.3g}  {'ok' if v.passed else 'NO'}")
+        for name, lam in self.active.items():
+            lines.append(f"    active: {name} (multiplier {lam:+.4g})")
+        return "\n".join(lines)
+
+
+def _fixed_laps(prep, point, k: int, cfg):
+    """(warm NlpSolution from the co-design point, limit_lap with its own cold starts, the
+    frame) for track k with θ fixed."""
+    cd = prep.nlp
+    part, track = cd.parts[k], prep.tracks[k]
+    frame = build_airframe(cfg)
+    x0 = start_state(frame, track, prep.options)
+    P = np.concatenate([frame.p, x0, part.targets])
+    lbx, ubx = _bounds(part.nlp, frame, track, prep.options, point_mass=False)
+    w = point.z[cd.offsets[k]:cd.offsets[k + 1]]
+    lam_x = point.lam_x[cd.offsets[k]:cd.offsets[k + 1]]
+    lam_g = point.lam_g[cd.row_offsets[k]:cd.row_offsets[k + 1]]
+    warm = solve(part.nlp, w, P, lbx, ubx, warm=NlpPoint(w, lam_x, lam_g, np.zeros(len(P))))
+    cold = limit_lap(cfg, track, replace(prep.options, warm_starts=(prep.template_laps[k],)
+                                         if prep.template_laps[k].solution is not None else ()))
+    return warm, cold, frame, x0
+
+
+def _gradient(prep, cfg, warm, track, keys) -> np.ndarray:
+    """dT/dθ (s per unit of each key) of one track's fixed-frame optimum (envelope theorem)."""
+    lam_p = warm.point.lam_p
+    sens = theta_sensitivities(cfg, -lam_p[:NP], -lam_p[NP:NP + NX],
+                               lambda f: start_state(f, track, prep.options), keys=keys)
+    return np.array([sens[k] for k in keys])
+
+
+def certify(prep, point) -> Certificate:
+    """The certificate of ``point`` (a :class:`casadrone.codesign.driver.CodesignPoint`)."""
+    cd = prep.nlp
+    try:
+        cfg = prep.config(point.theta, name=f"{prep.template.name}-codesign")
+    except ConfigError as exc:
+        return Certificate((), (), {}, False, f"the frame is not a valid airframe: {exc}")
+    checks, grads = [], []
+    for k, label in enumerate(prep.labels):
+        warm, cold, frame, _ = _fixed_laps(prep, point, k, cfg)
+        laps = [warm.objective if warm.success else math.inf,
+                cold.lap_time_s if cold.optimal else math.inf]
+        fixed = min(laps)
+        ref = point.laps_s[label]
+        gap = 100 * (fixed - ref) / ref
+        layout = cd.parts[k].nlp.layout
+        miss = (resimulation_miss(frame, _trajectory(cd.parts[k].nlp, warm.point.w, layout),
+                                  cd.parts[k].targets, layout.kinds)
+                if warm.success else math.inf)
+        ok = abs(gap) <= 100 * LAP_RTOL and miss <= prep.options.max_miss_m
+        checks.append(TrackCheck(label, ref, laps[0], laps[1], fixed, gap, miss, ok))
+        grads.append(_gradient(prep, cfg, warm, prep.tracks[k], prep.keys)
+                     if warm.success else np.full(len(prep.keys), np.nan))
+    n_tr = len(prep.labels)
+    row0 = cd.row_offsets[-1]
+    lam_feas = point.lam_g[row0:row0 + cd.n_feas]
+    tail = point.lam_g[row0 + cd.n_feas:]
+    if cd.combine == "worst":
+        mu, tail = tail[:n_tr], tail[n_tr:]
+    else:
+        mu = np.ones(n_tr)
+    weights = np.array(prep.weights) * mu
+    g_theta = sum(w * g for w, g in zip(weights, grads, strict=True))
+    width = prep.upper - prep.lower
+    _, s = cd.split(point.z)
+    rows = _frame_jacobians(cd, s)
+    reduced = g_theta * width + rows["feas"].T @ lam_feas
+    names = list(cd.frame.row_names)
+    active = {n: float(lam) for n, lam in zip(names, lam_feas, strict=True) if abs(lam) > 1e-8}
+    for i, m in enumerate(cd.epsilon):
+        lam = tail[i:i + 1] if m == "mass_kg" else tail[i:i + 2]
+        J = rows[m]
+        reduced = reduced + J.T @ lam
+        for j, value in enumerate(np.atleast_1d(lam)):
+            if abs(value) > 1e-8:
+                active[f"ε {m}{'' if J.shape[0] == 1 else f' diagonal {j + 1}'}"] = float(value)
+    lam_s = point.lam_x[cd.offsets[-1]:cd.offsets[-1] + len(prep.keys)]
+    scale = max(float(np.max(np.abs(g_theta * width))), 1e-12)
+    tol = max(GRAD_RTOL * scale, GRAD_ATOL)
+    variables = []
+    for i, key in enumerate(prep.keys):
+        state = "lower" if s[i] <= AT_BOUND else "upper" if s[i] >= 1 - AT_BOUND else "interior"
+        r = float(reduced[i])
+        ok = (abs(r) <= tol if state == "interior" else r >= -tol if state == "lower"
+              else r <= tol)
+        variables.append(VariableCheck(key, point.theta[key], state, float(g_theta[i]), r,
+                                       float(lam_s[i]), bool(ok and np.isfinite(r))))
+    failed = [f"{t.label}: lap gap {t.gap_pct:+.3f} %, miss {t.resimulation_miss_m:.3g} m"
+              for t in checks if not t.passed]
+    failed += [f"{v.key}: reduced gradient {v.reduced_gradient:+.3g} s ({v.state})"
+               for v in variables if not v.passed]
+    return Certificate(tuple(checks), tuple(variables), active, not failed, "; ".join(failed))
+
+
+def _frame_jacobians(cd, s: np.ndarray) -> dict[str, np.ndarray]:
+    """∂(feasibility rows, mass, diagonals)/∂s of the symbolic frame at s."""
+    sym = ca.MX.sym("s", len(s))
+    _, _, feas, mass, diag = cd.frame.function(sym)
+    J = ca.Function("frame_jac", [sym], [ca.jacobian(feas, sym), ca.jacobian(mass, sym),
+                                         ca.jacobian(diag, sym)])
+    f, m, d = (np.array(v, float) for v in J(s))
+    return {"feas": f, "mass_kg": m, "span_m": d}

@@ -1,0 +1,341 @@
+"""Co-design in one NLP: prepare the tracks, start from several frames, solve, certify.
+
+``codesign(problem) -> CodesignResult``. Steps (each a function below):
+
+1. :func:`prepare`: the template airframe, the decision variables and their box, each track's
+   limit-lap NLP, bounds, start state and targets, and the co-design NLP around them (built once
+   per process and problem shape);
+2. :func:`start_points`: the template's geometry and ``codesign.starts`` random feasible frames
+   in the box; each is given its own limit lap on every track (primal-dual warm-started from the
+   template's), which with its θ is a consistent start of the co-design NLP;
+3. :func:`solve_from`: IPOPT on the co-design NLP from one start (or a neighbour's primal-dual
+   point: continuation); every start is reported, the best converged one is the result, and
+   optima that differ by more than :data:`AGREE_REL` are reported as distinct local optima;
+4. :func:`certify` (:mod:`casadrone.codesign.certificate`): the limit lap of the frame re-solved
+   with θ fixed, the reduced gradient in θ with its multipliers, the CVODES re-simulation.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from casadrone.airframe import build_airframe, random_thetas, with_theta
+from casadrone.codesign.checks import load_codesign_problem
+from casadrone.codesign.frame import CODESIGN_KEYS, SymbolicFrame
+from casadrone.codesign.nlp import CodesignNlp, TrackPart, build_codesign_nlp
+from casadrone.config import AirframeConfig, load_airframe
+from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
+from casadrone.config.io import ConfigError, load
+from casadrone.config.track import TrackConfig
+from casadrone.limit.lap import (
+    LimitLap,
+    LimitLapOptions,
+    _bounds,
+    limit_lap,
+    start_state,
+    track_targets,
+)
+from casadrone.limit.nlp import Layout, build_nlp, quadrotor_ocp_model
+
+#: Two optima agree when their objectives differ by at most this fraction (acceptance: 0.1 %).
+AGREE_REL = 1e-3
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """Everything a co-design solve needs, built once per problem."""
+
+    problem: CodesignProblemConfig
+    template: AirframeConfig
+    keys: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+    labels: tuple[str, ...]
+    tracks: tuple[TrackConfig, ...]
+    weights: tuple[float, ...]
+    options: LimitLapOptions
+    nlp: CodesignNlp
+    template_laps: tuple[LimitLap, ...]
+
+    def config(self, theta: dict[str, float], name: str | None = None) -> AirframeConfig:
+        return with_theta(self.template, theta, name=name)
+
+
+@dataclass(frozen=True)
+class StartReport:
+    """One start of the co-design NLP: where from, what it reached."""
+
+    label: str
+    theta_start: dict[str, float]
+    status: str
+    success: bool
+    objective: float
+    theta: dict[str, float]
+    iterations: int
+    cpu_s: float
+
+
+@dataclass(frozen=True)
+class CodesignPoint:
+    """A converged co-design point: θ, the lap on each track, the measures, the raw solution."""
+
+    theta: dict[str, float]
+    objective: float
+    laps_s: dict[str, float]
+    mass_kg: float
+    span_m: float
+    iterations: int
+    cpu_s: float
+    epsilon: dict[str, float] = field(default_factory=dict)
+    z: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    lam_x: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    lam_g: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+
+
+@dataclass(frozen=True)
+class CodesignResult:
+    """The co-design of a problem: the best frame, every start, the distinct optima, and the
+    certificate of the returned point."""
+
+    status: Literal["optimal", "failed"]
+    reason: str
+    problem: str
+    keys: tuple[str, ...]
+    tracks: tuple[str, ...]
+    combine: str
+    best: CodesignPoint | None
+    starts: tuple[StartReport, ...]
+    distinct: tuple[CodesignPoint, ...]
+    certificate: Any = None  # casadrone.codesign.certificate.Certificate
+    cpu_s: float = math.nan
+    wall_time_s: float = math.nan
+    build_cpu_s: float = math.nan
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain data for ``--json`` (arrays of the raw solution left out)."""
+        def point(p: CodesignPoint | None):
+            if p is None:
+                return None
+            d = asdict(p)
+            for k in ("z", "lam_x", "lam_g"):
+                d.pop(k)
+            return d
+
+        return {"status": self.status, "reason": self.reason, "problem": self.problem,
+                "keys": list(self.keys), "tracks": list(self.tracks), "combine": self.combine,
+                "best": point(self.best), "starts": [asdict(s) for s in self.starts],
+                "distinct_optima": [point(p) for p in self.distinct],
+                "certificate": None if self.certificate is None else self.certificate.as_dict(),
+                "cpu_s": self.cpu_s, "wall_time_s": self.wall_time_s,
+                "build_cpu_s": self.build_cpu_s}
+
+
+# --------------------------------------------------------------------------------------------
+# 1. Prepare
+# --------------------------------------------------------------------------------------------
+
+
+def _template(problem: CodesignProblemConfig) -> AirframeConfig:
+    cfg = load_airframe(problem.airframe)
+    if problem.fixed:
+        cfg = AirframeConfig.model_validate({**cfg.model_dump(), **problem.fixed})
+    return cfg
+
+
+def _tracks(problem: CodesignProblemConfig) -> tuple[tuple[str, ...], tuple[TrackConfig, ...],
+                                                      tuple[float, ...]]:
+    if problem.codesign.tracks:
+        items = problem.codesign.tracks.items()
+        return (tuple(k for k, _ in items), tuple(load(TrackConfig, t.track) for _, t in items),
+                tuple(t.weight for _, t in items))
+    track = load(TrackConfig, problem.track)
+    return (track.name,), (track,), (1.0,)
+
+
+def _part(template: AirframeConfig, track: TrackConfig, options: LimitLapOptions,
+          weight: float) -> TrackPart:
+    frame = build_airframe(template)
+    targets = track_targets(track, options)
+    layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
+                    options.substeps)
+    nlp = build_nlp(quadrotor_ocp_model(), layout, options.tol, options.max_iter)
+    lbx, ubx = _bounds(nlp, frame, track, options, point_mass=False)
+    return TrackPart(nlp, lbx, ubx, start_state(frame, track, options), targets.vector,
+                     weight, hover_start=options.start_state is None,
+                     thrust_max=frame.thrust_gain)
+
+
+_BUILT: dict[tuple, CodesignNlp] = {}
+
+
+def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Prepared:
+    """The template, the variables, the tracks and the co-design NLP (cached per shape)."""
+    template = _template(problem)
+    keys = tuple(v.name for v in problem.variables)
+    bad = [k for k in keys if k not in CODESIGN_KEYS]
+    if bad:
+        raise ConfigError([f"{problem.name}: variables: co-design varies the geometry and "
+                           f"inertia keys ({', '.join(CODESIGN_KEYS)}); not {', '.join(bad)}"])
+    lower = np.array([v.lower for v in problem.variables])
+    upper = np.array([v.upper for v in problem.variables])
+    labels, tracks, weights = _tracks(problem)
+    options = LimitLapOptions(intervals=problem.codesign.intervals, sensitivities=False)
+    parts = tuple(_part(template, t, options, w) for t, w in zip(tracks, weights, strict=True))
+    frame = SymbolicFrame(template, keys, lower, upper)
+    key = (template.model_dump_json(), keys, tuple(lower), tuple(upper),
+           tuple(t.model_dump_json() for t in tracks), weights, problem.codesign.combine,
+           problem.codesign.intervals, epsilon)
+    if key not in _BUILT:
+        _BUILT[key] = build_codesign_nlp(parts, frame, problem.codesign.combine, epsilon)
+    laps = tuple(limit_lap(template, t, options) for t in tracks)
+    return Prepared(problem, template, keys, lower, upper, labels, tracks, weights, options,
+                    _BUILT[key], laps)
+
+
+# --------------------------------------------------------------------------------------------
+# 2. Starts
+# --------------------------------------------------------------------------------------------
+
+
+def start_points(prep: Prepared) -> list[tuple[str, dict[str, float]]]:
+    """The template's θ (clipped into the box) and ``codesign.starts`` random feasible θ."""
+    own = {k: float(np.clip(getattr(prep.template, k), lo, hi))
+           for k, lo, hi in zip(prep.keys, prep.lower, prep.upper, strict=True)}
+    bounds = {k: (lo, hi) for k, lo, hi in zip(prep.keys, prep.lower, prep.upper, strict=True)}
+    out = []
+    try:
+        prep.config(own)
+        out.append(("template", own))
+    except ConfigError:
+        pass
+    if prep.problem.codesign.starts:
+        thetas, _ = random_thetas(prep.template, prep.problem.codesign.starts,
+                                  prep.problem.seed, bounds)
+        out += [(f"random-{i + 1}", t) for i, t in enumerate(thetas)]
+    return out
+
+
+def initial_vector(prep: Prepared, theta: dict[str, float]) -> np.ndarray | None:
+    """The co-design decision vector of a frame: its own limit lap on every track (warm-started
+    from the template's) and its θ; None when a lap fails."""
+    cfg = prep.config(theta)
+    ws, laps = [], []
+    for track, ref in zip(prep.tracks, prep.template_laps, strict=True):
+        opts = replace(prep.options, warm_starts=(ref,) if ref.solution is not None else (),
+                       starts=() if ref.solution is not None else prep.options.starts,
+                       lower_bound=False)
+        lap = limit_lap(cfg, track, opts)
+        if not lap.optimal:
+            return None
+        ws.append(lap.solution.w)
+        laps.append(lap.lap_time_s)
+    z = [*ws, prep.nlp.frame.normalise(theta)]
+    if prep.nlp.combine == "worst":
+        z.append([max(w * t for w, t in zip(prep.weights, laps, strict=True))])
+    return np.concatenate(z)
+
+
+# --------------------------------------------------------------------------------------------
+# 3. Solve
+# --------------------------------------------------------------------------------------------
+
+
+def solve_from(prep: Prepared, z0: np.ndarray, epsilon: dict[str, float] | None = None,
+               warm: CodesignPoint | None = None) -> tuple[bool, str, CodesignPoint]:
+    """IPOPT on the co-design NLP from ``z0`` (or ``warm``'s primal-dual point)."""
+    cd = prep.nlp
+    lbx, ubx = cd.bounds()
+    eps = np.array([(epsilon or {})[m] for m in cd.epsilon], float)
+    args = dict(x0=np.clip(z0, lbx, ubx), lbx=lbx, ubx=ubx, lbg=cd.lbg, ubg=cd.ubg, p=eps)
+    solver = cd.cold
+    if warm is not None:
+        solver = cd.warm
+        args.update(x0=np.clip(warm.z, lbx, ubx), lam_x0=warm.lam_x, lam_g0=warm.lam_g)
+    c0 = time.process_time()
+    try:
+        out = solver(**args)
+        stats = solver.stats()
+        status = str(stats.get("return_status", "unknown"))
+        ok = bool(stats.get("success", False)) and np.isfinite(float(out["f"]))
+        z, lam_x, lam_g = (np.array(out[k], float).ravel() for k in ("x", "lam_x", "lam_g"))
+        iters = int(stats.get("iter_count", 0))
+    except RuntimeError as exc:
+        status, ok, iters = f"error: {str(exc).splitlines()[-1][:100]}", False, 0
+        z, lam_x, lam_g = np.asarray(z0, float), np.zeros(len(lbx)), np.zeros(len(cd.lbg))
+    cpu = time.process_time() - c0
+    return ok, status, point_of(prep, z, lam_x, lam_g, iters, cpu, epsilon or {})
+
+
+def point_of(prep: Prepared, z, lam_x, lam_g, iterations: int, cpu_s: float,
+             epsilon: dict[str, float]) -> CodesignPoint:
+    """A decision vector read as a :class:`CodesignPoint`."""
+    cd = prep.nlp
+    ws, s = cd.split(z)
+    theta = {k: float(v) for k, v in cd.frame.theta(np.clip(s, 0.0, 1.0)).items()}
+    laps = {lab: float(np.sum(part.nlp.unpack(w)[0]))
+            for lab, part, w in zip(prep.labels, cd.parts, ws, strict=True)}
+    _, _, _, mass, diagonals = cd.frame.function(np.clip(s, 0.0, 1.0))
+    objective = (sum(w * t for w, t in zip(prep.weights, laps.values(), strict=True))
+                 if cd.combine == "sum" else
+                 max(w * t for w, t in zip(prep.weights, laps.values(), strict=True)))
+    return CodesignPoint(theta, float(objective), laps, float(mass),
+                         float(np.max(np.asarray(diagonals))), iterations, cpu_s,
+                         dict(epsilon), z, lam_x, lam_g)
+
+
+def distinct_optima(points: list[CodesignPoint]) -> list[CodesignPoint]:
+    """Converged points whose objectives differ by more than AGREE_REL, best first."""
+    out: list[CodesignPoint] = []
+    for p in sorted(points, key=lambda p: p.objective):
+        if all(abs(p.objective - q.objective) > AGREE_REL * q.objective for q in out):
+            out.append(p)
+    return out
+
+
+def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True
+             ) -> CodesignResult:
+    """The fastest frame of ``problem`` (see the module docstring); never raises for a start
+    that fails (it is reported), raises ConfigError for a problem co-design cannot pose."""
+    from casadrone.codesign.certificate import certify as make_certificate
+
+    if not isinstance(problem, CodesignProblemConfig):
+        problem = load_codesign_problem(problem)
+    wall0, cpu0 = time.perf_counter(), time.process_time()
+    prep = prepare(problem)
+    build_cpu = time.process_time() - cpu0
+    reports, points = [], []
+    for label, theta in start_points(prep):
+        c0 = time.process_time()
+        z0 = initial_vector(prep, theta)
+        if z0 is None:
+            reports.append(StartReport(label, theta, "start frame has no limit lap", False,
+                                       math.nan, theta, 0, time.process_time() - c0))
+            continue
+        ok, status, pt = solve_from(prep, z0)
+        reports.append(StartReport(label, theta, status, ok, pt.objective, pt.theta,
+                                   pt.iterations, time.process_time() - c0))
+        if ok:
+            points.append(pt)
+    names = tuple(prep.labels)
+    common = dict(problem=problem.name, keys=prep.keys, tracks=names,
+                  combine=problem.codesign.combine, starts=tuple(reports), build_cpu_s=build_cpu)
+    if not points:
+        return CodesignResult("failed", "no start converged: " + "; ".join(
+            f"{r.label}: {r.status}" for r in reports), best=None, distinct=(), **common,
+            cpu_s=time.process_time() - cpu0, wall_time_s=time.perf_counter() - wall0)
+    distinct = distinct_optima(points)
+    best = distinct[0]
+    cert = make_certificate(prep, best) if certify else None
+    return CodesignResult("optimal", "", best=best, distinct=tuple(distinct), certificate=cert,
+                          cpu_s=time.process_time() - cpu0,
+                          wall_time_s=time.perf_counter() - wall0, **common)
+
+
+__all__ = ["FRONT_MEASURES", "CodesignPoint", "CodesignResult", "StartReport", "codesign",
+           "prepare", "solve_from"]

@@ -1,0 +1,145 @@
+"""The co-design NLP: the limit-lap NLPs of one or more tracks with the airframe's θ appended.
+
+Built around :mod:`casadrone.limit.nlp`, never a copy of it: each track's limit-lap NLP gives its
+symbolic decision vector w, parameter P = [p, x_start, targets], objective and constraints
+(:attr:`casadrone.limit.nlp.Nlp.symbolic`); here P is replaced by [p(θ), x_start(θ), targets]
+(p(θ) and the hover thrusts of the start state from :mod:`casadrone.codesign.frame`), θ is
+appended to the decision vector (normalised to [0, 1] in the problem's box), and the frame's
+feasibility rules and any ε-constraints are appended to the constraints. So transcription,
+attitude and constraint changes of the limit lap carry over unchanged.
+
+Decision vector: [w_1, …, w_K, s (θ normalised), t (only for ``combine: worst``)].
+Objective: Σ_k weight_k T_k (``sum``), or t with weight_k T_k ≤ t for every k (``worst``, the
+epigraph form that keeps the NLP smooth).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import casadi as ca
+import numpy as np
+
+from casadrone.codesign.frame import SymbolicFrame
+from casadrone.limit.nlp import Nlp, ipopt_options
+from casadrone.model import NX
+
+Combine = Literal["sum", "worst"]
+#: The ε-constrained measures a co-design NLP can hold (the frame's own expressions).
+MEASURES = ("mass_kg", "span_m")
+
+
+@dataclass(frozen=True)
+class TrackPart:
+    """One track's limit-lap NLP and the numbers that pose it (bounds, start, targets)."""
+
+    nlp: Nlp
+    lbx: np.ndarray
+    ubx: np.ndarray
+    x_start: np.ndarray  # 16; its rotor thrusts are replaced by the frame's hover thrusts
+    targets: np.ndarray
+    weight: float = 1.0
+    hover_start: bool = True  # the start state's thrusts follow the frame (hover at the start)
+    thrust_max: float = np.inf  # N, a rotor's thrust limit (the bound of the freed start thrusts)
+
+
+@dataclass(frozen=True)
+class CodesignNlp:
+    """A built co-design NLP: solvers, bounds and where each part lies in the decision vector."""
+
+    parts: tuple[TrackPart, ...]
+    frame: SymbolicFrame
+    combine: Combine
+    epsilon: tuple[str, ...]  # measures constrained ≤ ε (their values are the parameter)
+    cold: ca.Function
+    warm: ca.Function
+    lbg: np.ndarray
+    ubg: np.ndarray
+    offsets: tuple[int, ...]  # start of each w_k; the last entry is where s starts
+    n_feas: int
+    row_offsets: tuple[int, ...] = field(default=())  # start of each track's rows; then feas
+
+    @property
+    def n_theta(self) -> int:
+        return len(self.frame.keys)
+
+    @property
+    def nw(self) -> int:
+        return self.offsets[-1] + self.n_theta + (self.combine == "worst")
+
+    def split(self, z: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+        """(w_k of each track, s) of a decision vector."""
+        z = np.asarray(z, float).ravel()
+        ws = [z[self.offsets[k]:self.offsets[k + 1]] for k in range(len(self.parts))]
+        return ws, z[self.offsets[-1]:self.offsets[-1] + self.n_theta]
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Decision-vector bounds: each track's, with the start thrusts freed to [0, ∞) where they
+        follow the frame (the start equality row holds them), s in [0, 1], t free."""
+        lo, hi = [], []
+        for part in self.parts:
+            lbx, ubx = part.lbx.copy(), part.ubx.copy()
+            if part.hover_start:
+                first = start_thrust_index(part.nlp)
+                lbx[first], ubx[first] = 0.0, part.thrust_max
+            lo.append(lbx), hi.append(ubx)
+        lo.append(np.zeros(self.n_theta)), hi.append(np.ones(self.n_theta))
+        if self.combine == "worst":
+            lo.append([0.0]), hi.append([np.inf])
+        return np.concatenate(lo), np.concatenate(hi)
+
+
+
+def start_thrust_index(nlp: Nlp) -> np.ndarray:
+    """Indices in w of the first node's rotor thrusts."""
+    X = np.zeros((nlp.layout.n_intervals + 1, nlp.model.nx))
+    X[0, 12:16] = 1.0
+    w = nlp.pack(np.zeros(nlp.layout.n_legs), X,
+                 np.zeros((nlp.layout.n_intervals, nlp.model.nu)))
+    return np.flatnonzero(w)
+
+
+def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combine: Combine,
+                       epsilon: tuple[str, ...] = (), tol: float = 1e-6,
+                       max_iter: int = 1000) -> CodesignNlp:
+    """The co-design NLP of ``parts`` (tracks) with the frame's θ as variables; ``epsilon``
+    names the measures bounded above by the parameter (``mass_kg``, ``span_m``)."""
+    s = ca.MX.sym("s", len(frame.keys))
+    p, hover, feas, mass, diagonals = frame.function(s)
+    ws, fs, gs, lbg, ubg, offsets, row_offsets = [], [], [], [], [], [0], [0]
+    for k, part in enumerate(parts):
+        sym = part.nlp.symbolic
+        inner = ca.Function(f"limit_{k}", [sym["x"], sym["p"]], [sym["f"], sym["g"]])
+        w = ca.MX.sym(f"w{k}", sym["x"].numel())
+        x0 = ca.DM(part.x_start)
+        if part.hover_start:
+            x0 = ca.vertcat(x0[:12], hover, x0[16:NX])
+        f, g = inner(w, ca.vertcat(p, x0, ca.DM(part.targets)))
+        ws.append(w), fs.append(part.weight * f), gs.append(g)
+        lbg.append(part.nlp.lbg), ubg.append(part.nlp.ubg)
+        offsets.append(offsets[-1] + w.numel())
+        row_offsets.append(row_offsets[-1] + g.numel())
+    gs.append(feas), lbg.append(np.zeros(feas.numel())), ubg.append(np.full(feas.numel(), np.inf))
+    n_feas = feas.numel()
+    z = ca.vertcat(*ws, s)
+    if combine == "worst":
+        t = ca.MX.sym("t")
+        z = ca.vertcat(z, t)
+        objective = t
+        gs.append(ca.vertcat(*fs) - t)
+        lbg.append(np.full(len(fs), -np.inf)), ubg.append(np.zeros(len(fs)))
+    else:
+        objective = sum(fs)
+    eps = ca.MX.sym("eps", len(epsilon))
+    measures = {"mass_kg": mass, "span_m": diagonals}
+    for i, name in enumerate(epsilon):
+        m = measures[name]
+        gs.append(m - eps[i]), lbg.append(np.full(m.numel(), -np.inf))
+        ubg.append(np.zeros(m.numel()))
+    problem = {"x": z, "p": eps, "f": objective, "g": ca.vertcat(*gs)}
+    tag = f"codesign_{len(parts)}x{combine}_{'_'.join(epsilon) or 'free'}"
+    cold = ca.nlpsol(tag, "ipopt", problem, ipopt_options(tol, max_iter, False))
+    warm = ca.nlpsol(tag + "_warm", "ipopt", problem, ipopt_options(tol, max_iter, True))
+    return CodesignNlp(parts, frame, combine, tuple(epsilon), cold, warm, np.concatenate(lbg),
+                       np.concatenate(ubg), tuple(offsets), n_feas, tuple(row_offsets))

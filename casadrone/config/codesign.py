@@ -1,0 +1,73 @@
+"""The co-design problem file (``problems/codesign-*.yaml``): an optimisation problem whose
+decision variables become variables of the limit-lap NLP (:mod:`casadrone.codesign`).
+
+A problem file with a ``codesign:`` section; every other key is a problem's
+(:class:`casadrone.config.problem.ProblemConfig`), so an ordinary problem (``limit-lap``) can be
+handed to ``casadrone codesign`` too. Objectives: ``J3_limit`` (the limit lap, on one track or
+combined over ``codesign.tracks``) and the measures the NLP holds as ε-constraints for a design
+front (:data:`FRONT_MEASURES`); a closed-loop index (J1–J5, Jp) is refused by name when the
+problem is loaded for co-design (:func:`casadrone.codesign.checks.load_codesign_problem`, beside
+the index registry, as :mod:`casadrone.optimise.checks` does for the optimiser).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import Field
+
+from casadrone.config.io import Schema
+from casadrone.config.problem import ProblemConfig
+
+#: Front objectives the co-design NLP holds as ε-constraints, with their units and why.
+FRONT_MEASURES = {
+    "mass_kg": "total mass (kg) from the components mass model: what the frame weighs",
+    "span_m": "tip-to-tip span (m): the longer rotor diagonal plus one prop diameter, the size "
+              "class a frame races in and the gap it fits through",
+}
+#: The limit lap's own index (the co-design objective).
+LAP_INDEX = "J3_limit"
+
+
+class TrackWeight(Schema):
+    """One track of a season and its weight in the combined objective."""
+
+    track: Path
+    weight: float = Field(1.0, gt=0, le=1e6, description="weight of this track's lap")
+
+
+class FrontConfig(Schema):
+    """A design front by ε-continuation: the lap against one measure."""
+
+    points: int = Field(15, ge=2, le=200, description="points of the front")
+
+
+class CodesignSettings(Schema):
+    """How the co-design NLP is posed and started."""
+
+    tracks: dict[str, TrackWeight] = Field(
+        default_factory=dict, description="a season: tracks by label, each with a weight "
+        "(empty: the problem's track alone)")
+    combine: Literal["sum", "worst"] = Field(
+        "sum", description="sum: Σ weight·lap; worst: the largest weight·lap")
+    starts: int = Field(5, ge=0, le=100, description="random feasible frames started from, "
+                        "beside the template's own geometry")
+    intervals: int = Field(40, ge=2, le=400, description="shooting intervals per leg")
+    front: FrontConfig = Field(default_factory=FrontConfig)
+
+
+class CodesignProblemConfig(ProblemConfig):
+    """A problem with a ``codesign:`` section (see the module docstring)."""
+
+    codesign: CodesignSettings = Field(default_factory=CodesignSettings)
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        found = ProblemConfig.problems(v)
+        settings = v.get("codesign")
+        if settings is not None and not settings.tracks and v.get("track") is None:
+            found.append(("track", "give track (or codesign.tracks)"))
+        if settings is not None and settings.tracks and v.get("track") is not None:
+            found.append(("codesign.tracks", "give track or codesign.tracks, not both"))
+        return found

@@ -49,7 +49,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     template = load_airframe(args.template)
     track = load(TrackConfig, args.track)
-    options = LimitLapOptions(intervals=args.intervals, sensitivities=False, lower_bound=False)
+    options = LimitLapOptions(intervals=args.intervals, sensitivities=False,
+                              point_mass_reference=False)
     ref = limit_lap(template, track, options)
     print(f"reference {template.name}: {ref.status} {ref.lap_time_s:.4f} s", flush=True)
     warm = replace(options, starts=(), warm_starts=(ref,))

@@ -29,9 +29,9 @@ import numpy as np
 from casadrone.airframe import build_airframe
 from casadrone.config.io import ConfigError
 from casadrone.limit.check import resimulation_miss, theta_sensitivities
-from casadrone.limit.lap import _bounds, _trajectory, limit_lap, start_state
-from casadrone.limit.nlp import NlpPoint, solve
-from casadrone.model import NP, NX
+from casadrone.limit.lap import _prepare, _trajectory, limit_lap, model_states, start_state
+from casadrone.limit.nlp import NlpPoint
+from casadrone.model import NP
 
 #: Largest relative gap between the co-design lap and the fixed-frame lap (issue: 0.05 %).
 LAP_RTOL = 5e-4
@@ -102,27 +102,29 @@ class Certificate:
 
 def _fixed_laps(prep, point, k: int, cfg):
     """(warm NlpSolution from the co-design point, limit_lap with its own cold starts, the
-    frame) for track k with θ fixed."""
+    prepared fixed-frame problem) for track k with θ fixed."""
     cd = prep.nlp
-    part, track = cd.parts[k], prep.tracks[k]
+    track = prep.tracks[k]
     frame = build_airframe(cfg)
-    x0 = start_state(frame, track, prep.options)
-    P = np.concatenate([frame.p, x0, part.targets])
-    lbx, ubx = _bounds(part.nlp, frame, track, prep.options, point_mass=False)
+    pb = _prepare(frame, track, prep.options, prep.options.gate_clearance_m or 0.0)
     w = point.z[cd.offsets[k]:cd.offsets[k + 1]]
     lam_x = point.lam_x[cd.offsets[k]:cd.offsets[k + 1]]
     lam_g = point.lam_g[cd.row_offsets[k]:cd.row_offsets[k + 1]]
-    warm = solve(part.nlp, w, P, lbx, ubx, warm=NlpPoint(w, lam_x, lam_g, np.zeros(len(P))))
-    cold = limit_lap(cfg, track, replace(prep.options, warm_starts=(prep.template_laps[k],)
-                                         if prep.template_laps[k].solution is not None else ()))
-    return warm, cold, frame, x0
+    warm = pb.solve(w, warm=NlpPoint(w, lam_x, lam_g, np.zeros(len(pb.P))))
+    ref = prep.template_laps[k]
+    cold = limit_lap(cfg, track, replace(prep.options, warm_starts=(ref,)
+                                         if ref.solution is not None else ()))
+    return warm, cold, pb
 
 
 def _gradient(prep, cfg, warm, track, keys) -> np.ndarray:
     """dT/dθ (s per unit of each key) of one track's fixed-frame optimum (envelope theorem)."""
     lam_p = warm.point.lam_p
-    sens = theta_sensitivities(cfg, -lam_p[:NP], -lam_p[NP:NP + NX],
-                               lambda f: start_state(f, track, prep.options), keys=keys)
+    nx = prep.nlp.parts[0].nlp.model.nx
+    attitude = prep.options.attitude
+    sens = theta_sensitivities(cfg, -lam_p[:NP], -lam_p[NP:NP + nx],
+                               lambda f: model_states(attitude, start_state(
+                                   f, track, prep.options))[0], keys=keys)
     return np.array([sens[k] for k in keys])
 
 
@@ -135,15 +137,14 @@ def certify(prep, point) -> Certificate:
         return Certificate((), (), {}, False, f"the frame is not a valid airframe: {exc}")
     checks, grads = [], []
     for k, label in enumerate(prep.labels):
-        warm, cold, frame, _ = _fixed_laps(prep, point, k, cfg)
+        warm, cold, pb = _fixed_laps(prep, point, k, cfg)
         laps = [warm.objective if warm.success else math.inf,
                 cold.lap_time_s if cold.optimal else math.inf]
         fixed = min(laps)
         ref = point.laps_s[label]
         gap = 100 * (fixed - ref) / ref
-        layout = cd.parts[k].nlp.layout
-        miss = (resimulation_miss(frame, _trajectory(cd.parts[k].nlp, warm.point.w, layout),
-                                  cd.parts[k].targets, layout.kinds)
+        miss = (resimulation_miss(pb.frame, _trajectory(pb.full, warm.point.w, pb.layout),
+                                  pb.targets.vector, pb.targets.kinds)
                 if warm.success else math.inf)
         ok = abs(gap) <= 100 * LAP_RTOL and miss <= prep.options.max_miss_m
         checks.append(TrackCheck(label, ref, laps[0], laps[1], fixed, gap, miss, ok))

@@ -33,15 +33,7 @@ from casadrone.config import AirframeConfig, load_airframe
 from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
-from casadrone.limit.lap import (
-    LimitLap,
-    LimitLapOptions,
-    _bounds,
-    limit_lap,
-    start_state,
-    track_targets,
-)
-from casadrone.limit.nlp import Layout, build_nlp, quadrotor_ocp_model
+from casadrone.limit.lap import LimitLap, LimitLapOptions, _prepare, limit_lap
 
 #: Two optima agree when their objectives differ by at most this fraction (acceptance: 0.1 %).
 AGREE_REL = 1e-3
@@ -160,15 +152,34 @@ def _tracks(problem: CodesignProblemConfig) -> tuple[tuple[str, ...], tuple[Trac
 
 def _part(template: AirframeConfig, track: TrackConfig, options: LimitLapOptions,
           weight: float) -> TrackPart:
+    """One track's limit-lap problem as the limit lap poses it for the template
+    (:func:`casadrone.limit.lap._prepare`): its NLP, box, row bounds, start and targets."""
     frame = build_airframe(template)
-    targets = track_targets(track, options)
-    layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
-                    options.substeps)
-    nlp = build_nlp(quadrotor_ocp_model(), layout, options.tol, options.max_iter)
-    lbx, ubx = _bounds(nlp, frame, track, options, point_mass=False)
-    return TrackPart(nlp, lbx, ubx, start_state(frame, track, options), targets.vector,
-                     weight, hover_start=options.start_state is None,
-                     thrust_max=frame.thrust_gain)
+    pb = _prepare(frame, track, options, options.gate_clearance_m or 0.0)
+    return TrackPart(pb.full, *pb.box, *pb.rows, pb.x0, pb.targets.vector, weight,
+                     hover_start=options.start_state is None, thrust_max=frame.thrust_gain)
+
+
+def gate_clearance(template: AirframeConfig, lower: np.ndarray, upper: np.ndarray,
+                   keys: tuple[str, ...]) -> float:
+    """The gate clearance (m) every frame of the box is posed with: the largest of the limit
+    lap's own clearances (the frame's size, :func:`casadrone.limit.lap.frame_clearance_m`) over
+    the box's valid corners, where the farthest rotor is farthest. One clearance for every frame
+    keeps the targets independent of θ (they are NLP parameters); the fixed-frame checks use the
+    same, so a frame is never compared on a different track."""
+    import itertools
+
+    from casadrone.limit.lap import frame_clearance_m
+
+    sizes = []
+    for corner in itertools.product(*zip(lower, upper, strict=True)):
+        try:
+            frame = build_airframe(with_theta(template, dict(zip(keys, corner, strict=True))))
+        except ConfigError:
+            continue
+        sizes.append(frame_clearance_m(frame, template.prop_diameter_mm / 1000))
+    return max(sizes, default=frame_clearance_m(build_airframe(template),
+                                                template.prop_diameter_mm / 1000))
 
 
 _BUILT: dict[tuple, CodesignNlp] = {}
@@ -185,7 +196,8 @@ def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Pr
     lower = np.array([v.lower for v in problem.variables])
     upper = np.array([v.upper for v in problem.variables])
     labels, tracks, weights = _tracks(problem)
-    options = LimitLapOptions(intervals=problem.codesign.intervals, sensitivities=False)
+    options = LimitLapOptions(intervals=problem.codesign.intervals, sensitivities=False,
+                              gate_clearance_m=gate_clearance(template, lower, upper, keys))
     parts = tuple(_part(template, t, options, w) for t, w in zip(tracks, weights, strict=True))
     frame = SymbolicFrame(template, keys, lower, upper)
     key = (template.model_dump_json(), keys, tuple(lower), tuple(upper),
@@ -229,7 +241,7 @@ def initial_vector(prep: Prepared, theta: dict[str, float]) -> np.ndarray | None
     for track, ref in zip(prep.tracks, prep.template_laps, strict=True):
         opts = replace(prep.options, warm_starts=(ref,) if ref.solution is not None else (),
                        starts=() if ref.solution is not None else prep.options.starts,
-                       lower_bound=False)
+                       point_mass_reference=False)
         lap = limit_lap(cfg, track, opts)
         if not lap.optimal:
             return None

@@ -2,7 +2,7 @@
 
 Built around :mod:`casadrone.limit.nlp`, never a copy of it: each track's limit-lap NLP gives its
 symbolic decision vector w, parameter P = [p, x_start, targets], objective and constraints
-(:attr:`casadrone.limit.nlp.Nlp.symbolic`); here P is replaced by [p(θ), x_start(θ), targets]
+(:attr:`casadrone.limit.nlp.Nlp.problem`); here P is replaced by [p(θ), x_start(θ), targets]
 (p(θ) and the hover thrusts of the start state from :mod:`casadrone.codesign.frame`), θ is
 appended to the decision vector (normalised to [0, 1] in the problem's box), and the frame's
 feasibility rules and any ε-constraints are appended to the constraints. So transcription,
@@ -23,7 +23,6 @@ import numpy as np
 
 from casadrone.codesign.frame import SymbolicFrame
 from casadrone.limit.nlp import Nlp, ipopt_options
-from casadrone.model import NX
 
 Combine = Literal["sum", "worst"]
 #: The ε-constrained measures a co-design NLP can hold (the frame's own expressions).
@@ -37,7 +36,9 @@ class TrackPart:
     nlp: Nlp
     lbx: np.ndarray
     ubx: np.ndarray
-    x_start: np.ndarray  # 16; its rotor thrusts are replaced by the frame's hover thrusts
+    lbg: np.ndarray  # the limit lap's row bounds for this track (Nlp.row_bounds)
+    ubg: np.ndarray
+    x_start: np.ndarray  # in the model's states; its rotor states become the frame's hover thrusts
     targets: np.ndarray
     weight: float = 1.0
     hover_start: bool = True  # the start state's thrusts follow the frame (hover at the start)
@@ -94,7 +95,7 @@ class CodesignNlp:
 def start_thrust_index(nlp: Nlp) -> np.ndarray:
     """Indices in w of the first node's rotor thrusts."""
     X = np.zeros((nlp.layout.n_intervals + 1, nlp.model.nx))
-    X[0, 12:16] = 1.0
+    X[0, nlp.model.rotor] = 1.0
     w = nlp.pack(np.zeros(nlp.layout.n_legs), X,
                  np.zeros((nlp.layout.n_intervals, nlp.model.nu)))
     return np.flatnonzero(w)
@@ -109,15 +110,16 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
     p, hover, feas, mass, diagonals = frame.function(s)
     ws, fs, gs, lbg, ubg, offsets, row_offsets = [], [], [], [], [], [0], [0]
     for k, part in enumerate(parts):
-        sym = part.nlp.symbolic
+        sym = part.nlp.problem
         inner = ca.Function(f"limit_{k}", [sym["x"], sym["p"]], [sym["f"], sym["g"]])
         w = ca.MX.sym(f"w{k}", sym["x"].numel())
         x0 = ca.DM(part.x_start)
         if part.hover_start:
-            x0 = ca.vertcat(x0[:12], hover, x0[16:NX])
+            rotor = part.nlp.model.rotor
+            x0 = ca.vertcat(x0[:rotor.start], hover, x0[rotor.stop:])
         f, g = inner(w, ca.vertcat(p, x0, ca.DM(part.targets)))
         ws.append(w), fs.append(part.weight * f), gs.append(g)
-        lbg.append(part.nlp.lbg), ubg.append(part.nlp.ubg)
+        lbg.append(part.lbg), ubg.append(part.ubg)
         offsets.append(offsets[-1] + w.numel())
         row_offsets.append(row_offsets[-1] + g.numel())
     gs.append(feas), lbg.append(np.zeros(feas.numel())), ubg.append(np.full(feas.numel(), np.inf))

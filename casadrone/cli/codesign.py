@@ -36,12 +36,12 @@ def codesign_command(
     if out is not None and out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise bad_input([f"{out}: --out must be a new or empty folder (nothing is overwritten)"])
     cfg = load_codesign_problem(problem, overrides or [])
-    result = codesign(cfg)
+    result = codesign(cfg, run_dir=out)
     data = result.as_dict()
     if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
         from casadrone.cli.common import jsonable
 
+        out.mkdir(parents=True, exist_ok=True)
         (out / "result.json").write_text(json.dumps(jsonable(data), indent=2) + "\n")
     if as_json:
         print_json(data)
@@ -72,4 +72,12 @@ def text(result) -> str:
             lines.append(f"    {p.objective:.4f} s at ({th})")
     if result.certificate is not None:
         lines.append(result.certificate.text())
+    if result.front is not None:
+        f = result.front
+        lines.append(f"  front: lap against {f.measure}, {len(f.points)} points, "
+                     f"{f.cpu_s:.1f} s CPU" + (f" (stopped at {f.stopped})" if f.stopped else ""))
+        for p in f.points:
+            th = ", ".join(f"{v:.2f}" for v in p.point.theta.values())
+            lines.append(f"    lap {p.point.objective:.4f} s  {f.measure} {p.measure:.5g}  "
+                         f"θ = ({th})  {p.point.iterations} it")
     return "\n".join(lines)

@@ -105,6 +105,7 @@ class CodesignResult:
     starts: tuple[StartReport, ...]
     distinct: tuple[CodesignPoint, ...]
     certificate: Any = None  # casadrone.codesign.certificate.Certificate
+    front: Any = None  # casadrone.codesign.front.Front, when the problem names a measure
     cpu_s: float = math.nan
     wall_time_s: float = math.nan
     build_cpu_s: float = math.nan
@@ -124,6 +125,13 @@ class CodesignResult:
                 "best": point(self.best), "starts": [asdict(s) for s in self.starts],
                 "distinct_optima": [point(p) for p in self.distinct],
                 "certificate": None if self.certificate is None else self.certificate.as_dict(),
+                "front": None if self.front is None else {
+                    "measure": self.front.measure, "cpu_s": self.front.cpu_s,
+                    "stopped": self.front.stopped,
+                    "points": [{"lap_s": p.point.objective, "measure": p.measure,
+                                "epsilon": p.epsilon, "theta": p.point.theta,
+                                "iterations": p.point.iterations, "cpu_s": p.point.cpu_s}
+                               for p in self.front.points]},
                 "cpu_s": self.cpu_s, "wall_time_s": self.wall_time_s,
                 "build_cpu_s": self.build_cpu_s}
 
@@ -310,10 +318,12 @@ def distinct_optima(points: list[CodesignPoint]) -> list[CodesignPoint]:
     return out
 
 
-def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True
-             ) -> CodesignResult:
-    """The fastest frame of ``problem`` (see the module docstring); never raises for a start
-    that fails (it is reported), raises ConfigError for a problem co-design cannot pose."""
+def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
+             run_dir: Path | None = None) -> CodesignResult:
+    """The fastest frame of ``problem`` (see the module docstring) and, when the problem names
+    a front measure beside J3_limit, the design front (written as a run directory to
+    ``run_dir`` if given); never raises for a start that fails (it is reported), raises
+    ConfigError for a problem co-design cannot pose."""
     from casadrone.codesign.certificate import certify as make_certificate
 
     if not isinstance(problem, CodesignProblemConfig):
@@ -344,8 +354,19 @@ def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True
     distinct = distinct_optima(points)
     best = distinct[0]
     cert = make_certificate(prep, best) if certify else None
+    front = None
+    measures = [o.index for o in problem.objectives if o.index in FRONT_MEASURES]
+    if measures:
+        from casadrone.codesign.front import design_front
+
+        front = design_front(prep, best, measures[0], problem.codesign.front.points,
+                             problem.codesign.front.lowest)
+        if run_dir is not None:
+            from casadrone.codesign.front import write_run
+
+            write_run(run_dir, prep, front, len(front.points))
     return CodesignResult("optimal", "", best=best, distinct=tuple(distinct), certificate=cert,
-                          cpu_s=time.process_time() - cpu0,
+                          front=front, cpu_s=time.process_time() - cpu0,
                           wall_time_s=time.perf_counter() - wall0, **common)
 
 

@@ -25,8 +25,35 @@ from casadrone.codesign.frame import SymbolicFrame
 from casadrone.limit.nlp import Nlp, ipopt_options
 
 Combine = Literal["sum", "worst"]
-#: The ε-constrained measures a co-design NLP can hold (the frame's own expressions).
-MEASURES = ("mass_kg", "span_m")
+#: The ε-constrained measures a co-design NLP can hold: the frame's mass and span, and the
+#: limit lap's effort (:func:`effort`).
+MEASURES = ("mass_kg", "span_m", "effort")
+#: Smoothing of T^{3/2} at zero thrust (N): (T² + δ²)^{3/4}, twice differentiable.
+EFFORT_SMOOTHING_N = 0.01
+
+
+def effort(part: TrackPart, w):
+    """The limit lap's effort ∫ Σ_i T_i^{3/2} dt (N^1.5·s) over the lap, from w: each
+    interval's length times its start node's rotor thrusts (a left rectangle rule).
+
+    Why this measure: by momentum theory a rotor making thrust T in still air needs at least the
+    ideal induced power T^{3/2} / sqrt(2 ρ A) (Leishman, Principles of Helicopter Aerodynamics,
+    2nd ed., eq. 2.17), so the effort is the rotors' ideal energy over the lap times sqrt(2 ρ A),
+    a constant of the frame's propellers (not a decision variable). It is what the limit lap
+    spends (bang-bang thrust) and what a battery pays for, it is smooth in the NLP's variables,
+    and unlike the closed-loop J5 it needs no controller. Rotor states are thrusts (the paper's
+    propulsion model)."""
+    nlp = part.nlp
+    L, M, N = nlp.layout.n_legs, nlp.layout.n_intervals, nlp.layout.intervals
+    zero_u = np.zeros((M, nlp.model.nu))
+    X = np.zeros((M + 1, nlp.model.nx))
+    at_s = np.flatnonzero(nlp.pack(np.ones(L), X, zero_u))
+    X[:M, nlp.model.rotor] = 1.0
+    at_t = np.flatnonzero(nlp.pack(np.zeros(L), X, zero_u))
+    h = w[at_s.tolist()] / N
+    T = ca.reshape(w[at_t.tolist()], -1, M)  # rotors × intervals
+    power = ca.sum1((T ** 2 + EFFORT_SMOOTHING_N ** 2) ** 0.75)
+    return ca.dot(power.T, h)
 
 
 @dataclass(frozen=True)
@@ -135,6 +162,8 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
         objective = sum(fs)
     eps = ca.MX.sym("eps", len(epsilon))
     measures = {"mass_kg": mass, "span_m": diagonals}
+    if "effort" in epsilon:
+        measures["effort"] = sum(effort(part, w) for part, w in zip(parts, ws, strict=True))
     for i, name in enumerate(epsilon):
         m = measures[name]
         gs.append(m - eps[i]), lbg.append(np.full(m.numel(), -np.inf))

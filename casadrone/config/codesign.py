@@ -25,6 +25,9 @@ FRONT_MEASURES = {
     "mass_kg": "total mass (kg) from the components mass model: what the frame weighs",
     "span_m": "tip-to-tip span (m): the longer rotor diagonal plus one prop diameter, the size "
               "class a frame races in and the gap it fits through",
+    "effort": "the limit lap's effort, the integral of the sum of T_i^1.5 over the lap "
+              "(N^1.5 s): the rotors' ideal induced energy by momentum theory times "
+              "sqrt(2 rho A) (casadrone.codesign.nlp.effort)",
 }
 #: The limit lap's own index (the co-design objective).
 LAP_INDEX = "J3_limit"
@@ -41,6 +44,8 @@ class FrontConfig(Schema):
     """A design front by ε-continuation: the lap against one measure."""
 
     points: int = Field(15, ge=2, le=200, description="points of the front")
+    lowest: float = Field(0.5, gt=0, lt=1, description="the sweep ends at this fraction of "
+                          "the fastest frame's measure (geometric steps)")
 
 
 class CodesignSettings(Schema):

@@ -99,8 +99,16 @@ def _algorithm_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
 def check_problem(problem: ProblemConfig, source: str | Path,
                   overrides: list[str] | None = None) -> ProblemConfig:
     """``problem`` when the optimiser can run it; else ConfigError, one ``FILE: key: message``
-    line per problem (``source`` names the file)."""
-    found = problem_problems(problem)
+    line per problem (``source`` names the file). A co-design problem is checked against what
+    the co-design NLP can hold (:func:`casadrone.codesign.checks.codesign_index_problems`)."""
+    from casadrone.config.codesign import CodesignProblemConfig
+
+    if isinstance(problem, CodesignProblemConfig):
+        from casadrone.codesign.checks import codesign_index_problems
+
+        found = codesign_index_problems(problem.objectives, problem.constraints)
+    else:
+        found = problem_problems(problem)
     if found:
         raise ConfigError(problem_lines(found, str(source), overrides))
     return problem

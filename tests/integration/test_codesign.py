@@ -1,0 +1,96 @@
+"""Co-design end to end: on a short track (fast, default suite) and the paper track (slow).
+
+Oracles: the limit lap of the returned frame solved by the limit lap's own driver with θ fixed
+(a different NLP: θ is a parameter there); the envelope-theorem gradient chained through the
+numeric mass model (casadrone.limit.check.theta_sensitivities) against IPOPT's bound
+multipliers of the co-design NLP; the airframe schema for feasibility; the limit laps of the
+template and of random frames for "at least as fast".
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from casadrone.airframe import build_airframe, with_theta
+from casadrone.codesign.driver import codesign
+from casadrone.config.codesign import CodesignProblemConfig
+from casadrone.config.io import load
+from casadrone.config.track import TrackConfig
+from casadrone.limit.lap import LimitLapOptions, limit_lap
+
+ROOT = Path(__file__).resolve().parents[2]
+SHORT = ROOT / "tests" / "data" / "codesign" / "short-track.yaml"
+BOX = [("lambda_a_mm", 100.0, 150.0), ("lambda_b_mm", 100.0, 150.0), ("alpha_deg", 65.0, 90.0),
+       ("beta_deg", 65.0, 90.0)]
+
+
+def _problem(track: Path, starts: int, intervals: int) -> CodesignProblemConfig:
+    return CodesignProblemConfig.model_validate({
+        "name": "short", "airframe": str(ROOT / "configs/airframes/SY250-components.yaml"),
+        "track": str(track), "objectives": [{"index": "J3_limit"}],
+        "variables": [{"name": k, "lower": lo, "upper": hi} for k, lo, hi in BOX],
+        "codesign": {"starts": starts, "intervals": intervals}})
+
+
+@pytest.fixture(scope="module")
+def short_result():
+    return codesign(_problem(SHORT, starts=0, intervals=8))
+
+
+def test_codesign_frame_is_valid_and_no_slower_than_the_template(short_result):
+    r = short_result
+    assert r.status == "optimal", r.reason
+    cfg = with_theta(r_template(), r.best.theta)  # raises if the frame is no valid airframe
+    for key, lo, hi in BOX:
+        assert lo - 1e-6 <= r.best.theta[key] <= hi + 1e-6
+    # oracle: the limit lap of the template frame (the co-design started from its geometry)
+    track = load(TrackConfig, SHORT)
+    template = limit_lap(r_template(), track, LimitLapOptions(intervals=8, sensitivities=False))
+    assert r.best.laps_s["short"] <= template.lap_time_s * (1 + 1e-6)
+    assert build_airframe(cfg).mass == pytest.approx(r.best.mass_kg, rel=1e-12)
+
+
+def test_certificate_lap_gradient_and_resimulation(short_result):
+    c = short_result.certificate
+    assert c.passed, c.text()
+    (track,) = c.tracks
+    assert abs(track.gap_pct) <= 0.05
+    assert track.resimulation_miss_m <= 0.15
+    # two derivations of the same reduced gradient: envelope theorem through the numeric mass
+    # model, and IPOPT's bound multiplier (its negative). Observed agreement 2-4 % at tol 1e-6.
+    for v in c.variables:
+        if v.state != "interior":
+            assert v.reduced_gradient == pytest.approx(-v.bound_multiplier, rel=0.2, abs=2e-4)
+
+
+def test_result_as_dict_is_json(short_result):
+    data = json.loads(json.dumps(short_result.as_dict(), default=float))
+    assert data["status"] == "optimal"
+    assert set(data["best"]["theta"]) == {k for k, _, _ in BOX}
+    assert data["starts"][0]["label"] == "template"
+
+
+def r_template():
+    from casadrone.config import load_airframe
+
+    return load_airframe(ROOT / "configs/airframes/SY250-components.yaml")
+
+
+@pytest.mark.slow
+def test_paper_track_codesign_beats_random_frames():
+    """Five random starts plus the template on the paper track (40 intervals): the co-design
+    lap is no slower than the limit laps of 8 random feasible frames (the 200-frame comparison
+    is benchmarks/bench_codesign_random.py), and the certificate passes."""
+    from casadrone.airframe import random_thetas
+
+    r = codesign(ROOT / "problems" / "codesign-paper.yaml")
+    assert r.status == "optimal" and r.certificate.passed, r.certificate.text()
+    track = load(TrackConfig, ROOT / "configs/tracks/paper-rectangle.yaml")
+    thetas, _ = random_thetas(r_template(), 8, seed=11)
+    laps = [limit_lap(with_theta(r_template(), t), track,
+                      LimitLapOptions(sensitivities=False)).lap_time_s for t in thetas]
+    assert r.best.objective <= np.nanmin(laps) * (1 + 1e-4)

@@ -36,7 +36,7 @@ LAP_INDEX = "J3_limit"
 class TrackWeight(Schema):
     """One track of a season and its weight in the combined objective."""
 
-    track: Path
+    track: Path = Field(description="track YAML, or a shipped track's name")
     weight: float = Field(1.0, gt=0, le=1e6, description="weight of this track's lap")
 
 
@@ -59,13 +59,15 @@ class CodesignSettings(Schema):
     starts: int = Field(5, ge=0, le=100, description="random feasible frames started from, "
                         "beside the template's own geometry")
     intervals: int = Field(40, ge=2, le=400, description="shooting intervals per leg")
-    front: FrontConfig = Field(default_factory=FrontConfig)
+    front: FrontConfig = Field(default_factory=FrontConfig,
+                               description="the design front (a measure among the objectives)")
 
 
 class CodesignProblemConfig(ProblemConfig):
     """A problem with a ``codesign:`` section (see the module docstring)."""
 
-    codesign: CodesignSettings = Field(default_factory=CodesignSettings)
+    codesign: CodesignSettings = Field(default_factory=CodesignSettings,
+                                       description="how the co-design NLP is posed and started")
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:

@@ -292,8 +292,12 @@ def _param_row(param: Any, ctx: Any) -> str:
 
 def _paragraphs(text: str) -> str:
     """Click's help text as Markdown: ``\\b`` blocks (kept verbatim) become code blocks."""
+    text = inspect.cleandoc(text)
+    if text.startswith("Examples:"):  # the epilog of casadrone.cli.examples: shell commands
+        commands = [line.strip() for line in text.splitlines()[1:] if line.strip()]
+        return "Examples:\n\n```bash\n" + "\n".join(commands) + "\n```"
     out = []
-    for block in re.split(r"\n\s*\n", inspect.cleandoc(text)):
+    for block in re.split(r"\n\s*\n", text):
         if block.startswith("\b"):
             out.append("```text\n" + block.lstrip("\b").strip("\n") + "\n```")
         else:

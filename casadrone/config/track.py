@@ -127,7 +127,10 @@ class TrackConfig(Schema):
     )
     time_limit_s: float = Field(60.0, gt=0, le=3600, description="lap time limit (s); the "
                                 "compiled lap allocates every controller step up to it")
-    max_tilt_deg: float = Field(80.0, gt=0, lt=90, description="attitude limit → failed lap")
+    max_tilt_deg: float = Field(
+        80.0, gt=0, lt=90, description="attitude limit: the closed loop fails a lap whose roll "
+        "or pitch (each axis, ZYX Euler) exceeds it; the limit lap bounds each axis, the total "
+        "tilt (a cone) or nothing (LimitLapOptions.tilt_limit)")
     # Constraints of the limit lap only (the closed loop flies one lap through the acceptance
     # radius); they state what the field's time-optimal planners state.
     tolerance_m: float | list[float] | None = Field(

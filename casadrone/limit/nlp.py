@@ -521,7 +521,7 @@ def solve(nlp: Nlp, w0: np.ndarray, P: np.ndarray, lbx: np.ndarray, ubx: np.ndar
         out = solver(**args)
         stats = solver.stats()
         status = str(stats.get("return_status", "unknown"))
-        success = bool(stats.get("success", False)) and np.isfinite(float(out["f"]))
+        success = bool(stats.get("success", False)) and bool(np.isfinite(float(out["f"])))
         point = NlpPoint(*(np.array(out[k]).ravel() for k in ("x", "lam_x", "lam_g", "lam_p")))
         iters = int(stats.get("iter_count", 0))
         f = float(out["f"])

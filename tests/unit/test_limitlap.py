@@ -75,17 +75,20 @@ def _nonlinear_toy() -> OcpModel:
         - p[0] * ca.fabs(x[3:6]) * x[3:6]
     f = ca.Function("f_toy", [x, u, p], [ca.vertcat(x[3:6], acc, p[1] * u[1])],
                     ["x", "u", "p"], ["xdot"])
-    return OcpModel("toy", f, lambda s: s[3:6])
+    return OcpModel("toy", f, lambda s: s[3:6], up_z=lambda s: ca.cos(s[6]))
 
 
-def test_assembled_derivatives_equal_casadi_ad():
+@pytest.mark.parametrize("kinds, cone", [(("ball", "gate"), False),
+                                         (("circle", "polygon"), True)])
+def test_assembled_derivatives_equal_casadi_ad(kinds, cone):
     """The constraint Jacobian and Lagrangian Hessian assembled from the compiled interval
-    blocks equal CasADi's own AD of the same NLP, entry by entry (ball and gate targets, a
-    rest condition, 3 intervals per leg, random point and multipliers)."""
+    blocks equal CasADi's own AD of the same NLP, entry by entry (ball, gate, circle and
+    polygon targets, a rest condition, the tilt cone's rows, 3 intervals per leg, random point
+    and multipliers)."""
     from casadrone.limit.nlp import _shooting_nlp
 
     model = _nonlinear_toy()
-    layout = Layout(("ball", "gate"), 3, substeps=2, end_at_rest=True)
+    layout = Layout(kinds, 3, substeps=2, end_at_rest=True, tilt_cone=cone)
     nlp, lbg, ubg, extra = _shooting_nlp(model, layout)
     W, P = nlp["x"], nlp["p"]
     lam_g = ca.MX.sym("lam_g", nlp["g"].numel())

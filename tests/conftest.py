@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -24,3 +26,44 @@ def cli_runner():
     from typer.testing import CliRunner
 
     return CliRunner()
+
+
+def installed_script(name: str) -> Path:
+    """A console script installed with this interpreter's packages (``casadrone``, ``dask``):
+    found in ``sys.executable``'s folder, never on PATH, so that a run through a virtual
+    environment's python without activating it runs the same commands (and the same tests) as an
+    activated one. Missing is a failure, not a skip: ``pip install -e .[dev]`` installs both."""
+    path = Path(sys.executable).parent / name
+    if not path.is_file():
+        pytest.fail(f"{name}: no such console script beside {sys.executable} "
+                    f"(install the package with pip install -e '.[dev]')")
+    return path
+
+
+@pytest.fixture
+def console() -> list[str]:
+    """The ``casadrone`` console script as a command list (see :func:`installed_script`)."""
+    return [str(installed_script("casadrone"))]
+
+
+# A skip that can fire in CI hides a test that did not run: with CASADRONE_FORBID_SKIPS=1 (set by
+# .ci/run) every skipped test fails the session, listed by name.
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    if os.environ.get("CASADRONE_FORBID_SKIPS") != "1":
+        return
+    skipped = terminalreporter.stats.get("skipped", [])
+    if skipped:
+        terminalreporter.write_line(
+            f"CASADRONE_FORBID_SKIPS=1: {len(skipped)} skipped test(s), which CI does not allow:",
+            red=True)
+        for rep in skipped:
+            why = rep.longrepr[-1] if isinstance(rep.longrepr, tuple) else rep.longrepr
+            terminalreporter.write_line(f"  {rep.nodeid}: {why}")
+
+
+def pytest_sessionfinish(session, exitstatus):
+    if os.environ.get("CASADRONE_FORBID_SKIPS") != "1" or exitstatus != 0:
+        return
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None and reporter.stats.get("skipped"):
+        session.exitstatus = 1

@@ -21,6 +21,9 @@ class _App(typer.Typer):
     def __call__(self, *args, **kwargs):
         import sys
 
+        # The console script, ``python -m casadrone`` and ``python -c "...app()"`` all name the
+        # program ``casadrone`` in their messages (click would take it from sys.argv[0]: ``-c``).
+        kwargs.setdefault("prog_name", "casadrone")
         if "standalone_mode" in kwargs:
             return super().__call__(*args, **kwargs)
         try:

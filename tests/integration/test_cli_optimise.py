@@ -11,7 +11,6 @@ from __future__ import annotations
 import csv
 import json
 import os
-import shutil
 import signal
 import sqlite3
 import subprocess
@@ -33,8 +32,10 @@ KILL_GENERATIONS = 8
 
 
 def console() -> list[str]:
-    exe = shutil.which("casadrone")
-    return [exe] if exe else [sys.executable, "-c", "from casadrone.cli import app; app()"]
+    """The console script installed beside this python (never looked up on PATH)."""
+    exe = Path(sys.executable).parent / "casadrone"
+    assert exe.is_file(), f"no casadrone console script beside {sys.executable}"
+    return [str(exe)]
 
 
 def invoke(cli_runner, *args):

@@ -2,7 +2,6 @@
 (as a cluster user does), a worker killed mid-run."""
 
 import os
-import shutil
 import signal
 import socket
 import subprocess
@@ -65,10 +64,11 @@ def _free_port() -> int:
 
 
 def _dask_cli() -> list[str]:
-    exe = shutil.which("dask")
-    if exe is None:
-        pytest.skip("the `dask` command is not on PATH")
-    return [exe]
+    """The `dask` command installed with distributed beside this python (not looked up on PATH:
+    a venv's python run without activating the venv finds it too)."""
+    exe = Path(sys.executable).parent / "dask"
+    assert exe.is_file(), f"no `dask` console script beside {sys.executable}"
+    return [str(exe)]
 
 
 class DaskProcesses:

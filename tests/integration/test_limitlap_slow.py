@@ -35,7 +35,6 @@ def test_reference_lap_faster_than_the_closed_loop(laps, name):
     assert lap.lap_time_s <= J3
     assert np.isfinite(lap.point_mass_reference_s)  # reported; not a bound (lap.py)
     assert lap.resimulation_miss_m <= 0.05
-    assert 0.0 <= lap.bang_bang_fraction <= 1.0
 
 
 @pytest.mark.parametrize("name", REFERENCES)

@@ -3,7 +3,9 @@
 Oracle: ``SequentialArchive`` below is the archive code ev-MOGA used before the archive was
 vectorised (``casadrone/optimise/evmoga.py`` at git 683f05d: ``_archive``, ``_insert``,
 ``_centre_distance``), kept verbatim on pymoo ``Population`` objects, with a thin adapter to the
-``BoxArchive`` interface. Random streams of children (2 to 6 objectives, coarse grids, exact ties,
+``BoxArchive`` interface; its box index is computed here (:func:`reference_box_index`), not
+imported from the code under test.
+Random streams of children (2 to 6 objectives, coarse grids, exact ties,
 duplicates, grid moves, children dominating the whole archive, constant objectives) are offered to
 both; after every child the members (all row arrays, bit for bit, in order), their boxes and the
 grid must be identical. Whole ev-MOGA runs with either archive must give the same archive too.
@@ -38,6 +40,17 @@ KEYS = ("X", "F", "G", "H", "CV")
 # ---------------------------------------------------------------------------------------------
 # the oracle: the sequential archive of git 683f05d, verbatim, plus an adapter
 # ---------------------------------------------------------------------------------------------
+
+
+def reference_box_index(F: np.ndarray, f_min: np.ndarray, eps: np.ndarray) -> np.ndarray:
+    """The ε-box of each row of ``F``, element by element from EVMOGA.md's definition
+    ``ceil((f - min) / ε)`` (0 where ε = 0), the ratio rounded to 6 decimals first (floating
+    noise must not move a point across a box edge). Written here, not imported: the oracle must
+    not share the code it checks."""
+    F = np.atleast_2d(np.asarray(F, float))
+    width = np.asarray(eps, float)
+    boxes = np.ceil(np.round((F - f_min) / np.where(width > 0.0, width, 1.0), 6))
+    return np.where(width > 0.0, boxes, 0.0).astype(np.int64)
 
 
 def box_dominates_rows(B: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -126,7 +139,8 @@ class SequentialArchive:
             self._set_grid(f, f)
             self.eps = eps
             self._set_archive(
-                Population.create(ind), f[None, :].copy(), box_index(f, self.grid_min, self.eps)
+                Population.create(ind), f[None, :].copy(),
+                reference_box_index(f, self.grid_min, self.eps),
             )
         else:
             if np.any(pareto_dominates_rows(self.archive_F, f)):
@@ -144,7 +158,7 @@ class SequentialArchive:
             self._insert(ind, f)
 
     def _insert(self, ind: Individual, f: np.ndarray) -> bool:
-        b = box_index(f, self.grid_min, self.eps)[0]
+        b = reference_box_index(f, self.grid_min, self.eps)[0]
         B = self.archive_box
         if len(B) and np.any(box_dominates_rows(B, b)):
             self.counts["rebuild_rejected"] += self._rebuilding
@@ -368,6 +382,20 @@ def test_offer_many_equals_offering_each_child_in_turn(seeds):
     assert sum(calls) > 20 * len(seeds)  # most children went through the vectorised path
 
 
+def test_box_index_equals_the_reference_on_edges_noise_and_zero_widths():
+    """Rows on box edges (exact multiples of ε, ± noise below the rounding), inside boxes and at
+    the minimum, with some objectives of zero width: the package's box index (vectorised) equals
+    the element-by-element reference."""
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        m = int(rng.integers(2, 7))
+        f_min, eps = rng.normal(size=m), rng.uniform(0.01, 2.0, m) * (rng.random(m) < 0.8)
+        k = rng.integers(0, 30, size=(50, m))
+        F = f_min + eps * (k + rng.choice([0.0, 0.5, 1e-12, -1e-12, 1e-3], size=(50, m)))
+        np.testing.assert_array_equal(box_index(F, f_min, eps),
+                                      reference_box_index(F, f_min, eps))
+
+
 def test_dominated_boxes_against_brute_force():
     for seed in range(150):
         rng = np.random.default_rng(seed)
@@ -375,7 +403,7 @@ def test_dominated_boxes_against_brute_force():
         F = random_front(rng, int(rng.integers(2, 400)), m)
         nd = NonDominatedSorting().do(F, only_non_dominated_front=True)
         eps = (F.max(axis=0) - F.min(axis=0)) / rng.integers(1, 25)
-        U = np.unique(box_index(F[nd], F.min(axis=0), eps), axis=0)
+        U = np.unique(reference_box_index(F[nd], F.min(axis=0), eps), axis=0)
         brute = np.array([np.any(box_dominates_rows(np.delete(U, i, axis=0), u))
                           for i, u in enumerate(U)])
         np.testing.assert_array_equal(dominated_boxes(U.T, np.ones(len(U), bool)), brute)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -98,22 +98,31 @@ def test_validate_needs_a_file(cli_runner):
     assert run(cli_runner, "validate").exit_code == 2
 
 
-def _console() -> list[str]:
-    exe = shutil.which("casadrone")
-    return [exe] if exe else [sys.executable, "-c", "from casadrone.cli import app; app()"]
-
-
-def test_validate_subprocess_exit_codes_and_no_traceback():
-    bad = subprocess.run([*_console(), "validate", str(BAD / "misspelt_key.yaml"),
+def test_validate_subprocess_exit_codes_and_no_traceback(console):
+    bad = subprocess.run([*console, "validate", str(BAD / "misspelt_key.yaml"),
                           str(BAD / "malformed.yaml")], capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2
     assert "Traceback" not in bad.stderr
     assert f"{BAD / 'misspelt_key.yaml'}: mas_kg: unknown key (did you mean 'mass_kg'?)" in (
         bad.stderr.splitlines())
     assert f"{BAD / 'malformed.yaml'}: line 3, column 19: malformed YAML" in bad.stderr
-    good = subprocess.run([*_console(), "validate", str(SY250_FILE)],
+    good = subprocess.run([*console, "validate", str(SY250_FILE)],
                           capture_output=True, text=True, timeout=60)
     assert good.returncode == 0, good.stderr
+
+
+@pytest.mark.parametrize("how", ["console", "module", "-c"])
+def test_the_program_names_itself_casadrone_however_it_is_started(how, console, tmp_path):
+    """The console script, ``python -m casadrone`` and ``python -c '...app()'`` (click would take
+    the name from sys.argv[0]: ``-c``) all say ``casadrone`` in a usage error."""
+    cmd = {"console": console, "module": [sys.executable, "-m", "casadrone"],
+           "-c": [sys.executable, "-c", "from casadrone.cli import app; app()"]}[how]
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    done = subprocess.run([*cmd, "nocommand"], capture_output=True, text=True, timeout=60,
+                          cwd=tmp_path, env=env)
+    assert done.returncode == 2
+    assert done.stderr.strip() == ("casadrone: No such command 'nocommand'. "
+                                   "(see 'casadrone --help')")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -126,7 +126,10 @@ def test_gate_miss_geometry():
     np.testing.assert_allclose(target_miss(np.array([0.0, 2.0, 0.0]), ball, "ball"), 1.5)
 
 
-def test_gate_track_flies_through_gate_centres():
+def test_gate_track_targets_are_the_gate_openings():
+    """The shipped gate track: its waypoints are the gate centres, every gate is a MultiGP 5 ft
+    opening, the limit lap targets every gate's opening (not a ball), and gates and waypoints
+    given both at once are refused. (The flight through the openings: test_limitlap_slow.)"""
     trk = load(TrackConfig, "configs/tracks/multigp-cdra-gates.yaml")
     assert [tuple(g.centre_m) for g in trk.gates] == [tuple(w) for w in trk.waypoints_m]
     assert all(g.width_m == pytest.approx(5 * 0.3048) for g in trk.gates)

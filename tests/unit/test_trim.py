@@ -68,7 +68,6 @@ def test_all_solvers_converge_and_agree(trims, name, cond):
     for tp in points:
         assert tp.success, f"{name} {cond} {tp.solver}: {tp.message}"
         assert tp.residual_norm <= TOL[tp.solver], (tp.solver, tp.residual_norm)
-        assert tp.iterations >= 0 and tp.wall_time_s > 0
         assert tp.x0.shape == (16,) and tp.u0.shape == (4,) and tp.thrusts.shape == (4,)
         np.testing.assert_array_equal(tp.thrusts, tp.x0[12:16])
         assert tp.state_names == STATE_NAMES

@@ -32,8 +32,11 @@ def fly(name, track, ctrl, integrator="rk4", overrides=None):
 
 @pytest.mark.parametrize("name", REFERENCES)
 def test_fast_and_reference_integrators_agree(name, track, ctrl):
-    """rk4 (compiled, fixed step) vs CVODES and IDAS (adaptive, rtol 1e-8): every index within 1 %,
-    lap time within 0.5 % (issue acceptance)."""
+    """rk4 (compiled, fixed step) vs CVODES and IDAS (adaptive, rtol 1e-8): every index and
+    split time agrees to about 10x the observed agreement (the issue's acceptance, 1 % and
+    0.5 %, was ~10⁴ times looser than what holds, so it could not see an integrator error).
+    Observed, five references, both integrators: indices within 9.0e-7 relative (J4, J5), the
+    lap time J3 within 2.3e-8, split times within 3.1e-8."""
     from casadrone.indices import compute_indices
 
     runs = {i: fly(name, track, ctrl, i)[1] for i in ("rk4", "cvodes", "idas")}
@@ -43,9 +46,8 @@ def test_fast_and_reference_integrators_agree(name, track, ctrl):
     for integ in ("cvodes", "idas"):
         other = compute_indices(runs[integ])
         for key, value in ref.items():
-            tol = 0.005 if key == "J3" else 0.01
-            assert other[key] == pytest.approx(value, rel=tol), f"{name} {integ} {key}"
-        np.testing.assert_allclose(runs[integ].split_times, runs["rk4"].split_times, rtol=0.005)
+            assert other[key] == pytest.approx(value, rel=1e-5), f"{name} {integ} {key}"
+        np.testing.assert_allclose(runs[integ].split_times, runs["rk4"].split_times, rtol=3e-7)
 
 
 def test_compiled_chunk_equals_casadi_virtual_machine(track, ctrl):

@@ -45,11 +45,11 @@ class Mutant:
     tests: tuple[str, ...]
 
 
-LIMIT_TESTS = ("tests/unit/test_limitlap.py", "tests/integration/test_limitlap_default.py")
+LIMIT_TESTS = ("tests/unit/test_limitlap.py", "tests/integration/test_limitlap_optimality.py")
 MODEL_TESTS = ("tests/unit/test_trim.py", "tests/unit/test_linearise.py",
                "tests/unit/test_control.py", "tests/unit/test_airframe.py",
                "tests/integration/test_frozen_wrench.py",
-               "tests/integration/test_limitlap_default.py")
+               "tests/integration/test_limitlap_optimality.py")
 
 MUTANTS = (
     Mutant("yaw-torque-sign", "yaw reaction torque sign flipped in the model",
@@ -72,8 +72,8 @@ MUTANTS = (
            "ul[:, 3], uu[:, 3] = 0.0, 4 * airframe.thrust_gain",
            "ul[:, 3], uu[:, 3] = 0.0, 2 * airframe.thrust_gain", LIMIT_TESTS),
     Mutant("sensitivity-x2", "limit-lap sensitivities scaled ×2",
-           "param_sensitivity=-best.point.lam_p[:len(frame.p)]",
-           "param_sensitivity=-2 * best.point.lam_p[:len(frame.p)]", LIMIT_TESTS),
+           "out = -point.lam_p[:len(airframe.p)].copy()",
+           "out = -2 * point.lam_p[:len(airframe.p)].copy()", LIMIT_TESTS),
     Mutant("thrust-0.9K", "every rotor's thrust capped at 0.9 K inside the limit-lap NLP",
            "xl[:, 12:16], xu[:, 12:16] = 0.0, airframe.thrust_gain",
            "xl[:, 12:16], xu[:, 12:16] = 0.0, 0.9 * airframe.thrust_gain", LIMIT_TESTS),

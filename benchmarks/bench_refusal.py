@@ -28,8 +28,9 @@ def main() -> None:
     from typer.testing import CliRunner
 
     from casadrone.cli import app
+    from casadrone.config.problem import BackendConfig
+    from casadrone.optimise.checks import load_problem
     from casadrone.optimise.runner import run
-    from casadrone.problemconfig import BackendConfig, load_problem
 
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"

@@ -29,8 +29,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from casadrone.airframe import build_airframe
-from casadrone.config import load_airframe
-from casadrone.guidance import TrackConfig
+from casadrone.config.airframe import load_airframe
+from casadrone.config.track import TrackConfig
 from casadrone.limit.lap import LimitLapOptions, limit_lap
 from casadrone.model import PARAM_NAMES, quadrotor_model
 

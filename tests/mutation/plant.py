@@ -132,10 +132,18 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("names", nargs="*", help="mutants to plant (default: all)")
     parser.add_argument("--timeout", type=float, default=1800.0, help="per mutant (s)")
+    parser.add_argument("--sites", action="store_true",
+                        help="only say where each bug would be planted (no tests run)")
     args = parser.parse_args(argv)
     chosen = [m for m in MUTANTS if not args.names or m.name in args.names]
     if args.names and len(chosen) != len(set(args.names)):
         parser.error(f"unknown mutant; choose from {', '.join(m.name for m in MUTANTS)}")
+    if args.sites:
+        for mutant in chosen:
+            found = [f.relative_to(ROOT).as_posix() for f in sorted((ROOT / "casadrone").rglob(
+                "*.py")) if mutant.old in f.read_text(encoding="utf-8")]
+            print(f"{mutant.name}: {', '.join(found) or 'site not found'}")
+        return 0
     rows, blind = [], 0
     for mutant in chosen:
         with tempfile.TemporaryDirectory(prefix=f"casadrone-mutant-{mutant.name}-") as tmp:

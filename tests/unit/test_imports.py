@@ -72,6 +72,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.export",
     "casadrone.report",
     "casadrone.cli",
+    "casadrone.__main__",  # ``python -m casadrone``: the command line
 )
 #: The package itself is the public API facade, after every stage; the one name a module may take
 #: from it is ``__version__`` (set before the facade imports anything).

@@ -9,9 +9,10 @@ every run (the paper track's laps stay in ``test_limitlap_slow.py``). What is ch
   reaches K, the actuator's limit, within 1 %) and the ESC commands are bang-bang (Pontryagin: a
   minimum-time problem whose dynamics are affine in the command has the command on its bounds
   except on singular arcs);
-- the lower bound is below the lap and equals the point-mass relaxation solved here by an
-  independent implementation (own rotation, drag, RK4, transcription and initial guess, CasADi's
-  Opti), not the package's;
+- the point-mass reference (the point-mass relaxation's best local optimum found: its global
+  optimum would bound the lap from below) is below the lap and equals the relaxation solved here
+  by an independent implementation (own rotation, drag, RK4, transcription and initial guess,
+  CasADi's Opti), not the package's;
 - the sensitivities dT/dθ and dT/dp equal central differences of warm re-solves;
 - the commands flown open loop by an independent integrator (scipy's DOP853 on the model's
   explicit dynamics) follow the lap and pass every target, and the package's own re-simulation
@@ -54,7 +55,7 @@ def frame(cfg):
 
 @pytest.fixture(scope="module")
 def lap(cfg):
-    """The one cold solve of the module (every start, lower bound, re-simulation and
+    """The one cold solve of the module (every start, point-mass reference, re-simulation and
     sensitivities, as a user gets them)."""
     return limit_lap(cfg, TRACK, OPTIONS)
 
@@ -65,9 +66,9 @@ def straight_intervals(lap) -> np.ndarray:
     return np.asarray(legs)[lap.waypoint_index]
 
 
-def test_lap_is_optimal_and_slower_than_its_lower_bound(lap):
+def test_lap_is_optimal_and_slower_than_the_point_mass_reference(lap):
     assert lap.optimal, lap.reason
-    assert lap.lower_bound_s < lap.lap_time_s
+    assert lap.point_mass_reference_s < lap.lap_time_s
 
 
 # --------------------------------------------------------------------------------------------
@@ -76,12 +77,12 @@ def test_lap_is_optimal_and_slower_than_its_lower_bound(lap):
 
 
 def test_straight_saturates_every_rotor_at_its_maximum_thrust(lap, cfg):
-    """Each rotor's thrust (the last four states: the lagged thrusts) peaks at K on the straight
-    within 1 % (the issue's criterion; observed: 9.05115-9.05188 N of K = 9.0519 N, within
-    8e-5) and never exceeds it. K is read from the airframe file, not from the package's
+    """Each rotor's thrust (the lagged thrust states) peaks at K on the straight within 1 % (the
+    issue's criterion; observed: 9.030-9.052 N of K = 9.0519 N, within 0.25 %, on two local
+    optima) and never exceeds it. K is read from the airframe file, not from the package's
     parameter vector."""
     K = float(cfg.thrust.gain_n)
-    thrust = lap.x[:, -4:]
+    thrust = lap.x_euler[:, 12:16]
     on_straight = np.r_[straight_intervals(lap), False]  # nodes that start a straight interval
     peak = thrust[on_straight].max(axis=0)
     np.testing.assert_allclose(peak, K, rtol=0.01)
@@ -90,18 +91,17 @@ def test_straight_saturates_every_rotor_at_its_maximum_thrust(lap, cfg):
 
 def test_straight_commands_are_bang_bang(lap):
     """On the straight the ESC commands sit on their bounds: off and full on the two sides to
-    pitch over from hover, then full throttle on every rotor. Observed: 71 of the straight's 80
-    commands within 0.02 of 0 or 1; the other 9 in the first 6 of its 20 intervals (the
-    pitch-over, where the thrusts still lag); full throttle (≥ 0.98; the thrust at its bound K
-    leaves the command free between 0.99 and 1) on every rotor from interval 6 on."""
+    pitch over from hover, then full throttle, with brief trims of single rotors to hold the
+    flight path. Observed on two local optima (3 per mille apart, from different starts): 65
+    and 71 of the straight's 80 commands within 0.02 of 0 or 1 (the thrust at its bound K
+    leaves a command free between 0.99 and 1), 63 and 70 at full throttle (≥ 0.98)."""
     u = lap.u[straight_intervals(lap)]
-    assert np.mean((u <= 0.02) | (u >= 0.98)) >= 0.8
-    second_half = u[len(u) // 2:]
-    assert second_half.min() >= 0.98
+    assert np.mean((u <= 0.02) | (u >= 0.98)) >= 0.75
+    assert np.mean(u >= 0.98) >= 0.7
 
 
 # --------------------------------------------------------------------------------------------
-# The lower bound: an independent implementation of the point-mass relaxation
+# The point-mass reference: an independent implementation of the relaxation
 # --------------------------------------------------------------------------------------------
 
 
@@ -172,11 +172,11 @@ def relaxation_time(mass, g, rho, drag_area, thrust_max, start, points, radius, 
     return float(opti.solve().value(ca.sum1(T)))
 
 
-def test_lower_bound_equals_an_independent_relaxation(lap, cfg):
-    """The package's bound (its point-mass NLP) equals the same relaxation solved here from the
-    airframe file's mass, thrust, drag and air density. Observed: 0.9353570 s against
-    0.9353228 s, 3.7e-5 apart (the package's is the higher: IPOPT's local optima of the
-    relaxation differ slightly with the initial guess)."""
+def test_point_mass_reference_equals_an_independent_relaxation(lap, cfg):
+    """The package's point-mass reference equals the same relaxation solved here from the
+    airframe file's mass, thrust, drag and air density. Observed: 0.9353003 s (best of the
+    package's three starts; 0.9353570 from its single start before) against 0.9353228 s here:
+    2.4e-5 (3.7e-5) apart, IPOPT's local optima of the relaxation differing with the guess."""
     raw = cfg.model_dump()
     mass, K = float(raw["mass_kg"]), float(raw["thrust"]["gain_n"])
     independent = relaxation_time(
@@ -186,10 +186,10 @@ def test_lower_bound_equals_an_independent_relaxation(lap, cfg):
         radius=TRACK.acceptance_radius_m, tilt=math.radians(TRACK.max_tilt_deg),
         intervals=OPTIONS.intervals, substeps=SUBSTEPS, ground=-0.1,
         time_limit=TRACK.time_limit_s)
-    assert lap.lower_bound_s == pytest.approx(independent, rel=RELAXATION_RTOL)
+    assert lap.point_mass_reference_s == pytest.approx(independent, rel=RELAXATION_RTOL)
 
 
-RELAXATION_RTOL = 4e-4  # ~10x the observed 3.7e-5
+RELAXATION_RTOL = 4e-4  # ~10x the observed 2.4e-5 to 3.7e-5
 
 
 # --------------------------------------------------------------------------------------------
@@ -199,7 +199,8 @@ RELAXATION_RTOL = 4e-4  # ~10x the observed 3.7e-5
 
 def _resolved(lap, name_overrides: list[str]):
     """The lap of SY250 with ``overrides``, warm-started from ``lap`` (the same local optimum)."""
-    opts = replace(OPTIONS, warm_starts=(lap,), starts=(), lower_bound=False, resimulate=False,
+    opts = replace(OPTIONS, warm_starts=(lap,), starts=(), point_mass_reference=False,
+                   resimulate=False,
                    sensitivities=False)
     out = limit_lap(load_airframe(NAME, name_overrides), TRACK, opts)
     assert out.optimal, out.reason
@@ -210,8 +211,9 @@ def _resolved(lap, name_overrides: list[str]):
 def test_theta_sensitivity_equals_finite_differences_of_warm_resolves(lap, cfg, key, step):
     """dT/dθ (envelope theorem, chained through the config → airframe build) against central
     differences of two warm re-solves. Observed for Iyy (the pitch axis: the lap's largest θ
-    sensitivity, 11.48 s per kg·m²): 0.12 % apart. (The arm geometry is not used: SY250 is
-    symmetric and the lap is at a local minimum over λ and α, so central differences over
+    sensitivity, 11.5-12.2 s per kg·m²): 0.12 % and 0.17 % apart on two local optima. (The
+    arm geometry is not used: SY250 is symmetric and the lap is at a local minimum over λ and
+    α, so central differences over
     2 mm / 2° are dominated by curvature: λb's were -4.8e-4, -3.2e-4, -1.5e-4 s/mm at steps 2,
     0.5, 0.1, tending to the envelope's -1.44e-4.)"""
     v = float(getattr(cfg, key))
@@ -220,14 +222,15 @@ def test_theta_sensitivity_equals_finite_differences_of_warm_resolves(lap, cfg, 
     assert lap.sensitivities[key] == pytest.approx(fd, rel=THETA_RTOL), (key, fd)
 
 
-THETA_RTOL = 0.012  # ~10x the observed 0.12 %
+THETA_RTOL = 0.015  # ~10x the observed 0.12-0.17 %
 
 
 def test_thrust_gain_sensitivity_equals_finite_differences_of_warm_resolves(lap, cfg):
     """dT/dK from the NLP's parameter multipliers against central differences of warm re-solves
     with the airframe file's ``thrust.gain_n`` changed. The thrust saturates on the straight, so
     the bounds T_i ≤ K are active and count. Observed: -0.0527122 against -0.0527117 s/N, 1e-5
-    apart (without the bounds' share, -0.0509: 3.4 % short)."""
+    apart (without the bounds' share, -0.0509: 3.4 % short); on the reworked starts' optimum
+    -0.0524629 against -0.0524634, 9e-6 apart."""
     K, step = float(cfg.thrust.gain_n), 0.01
     lo, hi = (_resolved(lap, [f"thrust.gain_n={K + s}"]) for s in (-step, step))
     fd = (hi - lo) / (2 * step)
@@ -249,7 +252,7 @@ def test_commands_flown_open_loop_follow_the_lap_and_pass_every_target(lap, fram
     every leg's end inside its ball (+ RESIM_M), and the package's own CVODES check passed."""
     f = quadrotor_model().f
     p = frame.p
-    x = lap.x[0].copy()
+    x = lap.x_euler[0].copy()
     nodes = [x]
     for i, u in enumerate(lap.u):
         sol = solve_ivp(lambda _t, s, u=u: np.asarray(f(s, u, p)).ravel(),
@@ -257,7 +260,7 @@ def test_commands_flown_open_loop_follow_the_lap_and_pass_every_target(lap, fram
         x = sol.y[:, -1]
         nodes.append(x)
     nodes = np.array(nodes)
-    drift = np.linalg.norm(nodes[:, 0:3] - lap.x[:, 0:3], axis=1)
+    drift = np.linalg.norm(nodes[:, 0:3] - lap.x_euler[:, 0:3], axis=1)
     assert drift.max() <= RESIM_M, drift.max()
     N = lap.layout.intervals
     for k, wp in enumerate(TRACK.waypoints_m):
@@ -266,4 +269,4 @@ def test_commands_flown_open_loop_follow_the_lap_and_pass_every_target(lap, fram
     assert lap.resimulation_miss_m <= RESIM_M
 
 
-RESIM_M = 0.02  # ~10x the observed: nodes within 2.3 mm, CVODES miss 1.8 mm
+RESIM_M = 0.02  # ~10x the observed: nodes within 2.3 mm, CVODES miss 1.1-1.8 mm

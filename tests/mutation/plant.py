@@ -72,11 +72,12 @@ MUTANTS = (
            "ul[:, 3], uu[:, 3] = 0.0, 4 * airframe.thrust_gain",
            "ul[:, 3], uu[:, 3] = 0.0, 2 * airframe.thrust_gain", LIMIT_TESTS),
     Mutant("sensitivity-x2", "limit-lap sensitivities scaled ×2",
-           "out = -point.lam_p[:len(airframe.p)].copy()",
-           "out = -2 * point.lam_p[:len(airframe.p)].copy()", LIMIT_TESTS),
+           "out = -point.lam_p[:len(pb.frame.p)].copy()",
+           "out = -2 * point.lam_p[:len(pb.frame.p)].copy()", LIMIT_TESTS),
     Mutant("thrust-0.9K", "every rotor's thrust capped at 0.9 K inside the limit-lap NLP",
-           "xl[:, 12:16], xu[:, 12:16] = 0.0, airframe.thrust_gain",
-           "xl[:, 12:16], xu[:, 12:16] = 0.0, 0.9 * airframe.thrust_gain", LIMIT_TESTS),
+           "xl[:, model.rotor], xu[:, model.rotor] = 0.0, airframe.thrust_gain",
+           "xl[:, model.rotor], xu[:, model.rotor] = 0.0, 0.9 * airframe.thrust_gain",
+           LIMIT_TESTS),
 )
 
 

@@ -12,7 +12,8 @@
 Writes ``benchmarks/RESULTS-trimstudy.md`` (machine, load, the command, tables).
 
 Run: ``python benchmarks/bench_trimstudy.py [--starts 100] [--frame-starts 20] [--random 5]
-[--seed 0] [--no-write]``.
+[--seed 0] [--no-write]``; ``--propeller SY250-propeller`` studies that airframe alone (any
+propulsion kind) and writes ``RESULTS-trimstudy-propeller.md``.
 """
 
 from __future__ import annotations
@@ -111,16 +112,53 @@ def frame_rows(study: TrimStudy, wall: float) -> list[str]:
     return rows
 
 
+def propeller_study(name: str, options: StudyOptions, command: str, no_write: bool) -> None:
+    """One airframe of any propulsion kind over the envelope: totals, per point, the failures'
+    messages (the first three per point and solver)."""
+    frame = build_airframe(load_airframe(name))
+    trim_study(frame, "forward:10", StudyOptions(starts=1))  # warm-up
+    study, wall, cpu = timed_study(frame, options)
+    notes = []
+    for p in study.points:
+        for solver in options.solvers:
+            bad = [r for r in p.results if r.solver == solver and r.outcome != "converged"][:3]
+            notes += [f"- {p.point.label}, {solver}, start {r.start}: {r.outcome}: {r.message}"
+                      for r in bad]
+    text = "\n".join([
+        f"# Trim-solver study, {name} (propulsion: {getattr(frame, 'propulsion', 'paper')})", "",
+        f"Command: `{command}`", "", markdown(), "",
+        f"{len(study.points)} operating points × {len(options.solvers)} solvers × "
+        f"{options.starts + 1} starts (seed {options.seed}; roll, pitch "
+        f"±{options.angle_spread_deg:g}°, commands ±{100 * options.command_spread:g} %; rotor "
+        "states from the trim's analytic guess).", "",
+        f"**Wall time {wall:.1f} s, CPU time {cpu:.1f} s.**", "",
+        *solver_totals(study), "", *point_table(study), "",
+        "Starts that did not reach the reference (first three per point and solver):", "",
+        *notes, ""])
+    print(text)
+    if not no_write:
+        out = RESULTS.with_name("RESULTS-trimstudy-propeller.md")
+        out.write_text(text)
+        print(f"wrote {out}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--starts", type=int, default=100)
     ap.add_argument("--frame-starts", type=int, default=20)
     ap.add_argument("--random", type=int, default=5)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--propeller", metavar="AIRFRAME", default=None,
+                    help="also study this airframe (e.g. SY250-propeller) over the envelope with "
+                    "--starts starts; writes RESULTS-trimstudy-propeller.md instead")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
     command = "python benchmarks/bench_trimstudy.py " + " ".join(sys.argv[1:])
 
+    if args.propeller:
+        propeller_study(args.propeller, StudyOptions(starts=args.starts, seed=args.seed), command,
+                        args.no_write)
+        return
     hs210 = build_airframe(load_airframe("HS210"))
     trim_study(hs210, "forward:10", StudyOptions(starts=1))  # warm-up: build every solver once
     target = StudyOptions(starts=args.starts, seed=args.seed)

@@ -78,10 +78,15 @@ class Airframe:
     air_density: float  # kg/m³
     gravity: float  # m/s²
     com: np.ndarray = field(default_factory=lambda: np.zeros(3))  # hub → CoM (m), body axes
+    #: propulsion kind (:mod:`casadrone.propulsion`) and its parameters appended to p
+    propulsion: str = "paper"
+    propulsion_params: tuple[float, ...] = ()
 
     @cached_property
     def p(self) -> np.ndarray:
-        """Model parameter vector, ordered as :data:`PARAM_NAMES` (computed once, read-only)."""
+        """Model parameter vector, ordered as :data:`PARAM_NAMES` followed, for a ``propeller``
+        airframe, by :data:`casadrone.propulsion.PROPELLER_PARAM_NAMES` (computed once,
+        read-only)."""
         J = self.inertia
         p = np.concatenate(
             [
@@ -91,6 +96,7 @@ class Airframe:
                 [self.kappa],
                 self.drag_area,
                 [self.air_density, self.thrust_gain, self.thrust_time_constant, self.gravity],
+                self.propulsion_params,
             ]
         ).astype(float)
         p.flags.writeable = False
@@ -122,6 +128,7 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
     (r_i − c), which is where the model's moments are taken.
     """
     from casadrone.massprops import mass_properties
+    from casadrone.propulsion import propeller_params
 
     mp = mass_properties(cfg)
     r = np.array(rotor_positions_mm(cfg.lambda_a_mm, cfg.lambda_b_mm, cfg.alpha_deg, cfg.beta_deg))
@@ -153,6 +160,9 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
         air_density=cfg.air_density_kgm3,
         gravity=cfg.gravity_mps2,
         com=mp.com_m,
+        propulsion=cfg.propulsion.model,
+        propulsion_params=(tuple(propeller_params(cfg.propulsion, cfg.air_density_kgm3))
+                           if cfg.propulsion.model == "propeller" else ()),
     )
 
 

@@ -19,6 +19,7 @@ from casadrone.airframe import Airframe
 from casadrone.config.controller import ControllerConfig
 from casadrone.linearise import LinearModel, linearise
 from casadrone.model import IDX, NX, STATE_NAMES, THR
+from casadrone.propulsion import hover_rotors
 
 INTEGRATED = ("x", "y", "z", "psi")
 AUG_STATE_NAMES = STATE_NAMES + tuple(f"int_{n}" for n in INTEGRATED)
@@ -34,10 +35,10 @@ class HoverPoint:
 
 def hover_point(airframe: Airframe) -> HoverPoint:
     """Hover trim from the allocation matrix (exact for rotors in the CoM plane)."""
-    T = airframe.hover_thrusts()
+    rotors, u0 = hover_rotors(airframe, airframe.hover_thrusts())
     x0 = np.zeros(NX)
-    x0[12:16] = T
-    return HoverPoint(x0=x0, u0=T / airframe.thrust_gain)
+    x0[12:16] = rotors
+    return HoverPoint(x0=x0, u0=np.asarray(u0))
 
 
 def discretise(A: np.ndarray, B: np.ndarray, Ts: float) -> tuple[np.ndarray, np.ndarray]:
@@ -228,6 +229,10 @@ def frozen_wrench_gain(K_ref: np.ndarray, reference: Airframe, airframe: Airfram
     after the mixer, so there the arms matter). Cost per candidate: two 4×4 solves and a 4×20
     product.
     """
+    if "propeller" in (airframe.propulsion, reference.propulsion):
+        raise ValueError("frozen-wrench gain policy: defined for the paper propulsion model only "
+                         "(its rotor states are thrusts, K maps command to thrust); use "
+                         "gain_policy redesign with propulsion model propeller")
     A_ref, A = reference.allocation_matrix, airframe.allocation_matrix
     K = np.array(K_ref, float)
     K[:, THR] = K[:, THR] @ np.linalg.solve(A_ref, A)

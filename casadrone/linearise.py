@@ -37,29 +37,30 @@ class LinearModel:
     input_names: tuple[str, ...] = INPUT_NAMES
 
 
-@lru_cache(maxsize=1)
-def _fd_residual() -> ca.Function:
+@lru_cache(maxsize=4)
+def _fd_residual(propulsion: str = "paper") -> ca.Function:
     """F evaluated on the 1 + NX + NX + NU perturbed points of a forward difference at once."""
     n = 1 + 2 * NX + NU
-    return quadrotor_model().F.map(n)
+    return quadrotor_model(propulsion).F.map(n)
 
 
-def jacobians_fd(xdot0, x0, u0, p) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def jacobians_fd(xdot0, x0, u0, p, propulsion: str = "paper"
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """E, A′, B′ by forward differences with step √ε·max(1, |z|) per variable."""
     z0 = np.concatenate([xdot0, x0, u0])
     h = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(z0))
     Z = np.tile(z0[:, None], (1, 1 + z0.size))
     Z[np.arange(z0.size), 1 + np.arange(z0.size)] += h
     P = np.tile(np.asarray(p, float)[:, None], (1, Z.shape[1]))
-    Fv = np.array(_fd_residual()(Z[:NX], Z[NX : 2 * NX], Z[2 * NX :], P))
+    Fv = np.array(_fd_residual(propulsion)(Z[:NX], Z[NX : 2 * NX], Z[2 * NX :], P))
     D = (Fv[:, 1:] - Fv[:, :1]) / h
     return D[:, :NX], D[:, NX : 2 * NX], D[:, 2 * NX :]
 
 
-@lru_cache(maxsize=1)
-def _linear_parts() -> ZeroCopyCall:
-    """ẋ0 and the exact E, A′, B′ in one zero-copy call (built once per process)."""
-    return ZeroCopyCall(quadrotor_model().linear_parts)
+@lru_cache(maxsize=4)
+def _linear_parts(propulsion: str = "paper") -> ZeroCopyCall:
+    """ẋ0 and the exact E, A′, B′ in one zero-copy call (built once per process and kind)."""
+    return ZeroCopyCall(quadrotor_model(propulsion).linear_parts)
 
 
 def linearise(airframe: Airframe, trim_point, method: Method = "exact") -> LinearModel:
@@ -69,10 +70,10 @@ def linearise(airframe: Airframe, trim_point, method: Method = "exact") -> Linea
     p = airframe.p
     x0 = np.asarray(trim_point.x0, float)
     u0 = np.asarray(trim_point.u0, float)
-    xdot0, E, Ap, Bp = (np.array(M.T) for M in _linear_parts()(x0, u0, p))
+    xdot0, E, Ap, Bp = (np.array(M.T) for M in _linear_parts(airframe.propulsion)(x0, u0, p))
     xdot0 = xdot0.ravel()
     if method == "fd":
-        E, Ap, Bp = jacobians_fd(xdot0, x0, u0, p)
+        E, Ap, Bp = jacobians_fd(xdot0, x0, u0, p, airframe.propulsion)
     A = -np.linalg.solve(E, Ap)
     B = -np.linalg.solve(E, Bp)
     return LinearModel(E=E, A_prime=Ap, B_prime=Bp, A=A, B=B, x0=x0, u0=u0, xdot0=xdot0,

@@ -1,11 +1,13 @@
 """Symbolic quadrotor model, implicit F(ẋ, x, u, p) = 0, parametric in the airframe vector p.
 
 State (16): position x, y, z (world, m); body velocity u, v, w (m/s); body rates p, q, r
-(rad/s); ZYX Euler angles φ, θ, ψ (rad; positive θ is nose-down); rotor thrusts T1…T4 (N).
-Input (4): normalised ESC commands δ1…δ4 ∈ [0, 1]. Rotors FR, FL, RL, RR.
+(rad/s); ZYX Euler angles φ, θ, ψ (rad; positive θ is nose-down); four rotor states: the thrusts
+T1…T4 (N) with the ``paper`` propulsion model, the rotor speeds ω1…ω4 (rad/s) with ``propeller``
+(:mod:`casadrone.propulsion`). Input (4): normalised ESC commands δ1…δ4 ∈ [0, 1]. Rotors FR, FL,
+RL, RR.
 
-The model is built once per process (:func:`quadrotor_model`); every airframe is only a value
-of p, so evaluating a thousand airframes never rebuilds an expression.
+The model is built once per process and propulsion kind (:func:`quadrotor_model`); every airframe
+is only a value of p, so evaluating a thousand airframes never rebuilds an expression.
 """
 
 from __future__ import annotations
@@ -17,12 +19,13 @@ from typing import Any
 import casadi as ca
 
 from casadrone.airframe import PARAM_NAMES
+from casadrone.propulsion import KINDS, PROPELLER_PARAM_NAMES, propeller_terms
 
 STATE_NAMES = (
     "x", "y", "z", "u", "v", "w", "p", "q", "r", "phi", "theta", "psi", "T1", "T2", "T3", "T4",
 )  # fmt: skip
 INPUT_NAMES = ("delta1", "delta2", "delta3", "delta4")
-NX, NU, NP = len(STATE_NAMES), len(INPUT_NAMES), len(PARAM_NAMES)
+NX, NU, NP = len(STATE_NAMES), len(INPUT_NAMES), len(PARAM_NAMES)  # NP: the paper's layout
 IDX = {name: i for i, name in enumerate(STATE_NAMES)}
 POS, VEL, RATE, EUL, THR = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 16)
 
@@ -106,13 +109,42 @@ class AirframeTerms:
     rotor_residual: Any
 
 
-def airframe_terms(vel, omega, rotor, rotor_dot, u, p) -> AirframeTerms:
+def param_names(kind: str = "paper") -> tuple[str, ...]:
+    """The names of the parameter vector p of propulsion ``kind`` (the paper's first)."""
+    if kind == "paper":
+        return PARAM_NAMES
+    if kind == "propeller":
+        return PARAM_NAMES + PROPELLER_PARAM_NAMES
+    raise ValueError(f"unknown propulsion model '{kind}'; choose one of {', '.join(KINDS)}")
+
+
+def named(p, kind: str = "propeller") -> dict[str, Any]:
+    """The entries of p (symbolic or numeric) by name."""
+    return {name: p[i] for i, name in enumerate(param_names(kind))}
+
+
+def n_params(propulsion: str = "paper") -> int:
+    """Length of the parameter vector p of propulsion kind ``propulsion``."""
+    return len(param_names(propulsion))
+
+
+def airframe_terms(vel, omega, rotor, rotor_dot, u, p, propulsion: str = "paper"
+                   ) -> AirframeTerms:
     """:class:`AirframeTerms` at body velocity ``vel`` (m/s), body rates ``omega`` (rad/s), rotor
     states ``rotor`` and their derivative ``rotor_dot``, ESC commands ``u`` and airframe vector
-    ``p``. Every attitude representation (the Euler model below, the limit lap's) is built on it;
-    the arithmetic is kept in the order of the paper model's residual so results stay bit-equal.
+    ``p`` (in the layout of ``propulsion``, :func:`param_names`). Every
+    attitude representation (the Euler model below, the limit lap's) is built on it; with
+    ``paper`` the arithmetic is kept in the order of the paper model's residual so results stay
+    bit-equal.
     """
-    del omega  # the paper's thrust model has no inflow; a propeller model reads it
+    if propulsion == "propeller":
+        g, _, r, s, cda = unpack_params(p)
+        force, torque, residual, _, _ = propeller_terms(vel, omega, rotor, rotor_dot, u,
+                                                        named(p), r, s)
+        return AirframeTerms(thrust=force, drag=-0.5 * g["rho"] * cda * ca.fabs(vel) * vel,
+                             torque=torque, rotor_residual=residual)
+    if propulsion != "paper":
+        param_names(propulsion)  # raises: unknown kind
     g, _, r, s, cda = unpack_params(p)
     kappa, rho, K, tau = g["kappa"], g["rho"], g["K"], g["tau"]
     T = rotor
@@ -128,13 +160,13 @@ def airframe_terms(vel, omega, rotor, rotor_dot, u, p) -> AirframeTerms:
     )
 
 
-def implicit_residual(xdot, x, u, p):
+def implicit_residual(xdot, x, u, p, propulsion: str = "paper"):
     """F(ẋ, x, u, p) of docs/concepts/chain.md#model as an SX/MX expression (16 rows)."""
     g, J, _, _, _ = unpack_params(p)
     m, grav = g["mass"], g["g"]
     vel, omega, eul, T = x[VEL], x[RATE], x[EUL], x[THR]
     R = rotation_matrix(eul[0], eul[1], eul[2])
-    terms = airframe_terms(vel, omega, T, xdot[THR], u, p)
+    terms = airframe_terms(vel, omega, T, xdot[THR], u, p, propulsion)
     gravity_body = R.T @ ca.vertcat(0, 0, -m * grav)
 
     res_pos = xdot[POS] - R @ vel
@@ -144,14 +176,14 @@ def implicit_residual(xdot, x, u, p):
     return ca.vertcat(res_pos, res_vel, res_rate, res_eul, terms.rotor_residual)
 
 
-@lru_cache(maxsize=1)
-def quadrotor_model() -> QuadrotorModel:
-    """Build the model once per process and return its Functions."""
+@lru_cache(maxsize=4)
+def quadrotor_model(propulsion: str = "paper") -> QuadrotorModel:
+    """Build the model of propulsion kind ``propulsion`` once per process; its Functions."""
     xdot = ca.SX.sym("xdot", NX)
     x = ca.SX.sym("x", NX)
     u = ca.SX.sym("u", NU)
-    p = ca.SX.sym("p", NP)
-    res = implicit_residual(xdot, x, u, p)
+    p = ca.SX.sym("p", n_params(propulsion))
+    res = implicit_residual(xdot, x, u, p, propulsion)
     F = ca.Function("F", [xdot, x, u, p], [res], ["xdot", "x", "u", "p"], ["res"])
 
     # F is affine in ẋ: F = E ẋ + F(0, x, u, p), so ẋ = -E⁻¹ F(0, x, u, p). E is block diagonal
@@ -177,4 +209,26 @@ def quadrotor_model() -> QuadrotorModel:
         ["x", "u", "p"],
         ["xdot", "E", "A_prime", "B_prime"],
     )
-    return QuadrotorModel(F=F, f=f, jacobians=jacobians, linear_parts=linear_parts)
+    return QuadrotorModel(F=F, f=f, jacobians=jacobians, linear_parts=linear_parts,
+                          param_names=param_names(propulsion))
+
+
+@lru_cache(maxsize=1)
+def propeller_outputs() -> ca.Function:
+    """``rotor_outputs(x, u, p) -> (thrust (4, N), inflow (4, m/s), advance_ratio (4),
+    battery_voltage (V), battery_current (A))`` of the ``propeller`` kind: what a lap reports
+    (the effective axial inflow v_a that enters CT and CP, J = v_a / (n D))."""
+    from casadrone.propulsion import motor_currents
+
+    x, u = ca.SX.sym("x", NX), ca.SX.sym("u", NU)
+    p = ca.SX.sym("p", n_params("propeller"))
+    w = x[THR]
+    q = named(p)
+    _, _, r, s, _ = unpack_params(p)
+    _, _, _, thrust, inflow = propeller_terms(x[VEL], x[RATE], w, ca.SX.zeros(4), u, q, r, s)
+    V, current = motor_currents(w, u, q)
+    J = inflow / (w / (2 * ca.pi) * q["prop_D"])
+    return ca.Function("rotor_outputs", [x, u, p],
+                       [thrust, inflow, J, V, ca.dot(u, current)], ["x", "u", "p"],
+                       ["thrust", "inflow", "advance_ratio", "battery_voltage",
+                        "battery_current"])

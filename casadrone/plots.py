@@ -242,6 +242,28 @@ def limit_lap_figures(lap, closed_loop: Trajectory | None, waypoints) -> dict[st
     }
 
 
+def thrust_against_airspeed(prop: dict, u: np.ndarray, static_full_n: float,
+                            propulsion: str) -> Figure:
+    """Each rotor's thrust against airspeed over a lap (``prop`` from
+    :func:`casadrone.propulsion.lap_propulsion`), full-command nodes marked, with the static
+    full-command thrust for reference."""
+    fig = Figure(figsize=(8.0, 5.0), layout="constrained")
+    ax = fig.subplots()
+    v, T = prop["speed_m_s"], prop["thrust_n"]
+    full = np.asarray(u)[: len(v)] >= 0.99
+    for i in range(T.shape[1]):
+        ax.plot(v, T[:, i], ".", ms=3, alpha=0.5, label=f"rotor {i + 1}")
+    ax.plot(v[:, None].repeat(T.shape[1], 1)[full], T[full], "kx", ms=4,
+            label="full command (δ ≥ 0.99)")
+    ax.axhline(static_full_n, color="k", ls="--", lw=0.8, label="static thrust, full command")
+    ax.set_xlabel("airspeed |v| (m/s)")
+    ax.set_ylabel("rotor thrust T (N)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(f"Limit lap: rotor thrust against airspeed ({propulsion} propulsion model)")
+    return fig
+
+
 # --------------------------------------------------------------------------------------------
 # Robustness (paper Appendix B)
 # --------------------------------------------------------------------------------------------

@@ -34,7 +34,7 @@ from casadrone.config.track import TrackConfig
 from casadrone.control import LQRIDesign
 from casadrone.guidance import GuidanceLayout, guidance, track_vector, wrap
 from casadrone.lapdriver import LapDriver
-from casadrone.model import NP, NU, NX, quadrotor_model, rotation_matrix
+from casadrone.model import NU, NX, n_params, quadrotor_model, rotation_matrix
 
 Integrator = Literal["rk4", "cvodes", "idas"]
 INTEGRATORS: tuple[str, ...] = ("rk4", "cvodes", "idas")
@@ -148,18 +148,18 @@ def _controller_expr(x, c, p, x0, u0, K, g, Ts: float, layout: GuidanceLayout):
     return u, ca.vertcat(xi_next, seg_next, vf_next), ca.vertcat(p_ref, vf_next, psi_ref)
 
 
-def _world_acceleration(x, u, p):
+def _world_acceleration(x, u, p, propulsion: str = "paper"):
     """World-frame kinematic acceleration R (v̇ + ω × v) (m/s²)."""
-    xdot = quadrotor_model().f(x, u, p)
+    xdot = quadrotor_model(propulsion).f(x, u, p)
     R = rotation_matrix(x[9], x[10], x[11])
     return R @ (xdot[3:6] + ca.cross(x[6:9], x[3:6]))
 
 
-def _symbols(layout: GuidanceLayout):
+def _symbols(layout: GuidanceLayout, propulsion: str = "paper"):
     return dict(
         x=ca.SX.sym("x", NX),
         c=ca.SX.sym("c", NC),
-        p=ca.SX.sym("p", NP),
+        p=ca.SX.sym("p", n_params(propulsion)),
         x0=ca.SX.sym("x0", NX),
         u0=ca.SX.sym("u0", NU),
         K=ca.SX.sym("K", NU, NX + 4),
@@ -168,30 +168,31 @@ def _symbols(layout: GuidanceLayout):
 
 
 @lru_cache(maxsize=8)
-def controller_function(Ts: float, n_route: int) -> ca.Function:
+def controller_function(Ts: float, n_route: int, propulsion: str = "paper") -> ca.Function:
     """``controller(x, c, p, x0, u0, K, g) -> (u, c_next, ref)`` for the SUNDIALS loops."""
     layout = GuidanceLayout(n_route)
-    s = _symbols(layout)
+    s = _symbols(layout, propulsion)
     u, c_next, ref = _controller_expr(
         s["x"], s["c"], s["p"], s["x0"], s["u0"], s["K"], s["g"], Ts, layout
     )
-    acc = _world_acceleration(s["x"], u, s["p"])
+    acc = _world_acceleration(s["x"], u, s["p"], propulsion)
     names = ["x", "c", "p", "x0", "u0", "K", "g"]
     return ca.Function("controller", [s[n] for n in names], [u, c_next, ca.vertcat(ref, acc)],
                        names, ["u", "c_next", "ref"])
 
 
 @lru_cache(maxsize=8)
-def step_function(Ts: float, substeps: int, n_route: int) -> ca.Function:
+def step_function(Ts: float, substeps: int, n_route: int, propulsion: str = "paper"
+                  ) -> ca.Function:
     """One sample of the closed loop with an RK4 plant: ``(x, c, …) -> (x_next, c_next, u, …)``.
 
     Common subexpressions are merged (``cse``): the logged acceleration reuses the first RK4
     stage, for instance. Merging reuses values, it does not reorder arithmetic."""
     layout = GuidanceLayout(n_route)
-    s = _symbols(layout)
+    s = _symbols(layout, propulsion)
     x, p = s["x"], s["p"]
     u, c_next, ref = _controller_expr(x, s["c"], p, s["x0"], s["u0"], s["K"], s["g"], Ts, layout)
-    f = quadrotor_model().f
+    f = quadrotor_model(propulsion).f
     h = Ts / substeps
     xk = x
     for _ in range(substeps):
@@ -200,23 +201,25 @@ def step_function(Ts: float, substeps: int, n_route: int) -> ca.Function:
         k3 = f(xk + h / 2 * k2, u, p)
         k4 = f(xk + h * k3, u, p)
         xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    acc = _world_acceleration(x, u, p)
+    acc = _world_acceleration(x, u, p, propulsion)
     names = ["x", "c", "p", "x0", "u0", "K", "g"]
     return ca.Function("lap_step", [s[n] for n in names], [xk, c_next, u, ca.vertcat(ref, acc)],
                        names, ["x_next", "c_next", "u", "ref"], {"cse": True})
 
 
 @lru_cache(maxsize=8)
-def lap_kernel(Ts: float, substeps: int, n_route: int, chunk: int) -> ZeroCopyCall:
+def lap_kernel(Ts: float, substeps: int, n_route: int, chunk: int, propulsion: str = "paper"
+               ) -> ZeroCopyCall:
     """The chunk of :func:`chunk_function` behind a zero-copy caller (outputs: one row per
     sample)."""
-    return ZeroCopyCall(chunk_function(Ts, substeps, n_route, chunk))
+    return ZeroCopyCall(chunk_function(Ts, substeps, n_route, chunk, propulsion))
 
 
 @lru_cache(maxsize=8)
-def chunk_function(Ts: float, substeps: int, n_route: int, chunk: int) -> ca.Function:
+def chunk_function(Ts: float, substeps: int, n_route: int, chunk: int,
+                   propulsion: str = "paper") -> ca.Function:
     """``chunk`` samples of the RK4 closed loop, compiled once (see :func:`compile_function`)."""
-    step = step_function(Ts, substeps, n_route)
+    step = step_function(Ts, substeps, n_route, propulsion)
     mapped = step.mapaccum(f"lap_rk4_{chunk}_map", chunk, 2)
     # the parameters enter once (mapaccum alone would take one copy per sample)
     ins = [ca.MX.sym(step.name_in(i), step.sparsity_in(i)) for i in range(step.n_in())]
@@ -229,21 +232,23 @@ def chunk_function(Ts: float, substeps: int, n_route: int, chunk: int) -> ca.Fun
 
 
 @lru_cache(maxsize=8)
-def lap_driver(Ts: float, substeps: int, n_route: int) -> LapDriver | None:
+def lap_driver(Ts: float, substeps: int, n_route: int, propulsion: str = "paper"
+               ) -> LapDriver | None:
     """The whole-lap C loop of :func:`step_function` (None without a working C compiler: the
     chunked path on CasADi's virtual machine then flies the lap)."""
     try:
-        return LapDriver(step_function(Ts, substeps, n_route))
+        return LapDriver(step_function(Ts, substeps, n_route, propulsion))
     except (OSError, subprocess.CalledProcessError):
         return None
 
 
 @lru_cache(maxsize=8)
-def sundials_integrator(kind: str, Ts: float, rtol: float, atol: float) -> ca.Function:
+def sundials_integrator(kind: str, Ts: float, rtol: float, atol: float,
+                        propulsion: str = "paper") -> ca.Function:
     """CVODES on ẋ = f(x, u, p) or IDAS on 0 = F(z, x, u, p), ẋ = z, over one period Ts."""
-    model = quadrotor_model()
+    model = quadrotor_model(propulsion)
     x = ca.SX.sym("x", NX)
-    up = ca.SX.sym("up", NU + NP)
+    up = ca.SX.sym("up", NU + n_params(propulsion))
     u, p = up[:NU], up[NU:]
     opts = {"abstol": atol, "reltol": rtol}
     if kind == "cvodes":
@@ -312,9 +317,10 @@ def _rk4_chunks(kernel: ZeroCopyCall, x, c, args):
 def _sundials_chunks(kind: str, airframe: Airframe, x, c, args, Ts, n_route, options):
     """Chunks of the closed loop with a SUNDIALS plant, one controller sample at a time; a
     solver error ends the flight with a non-finite state and its message."""
-    ctrl = controller_function(Ts, n_route)
-    plant = sundials_integrator(kind, Ts, options.rtol, options.atol)
-    f = quadrotor_model().f
+    kind_p = airframe.propulsion
+    ctrl = controller_function(Ts, n_route, kind_p)
+    plant = sundials_integrator(kind, Ts, options.rtol, options.atol, kind_p)
+    f = quadrotor_model(kind_p).f
     while True:
         X, C, U, R = (np.empty((options.chunk, n)) for n in (NX, NC, NU, NREF))
         error = ""
@@ -357,14 +363,16 @@ def simulate(
     args = [airframe.p, design.x0, design.u0, design.K, track_vector(track)]
     x, c = initial_state(airframe, design, track)
     n_max = int(np.ceil(track.time_limit_s / Ts))
-    driver = lap_driver(Ts, options.substeps, n_route) if integrator == "rk4" else None
+    kind_p = airframe.propulsion
+    driver = lap_driver(Ts, options.substeps, n_route, kind_p) if integrator == "rk4" else None
     if driver is not None:
         lap = driver.run([x, c, *args], n_seg, track.start_position_m[2],
                          np.radians(track.max_tilt_deg), options.ground_margin_m, n_max)
         return _trajectory(lap.X, lap.C, lap.U, lap.R, *_lap_status(lap, Ts, track), airframe,
                            design, track, integrator, start)
     if integrator == "rk4":
-        chunks = _rk4_chunks(lap_kernel(Ts, options.substeps, n_route, options.chunk), x, c, args)
+        chunks = _rk4_chunks(lap_kernel(Ts, options.substeps, n_route, options.chunk, kind_p),
+                             x, c, args)
     else:
         chunks = _sundials_chunks(integrator, airframe, x, c, args, Ts, n_route, options)
 

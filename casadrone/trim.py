@@ -63,9 +63,12 @@ from casadrone.model import (
     STATE_NAMES,
     THR,
     VEL,
+    n_params,
+    propeller_outputs,
     quadrotor_model,
     rotation_matrix,
 )
+from casadrone.propulsion import hover_rotors
 
 Solver = Literal["ipopt", "nelder-mead", "newton"]
 Condition = Literal["hover", "forward", "climb", "turn"]
@@ -176,27 +179,43 @@ def _state_expr(z, p, op, level: bool):
     ``level``: γ = Ω = 0 as constants, so level flight keeps the expression graph (and the
     results, bit for bit) of the level-only formulation this generalises."""
     phi, theta, delta = z[0], z[1], z[2:6]
+    rotor = p[_K] * delta if z.numel() == 6 else z[6:10]  # propeller: the rotor speeds
     V, gamma, Omega = (op[0], 0, 0) if level else (op[0], op[1], op[2])
     R = rotation_matrix(phi, theta, 0)
     omega = Omega * ca.vertcat(-ca.sin(theta), ca.sin(phi) * ca.cos(theta),
                                ca.cos(phi) * ca.cos(theta))
     x = ca.vertcat(
         ca.SX.zeros(3), R.T @ ca.vertcat(V * ca.cos(gamma), 0, V * ca.sin(gamma)), omega, phi,
-        theta, 0, p[_K] * delta,
+        theta, 0, rotor,
     )
     steady = ca.vertcat(ca.SX.zeros(_PSI_ROW), Omega, ca.SX.zeros(NX - _PSI_ROW - 1))
     return x, delta, steady
 
 
-@lru_cache(maxsize=2)
-def _functions(level: bool) -> _TrimFunctions:
+def n_unknowns(propulsion: str = "paper") -> int:
+    """Unknowns of a trim: Z = (φ, θ, δ1…δ4) with ``paper`` (T = K δ at rest), with the four
+    rotor speeds appended for ``propeller`` (their steady state is not explicit); the residual
+    then gains the four rotor rows, so the system stays square."""
+    return 6 if propulsion == "paper" else 10
+
+
+def _kind(p) -> str:
+    """The propulsion kind of a parameter vector (its length tells)."""
+    return "paper" if len(p) == NP else "propeller"
+
+
+@lru_cache(maxsize=4)
+def _functions(level: bool, propulsion: str = "paper") -> _TrimFunctions:
     """The compiled trim Functions; ``level``: for conditions without climb or turn."""
-    f = quadrotor_model().f
-    z, p, op = ca.SX.sym("z", 6), ca.SX.sym("p", NP), ca.SX.sym("op", 3)
-    h = ca.SX.sym("h", 6)
+    f = quadrotor_model(propulsion).f
+    nz = n_unknowns(propulsion)
+    z, p, op = ca.SX.sym("z", nz), ca.SX.sym("p", n_params(propulsion)), ca.SX.sym("op", 3)
+    h = ca.SX.sym("h", nz)
     x, u, steady = _state_expr(z, p, op, level)
     xdot = f(x, u, p)
     Q = ca.vertcat(xdot[VEL], xdot[RATE])
+    if propulsion != "paper":
+        Q = ca.vertcat(Q, xdot[THR])
     names = ["z", "p", "op"]
     return _TrimFunctions(
         state=ca.Function("trim_state", [z, p, op], [x, u], names, ["x", "u"]),
@@ -212,9 +231,10 @@ def _functions(level: bool) -> _TrimFunctions:
 
 
 @lru_cache(maxsize=16)
-def _ipopt(tol: float, max_iter: int, level: bool) -> ca.Function:
-    fn = _functions(level)
-    z, pv = ca.SX.sym("z", 6), ca.SX.sym("pv", NP + 3)
+def _ipopt(tol: float, max_iter: int, level: bool, propulsion: str = "paper") -> ca.Function:
+    fn = _functions(level, propulsion)
+    NP = n_params(propulsion)
+    z, pv = ca.SX.sym("z", n_unknowns(propulsion)), ca.SX.sym("pv", NP + 3)
     g = fn.residual(z, pv[:NP], pv[NP:])
     opts = {
         "print_time": False,
@@ -229,9 +249,10 @@ def _ipopt(tol: float, max_iter: int, level: bool) -> ca.Function:
 
 
 @lru_cache(maxsize=16)
-def _newton(tol: float, max_iter: int, level: bool) -> ca.Function:
-    fn = _functions(level)
-    z, pv = ca.SX.sym("z", 6), ca.SX.sym("pv", NP + 3)
+def _newton(tol: float, max_iter: int, level: bool, propulsion: str = "paper") -> ca.Function:
+    fn = _functions(level, propulsion)
+    NP = n_params(propulsion)
+    z, pv = ca.SX.sym("z", n_unknowns(propulsion)), ca.SX.sym("pv", NP + 3)
     g = ca.Function("trim_g", [z, pv], [fn.residual(z, pv[:NP], pv[NP:])])
     opts = {
         "abstol": min(tol * 1e-3, 1e-12),
@@ -253,27 +274,32 @@ def _level(op: np.ndarray) -> bool:
 
 
 def _solve_ipopt(z0, p, op, o: TrimOptions):
-    solver = _ipopt(o.tolerance, o.max_iterations, _level(op))
+    solver = _ipopt(o.tolerance, o.max_iterations, _level(op), _kind(p))
     sol = solver(x0=z0, p=np.append(p, op), lbg=0, ubg=0)
     st = solver.stats()
     return np.asarray(sol["x"]).ravel(), int(st.get("iter_count", 0)), str(st["return_status"])
 
 
 @lru_cache(maxsize=16)
-def _newton_call(tol: float, max_iter: int, level: bool) -> ZeroCopyCall:
-    return ZeroCopyCall(_newton(tol, max_iter, level))
+def _newton_call(tol: float, max_iter: int, level: bool, propulsion: str = "paper"
+                 ) -> ZeroCopyCall:
+    return ZeroCopyCall(_newton(tol, max_iter, level, propulsion))
 
 
 def _solve_newton(z0, p, op, o: TrimOptions):
-    rf = _newton_call(o.tolerance, o.max_iterations, _level(op))
+    rf = _newton_call(o.tolerance, o.max_iterations, _level(op), _kind(p))
     (z,) = rf(z0, np.append(p, op))
     st = rf.stats()
     return z.ravel().copy(), int(st.get("iter_count", 0)), str(st["return_status"])
 
 
 def _solve_nelder_mead(z0, p, op, o: TrimOptions):
-    fn = _functions(_level(op))
-    h = np.asarray(o.nelder_mead_weights, dtype=float)
+    fn = _functions(_level(op), _kind(p))
+    nz = n_unknowns(_kind(p))
+    # propeller: the rotor rows (rad/s²) weighted to the scale of the rigid-body rows, and the
+    # simplex a thousand times wider along the rotor speeds (rad/s) than along δ
+    h = np.concatenate([np.asarray(o.nelder_mead_weights, dtype=float), [1e-6] * (nz - 6)])
+    scale = np.concatenate([np.ones(6), [1e3] * (nz - 6)])
 
     def cost(z):  # zero-copy: a few µs a call, where a DM call costs tens
         return float(fn.cost(z, p, op, h)[0][0, 0])
@@ -291,7 +317,7 @@ def _solve_nelder_mead(z0, p, op, o: TrimOptions):
     if not math.isfinite(q0):  # a simplex of non-finite costs cannot move
         return z, 0, "non-finite residual at the initial guess"
     while nit < o.nelder_mead_max_iterations:
-        simplex = z + np.vstack([np.zeros(6), step * np.eye(6)])
+        simplex = z + np.vstack([np.zeros(nz), step * np.diag(scale)])
         res = minimize(
             cost,
             z,
@@ -348,6 +374,9 @@ def initial_guess(
     theta = math.atan2(fx, fz)
     phi = 0.0 - math.atan2(fy, math.hypot(fx, fz))  # 0.0 - : no negative zero in level flight
     delta = a.hover_thrusts() / (math.cos(theta) * math.cos(phi)) * (fz / weight)
+    if a.propulsion != "paper":  # the static rotor speeds and commands of those thrusts
+        rotors, commands = hover_rotors(a, delta)
+        return np.concatenate([[phi, theta], commands, rotors])
     return np.concatenate([[phi, theta], delta / a.thrust_gain])
 
 
@@ -372,10 +401,13 @@ def trim(
         raise ValueError(f"unknown trim solver '{solver}'; choose one of {', '.join(SOLVERS)}")
     op = operating_vector(condition, speed_mps, climb_angle_deg, turn_rate_dps)
     o = options or TrimOptions()
-    fn = _functions(_level(op))
+    fn = _functions(_level(op), airframe.propulsion)
     p = airframe.p
-    z0 = np.asarray(o.initial_guess if o.initial_guess is not None else initial_guess(
-        airframe, speed_mps, climb_angle_deg=climb_angle_deg, turn_rate_dps=turn_rate_dps))
+    guess = initial_guess(airframe, speed_mps, climb_angle_deg=climb_angle_deg,
+                          turn_rate_dps=turn_rate_dps)
+    z0 = np.asarray(o.initial_guess if o.initial_guess is not None else guess)
+    if z0.size < guess.size:  # propeller, six values given: the guess's rotor speeds
+        z0 = np.concatenate([z0, guess[z0.size:]])
 
     start = time.perf_counter()
     try:
@@ -394,7 +426,7 @@ def trim(
         speed_mps=float(speed_mps),
         x0=x0,
         u0=u0,
-        thrusts=x0[THR].copy(),
+        thrusts=rotor_thrusts(airframe, x0, u0),
         residual_norm=residual,
         iterations=int(iterations),
         wall_time_s=wall,
@@ -443,7 +475,8 @@ def residual_norm(
     """The ``residual_norm`` a TrimPoint would report at unknowns ``z`` (an unsolved start, for
     instance): the 13 non-position rows of f minus their steady values, 2-norm (SI)."""
     op = operating_vector(condition, speed_mps, climb_angle_deg, turn_rate_dps)
-    return float(_functions(_level(op)).point(_wrap_angles(z), airframe.p, op)[2][0, 0])
+    fn = _functions(_level(op), airframe.propulsion)
+    return float(fn.point(_wrap_angles(z), airframe.p, op)[2][0, 0])
 
 
 def trim_all(
@@ -457,3 +490,11 @@ def trim_all(
     """Trim with each of ``solvers`` (same airframe, condition and options), for comparison;
     ``operating_point``: ``climb_angle_deg`` or ``turn_rate_dps`` as in :func:`trim`."""
     return [trim(airframe, condition, speed_mps, s, options, **operating_point) for s in solvers]
+
+
+def rotor_thrusts(airframe: Airframe, x, u) -> np.ndarray:
+    """Each rotor's thrust (N) in state x under commands u: the rotor states with ``paper``, the
+    propeller model's thrust at the rotor's own inflow with ``propeller``."""
+    if airframe.propulsion == "paper":
+        return np.asarray(x, float)[THR].copy()
+    return np.asarray(propeller_outputs()(x, u, airframe.p)[0], float).ravel()

@@ -24,6 +24,9 @@ from casadrone.cli.common import (
 LIMIT_KEYS = ("status", "reason", "lap_time_s", "point_mass_reference_s", "split_times_s",
               "lap_times_s", "certainty", "spread_s", "start", "attitude", "bang_bang_fraction",
               "resimulation_miss_m", "sensitivities", "iterations", "wall_time_s")
+#: What the propulsion did (:func:`casadrone.limit.check.lap_propulsion`), added to ``--json``.
+PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio",
+                   "min_thrust_ratio")
 
 
 @app.command("limit-lap")
@@ -73,24 +76,33 @@ def limit_lap_command(
     lap = limit_lap(cfg, trk, LimitLapOptions(intervals=intervals, attitude=attitude,
                                               tilt_limit=tilt))
     result = {k: getattr(lap, k) for k in LIMIT_KEYS}
+    from casadrone.airframe import build_airframe
+    from casadrone.limit.check import lap_propulsion
+
+    frame = build_airframe(cfg)
+    prop = lap_propulsion(frame, lap.x_euler, lap.u)
+    result |= {k: prop[k] for k in PROPULSION_KEYS}
     if plot is not None:
-        result["figures"] = _figures(cfg, trk, lap, plot)
+        result["figures"] = _figures(cfg, trk, lap, plot, frame, prop)
     if as_json:
         print_json(result)
         return
     typer.echo(_text(cfg.name, trk.name, result))
 
 
-def _figures(cfg, trk, lap, folder) -> list[str]:
+def _figures(cfg, trk, lap, folder, frame, prop) -> list[str]:
     if not lap.optimal:
         typer.echo("--plot: nothing to plot, the limit lap failed", err=True)
         return []
     from casadrone import plots
-    from casadrone.airframe import build_airframe
     from casadrone.limit.lap import closed_loop_lap
+    from casadrone.propulsion import max_static_thrust
 
-    traj = closed_loop_lap(build_airframe(cfg), trk)
-    return save_figures(plots.limit_lap_figures(lap, traj, trk.waypoints_m), folder)
+    traj = closed_loop_lap(frame, trk)
+    figures = plots.limit_lap_figures(lap, traj, trk.waypoints_m)
+    figures["limit-thrust-airspeed"] = plots.thrust_against_airspeed(
+        prop, lap.u, max_static_thrust(frame), frame.propulsion)
+    return save_figures(figures, folder)
 
 
 def _text(name: str, track: str, r: dict) -> str:
@@ -106,6 +118,8 @@ def _text(name: str, track: str, r: dict) -> str:
         f"  lap times (s): {', '.join(f'{t:.3f}' for t in r['lap_times_s'])}",
         f"  bang-bang fraction: {r['bang_bang_fraction']:.2f}; re-simulation miss: "
         f"{r['resimulation_miss_m']:.4f} m",
+        f"  top speed {r['top_speed_m_s']:.1f} m/s; lowest full-command thrust / static "
+        f"{r['min_thrust_ratio']:.2f}; highest advance ratio {r['max_advance_ratio']:.2f}",
         "  sensitivity dT/dθ (s per unit):",
     ]
     lines += [f"    {k:<14}{v:>+12.4g}" for k, v in r["sensitivities"].items()

@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal
 from pydantic import Field
 
 from casadrone.config.io import Schema, has_keys, load, resolve_config
+from casadrone.config.propulsion import PropulsionConfig
 from casadrone.massprops import inertia_tensor, mass_properties_of, rotor_positions_mm
 
 Positive = Annotated[float, Field(gt=0)]
@@ -143,6 +144,9 @@ class AirframeConfig(Schema):
         ThrustModelConfig(),
         description="the paper's identified first-order thrust model of one rotor",
     )
+    propulsion: PropulsionConfig = Field(
+        PropulsionConfig(), description="propulsion model: paper (the thrust section) or "
+        "propeller (rotor speed, inflow, rotor drag, motor and battery; casadrone.propulsion)")
     air_density_kgm3: float = Field(
         1.225, gt=0, le=2,
         description="air density ρ of the drag model (kg/m³; sea level 1.225)",
@@ -176,10 +180,17 @@ class AirframeConfig(Schema):
             found += inertia_problems(inertia_tensor(v))
         if mass is not None and has_keys(v, "gravity_mps2", "thrust"):
             weight, full = mass * v["gravity_mps2"], 4 * v["thrust"].gain_n
+            what = "4 × thrust.gain_n"
+            prop = v.get("propulsion")
+            if (prop is not None and prop.model == "propeller" and None not in (
+                    prop.propeller, prop.motor, prop.battery) and "air_density_kgm3" in v):
+                from casadrone.propulsion import full_static_thrust
+
+                full, what = 4 * full_static_thrust(prop, v["air_density_kgm3"]), "propulsion"
             if weight >= full:
                 key = "mass_kg" if v.get("mass_model") == "free" else "components"
                 found.append((key, f"cannot hover: weight {weight:.2f} N is not below the "
-                              f"full thrust of four rotors {full:.2f} N (4 × thrust.gain_n)"))
+                              f"full thrust of four rotors {full:.2f} N ({what})"))
         return found
 
 

@@ -24,7 +24,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from casadrone.model import NP, NU, airframe_terms, rotation_matrix, unpack_params
+from casadrone.model import NU, airframe_terms, n_params, rotation_matrix, unpack_params
 
 NQ = 17  # states of the quaternion model
 QUAT = slice(9, 13)
@@ -53,32 +53,33 @@ def quat_rate(q, omega):
     )
 
 
-def quaternion_dynamics(x, u, p):
+def quaternion_dynamics(x, u, p, propulsion: str = "paper"):
     """ẋ of the 17-state quaternion model (symbolic), from :func:`airframe_terms`."""
     g, J, _, _, _ = unpack_params(p)
     m, grav = g["mass"], g["g"]
     vel, omega, q, rotor = x[3:6], x[6:9], x[QUAT], x[13:17]
     R = quat_rotation(q)
     rd = ca.SX.sym("rotor_dot", rotor.numel())
-    rr = airframe_terms(vel, omega, rotor, rd, u, p).rotor_residual
+    rr = airframe_terms(vel, omega, rotor, rd, u, p, propulsion).rotor_residual
     # rotor_residual is linear in rotor_dot: rr = A rd + b, so rd = -A⁻¹ b
     A = ca.jacobian(rr, rd)
     b = ca.substitute(rr, rd, ca.SX.zeros(rotor.numel()))
     rotor_dot = -ca.solve(A, b)
-    terms = airframe_terms(vel, omega, rotor, rotor_dot, u, p)
+    terms = airframe_terms(vel, omega, rotor, rotor_dot, u, p, propulsion)
     gravity_body = R.T @ ca.vertcat(0, 0, -m * grav)
     vel_dot = (terms.thrust + terms.drag + gravity_body) / m - ca.cross(omega, vel)
     rate_dot = ca.solve(J, terms.torque - ca.cross(omega, J @ omega))
     return ca.vertcat(R @ vel, vel_dot, rate_dot, quat_rate(q, omega), rotor_dot)
 
 
-@lru_cache(maxsize=1)
-def quaternion_f() -> ca.Function:
-    """``f(x, u, p) -> xdot`` of the quaternion model, built once per process."""
+@lru_cache(maxsize=4)
+def quaternion_f(propulsion: str = "paper") -> ca.Function:
+    """``f(x, u, p) -> xdot`` of the quaternion model, built once per process and kind."""
     x = ca.SX.sym("x", NQ)
     u = ca.SX.sym("u", NU)
-    p = ca.SX.sym("p", NP)
-    return ca.Function("f_quat", [x, u, p], [ca.simplify(quaternion_dynamics(x, u, p))],
+    p = ca.SX.sym("p", n_params(propulsion))
+    return ca.Function("f_quat", [x, u, p],
+                       [ca.simplify(quaternion_dynamics(x, u, p, propulsion))],
                        ["x", "u", "p"], ["xdot"])
 
 

@@ -3,8 +3,10 @@ lap time's sensitivities to the decision variables (envelope theorem, no re-solv
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from functools import lru_cache
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -13,7 +15,8 @@ from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.io import ConfigError
 from casadrone.limit.gates import TARGET_SIZE, target_miss  # noqa: F401 (re-exported)
-from casadrone.model import NP, NU, quadrotor_model
+from casadrone.model import NU, n_params, propeller_outputs, quadrotor_model
+from casadrone.propulsion import max_static_thrust
 
 
 def bang_bang_fraction(u: np.ndarray, tol: float) -> float:
@@ -23,8 +26,8 @@ def bang_bang_fraction(u: np.ndarray, tol: float) -> float:
 
 
 @lru_cache(maxsize=4)
-def scaled_cvodes(rtol: float = 1e-10, atol: float = 1e-10, attitude: str = "euler"
-                  ) -> ca.Function:
+def scaled_cvodes(rtol: float = 1e-10, atol: float = 1e-10, attitude: str = "euler",
+                  propulsion: str = "paper") -> ca.Function:
     """CVODES on ẋ = h f(x, u, p) over [0, 1]: one interval of length h with a held command
     (the same explicit f and SUNDIALS integrator as the closed loop's reference, time-scaled so
     that one Function serves every interval length); ``attitude`` picks the Euler model or the
@@ -32,20 +35,22 @@ def scaled_cvodes(rtol: float = 1e-10, atol: float = 1e-10, attitude: str = "eul
     if attitude == "quaternion":
         from casadrone.limit.attitude import quaternion_f
 
-        f = quaternion_f()
+        f = quaternion_f(propulsion)
     else:
-        f = quadrotor_model().f
+        f = quadrotor_model(propulsion).f
     x = ca.SX.sym("x", f.size1_in(0))
+    NP = n_params(propulsion)
     uph = ca.SX.sym("uph", NU + NP + 1)
     u, p, h = uph[:NU], uph[NU:NU + NP], uph[NU + NP]
     dae = {"x": x, "p": uph, "ode": h * f(x, u, p)}
-    return ca.integrator(f"limit_resim_{attitude}", "cvodes", dae, 0.0, 1.0,
+    return ca.integrator(f"limit_resim_{attitude}_{propulsion}", "cvodes", dae, 0.0, 1.0,
                          {"abstol": atol, "reltol": rtol})
 
 
 def resimulate(airframe: Airframe, lap) -> np.ndarray:
     """Node states of the lap's commands integrated by CVODES from its start state."""
-    step = scaled_cvodes(attitude=getattr(lap, "attitude", "euler"))
+    step = scaled_cvodes(attitude=getattr(lap, "attitude", "euler"),
+                         propulsion=airframe.propulsion)
     h = np.diff(lap.t)
     X = np.zeros_like(lap.x)
     X[0] = lap.x[0]
@@ -104,3 +109,36 @@ def theta_sensitivities(
             d = np.zeros_like(grad)
         out[key] = float(grad @ d)
     return out
+
+
+#: A command this close to 1 counts as full command in :func:`lap_propulsion`.
+FULL_COMMAND_TOL = 0.01
+
+
+def lap_propulsion(airframe, x, u) -> dict[str, Any]:
+    """What the propulsion did over a flight with Euler states ``x`` (M+1, 16) and commands
+    ``u`` (M, 4) held from each state: per node (the first M) the airspeed (m/s), each rotor's
+    thrust (N) and advance ratio, and the summary ``top_speed_m_s``, ``thrust_at_top_speed_n``
+    (the four rotors), ``max_advance_ratio`` (NaN with ``paper``, which has no rotor speed) and
+    ``min_thrust_ratio``: the lowest ratio of a rotor's thrust at full command (δ ≥ 0.99) to
+    its static full-command thrust (:func:`casadrone.propulsion.max_static_thrust`), NaN if no
+    rotor reached full command."""
+    x, u = np.asarray(x, float), np.asarray(u, float)
+    n = min(len(u), len(x))
+    x, u = x[:n], u[:n]
+    speed = np.linalg.norm(x[:, 3:6], axis=1)
+    if airframe.propulsion == "paper":
+        thrust, J = x[:, 12:16].copy(), np.full((n, 4), np.nan)
+    else:
+        out = propeller_outputs().map(n)(x.T, u.T, np.repeat(airframe.p[:, None], n, axis=1))
+        thrust, J = np.asarray(out[0]).T, np.asarray(out[2]).T
+    full = u >= 1 - FULL_COMMAND_TOL
+    ratio = thrust[full] / max_static_thrust(airframe)
+    top = int(np.argmax(speed)) if n else 0
+    return {
+        "speed_m_s": speed, "thrust_n": thrust, "advance_ratio": J,
+        "top_speed_m_s": float(speed[top]) if n else math.nan,
+        "thrust_at_top_speed_n": [float(t) for t in thrust[top]] if n else [],
+        "max_advance_ratio": float(np.nanmax(J)) if n and np.isfinite(J).any() else math.nan,
+        "min_thrust_ratio": float(ratio.min()) if ratio.size else math.nan,
+    }

@@ -63,6 +63,14 @@ from casadrone.limit.nlp import (
     solve,
 )
 from casadrone.model import NX, rotation_matrix
+from casadrone.propulsion import (
+    equal_rotor_guess,
+    hover_rotors,
+    max_static_thrust,
+    rotor_state_bounds,
+    rotor_thrust_bound,
+    static_thrusts,
+)
 
 Start = Literal["closed-loop", "point-mass", "coarse-grid", "relaxed-tolerance"]
 BANG_BANG_TOL = 0.02  # a command within this of 0 or 1 counts as saturated
@@ -332,7 +340,7 @@ def start_state(airframe: Airframe, track: TrackConfig, options: LimitLapOptions
     c, s = math.cos(psi), math.sin(psi)
     vw = np.asarray(track.start.velocity_mps, float)
     x[3:6] = [c * vw[0] + s * vw[1], -s * vw[0] + c * vw[1], vw[2]]  # Rz(ψ)ᵀ v
-    x[12:16] = airframe.hover_thrusts()
+    x[12:16] = hover_rotors(airframe, airframe.hover_thrusts())[0]
     return x
 
 
@@ -371,11 +379,11 @@ def bounds(nlp: Nlp, airframe: Airframe, track: TrackConfig, options: LimitLapOp
     if point_mass:
         if options.tilt_limit != "none":
             ul[:, 0:2], uu[:, 0:2] = -tilt, tilt
-        ul[:, 3], uu[:, 3] = 0.0, 4 * airframe.thrust_gain
+        ul[:, 3], uu[:, 3] = 0.0, 4 * rotor_thrust_bound(airframe)
     else:
         if options.tilt_limit == "axes":
             xl[:, 9:11], xu[:, 9:11] = -tilt, tilt
-        xl[:, model.rotor], xu[:, model.rotor] = 0.0, airframe.thrust_gain
+        xl[:, model.rotor], xu[:, model.rotor] = rotor_state_bounds(airframe)
         rate = track.max_body_rate_rad_s
         if rate is not None and model.rates is not None:
             lim = np.array([rate.roll_pitch, rate.roll_pitch, rate.yaw])
@@ -464,9 +472,10 @@ def guess_from_lap(nlp: Nlp, lap: LimitLap, x0: np.ndarray) -> np.ndarray:
 
 
 def straight_guess(nlp: Nlp, route: np.ndarray, x0: np.ndarray, speed: float = 5.0,
-                   weight_n: float = 0.0) -> np.ndarray:
+                   weight_n: float = 0.0, hover_command: float | None = None) -> np.ndarray:
     """Constant ``speed`` (m/s) along the route in the start's attitude: the guess when no
-    closed loop flies, and the point-mass reference's starts."""
+    closed loop flies, and the point-mass reference's starts (commands ``hover_command``;
+    default the paper model's rotor thrust over K)."""
     L, N = nlp.layout.n_legs, nlp.layout.intervals
     T = np.maximum(np.linalg.norm(np.diff(route, axis=0), axis=1) / speed, 0.1)
     X = np.repeat(x0[None, :], L * N + 1, axis=0)
@@ -478,20 +487,23 @@ def straight_guess(nlp: Nlp, route: np.ndarray, x0: np.ndarray, speed: float = 5
         U = np.zeros((L * N, nlp.model.nu))
         U[:, 3] = weight_n
         return nlp.pack(T, X, U)
-    U = np.full((L * N, nlp.model.nu), float(np.mean(x0[rotor])) / 9.0519)
+    U = np.full((L * N, nlp.model.nu), float(np.mean(x0[rotor])) / 9.0519
+                if hover_command is None else hover_command)
     return nlp.pack(T, X, np.clip(U, 0, 1))
 
 
-def point_mass_guess(full: Nlp, pm: Nlp, w_full: np.ndarray) -> np.ndarray:
+def point_mass_guess(full: Nlp, pm: Nlp, w_full: np.ndarray, airframe: Airframe | None = None
+                     ) -> np.ndarray:
     """The point-mass decision vector of a full-model one: same durations, positions, world
-    velocities; attitude and total thrust as the controls."""
+    velocities; attitude and total thrust (of the rotor states at rest) as the controls."""
     T, X, U = full.unpack(w_full)
     X = euler_states(full.model.attitude, X)
     Xp = np.zeros((len(X), 6))
     Xp[:, 0:3] = X[:, 0:3]
     for i, x in enumerate(X):
         Xp[i, 3:6] = np.asarray(rotation_matrix(*x[9:12])).reshape(3, 3) @ x[3:6]
-    Up = np.column_stack([X[:-1, 9:12], X[:-1, 12:16].sum(axis=1)])
+    rotor = X[:-1, 12:16] if airframe is None else static_thrusts(airframe, X[:-1, 12:16])
+    Up = np.column_stack([X[:-1, 9:12], rotor.sum(axis=1)])
     return pm.pack(T, Xp, Up)
 
 
@@ -504,13 +516,13 @@ def lifted_guess(full: Nlp, pm: Nlp, w_pm: np.ndarray, airframe: Airframe, x0: n
     att = np.vstack([Up, Up[-1:]])
     X[:, 0:3] = Xp[:, 0:3]
     X[:, 9:12] = att[:, 0:3]
-    X[:, 12:16] = att[:, 3:4] / 4
+    X[:, 12:16], U = equal_rotor_guess(airframe, att[:, 3] / 4)
     for i in range(len(X)):
         R = np.asarray(rotation_matrix(*att[i, 0:3])).reshape(3, 3)
         X[i, 3:6] = R.T @ Xp[i, 3:6]
     X = model_states(full.model.attitude, X)
     X[0] = x0
-    U = np.clip(np.repeat(Up[:, 3:4] / (4 * airframe.thrust_gain), 4, axis=1), 0, 1)
+    U = np.clip(U[:-1], 0, 1)
     return full.pack(T, X, U)
 
 
@@ -526,9 +538,12 @@ _POINT_MASS: dict[bytes, NlpSolution | None] = {}
 def point_mass_p(airframe: Airframe) -> np.ndarray:
     """p with every entry the point mass does not read set to zero, so the point-mass problem,
     and its cache key, depend on mass, gravity, drag and density only (thrust is its bound)."""
-    from casadrone.airframe import PARAM_NAMES
+    from casadrone.model import param_names
+    from casadrone.propulsion import PROPELLER_PARAM_NAMES
 
-    keep = np.isin(np.array(PARAM_NAMES), POINT_MASS_PARAMS)
+    names = np.array(param_names(airframe.propulsion))
+    # the propeller's data set the point mass's thrust bound: they stay in the key
+    keep = np.isin(names, POINT_MASS_PARAMS + PROPELLER_PARAM_NAMES)
     return np.where(keep, airframe.p, 0.0)
 
 
@@ -622,7 +637,8 @@ class _Problem:
 
     @cached_property
     def point_mass(self) -> Nlp:  # only when a point-mass start or the reference needs it
-        return build_nlp(point_mass_ocp_model(), replace(self.layout, tilt_cone=False),
+        return build_nlp(point_mass_ocp_model(self.frame.propulsion),
+                         replace(self.layout, tilt_cone=False),
                          self.options.tol, self.options.max_iter)
 
     @cached_property
@@ -637,7 +653,8 @@ def _prepare(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
     layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
                     options.substeps, end_at_rest=track.end != "free",
                     tilt_cone=options.tilt_limit == "cone")
-    full = build_nlp(ATTITUDE_MODELS[options.attitude](), layout, options.tol, options.max_iter)
+    full = build_nlp(ATTITUDE_MODELS[options.attitude](frame.propulsion), layout, options.tol,
+                     options.max_iter)
     x0_euler = start_state(frame, track, options)
     x0 = model_states(options.attitude, x0_euler)[0]
     return _Problem(frame, track, options, targets, layout, full, x0_euler, x0,
@@ -657,7 +674,9 @@ def _run_starts(pb: _Problem) -> list[tuple[str, NlpSolution]]:
         if traj is not None:
             guess = guess_from_trajectory(full, traj, x0)
         if guess is None:
-            guess = straight_guess(full, pb.targets.route, x0)
+            guess = straight_guess(full, pb.targets.route, x0, hover_command=None if
+                                   pb.frame.propulsion == "paper" else float(np.mean(
+                                       hover_rotors(pb.frame, pb.frame.hover_thrusts())[1])))
         solves.append(("closed-loop", pb.solve(guess)))
     if "coarse-grid" in options.starts:
         coarse = limit_lap(pb.frame, pb.track, replace(
@@ -749,7 +768,7 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     why = check_inputs(track, options, frame_clearance_m(frame, prop_diameter_m))
     if why:
         return _failed(why, start)
-    weight, full_thrust = frame.mass * frame.gravity, 4 * frame.thrust_gain
+    weight, full_thrust = frame.mass * frame.gravity, 4 * max_static_thrust(frame)
     if weight >= full_thrust:
         return _failed(f"cannot hover: weight {weight:.2f} N is not below the full thrust "
                        f"{full_thrust:.2f} N", start)

@@ -38,7 +38,7 @@ from casadrone.limit.gates import (  # noqa: F401 (re-exported: the NLP's target
     target_rows,
     target_vector,
 )
-from casadrone.model import NP, quadrotor_model, rotation_matrix, unpack_params
+from casadrone.model import n_params, quadrotor_model, rotation_matrix, unpack_params
 
 
 @dataclass(frozen=True)
@@ -72,18 +72,20 @@ class OcpModel:
         return self.f.size1_in(2)
 
 
-def quadrotor_ocp_model() -> OcpModel:
-    """The 16-state ZYX-Euler model of :mod:`casadrone.model` (thrust lag included)."""
+def quadrotor_ocp_model(propulsion: str = "paper") -> OcpModel:
+    """The 16-state ZYX-Euler model of :mod:`casadrone.model` (rotor dynamics included) with the
+    airframe's propulsion kind."""
 
     def vw(x):
         return rotation_matrix(x[9], x[10], x[11]) @ x[3:6]
 
-    return OcpModel("quadrotor", quadrotor_model().f, vw, rates=slice(6, 9),
+    name = "quadrotor" if propulsion == "paper" else f"quadrotor-{propulsion}"
+    return OcpModel(name, quadrotor_model(propulsion).f, vw, rates=slice(6, 9),
                     rotor=slice(12, 16), up_z=lambda x: ca.cos(x[9]) * ca.cos(x[10]),
                     attitude="euler")
 
 
-def quaternion_ocp_model() -> OcpModel:
+def quaternion_ocp_model(propulsion: str = "paper") -> OcpModel:
     """The 17-state quaternion model of :mod:`casadrone.limit.attitude`: no singularity."""
     from casadrone.limit.attitude import QUAT, quat_rotation, quaternion_f
 
@@ -91,28 +93,34 @@ def quaternion_ocp_model() -> OcpModel:
         q = x[QUAT]
         return (q[0] ** 2 + q[3] ** 2 - q[1] ** 2 - q[2] ** 2) / ca.sumsqr(q)
 
-    return OcpModel("quadrotor-quat", quaternion_f(), lambda x: quat_rotation(x[QUAT]) @ x[3:6],
+    name = "quadrotor-quat" if propulsion == "paper" else f"quadrotor-quat-{propulsion}"
+    return OcpModel(name, quaternion_f(propulsion), lambda x: quat_rotation(x[QUAT]) @ x[3:6],
                     rates=slice(6, 9), rotor=slice(13, 17), up_z=up_z, attitude="quaternion")
 
 
 #: Full-state models of the limit lap, by attitude representation.
-ATTITUDE_MODELS: dict[str, Callable[[], OcpModel]] = {
+ATTITUDE_MODELS: dict[str, Callable[..., OcpModel]] = {
     "euler": quadrotor_ocp_model, "quaternion": quaternion_ocp_model}
 
 
-def point_mass_ocp_model() -> OcpModel:
+def point_mass_ocp_model(propulsion: str = "paper") -> OcpModel:
     """Attitude dynamics removed: state (world position, world velocity), controls (φ, θ, ψ,
     total thrust). The attitude and total thrust change instantly; mass, gravity and the *same*
     body-axis quadratic drag (evaluated at the commanded attitude) act as in the full model.
 
     Every flight of the full model is a flight of this one (take its attitude and Σ T_i as the
-    controls; Σ T_i ≤ 4K because each lagged thrust stays below K), so its minimum time is a
-    lower bound of the limit lap. Mass and drag do not depend on the arm geometry, so with the
+    controls; Σ T_i ≤ 4K because each lagged thrust stays below K; with the ``propeller``
+    kind the bound is :func:`casadrone.propulsion.rotor_thrust_bound`, which holds at every
+    airspeed and rotor speed the NLP allows), so its minimum time is a lower bound of the limit
+    lap. Rotor drag (the propeller kind's in-plane H-force) has no counterpart here: it opposes
+    the rotors' in-plane airflow, so it mostly slows the full model, but a force off the body z
+    axis can also help it turn, so with rotor drag on the bound holds only approximately (exactly
+    with ``rotor_drag_n_s2_per_m: 0``). Mass and drag do not depend on the arm geometry, so with the
     paper's free mass model the bound is the same for every geometry.
     """
     x = ca.SX.sym("x", 6)
     u = ca.SX.sym("u", 4)
-    p = ca.SX.sym("p", NP)
+    p = ca.SX.sym("p", n_params(propulsion))
     g, _, _, _, cda = unpack_params(p)
     R = rotation_matrix(u[0], u[1], u[2])
     vb = R.T @ x[3:6]
@@ -120,7 +128,8 @@ def point_mass_ocp_model() -> OcpModel:
     acc = R @ (ca.vertcat(0, 0, u[3]) + drag_b) / g["mass"] - ca.vertcat(0, 0, g["g"])
     f = ca.Function("f_point_mass", [x, u, p], [ca.vertcat(x[3:6], acc)],
                     ["x", "u", "p"], ["xdot"])
-    return OcpModel("point-mass", f, lambda s: s[3:6])
+    name = "point-mass" if propulsion == "paper" else f"point-mass-{propulsion}"
+    return OcpModel(name, f, lambda s: s[3:6])
 
 
 @dataclass(frozen=True)

@@ -247,6 +247,10 @@ def _trims(setup, theta: dict[str, float]) -> dict:
     af = build_airframe(with_theta(setup.template, theta))
     Ta = af.hover_thrusts()
     d = af.mass * af.gravity / (4 * af.thrust_gain)
+    if af.propulsion != "paper":  # the command of a quarter of the weight per rotor
+        from casadrone.propulsion import hover_rotors
+
+        d = float(np.mean(hover_rotors(af, np.full(4, af.mass * af.gravity / 4))[1]))
     out = {"share_a": (Ta[0] + Ta[1]) / Ta.sum()}
     for key, opts in (("chain", None), ("cold", TrimOptions(initial_guess=(0, 0, d, d, d, d)))):
         tp = trim(af, "hover", 0.0, solver=setup.trim_solver, options=opts)

@@ -22,6 +22,8 @@ STAGES: tuple[str, ...] = (
     "casadrone.codegen",
     "casadrone.config.io",
     "casadrone.massprops",
+    "casadrone.config.propulsion",
+    "casadrone.propulsion",
     "casadrone.config.airframe",
     "casadrone.config.controller",
     "casadrone.config.track",

@@ -1,0 +1,388 @@
+"""Propulsion models: the ``propulsion:`` section of an airframe, its parameter vector and its
+symbolic forces, torques and rotor dynamics.
+
+Two kinds, chosen per airframe (``propulsion.model``), one registry (:data:`KINDS`):
+
+* ``paper`` (default): the paper's Table 6 thrust model, T = K δ lagged by τ, independent of
+  airspeed, rotor speed and battery state. The rotor states are the thrusts T_i (N). Every result
+  of the paper problems is computed with it, unchanged.
+* ``propeller``: the rotor states are the rotor speeds ω_i (rad/s) and
+
+  - thrust and shaft torque from the propeller's coefficients, T = CT(J) ρ n² D⁴,
+    Q = CP(J) ρ n² D⁵ / (2π), n = ω/2π (rev/s), with CT, CP quadratic in the advance ratio
+    J = v_a/(n D). Multiplied out, T = ρ (c₀ D⁴ n² + c₁ D³ n v_a + c₂ D² v_a²) and likewise Q:
+    polynomials in n and v_a, smooth and finite at n = 0 (no division by the rotor speed), which
+    is why the coefficients stop at J²;
+  - v_a is each rotor's own axial inflow, the component along the rotor axis (body +z) of
+    v + Ω × r_i (body velocity plus body rate crossed with the rotor's position from the centre of
+    mass). ``inflow: positive`` (default) takes max(v_a, 0), smoothed over ``inflow_smoothing_m_s``
+    and exactly 0 at v_a = 0: the wind-tunnel data cover J ≥ 0 only, and descending or braking
+    through the own wake (vortex-ring state) is where momentum theory and the data both fail, so
+    the static coefficients are used there (an under-estimate of braking thrust).
+    ``inflow: signed`` uses v_a as is (the linear-inflow form of the literature);
+  - rotor drag, the in-plane H-force of edgewise flow, H_i = −k_d ω_i v_∥,i (v_∥ the in-plane part
+    of the rotor's velocity), acting at the rotor (its moment about the centre of mass included);
+  - the motor: ``dc``, Drela's first-order DC motor (QPROP's motor model 1: I = (V − ω/K_V)/R,
+    shaft torque (I − I₀)/K_V), driving the rotor inertia J_r ω̇ = Q_motor − Q_prop; or
+    ``first-order``, τ_m ω̇ = K_V δ V_oc − ω (a lag to the no-load speed of the command, what a
+    thrust stand's step test identifies). ``dc`` is the default: it is the model that makes the
+    rotor slow down under load and speed up as the inflow unloads the propeller, which a racing
+    lap exercises, and its three constants are on every motor's datasheet;
+  - the ESC as an ideal chopper (motor voltage δ V_bat, battery current Σ δ_i I_i) and the battery
+    as an open-circuit voltage behind an internal resistance; the sag V_bat = V_oc − R_b I_bat is
+    solved in closed form (it is linear in V_bat):
+    V_bat = (V_oc + (R_b/R) Σ δ_i ω_i/K_V) / (1 + (R_b/R) Σ δ_i²);
+  - the yaw reaction of rotor i on the body is s_i Q_motor,i (the stator's reaction).
+
+  Not modelled: rotor gyroscopic moments, blade flapping, ground effect, vortex-ring state,
+  ESC losses, the battery's state of charge. Each term can be switched off: ``axial_inflow:
+  false``, ``rotor_drag_n_s2_per_m: 0``, ``internal_resistance_ohm: 0`` (no sag).
+
+  The linear-inflow form of the quadrotor literature, T = k_η ω² − k_z ω v_a, Q = k_m ω²,
+  H = −k_d ω v_∥, is the special case c₀ = 4π² k_η/(ρ D⁴), c₁ = −2π k_z/(ρ D³), c₂ = 0,
+  CP = 8π³ k_m/(ρ D⁵) with signed inflow (``propeller.linear_inflow``).
+
+The parameter vector of an airframe is the paper's (:data:`casadrone.airframe.PARAM_NAMES`) with,
+for ``propeller``, :data:`PROPELLER_PARAM_NAMES` appended (:func:`casadrone.model.param_names`).
+The section's schema is :mod:`casadrone.config.propulsion`. This module sits below the airframe
+schema (whose hover check uses :func:`full_static_thrust`) and imports CasADi only inside the
+symbolic functions; its airframe-level helpers take any object with the
+:class:`casadrone.airframe.Airframe` attributes.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from casadrone.config.propulsion import PropulsionConfig
+
+#: The propulsion kinds (the registry): each names a parameter layout and a symbolic model.
+KINDS: tuple[str, ...] = ("paper", "propeller")
+
+#: Appended to the paper's parameter vector for ``propeller`` (SI units; switches are 0 or 1).
+PROPELLER_PARAM_NAMES = (
+    "prop_D",  # propeller diameter (m)
+    "ct0", "ct1", "ct2",  # CT(J) = ct0 + ct1 J + ct2 J²
+    "cp0", "cp1", "cp2",  # CP(J)
+    "rotor_J",  # rotor (propeller + motor bell) inertia about its axis (kg·m²)
+    "rotor_kd",  # rotor drag k_d (N·s²/m): H = −k_d ω v_∥
+    "inflow_on",  # 1: thrust and torque depend on the axial inflow
+    "inflow_positive",  # 1: v_a taken as max(v_a, 0) (smoothed); 0: signed
+    "inflow_eps",  # smoothing width of max(v_a, 0) (m/s)
+    "motor_dc",  # 1: DC motor; 0: first-order lag
+    "motor_kv",  # K_V (rad/s per V)
+    "motor_R",  # winding resistance (Ω)
+    "motor_I0",  # no-load current (A)
+    "motor_tau",  # first-order time constant (s)
+    "batt_Voc",  # battery open-circuit voltage (V)
+    "batt_R",  # battery internal resistance (Ω)
+)  # fmt: skip
+RPM_PER_V_TO_RAD_S_PER_V = 2 * math.pi / 60
+
+
+# --------------------------------------------------------------------------------------------
+# Parameter vector
+# --------------------------------------------------------------------------------------------
+
+
+def coefficients(cfg: PropulsionConfig, rho: float) -> tuple[list[float], list[float]]:
+    """(CT, CP) coefficients (three each) of a propeller section; the linear-inflow form is
+    converted at air density ``rho`` (kg/m³)."""
+    prop = cfg.propeller
+    assert prop is not None
+    lin, D = prop.linear_inflow, prop.diameter_m
+    if lin is not None:
+        ct = [4 * math.pi**2 * lin.k_eta_n_s2 / (rho * D**4),
+              -2 * math.pi * lin.k_z_n_s2_per_m / (rho * D**3), 0.0]
+        cp = [8 * math.pi**3 * lin.k_m_n_m_s2 / (rho * D**5), 0.0, 0.0]
+        return ct, cp
+    assert prop.ct_coefficients is not None and prop.cp_coefficients is not None
+    pad = [0.0, 0.0, 0.0]
+    return ((list(prop.ct_coefficients) + pad)[:3], (list(prop.cp_coefficients) + pad)[:3])
+
+
+def propeller_params(cfg: PropulsionConfig, rho: float) -> list[float]:
+    """The :data:`PROPELLER_PARAM_NAMES` values of a ``propeller`` section (SI)."""
+    prop, motor, batt = cfg.propeller, cfg.motor, cfg.battery
+    assert prop is not None and motor is not None and batt is not None
+    ct, cp = coefficients(cfg, rho)
+    signed = prop.linear_inflow is not None or prop.inflow == "signed"
+    return [
+        prop.diameter_m, *ct, *cp, prop.rotor_inertia_kgm2, prop.rotor_drag_n_s2_per_m,
+        float(prop.axial_inflow), 0.0 if signed else 1.0, prop.inflow_smoothing_m_s,
+        1.0 if motor.kind == "dc" else 0.0, motor.kv_rpm_per_v * RPM_PER_V_TO_RAD_S_PER_V,
+        motor.resistance_ohm, motor.no_load_current_a, motor.time_constant_s,
+        batt.open_circuit_voltage_v, batt.internal_resistance_ohm,
+    ]
+
+
+# --------------------------------------------------------------------------------------------
+# Symbolic propeller model
+# --------------------------------------------------------------------------------------------
+
+
+def axial_inflow(v_axial, q: dict[str, Any]):
+    """The axial inflow (m/s) that enters CT and CP: v_a, or max(v_a, 0) smoothed as
+    ½(v + √(v² + ε²)) − ε/2 (exactly 0 at v = 0, ≥ −ε/2 everywhere), times the inflow switch."""
+    import casadi as ca
+
+    eps = q["inflow_eps"]
+    positive = 0.5 * (v_axial + ca.sqrt(v_axial**2 + eps**2)) - 0.5 * eps
+    pos = q["inflow_positive"]
+    return q["inflow_on"] * (pos * positive + (1 - pos) * v_axial)
+
+
+def rotor_loads(w, v_a, q: dict[str, Any]):
+    """Thrust (N) and shaft torque (N·m) of one rotor at speed w (rad/s) and effective axial
+    inflow v_a (m/s): T = ρ (c₀ D⁴ n² + c₁ D³ n v + c₂ D² v²), Q = ρ/(2π) (cp₀ D⁵ n² + …)."""
+    rho, D = q["rho"], q["prop_D"]
+    n = w / (2 * math.pi)
+    T = rho * (q["ct0"] * D**4 * n**2 + q["ct1"] * D**3 * n * v_a + q["ct2"] * D**2 * v_a**2)
+    Q = rho / (2 * math.pi) * (q["cp0"] * D**5 * n**2 + q["cp1"] * D**4 * n * v_a
+                               + q["cp2"] * D**3 * v_a**2)
+    return T, Q
+
+
+def battery_voltage(w, u, q: dict[str, Any]):
+    """V_bat (V) under load, the closed-form sag (module docstring); w, u of all four rotors."""
+    import casadi as ca
+
+    k = q["batt_R"] / q["motor_R"]
+    return (q["batt_Voc"] + k * ca.dot(u, w) / q["motor_kv"]) / (1 + k * ca.dot(u, u))
+
+
+def motor_currents(w, u, q: dict[str, Any]):
+    """(V_bat (V), motor currents I_i (A, 4)) of the DC motor model."""
+    V = battery_voltage(w, u, q)
+    return V, (u * V - w / q["motor_kv"]) / q["motor_R"]
+
+
+def propeller_terms(vel, omega, w, w_dot, u, q: dict[str, Any], r, s):
+    """Rotor force, torque and rotor residual of the ``propeller`` kind (see module docstring)
+    as (force (3), torque (3), rotor residual (4), thrusts (4), axial inflows (4)); ``q`` the
+    named parameters (:func:`casadrone.model.named`), ``r`` the rotor positions from the centre
+    of mass, ``s`` the spin signs."""
+    import casadi as ca
+
+    ez = ca.DM([0, 0, 1])
+    _, current = motor_currents(w, u, q)
+    q_motor_dc = (current - q["motor_I0"]) / q["motor_kv"]
+    target = q["motor_kv"] * u * q["batt_Voc"]  # first-order: no-load speed of the command
+    dc = q["motor_dc"]
+    force, torque, residual, thrusts, inflows = ca.DM.zeros(3), ca.DM.zeros(3), [], [], []
+    for i in range(4):
+        v_i = vel + ca.cross(omega, r[i])
+        v_ax = v_i[2]
+        v_a = axial_inflow(v_ax, q)
+        T, Q = rotor_loads(w[i], v_a, q)
+        q_motor = dc * q_motor_dc[i] + (1 - dc) * (Q + q["rotor_J"] * (target[i] - w[i])
+                                                   / q["motor_tau"])
+        H = -q["rotor_kd"] * w[i] * ca.vertcat(v_i[0], v_i[1], 0)
+        f_i = T * ez + H
+        force = force + f_i
+        torque = torque + ca.cross(r[i], f_i) + s[i] * q_motor * ez
+        residual.append(dc * (q["rotor_J"] * w_dot[i] - q_motor_dc[i] + Q)
+                        + (1 - dc) * (q["motor_tau"] * w_dot[i] + w[i] - target[i]))
+        thrusts.append(T)
+        inflows.append(v_a)
+    return force, torque, ca.vertcat(*residual), ca.vertcat(*thrusts), ca.vertcat(*inflows)
+
+
+# --------------------------------------------------------------------------------------------
+# Steady states at zero airspeed (closed form, numeric)
+# --------------------------------------------------------------------------------------------
+
+
+def static_speed(q: dict[str, float], delta: float) -> float:
+    """Steady rotor speed (rad/s) of all four rotors at the same command ``delta`` and zero
+    airspeed. DC motor: the motor torque is linear in ω (with the sag), the propeller's c ω², so
+    Q_motor = Q_prop is a quadratic with one positive root. First-order: K_V δ V_oc."""
+    if q["motor_dc"] < 0.5:
+        return q["motor_kv"] * delta * q["batt_Voc"]
+    kv, R, k = q["motor_kv"], q["motor_R"], q["batt_R"] / q["motor_R"]
+    den = 1 + 4 * k * delta**2
+    # V = (Voc + 4 k δ ω / kv) / den;  I = (δ V − ω/kv)/R = a0 + a1 ω;  Q_m = (I − I0)/kv
+    a0 = delta * q["batt_Voc"] / den / R
+    a1 = (delta * 4 * k * delta / kv / den - 1 / kv) / R
+    c = q["rho"] * q["cp0"] * q["prop_D"] ** 5 / (2 * math.pi) / (2 * math.pi) ** 2
+    A, B, C = c, -a1 / kv, -(a0 - q["motor_I0"]) / kv  # c ω² − Q_m(ω) = 0
+    if C >= 0:
+        return 0.0  # the command does not overcome the no-load current
+    return (-B + math.sqrt(B * B - 4 * A * C)) / (2 * A)
+
+
+def static_thrust(q: dict[str, float], w: float) -> float:
+    """Thrust (N) of one rotor at speed w (rad/s) and zero inflow."""
+    return q["rho"] * q["ct0"] * q["prop_D"] ** 4 * (w / (2 * math.pi)) ** 2
+
+
+def speed_for_thrust(q: dict[str, float], thrust: float) -> float:
+    """Rotor speed (rad/s) giving ``thrust`` (N) at zero inflow."""
+    return 2 * math.pi * math.sqrt(max(thrust, 0.0) / (q["rho"] * q["ct0"] * q["prop_D"] ** 4))
+
+
+def hover_commands(q: dict[str, float], thrusts) -> tuple[list[float], list[float]]:
+    """(rotor speeds (rad/s), commands) holding each rotor at its thrust (N) at zero airspeed.
+
+    DC motor: I_i = I₀ + K_V Q_prop,i, δ_i V = R I_i + ω_i/K_V =: e_i and V = V_oc − R_b Σ δ_i I_i
+    give V² − V_oc V + R_b Σ e_i I_i = 0 (the larger root). First-order: δ = ω/(K_V V_oc)."""
+    w = [speed_for_thrust(q, t) for t in thrusts]
+    if q["motor_dc"] < 0.5:
+        return w, [wi / (q["motor_kv"] * q["batt_Voc"]) for wi in w]
+    kv, R = q["motor_kv"], q["motor_R"]
+    c = q["rho"] * q["cp0"] * q["prop_D"] ** 5 / (2 * math.pi) / (2 * math.pi) ** 2
+    current = [q["motor_I0"] + kv * c * wi**2 for wi in w]
+    e = [R * i + wi / kv for i, wi in zip(current, w, strict=True)]
+    disc = q["batt_Voc"] ** 2 - 4 * q["batt_R"] * sum(a * b for a, b in zip(e, current,
+                                                                           strict=True))
+    V = 0.5 * (q["batt_Voc"] + math.sqrt(max(disc, 0.0)))
+    return w, [ei / V for ei in e]
+
+
+def max_speed(q: dict[str, float]) -> float:
+    """Upper bound of the rotor speed (rad/s) used by the limit lap: the no-load speed at the
+    open-circuit voltage, K_V V_oc. A motor at δ ≤ 1 driving a propeller that absorbs power
+    (CP > 0) cannot exceed it: the battery voltage under a positive load is below V_oc and the
+    motor torque at ω ≥ K_V V_oc is negative."""
+    return q["motor_kv"] * q["batt_Voc"]
+
+
+def thrust_bound(q: dict[str, float]) -> float:
+    """An upper bound (N) of one rotor's thrust at every airspeed and rotor speed
+    0 ≤ ω ≤ :func:`max_speed`: T = ρ (c₀ D⁴ n² + c₁ D³ n v + c₂ D² v²) with c₁, c₂ ≤ 0 (the schema
+    refuses others) is largest at the smallest effective inflow, which is v = 0 with signed-off
+    (``positive``) inflow up to the smoothing's −ε/2; so T ≤ ρ (c₀ D⁴ n² + |c₁| D³ n ε/2)."""
+    n = max_speed(q) / (2 * math.pi)
+    D = q["prop_D"]
+    return q["rho"] * (q["ct0"] * D**4 * n**2 + abs(q["ct1"]) * D**3 * n * q["inflow_eps"] / 2)
+
+
+def values(cfg: PropulsionConfig, rho: float) -> dict[str, float]:
+    """The named propeller parameters of a section (air density ``rho``, kg/m³) as floats."""
+    return {"rho": rho, **dict(zip(PROPELLER_PARAM_NAMES, propeller_params(cfg, rho),
+                                   strict=True))}
+
+
+def full_static_thrust(cfg: PropulsionConfig, rho: float) -> float:
+    """Thrust (N) of one rotor at full command, all four at full command, zero airspeed."""
+    q = values(cfg, rho)
+    return static_thrust(q, static_speed(q, 1.0))
+
+
+# --------------------------------------------------------------------------------------------
+# What other stages ask of an airframe's propulsion (one place for "the maximum thrust")
+# --------------------------------------------------------------------------------------------
+
+
+def airframe_values(airframe) -> dict[str, float]:
+    """The propeller parameters of a ``propeller`` airframe (the tail of its p) and the air
+    density, as floats."""
+    tail = airframe.p[len(airframe.p) - len(PROPELLER_PARAM_NAMES):]
+    return {"rho": float(airframe.air_density),
+            **{k: float(v) for k, v in zip(PROPELLER_PARAM_NAMES, tail, strict=True)}}
+
+
+def max_static_thrust(airframe) -> float:
+    """Thrust (N) of one rotor at full command and zero airspeed (all four at full command):
+    K with ``paper``; the steady DC-motor/propeller balance with the battery's sag with
+    ``propeller``."""
+    if airframe.propulsion == "paper":
+        return float(airframe.thrust_gain)
+    q = airframe_values(airframe)
+    return static_thrust(q, static_speed(q, 1.0))
+
+
+def rotor_thrust_bound(airframe) -> float:
+    """A bound (N) of one rotor's thrust over every state the limit lap allows: K with ``paper``
+    (each lagged thrust stays below K); :func:`thrust_bound` with ``propeller`` (inf with signed
+    inflow, where descent raises the thrust without bound)."""
+    if airframe.propulsion == "paper":
+        return float(airframe.thrust_gain)
+    q = airframe_values(airframe)
+    if q["inflow_positive"] < 0.5 and q["inflow_on"] > 0.5:
+        return math.inf
+    return thrust_bound(q)
+
+
+def rotor_state_bounds(airframe) -> tuple[float, float]:
+    """Bounds of the four rotor states in the limit lap: thrust in [0, K] (``paper``), rotor
+    speed in [0, K_V V_oc] (``propeller``, :func:`max_speed`)."""
+    if airframe.propulsion == "paper":
+        return 0.0, float(airframe.thrust_gain)
+    return 0.0, max_speed(airframe_values(airframe))
+
+
+def hover_rotors(airframe, thrusts) -> tuple[list[float], list[float]]:
+    """(rotor states, ESC commands) holding each rotor at ``thrusts`` (N) at zero airspeed:
+    (T, T/K) with ``paper``; (ω, δ) of :func:`hover_commands` with ``propeller``."""
+    if airframe.propulsion == "paper":
+        return list(thrusts), list(thrusts / airframe.thrust_gain)
+    return hover_commands(airframe_values(airframe), list(thrusts))
+
+
+# --------------------------------------------------------------------------------------------
+# Shipped propeller data and the fit behind the shipped coefficients
+# --------------------------------------------------------------------------------------------
+
+#: The shipped 5-inch propeller: UIUC Propeller Database, Vol. 2, DA4022 5.0x3.75, 3 blades.
+SHIPPED_PROPELLER = "uiuc-da4022-5x3.75-3blade"
+#: The points the shipped fit uses: the static points at ≥ 5000 rpm and the wind-tunnel sweep
+#: at the highest rpm (6034), the nearest the database comes to a racing propeller's Reynolds
+#: number, over J ≤ 0.62 (CT down to a third of its static value: 40 m/s of axial inflow at
+#: 30 000 rpm is J = 0.63).
+FIT_MIN_STATIC_RPM, FIT_SWEEP_RPM, FIT_MAX_J = 5000.0, 6034.0, 0.62
+
+
+def propeller_data(name: str = SHIPPED_PROPELLER):
+    """The raw points (J, rpm, CT, CP) of a shipped propeller dataset (numpy array, 4 columns)."""
+    from importlib import resources
+
+    import numpy as np
+
+    path = resources.files("casadrone") / "data" / "propulsion" / f"{name}.csv"
+    with path.open() as fh:
+        return np.loadtxt(fh, delimiter=",", comments="#", skiprows=7)
+
+
+def fit_points(data):
+    """The rows of :func:`propeller_data` the shipped fit uses (see :data:`FIT_MAX_J`)."""
+    J, rpm = data[:, 0], data[:, 1]
+    return data[((J == 0) & (rpm >= FIT_MIN_STATIC_RPM))
+                | ((rpm == FIT_SWEEP_RPM) & (J > 0) & (J <= FIT_MAX_J))]
+
+
+def fit_coefficients(J, y, degree: int = 2) -> list[float]:
+    """Least-squares polynomial coefficients c_0…c_degree of y(J) (relative residuals weighted
+    equally: each point weighted by 1/|y|)."""
+    import numpy as np
+
+    c = np.polynomial.polynomial.polyfit(np.asarray(J), np.asarray(y), degree,
+                                         w=1 / np.abs(np.asarray(y)))
+    return [float(v) for v in c]
+
+
+def static_thrusts(airframe, rotor_states):
+    """Thrust (N) of rotor states (any shape) at zero inflow: the states themselves with
+    ``paper``, ρ c₀ D⁴ n² of the rotor speeds with ``propeller``."""
+    import numpy as np
+
+    r = np.asarray(rotor_states, float)
+    if airframe.propulsion == "paper":
+        return r
+    q = airframe_values(airframe)
+    return q["rho"] * q["ct0"] * q["prop_D"] ** 4 * (r / (2 * math.pi)) ** 2
+
+
+def equal_rotor_guess(airframe, thrust_per_rotor):
+    """(rotor states (N, 4), commands (N, 4)) of N nodes whose four rotors each give
+    ``thrust_per_rotor`` (N,) at rest: a guess for a trajectory from a point-mass solution."""
+    import numpy as np
+
+    t = np.asarray(thrust_per_rotor, float).ravel()
+    if airframe.propulsion == "paper":
+        return np.repeat(t[:, None], 4, axis=1), np.repeat(t[:, None], 4, axis=1) / \
+            airframe.thrust_gain
+    q = airframe_values(airframe)
+    rows = [hover_commands(q, [max(ti, 0.0)] * 4) for ti in t]
+    return np.array([r[0] for r in rows]), np.array([r[1] for r in rows])

@@ -74,7 +74,9 @@ class PropellerConfig(Schema):
 class MotorConfig(Schema):
     """A brushless motor: Drela's DC model (``dc``) or a first-order lag (``first-order``)."""
 
-    kind: Literal["dc", "first-order"] = "dc"
+    kind: Literal["dc", "first-order"] = Field(
+        "dc", description="dc: Drela's first-order DC motor (KV, R, I0) driving the rotor "
+        "inertia; first-order: a lag of time_constant_s to the command's no-load speed")
     kv_rpm_per_v: float = Field(gt=0, le=1e5, description="speed constant K_V (rpm/V)")
     resistance_ohm: float = Field(0.07, gt=0, le=100, description="winding resistance (Ω)")
     no_load_current_a: float = Field(0.0, ge=0, le=100, description="no-load current I_0 (A)")
@@ -98,9 +100,11 @@ class PropulsionConfig(Schema):
     """The ``propulsion:`` section of an airframe (module docstring: the models)."""
 
     model: PropulsionKind = Field("paper", description="paper (Table 6 thrust model) | propeller")
-    propeller: PropellerConfig | None = None
-    motor: MotorConfig | None = None
-    battery: BatteryConfig | None = None
+    propeller: PropellerConfig | None = Field(
+        None, description="the propeller (model: propeller)")
+    motor: MotorConfig | None = Field(None, description="the motor (model: propeller)")
+    battery: BatteryConfig | None = Field(None, description="the battery pack (model: "
+                                          "propeller)")
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:

@@ -16,7 +16,7 @@ from casadrone.config.airframe import AirframeConfig
 from casadrone.config.io import ConfigError
 from casadrone.limit.gates import TARGET_SIZE, target_miss  # noqa: F401 (re-exported)
 from casadrone.model import NU, n_params, propeller_outputs, quadrotor_model
-from casadrone.propulsion import max_static_thrust
+from casadrone.propulsion import static_thrusts
 
 
 def bang_bang_fraction(u: np.ndarray, tol: float) -> float:
@@ -120,9 +120,10 @@ def lap_propulsion(airframe, x, u) -> dict[str, Any]:
     ``u`` (M, 4) held from each state: per node (the first M) the airspeed (m/s), each rotor's
     thrust (N) and advance ratio, and the summary ``top_speed_m_s``, ``thrust_at_top_speed_n``
     (the four rotors), ``max_advance_ratio`` (NaN with ``paper``, which has no rotor speed) and
-    ``min_thrust_ratio``: the lowest ratio of a rotor's thrust at full command (δ ≥ 0.99) to
-    its static full-command thrust (:func:`casadrone.propulsion.max_static_thrust`), NaN if no
-    rotor reached full command."""
+    ``min_thrust_ratio``: the lowest ratio, over the nodes where a rotor is at full command
+    (δ ≥ 0.99), of its thrust to the static thrust at the same rotor state
+    (:func:`casadrone.propulsion.static_thrusts`: 1 with ``paper``, CT(J)/CT(0) with
+    ``propeller``), NaN if no rotor reached full command."""
     x, u = np.asarray(x, float), np.asarray(u, float)
     n = min(len(u), len(x))
     x, u = x[:n], u[:n]
@@ -132,8 +133,8 @@ def lap_propulsion(airframe, x, u) -> dict[str, Any]:
     else:
         out = propeller_outputs().map(n)(x.T, u.T, np.repeat(airframe.p[:, None], n, axis=1))
         thrust, J = np.asarray(out[0]).T, np.asarray(out[2]).T
-    full = u >= 1 - FULL_COMMAND_TOL
-    ratio = thrust[full] / max_static_thrust(airframe)
+    full = (u >= 1 - FULL_COMMAND_TOL) & (x[:, 12:16] > 0)
+    ratio = thrust[full] / static_thrusts(airframe, x[:, 12:16][full])
     top = int(np.argmax(speed)) if n else 0
     return {
         "speed_m_s": speed, "thrust_n": thrust, "advance_ratio": J,

@@ -46,7 +46,8 @@ def test_paper_airframe_is_unchanged():
 def test_static_thrust_and_torque_equal_the_static_curves(frame):
     """At rest the model's vertical acceleration gives Σ T = ρ CT₀ n² D⁴ per rotor (the curve
     of the static data's coefficient), and with rotors held steady the yaw acceleration gives
-    the torque ρ CP₀ n² D⁵ / 2π (≤ 0.5 %; observed 1e-13)."""
+    the torque ρ CP₀ n² D⁵ / 2π: the issue asks ≤ 0.5 %; they agree to round-off (thrust
+    1e-9, yaw torque 1e-6 relative: a difference of two rotor pairs)."""
     q = airframe_values(frame)
     thrusts = np.array([2.0, 3.0, 2.0, 3.0])  # unequal: a net yaw torque
     w, u = hover_rotors(frame, thrusts)
@@ -57,9 +58,9 @@ def test_static_thrust_and_torque_equal_the_static_curves(frame):
     T_curve = RHO * q["ct0"] * n**2 * D**4
     Q_curve = RHO * q["cp0"] * n**2 * D**5 / (2 * math.pi)
     total = frame.mass * (xdot[5] + frame.gravity)
-    assert total == pytest.approx(T_curve.sum(), rel=5e-3)
+    assert total == pytest.approx(T_curve.sum(), rel=1e-9)  # issue: ≤ 0.5 %
     yaw = frame.inertia[2, 2] * xdot[8]
-    assert yaw == pytest.approx(float(np.dot(frame.rotor_spins, Q_curve)), rel=5e-3)
+    assert yaw == pytest.approx(float(np.dot(frame.rotor_spins, Q_curve)), rel=1e-6)
     np.testing.assert_allclose(T_curve, thrusts, rtol=1e-9)
 
 
@@ -203,6 +204,12 @@ def _linear_inflow_frame():
     return build_airframe(cfg)
 
 
+def _cross(a, b):
+    """a × b of two 3-vectors (np.cross costs ~50 µs a call: too slow inside an RHS)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]])
+
+
 def _independent_rhs(a, commands):
     """ẋ of the linear-inflow quadrotor written from the equations (numpy): T = k_η ω² −
     k_z ω v_a, Q = k_m ω², H = −k_d ω v_∥, τ ω̇ = K_V δ V_oc − ω, ZYX Euler rigid body."""
@@ -220,16 +227,16 @@ def _independent_rhs(a, commands):
         F, M = np.zeros(3), np.zeros(3)
         wdot = (KV * d * VOC - w) / TAU
         for i in range(4):
-            vi = vel + np.cross(om, r[i])
+            vi = vel + _cross(om, r[i])
             T = K_ETA * w[i] ** 2 - K_Z * w[i] * vi[2]
             H = -K_D * w[i] * np.array([vi[0], vi[1], 0.0])
             Qm = K_M * w[i] ** 2 + Jr * wdot[i]
             fi = np.array([0, 0, T]) + H
             F += fi
-            M += np.cross(r[i], fi) + np.array([0, 0, s[i] * Qm])
+            M += _cross(r[i], fi) + np.array([0, 0, s[i] * Qm])
         F += -0.5 * rho * cda * np.abs(vel) * vel + R.T @ np.array([0, 0, -m * g])
-        vdot = F / m - np.cross(om, vel)
-        omdot = np.linalg.solve(J, M - np.cross(om, J @ om))
+        vdot = F / m - _cross(om, vel)
+        omdot = np.linalg.solve(J, M - _cross(om, J @ om))
         W = np.array([[1, sph * sth / cth, cph * sth / cth], [0, cph, -sph],
                       [0, sph / cth, cph / cth]])
         return np.concatenate([R @ vel, vdot, omdot, W @ om, wdot])
@@ -238,10 +245,10 @@ def _independent_rhs(a, commands):
 
 
 def test_linear_inflow_form_agrees_with_an_independent_simulator():
-    """The linear-inflow special case flown open loop for 1.5 s (commands varying per rotor,
-    forward flight through 10+ m/s) by casadrone's model under CVODES and by an independent
-    numpy model under scipy RK45: positions agree to 1e-4 m (observed ~1e-6, the
-    integrators' tolerance), rotor speeds to 1e-4 relative."""
+    """The linear-inflow special case flown open loop for 1 s (commands varying per rotor,
+    forward flight at 8 m/s and more) by casadrone's model under CVODES and by an independent
+    numpy model under scipy RK45 (both to 1e-9 or tighter): over 7.4 m of flight the positions
+    agree to 1e-6 m and the rotor speeds to 1e-9 relative, the integrators' tolerance."""
     a = _linear_inflow_frame()
     q = airframe_values(a)
     assert q["inflow_positive"] == 0.0  # the literature's signed inflow
@@ -254,23 +261,22 @@ def test_linear_inflow_form_agrees_with_an_independent_simulator():
 
     x0 = _state(vel=(8.0, 0.0, 0.5), w=w_h)
     x0[10] = 0.3
-    t_end, steps = 1.5, 150
+    t_end, steps = 1.0, 100
     h = t_end / steps
     x, u = ca.SX.sym("x", 16), ca.SX.sym("u", 4)
     f = quadrotor_model("propeller").f
     integ = ca.integrator("li", "cvodes", {"x": x, "p": u, "ode": f(x, u, a.p)}, 0, h,
-                          {"abstol": 1e-11, "reltol": 1e-11})
+                          {"abstol": 1e-10, "reltol": 1e-10})
     # commands held over each step (what an ESC gets), in both simulators
-    X = x0.copy()
-    ref = solve_ivp(lambda t, s: _independent_rhs(a, lambda _: commands(h * math.floor(
-        t / h + 1e-9)))(t, s), (0, t_end), x0, method="RK45", rtol=1e-10, atol=1e-10,
-        t_eval=[t_end], max_step=h)
+    X, Y = x0.copy(), x0.copy()
     for k in range(steps):
-        X = np.asarray(integ(x0=X, p=commands(k * h))["xf"]).ravel()
-    Y = ref.y[:, -1]
+        d = commands(k * h)
+        X = np.asarray(integ(x0=X, p=d)["xf"]).ravel()
+        Y = solve_ivp(_independent_rhs(a, lambda _, d=d: d), (k * h, (k + 1) * h), Y,
+                      method="RK45", rtol=1e-9, atol=1e-9).y[:, -1]
     assert np.linalg.norm(X[0:3]) > 5  # it flew somewhere
-    np.testing.assert_allclose(X[0:3], Y[0:3], atol=1e-4)
-    np.testing.assert_allclose(X[12:16], Y[12:16], rtol=1e-4)
+    np.testing.assert_allclose(X[0:3], Y[0:3], atol=1e-6)  # observed 9e-8 m
+    np.testing.assert_allclose(X[12:16], Y[12:16], rtol=1e-9)  # observed 3e-11
 
 
 def test_shipped_parts_are_valid_sections_and_packs_hover_the_frame():
@@ -313,3 +319,27 @@ def test_components_variant_hovers_at_sy250_mass():
     assert a.mass == pytest.approx(0.320, abs=1e-9) and a.propulsion == "propeller"
     tp = trim(a)
     assert tp.success and tp.thrusts.sum() == pytest.approx(a.mass * a.gravity, rel=1e-9)
+
+
+def test_lap_propulsion_summary(frame):
+    """limit-lap's propulsion figures on hand-made nodes: climbing at 20 m/s at 2000 rad/s
+    gives J = v/(nD) and a full-command thrust ratio CT(J)/CT(0) of the shipped quadratic;
+    the paper model has no advance ratio and a ratio of 1."""
+    from casadrone.limit.check import lap_propulsion
+
+    x = np.zeros((3, 16))
+    x[:, 12:16], x[:, 5] = 2000.0, 20.0
+    u = np.ones((2, 4))
+    r = lap_propulsion(frame, x, u)
+    q = airframe_values(frame)
+    eps = q["inflow_eps"]
+    v = 0.5 * (20 + math.sqrt(400 + eps**2)) - eps / 2
+    J = v / (2000 / (2 * math.pi) * D)
+    assert r["max_advance_ratio"] == pytest.approx(J, rel=1e-12)
+    ct = q["ct0"] + q["ct1"] * J + q["ct2"] * J**2
+    assert r["min_thrust_ratio"] == pytest.approx(ct / q["ct0"], rel=1e-12)
+    assert r["top_speed_m_s"] == pytest.approx(20.0)
+    paper = build_airframe(load_airframe("SY250"))
+    x[:, 12:16] = 5.0
+    rp = lap_propulsion(paper, x, u)
+    assert math.isnan(rp["max_advance_ratio"]) and rp["min_thrust_ratio"] == 1.0

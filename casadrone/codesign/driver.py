@@ -210,9 +210,10 @@ def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Pr
     frame = SymbolicFrame(template, keys, lower, upper)
     key = (template.model_dump_json(), keys, tuple(lower), tuple(upper),
            tuple(t.model_dump_json() for t in tracks), weights, problem.codesign.combine,
-           problem.codesign.intervals, epsilon)
+           problem.codesign.intervals, epsilon, problem.codesign.expand)
     if key not in _BUILT:
-        _BUILT[key] = build_codesign_nlp(parts, frame, problem.codesign.combine, epsilon)
+        _BUILT[key] = build_codesign_nlp(parts, frame, problem.codesign.combine, epsilon,
+                                         expand=problem.codesign.expand)
     laps = tuple(limit_lap(template, t, options) for t in tracks)
     return Prepared(problem, template, keys, lower, upper, labels, tracks, weights, options,
                     _BUILT[key], laps)

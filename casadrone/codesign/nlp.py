@@ -130,7 +130,7 @@ def start_thrust_index(nlp: Nlp) -> np.ndarray:
 
 def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combine: Combine,
                        epsilon: tuple[str, ...] = (), tol: float = 1e-6,
-                       max_iter: int = 1000) -> CodesignNlp:
+                       max_iter: int = 1000, expand: bool = False) -> CodesignNlp:
     """The co-design NLP of ``parts`` (tracks) with the frame's θ as variables; ``epsilon``
     names the measures bounded above by the parameter (``mass_kg``, ``span_m``)."""
     s = ca.MX.sym("s", len(frame.keys))
@@ -170,7 +170,10 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
         ubg.append(np.zeros(m.numel()))
     problem = {"x": z, "p": eps, "f": objective, "g": ca.vertcat(*gs)}
     tag = f"codesign_{len(parts)}x{combine}_{'_'.join(epsilon) or 'free'}"
-    cold = ca.nlpsol(tag, "ipopt", problem, ipopt_options(tol, max_iter, False))
-    warm = ca.nlpsol(tag + "_warm", "ipopt", problem, ipopt_options(tol, max_iter, True))
+    # the limit lap's compiled interval derivatives do not cover θ: CasADi differentiates the
+    # composed graph (MX, or SX with expand: cheaper iterations after a longer build)
+    extra = {"expand": True} if expand else {}
+    cold = ca.nlpsol(tag, "ipopt", problem, ipopt_options(tol, max_iter, False) | extra)
+    warm = ca.nlpsol(tag + "_warm", "ipopt", problem, ipopt_options(tol, max_iter, True) | extra)
     return CodesignNlp(parts, frame, combine, tuple(epsilon), cold, warm, np.concatenate(lbg),
                        np.concatenate(ubg), tuple(offsets), n_feas, tuple(row_offsets))

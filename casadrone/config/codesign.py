@@ -59,6 +59,10 @@ class CodesignSettings(Schema):
     starts: int = Field(5, ge=0, le=100, description="random feasible frames started from, "
                         "beside the template's own geometry")
     intervals: int = Field(40, ge=2, le=400, description="shooting intervals per leg")
+    expand: bool = Field(False, description="expand the co-design NLP to CasADi SX before "
+                         "solving: a one-off build cost per process for cheaper iterations "
+                         "(short test track, 8 intervals: build 12.6 s, solve 1.6 s instead of "
+                         "3.5 s CPU, same 35 iterations and optimum)")
     front: FrontConfig = Field(default_factory=FrontConfig,
                                description="the design front (a measure among the objectives)")
 

@@ -40,7 +40,7 @@ What is fitted, and from which part of the log:
 The shape of C_T and C_P against the advance ratio J cannot be measured on a static stand: the
 section carries the static coefficients as ``ct_coefficients: [C_T0]`` and
 ``cp_coefficients: [C_P0]`` unless a propeller of the package's data is named as the shape
-(``shape``), whose polynomial is then scaled to the fitted static values.
+(:func:`shaped_coefficients`), whose polynomials are then scaled to the fitted static values.
 """
 
 from __future__ import annotations
@@ -183,7 +183,7 @@ def read_log(path: str | Path, motor_poles: int | None = None) -> StandLog:
     if "optical_rpm" not in cols and "electrical_rpm" not in cols:
         raise LogError(f"{source}: column missing: rotor speed ('Motor Optical Speed (RPM)' or "
                        "'Motor Electrical Speed (RPM)')")
-    data = {q: [] for q in cols}
+    data: dict[str, list[float]] = {q: [] for q in cols}
     for i, row in enumerate(rows[1:], start=2):
         if not any(cell.strip() for cell in row):
             continue
@@ -206,8 +206,8 @@ def read_log(path: str | Path, motor_poles: int | None = None) -> StandLog:
     # (seen in published RCbenchmark logs): sort by time, refuse only a repeated stamp.
     order = np.argsort(t, kind="stable")
     if np.any(np.diff(t[order]) <= 0):
-        row = int(order[int(np.argmax(np.diff(t[order]) <= 0)) + 1]) + 2
-        raise LogError(f"{source}: row {row}, column 'Time': time stamp repeated")
+        bad = int(order[int(np.argmax(np.diff(t[order]) <= 0)) + 1]) + 2
+        raise LogError(f"{source}: row {bad}, column 'Time': time stamp repeated")
     return StandLog(source, t[order], *(x[order] for x in (
         arrays["esc"], arrays["thrust"], arrays["torque"], arrays["voltage"],
         arrays["current"], speed)))
@@ -339,17 +339,26 @@ class PropulsionFit:
     residuals: tuple[Residual, ...]
     duty: np.ndarray = field(repr=False)
 
-    def section(self) -> dict[str, Any]:
-        """The airframe's ``propulsion:`` section (the keys of the propeller model)."""
+    def section(self, shape: str | None = None) -> dict[str, Any]:
+        """The airframe's ``propulsion:`` section (the keys of the propeller model).
+
+        Args:
+            shape: a shipped propeller dataset (:func:`casadrone.propulsion.propeller_data`)
+                whose fitted C_T(J), C_P(J) polynomials, scaled to this log's static values, give
+                the dependence on the advance ratio; None: static coefficients only.
+        """
         source = f"{self.source} (casadrone fit-propulsion)"
+        ct, cp = shaped_coefficients(self.ct0, self.cp0, shape)
         propeller: dict[str, Any] = {
             "diameter_m": _round(self.diameter_m),
-            "ct_coefficients": [_round(self.ct0)],
-            "cp_coefficients": [_round(self.cp0)],
+            "ct_coefficients": [_round(c) for c in ct],
+            "cp_coefficients": [_round(c) for c in cp],
         }
         if self.rotor_inertia_kgm2 is not None:
             propeller["rotor_inertia_kgm2"] = _round(self.rotor_inertia_kgm2)
-        propeller["data"] = f"{source}: static coefficients only (a static stand sees J = 0)"
+        propeller["data"] = (f"{source}: static values; J-dependence of {shape} scaled to them"
+                             if shape else
+                             f"{source}: static coefficients only (a static stand sees J = 0)")
         return {
             "model": "propeller",
             "propeller": propeller,
@@ -367,15 +376,31 @@ class PropulsionFit:
             },
         }
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self, shape: str | None = None) -> dict[str, Any]:
         """JSON-ready summary: the section, every residual, every step."""
         return {
             "source": self.source,
             "plateaus": len(self.plateaus),
-            "propulsion": self.section(),
+            "propulsion": self.section(shape),
             "residuals": [vars(r) for r in self.residuals],
             "steps": [vars(s) for s in self.steps],
         }
+
+
+def shaped_coefficients(ct0: float, cp0: float, shape: str | None
+                        ) -> tuple[list[float], list[float]]:
+    """C_T(J), C_P(J) polynomial coefficients: ``[ct0]``, ``[cp0]`` without a shape; with one,
+    the shape dataset's quadratic fits (the shipped fit's points and weights) each scaled so that
+    its static value is the measured one — the measured propeller is assumed to lose thrust and
+    power with the advance ratio in the same proportion as the dataset's."""
+    if shape is None:
+        return [ct0], [cp0]
+    from casadrone.propulsion import fit_coefficients, fit_points, propeller_data
+
+    points = fit_points(propeller_data(shape))
+    J, ct, cp = points[:, 0], points[:, 2], points[:, 3]
+    c_t, c_p = fit_coefficients(J, ct), fit_coefficients(J, cp)
+    return [c * ct0 / c_t[0] for c in c_t], [c * cp0 / c_p[0] for c in c_p]
 
 
 def _round(x: float) -> float:

@@ -39,6 +39,10 @@ def fit_propulsion_command(
         "--esc-min-us", help="ESC signal at zero duty (µs)")] = 1000.0,
     esc_max_us: Annotated[float, typer.Option(
         "--esc-max-us", help="ESC signal at full duty (µs)")] = 2000.0,
+    shape: Annotated[str | None, typer.Option(
+        "--shape", help="J-dependence of CT and CP from a shipped propeller dataset, scaled to "
+        "the fitted static values (e.g. uiuc-da4022-5x3.75-3blade); default: static only")
+    ] = None,
     out: Annotated[Path | None, typer.Option(
         "--out", help="write the section as a YAML file (refused if it exists, unless --force)")
     ] = None,
@@ -53,6 +57,8 @@ def fit_propulsion_command(
 
       casadrone fit-propulsion stand.csv --diameter-in 5.1 --out prop.yaml --plot fit/
 
+      casadrone fit-propulsion stand.csv --diameter-in 5 --shape uiuc-da4022-5x3.75-3blade
+
       casadrone fit-propulsion stand.csv --diameter-m 0.127 --motor-poles 14 --json
     """
     from casadrone.optimise.store import atomic_write
@@ -64,6 +70,9 @@ def fit_propulsion_command(
     if not esc_min_us < esc_max_us:
         raise bad_input([f"fit-propulsion: --esc-min-us {esc_min_us:g} must be below "
                          f"--esc-max-us {esc_max_us:g}"])
+    if shape is not None and shape not in shipped_propellers():
+        raise bad_input([f"--shape: {shape!r} is not a shipped propeller dataset (shipped: "
+                         f"{', '.join(shipped_propellers())})"])
     if out is not None and out.exists() and not (force and out.is_file()):
         raise bad_input([f"--out: {out}: exists (give --force to replace a file)"])
     check_plot_dir(plot)
@@ -74,7 +83,7 @@ def fit_propulsion_command(
     except LogError as exc:
         raise bad_input([str(exc)]) from None
     if out is not None:
-        atomic_write(out, section_yaml(fit))
+        atomic_write(out, section_yaml(fit, shape))
     figures = []
     if plot is not None:
         from casadrone.plots import propulsion_fit_figures
@@ -82,7 +91,7 @@ def fit_propulsion_command(
         plot.mkdir(parents=True, exist_ok=True)
         figures = save_figures(propulsion_fit_figures(fit, stand), plot)
     if as_json:
-        print_json({**fit.as_dict(), "out": str(out) if out else None, "figures": figures})
+        print_json({**fit.as_dict(shape), "out": str(out) if out else None, "figures": figures})
         return
     _print_text(fit)
     if out is not None:
@@ -91,7 +100,16 @@ def fit_propulsion_command(
         typer.echo(f"wrote {path}")
 
 
-def section_yaml(fit) -> str:
+def shipped_propellers() -> list[str]:
+    """Names of the propeller datasets in the package data (``data/propulsion/*.csv``)."""
+    from importlib import resources
+
+    folder = resources.files("casadrone") / "data" / "propulsion"
+    return sorted(p.name[:-4] for p in folder.iterdir()
+                  if p.name.endswith(".csv") and p.name != "parts.csv")
+
+
+def section_yaml(fit, shape: str | None = None) -> str:
     """The ``propulsion:`` section as YAML, with a comment naming its source and residuals."""
     import yaml
 
@@ -99,7 +117,7 @@ def section_yaml(fit) -> str:
             f"# {len(fit.plateaus)} steady points, {len(fit.steps)} step responses; residuals:"]
     head += [f"#   {r.quantity}: rms {r.rms:.4g} {r.unit} ({100 * r.relative_rms:.2f} %), "
              f"max {r.max_abs:.4g} {r.unit}" for r in fit.residuals]
-    body = yaml.safe_dump({"propulsion": fit.section()}, sort_keys=False)
+    body = yaml.safe_dump({"propulsion": fit.section(shape)}, sort_keys=False)
     return "\n".join(head) + "\n" + body
 
 

@@ -65,7 +65,7 @@ class PropellerConfig(Schema):
             if c[1] > 0 or c[2] > 0:
                 found.append(("ct_coefficients", "c_1 and c_2 must not be positive: thrust at a "
                               "given rotor speed must not grow with the inflow (J ≥ 0), which "
-                              "is what the limit lap's lower bound relies on"))
+                              "is what the point mass's thrust bound relies on"))
         if cp is not None and cp[0] <= 0:
             found.append(("cp_coefficients", f"static CP c_0 must be positive, got {cp[0]}"))
         return found

@@ -124,11 +124,13 @@ def lap_propulsion(airframe, x, u) -> dict[str, Any]:
     (δ ≥ 0.99), of its thrust to the static thrust at the same rotor state
     (:func:`casadrone.propulsion.static_thrusts`: 1 with ``paper``, CT(J)/CT(0) with
     ``propeller``), NaN if no rotor reached full command."""
-    x, u = np.asarray(x, float), np.asarray(u, float)
+    x, u = np.asarray(x, float).reshape(-1, 16), np.asarray(u, float).reshape(-1, 4)
     n = min(len(u), len(x))
     x, u = x[:n], u[:n]
     speed = np.linalg.norm(x[:, 3:6], axis=1)
-    if airframe.propulsion == "paper":
+    if n == 0:  # a failed lap: nothing flown
+        thrust, J = np.zeros((0, 4)), np.zeros((0, 4))
+    elif airframe.propulsion == "paper":
         thrust, J = x[:, 12:16].copy(), np.full((n, 4), np.nan)
     else:
         out = propeller_outputs().map(n)(x.T, u.T, np.repeat(airframe.p[:, None], n, axis=1))

@@ -343,3 +343,5 @@ def test_lap_propulsion_summary(frame):
     x[:, 12:16] = 5.0
     rp = lap_propulsion(paper, x, u)
     assert math.isnan(rp["max_advance_ratio"]) and rp["min_thrust_ratio"] == 1.0
+    empty = lap_propulsion(frame, np.zeros((0, 16)), np.zeros((0, 4)))  # a failed lap
+    assert math.isnan(empty["top_speed_m_s"]) and math.isnan(empty["min_thrust_ratio"])

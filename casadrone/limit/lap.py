@@ -611,6 +611,23 @@ def reference_lap(name: str, track: TrackConfig, options: LimitLapOptions) -> Li
     return _REFERENCE_LAPS[key]
 
 
+def _fallback_name(name: str | None, propulsion: str) -> str | None:
+    """The shipped reference whose limit lap may start a frame with propulsion kind
+    ``propulsion``: ``name`` itself with the paper model, ``name-propeller`` (SY250-propeller)
+    with the propeller model, None when that airframe is not shipped or has another kind (its
+    rotor states would mean something else)."""
+    if name is None or propulsion == "paper":
+        return name
+    from casadrone.config.airframe import load_airframe
+    from casadrone.config.io import ConfigError
+
+    try:
+        ref = load_airframe(f"{name}-{propulsion}")
+    except ConfigError:
+        return None
+    return f"{name}-{propulsion}" if ref.propulsion.model == propulsion else None
+
+
 def _failed(reason: str, start: float, **kw) -> LimitLap:
     return LimitLap(status="failed", reason=reason, wall_time_s=time.perf_counter() - start, **kw)
 
@@ -788,11 +805,11 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
                                           pb.targets.vector, pb.targets.kinds)
         return s.success and (not options.resimulate or misses[n] <= options.max_miss_m)
 
-    if solves and options.fallback_reference and not any(verified(n, s) for n, s in solves):
-        ref = reference_lap(options.fallback_reference, track, options)
+    fallback = _fallback_name(options.fallback_reference, frame.propulsion)
+    if solves and fallback and not any(verified(n, s) for n, s in solves):
+        ref = reference_lap(fallback, track, options)
         if ref.solution is not None and ref.layout == pb.layout:
-            solves.append((f"reference-{options.fallback_reference}",
-                           pb.solve(ref.solution.w, warm=ref.solution)))
+            solves.append((f"reference-{fallback}", pb.solve(ref.solution.w, warm=ref.solution)))
     good = [(n, s) for n, s in solves if verified(n, s)]
     if not good:
         reason, starts = _failure(solves, misses, options)

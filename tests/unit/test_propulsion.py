@@ -345,3 +345,13 @@ def test_lap_propulsion_summary(frame):
     assert math.isnan(rp["max_advance_ratio"]) and rp["min_thrust_ratio"] == 1.0
     empty = lap_propulsion(frame, np.zeros((0, 16)), np.zeros((0, 4)))  # a failed lap
     assert math.isnan(empty["top_speed_m_s"]) and math.isnan(empty["min_thrust_ratio"])
+
+
+def test_limit_lap_falls_back_on_a_reference_of_the_same_propulsion():
+    """A propeller frame's fallback start is SY250-propeller's lap (its rotor states are rotor
+    speeds), never SY250's (thrusts); none when no such reference is shipped."""
+    from casadrone.limit.lap import _fallback_name
+
+    assert _fallback_name("SY250", "paper") == "SY250"
+    assert _fallback_name("SY250", "propeller") == "SY250-propeller"
+    assert _fallback_name("HS210", "propeller") is None

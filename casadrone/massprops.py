@@ -85,8 +85,8 @@ def box_inertia(mass: float, size: np.ndarray) -> np.ndarray:
 
 
 def components_mass_properties(parts: Any, rotors_m: np.ndarray) -> MassProperties:
-    """Mass properties of the parts (a :class:`casadrone.config.airframe.ComponentsConfig`) with the rotors
-    at ``rotors_m`` (4×3, m, from the hub)."""
+    """Mass properties of the parts (a :class:`casadrone.config.airframe.ComponentsConfig`) with
+    the rotors at ``rotors_m`` (4×3, m, from the hub)."""
     rotors_m = np.asarray(rotors_m, float)
     arms = parts.arm_linear_density_kgpm * np.linalg.norm(rotors_m, axis=1)
     body_at = np.asarray(parts.body_position_mm, float) / 1000

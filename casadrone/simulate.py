@@ -21,9 +21,10 @@ from __future__ import annotations
 import math
 import subprocess
 import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from functools import cached_property, lru_cache
-from typing import Literal
+from functools import cached_property, lru_cache, partial
+from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
@@ -36,8 +37,6 @@ from casadrone.guidance import GuidanceLayout, guidance, track_vector, wrap
 from casadrone.lapdriver import LapDriver
 from casadrone.model import NU, NX, n_params, quadrotor_model, rotation_matrix
 
-Integrator = Literal["rk4", "cvodes", "idas"]
-INTEGRATORS: tuple[str, ...] = ("rk4", "cvodes", "idas")
 NC = 8  # controller state: ∫e (x, y, z, ψ) (4), active segment (1), shaped velocity ref (3)
 NREF = 10  # logged per sample: p_ref (3), v_ref (3), ψ_ref (1), world acceleration (3)
 
@@ -242,21 +241,29 @@ def lap_driver(Ts: float, substeps: int, n_route: int, propulsion: str = "paper"
         return None
 
 
+def _cvodes_plant(model: Any, x: ca.SX, u: ca.SX, p: ca.SX) -> dict[str, ca.SX]:
+    """CVODES's problem: the explicit ODE ẋ = f(x, u, p)."""
+    return {"x": x, "ode": model.f(x, u, p)}
+
+
+def _idas_plant(model: Any, x: ca.SX, u: ca.SX, p: ca.SX) -> dict[str, ca.SX]:
+    """IDAS's problem: the implicit residual 0 = F(z, x, u, p) with ẋ = z algebraic."""
+    z = ca.SX.sym("z", NX)
+    return {"x": x, "z": z, "ode": z, "alg": model.F(z, x, u, p)}
+
+
+#: The SUNDIALS plants: the DAE each integrator is given over one controller period.
+SUNDIALS_PLANTS = {"cvodes": _cvodes_plant, "idas": _idas_plant}
+
+
 @lru_cache(maxsize=8)
 def sundials_integrator(kind: str, Ts: float, rtol: float, atol: float,
                         propulsion: str = "paper") -> ca.Function:
     """CVODES on ẋ = f(x, u, p) or IDAS on 0 = F(z, x, u, p), ẋ = z, over one period Ts."""
-    model = quadrotor_model(propulsion)
     x = ca.SX.sym("x", NX)
     up = ca.SX.sym("up", NU + n_params(propulsion))
-    u, p = up[:NU], up[NU:]
-    opts = {"abstol": atol, "reltol": rtol}
-    if kind == "cvodes":
-        dae = {"x": x, "p": up, "ode": model.f(x, u, p)}
-    else:
-        z = ca.SX.sym("z", NX)
-        dae = {"x": x, "z": z, "p": up, "ode": z, "alg": model.F(z, x, u, p)}
-    return ca.integrator(f"plant_{kind}", kind, dae, 0.0, Ts, opts)
+    dae = {**SUNDIALS_PLANTS[kind](quadrotor_model(propulsion), x, up[:NU], up[NU:]), "p": up}
+    return ca.integrator(f"plant_{kind}", kind, dae, 0.0, Ts, {"abstol": atol, "reltol": rtol})
 
 
 # --------------------------------------------------------------------------------------------
@@ -305,8 +312,16 @@ def _check(x: np.ndarray, t: np.ndarray, track: TrackConfig, margin: float,
     return k, _failure_reason(why, x[k], t[k], track), bool(up[-1])
 
 
-def _rk4_chunks(kernel: ZeroCopyCall, x, c, args):
-    """Chunks (X, C, U, REF) of the compiled RK4 closed loop, without end."""
+#: One chunk of a flight: states, controller states, commands, logged references (one row per
+#: sample) and the integrator's error message ("" when none).
+Chunk = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, str]
+
+
+def _rk4_chunks(airframe: Airframe, x: np.ndarray, c: np.ndarray, args: list, Ts: float,
+                n_route: int, options: SimOptions) -> Iterator[Chunk]:
+    """Chunks of the compiled RK4 closed loop, without end (the path without a C compiler; with
+    one, the whole-lap loop of :func:`lap_driver` flies the lap)."""
+    kernel = lap_kernel(Ts, options.substeps, n_route, options.chunk, airframe.propulsion)
     while True:
         xs, cs, us, refs = kernel(x, c, *args)
         X = np.vstack([x[None, :], xs[:-1]])
@@ -314,7 +329,8 @@ def _rk4_chunks(kernel: ZeroCopyCall, x, c, args):
         yield X, cs.copy(), us.copy(), refs.copy(), ""
 
 
-def _sundials_chunks(kind: str, airframe: Airframe, x, c, args, Ts, n_route, options):
+def _sundials_chunks(kind: str, airframe: Airframe, x: np.ndarray, c: np.ndarray, args: list,
+                     Ts: float, n_route: int, options: SimOptions) -> Iterator[Chunk]:
     """Chunks of the closed loop with a SUNDIALS plant, one controller sample at a time; a
     solver error ends the flight with a non-finite state and its message."""
     kind_p = airframe.propulsion
@@ -329,12 +345,9 @@ def _sundials_chunks(kind: str, airframe: Airframe, x, c, args, Ts, n_route, opt
             u, c, ref = (np.array(a).ravel() for a in ctrl(x, c, *args))
             C[k], U[k], R[k] = c, u, ref
             up = np.concatenate([u, airframe.p])
+            start = {"z0": np.array(f(x, u, airframe.p)).ravel()} if kind == "idas" else {}
             try:
-                if kind == "cvodes":
-                    x = np.array(plant(x0=x, p=up)["xf"]).ravel()
-                else:
-                    z0 = np.array(f(x, u, airframe.p)).ravel()
-                    x = np.array(plant(x0=x, z0=z0, p=up)["xf"]).ravel()
+                x = np.array(plant(x0=x, p=up, **start)["xf"]).ravel()
             except RuntimeError as exc:
                 x = np.full(NX, np.nan)
                 error = f"{kind} failed: {str(exc).splitlines()[-1][:120]}"
@@ -344,6 +357,18 @@ def _sundials_chunks(kind: str, airframe: Airframe, x, c, args, Ts, n_route, opt
         yield X[: k + 1] if error else X, C, U, R, error
         if error:
             return
+
+
+#: The plant integrators, by the name a config, the API and the CLI use: each flies the closed
+#: loop in chunks of samples (``rk4`` also has the compiled whole-lap loop, :func:`lap_driver`).
+#: A new integrator is one entry here and its chunk function.
+INTEGRATORS: dict[str, Callable[..., Iterator[Chunk]]] = {
+    "rk4": _rk4_chunks,
+    "cvodes": partial(_sundials_chunks, "cvodes"),
+    "idas": partial(_sundials_chunks, "idas"),
+}
+#: An integrator's name: a key of :data:`INTEGRATORS`.
+Integrator = str
 
 
 def simulate(
@@ -370,11 +395,7 @@ def simulate(
                          np.radians(track.max_tilt_deg), options.ground_margin_m, n_max)
         return _trajectory(lap.X, lap.C, lap.U, lap.R, *_lap_status(lap, Ts, track), airframe,
                            design, track, integrator, start)
-    if integrator == "rk4":
-        chunks = _rk4_chunks(lap_kernel(Ts, options.substeps, n_route, options.chunk, kind_p),
-                             x, c, args)
-    else:
-        chunks = _sundials_chunks(integrator, airframe, x, c, args, Ts, n_route, options)
+    chunks = INTEGRATORS[integrator](airframe, x, c, args, Ts, n_route, options)
 
     parts: list[tuple[np.ndarray, ...]] = []
     n_done, airborne = 0, False

@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Literal
@@ -70,14 +71,12 @@ from casadrone.model import (
 )
 from casadrone.propulsion import hover_rotors
 
-Solver = Literal["ipopt", "nelder-mead", "newton"]
 Condition = Literal["hover", "forward", "climb", "turn"]
-SOLVERS: tuple[str, ...] = ("ipopt", "nelder-mead", "newton")
 UNKNOWN_NAMES = ("phi", "theta", "delta1", "delta2", "delta3", "delta4")
 _K = PARAM_NAMES.index("K")
 _PSI_ROW = STATE_NAMES.index("psi")
-__all__ = ["CONDITION_REGISTRY", "CONDITIONS", "SOLVERS", "TrimOptions", "TrimPoint",
-           "initial_guess", "operating_vector", "residual_norm", "trim", "trim_all"]
+__all__ = ["CONDITION_REGISTRY", "CONDITIONS", "SOLVERS", "TRIM_SOLVERS", "TrimOptions",
+           "TrimPoint", "initial_guess", "operating_vector", "residual_norm", "trim", "trim_all"]
 
 
 @dataclass(frozen=True)
@@ -343,7 +342,15 @@ def _solve_nelder_mead(z0, p, op, o: TrimOptions):
     return z, nit, status
 
 
-_SOLVE = {"ipopt": _solve_ipopt, "newton": _solve_newton, "nelder-mead": _solve_nelder_mead}
+#: The trim solvers, by the name the API and the CLI use: each maps (Z0, p, operating vector,
+#: options) to (Z, iterations, solver message). A new solver is one entry here and its function.
+TRIM_SOLVERS: dict[str, Callable[[np.ndarray, np.ndarray, np.ndarray, TrimOptions],
+                                 tuple[np.ndarray, int, str]]] = {
+    "ipopt": _solve_ipopt, "nelder-mead": _solve_nelder_mead, "newton": _solve_newton}
+#: The solver names, in registry order (``trim_all`` runs them in this order).
+SOLVERS: tuple[str, ...] = tuple(TRIM_SOLVERS)
+#: A trim solver's name: a key of :data:`TRIM_SOLVERS`.
+Solver = str
 
 
 # ---------------------------------------------------------------------------------------------
@@ -397,7 +404,7 @@ def trim(
     and a message. An unknown ``condition`` or ``solver``, or a parameter the condition does not
     take (hover with a speed), raise ValueError.
     """
-    if solver not in _SOLVE:
+    if solver not in TRIM_SOLVERS:
         raise ValueError(f"unknown trim solver '{solver}'; choose one of {', '.join(SOLVERS)}")
     op = operating_vector(condition, speed_mps, climb_angle_deg, turn_rate_dps)
     o = options or TrimOptions()
@@ -411,7 +418,7 @@ def trim(
 
     start = time.perf_counter()
     try:
-        z, iterations, status = _SOLVE[solver](z0, p, op, o)
+        z, iterations, status = TRIM_SOLVERS[solver](z0, p, op, o)
         error = None
     except Exception as exc:  # a solver crash is a failed trim, never an exception
         z, iterations, status, error = z0, 0, "", f"{type(exc).__name__}: {exc}"
@@ -483,13 +490,15 @@ def trim_all(
     airframe: Airframe,
     condition: Condition = "hover",
     speed_mps: float = 0.0,
-    solvers: tuple[str, ...] = SOLVERS,
+    solvers: tuple[str, ...] | None = None,
     options: TrimOptions | None = None,
     **operating_point: float,
 ) -> list[TrimPoint]:
-    """Trim with each of ``solvers`` (same airframe, condition and options), for comparison;
-    ``operating_point``: ``climb_angle_deg`` or ``turn_rate_dps`` as in :func:`trim`."""
-    return [trim(airframe, condition, speed_mps, s, options, **operating_point) for s in solvers]
+    """Trim with each of ``solvers`` (default: every registered one, in registry order; same
+    airframe, condition and options), for comparison; ``operating_point``: ``climb_angle_deg`` or
+    ``turn_rate_dps`` as in :func:`trim`."""
+    return [trim(airframe, condition, speed_mps, s, options, **operating_point)
+            for s in solvers or SOLVERS]
 
 
 def rotor_thrusts(airframe: Airframe, x, u) -> np.ndarray:

@@ -30,6 +30,10 @@ from casadrone.cli import (  # noqa: F401 (importing registers the commands)
     propulsion,
     trimstudy,
 )
-from casadrone.cli.common import app
+from casadrone.cli.common import app, command_name
+from casadrone.cli.examples import epilog
+
+for _command in app.registered_commands:  # every --help ends with its examples
+    _command.epilog = _command.epilog or epilog(command_name(_command))
 
 __all__ = ["app"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable, Iterable
 from functools import wraps
 from pathlib import Path
 from typing import Annotated, Any
@@ -42,6 +43,25 @@ class _App(typer.Typer):
         sys.exit(code if isinstance(code, int) else 0)
 
 
+def _flags_take_no_value() -> None:
+    """Show a flag as a flag (``--json``), not as ``--json <bool>``: typer's help gives every
+    option its type, a flag's too, although a flag takes no value (``--json true`` is refused)."""
+    import typer.core
+
+    option = typer.core.TyperOption
+    if getattr(option.display_type_rich, "_casadrone", False):
+        return
+    shown = option.display_type_rich
+
+    def display_type_rich(self, ctx):
+        return None if self.is_flag and not self.count else shown(self, ctx)
+
+    display_type_rich._casadrone = True  # type: ignore[attr-defined]
+    option.display_type_rich = display_type_rich  # type: ignore[method-assign]
+
+
+_flags_take_no_value()
+
 # typer (>= 0.20) carries its own copy of click: its exception classes, found from typer's own.
 _USAGE_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
 _CLICK_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
@@ -57,6 +77,14 @@ app = _App(
 )
 
 EXIT_BAD_INPUT = 2
+
+
+def command_name(command: typer.models.CommandInfo) -> str:
+    """The name a registered command is called by (typer's rule: the function's, dashed)."""
+    if command.name:
+        return command.name
+    assert command.callback is not None
+    return command.callback.__name__.replace("_", "-")
 
 
 def _print_version(value: bool) -> None:
@@ -90,6 +118,24 @@ TrackOpt = Annotated[
     str | None,
     typer.Option(help="track YAML or name (default: configs/tracks/paper-rectangle.yaml)"),
 ]
+
+
+def registry_option(names: Callable[[], Iterable[str]], what: str, help: str,
+                    *flags: str, extra: tuple[str, ...] = ()) -> Any:
+    """A ``--option NAME`` whose choices are the names of a registry (``extra`` added): read when
+    the option is parsed or completed, so the CLI starts without importing the registry's module
+    (CasADi), and a name registered there is a choice here with no change to the CLI."""
+
+    def choices() -> list[str]:
+        return [*names(), *extra]
+
+    def check(value: str | None) -> str | None:
+        if value is not None and value not in choices():
+            raise typer.BadParameter(f"unknown {what} {value!r}; one of {', '.join(choices())}")
+        return value
+
+    return typer.Option(*flags, help=help, metavar=what.upper(), callback=check,
+                        autocompletion=choices)
 
 
 def bad_input(lines: list[str]) -> typer.Exit:

@@ -21,6 +21,7 @@ from casadrone.cli.common import (
     check_plot_dir,
     load_airframe_or_exit,
     print_json,
+    registry_option,
     reports_config_errors,
     save_figures,
 )
@@ -31,11 +32,10 @@ from casadrone.config.io import ConfigError
 Condition = StrEnum("Condition", {name: name for name in CONDITIONS})  # type: ignore[misc]
 
 
-class TrimSolver(StrEnum):
-    ipopt = "ipopt"
-    nelder_mead = "nelder-mead"
-    newton = "newton"
-    all = "all"
+def _trim_solvers() -> tuple[str, ...]:
+    from casadrone.trim import SOLVERS
+
+    return SOLVERS
 
 
 class LinMethod(StrEnum):
@@ -139,9 +139,9 @@ def trim(
         help="climb: angle of the path above the horizon (deg, negative: descent)")] = None,
     turn_rate: Annotated[float | None, typer.Option(
         help="turn: heading rate (deg/s, positive: left)")] = None,
-    solver: Annotated[
-        TrimSolver, typer.Option(help="trim solver, or all to compare them")
-    ] = TrimSolver.ipopt,
+    solver: Annotated[str, registry_option(
+        _trim_solvers, "solver", "a trim solver of casadrone.trim.TRIM_SOLVERS (ipopt, "
+        "nelder-mead, newton), or all to compare them", extra=("all",))] = "ipopt",
     as_json: JsonOpt = False,
 ) -> None:
     """Trim an airframe in hover, level forward flight, a climb or descent, or a coordinated
@@ -151,10 +151,10 @@ def trim(
     # the module, not the package attribute: ``casadrone.trim`` is also the public function
     trim_mod = importlib.import_module("casadrone.trim")
 
-    if solver is TrimSolver.all:
+    if solver == "all":
         points = trim_mod.trim_all(frame, condition.value, **point)
     else:
-        points = [trim_mod.trim(frame, condition.value, solver=solver.value, **point)]
+        points = [trim_mod.trim(frame, condition.value, solver=solver, **point)]
     result = {
         "airframe": frame.name,
         "condition": condition.value,

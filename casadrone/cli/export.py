@@ -9,15 +9,13 @@ from typing import Annotated
 
 import typer
 
-from casadrone.cli.common import app, bad_input, reports_config_errors
+from casadrone.cli.common import app, bad_input, registry_option, reports_config_errors
 
 
-class ExportFormat(StrEnum):
-    betaflight = "betaflight"
-    px4 = "px4"
-    urdf = "urdf"
-    svg = "svg"
-    dxf = "dxf"
+def _formats() -> list[str]:
+    from casadrone.export import FORMATS
+
+    return list(FORMATS)
 
 
 class Pattern(StrEnum):
@@ -32,9 +30,10 @@ def export_command(
         help="airframe YAML or reference name (SY250, ...), or a run directory")],
     overrides: Annotated[list[str] | None, typer.Argument(
         help="key=value overrides of the airframe, e.g. alpha_deg=75")] = None,
-    fmt: Annotated[ExportFormat, typer.Option(
-        "--format", "-f", help="betaflight (mmix lines), px4 (param set lines), urdf, svg or "
-        "dxf (1:1 plate outline, mm)")] = ExportFormat.betaflight,
+    fmt: Annotated[str, registry_option(
+        _formats, "format", "an export format of casadrone.export.FORMATS: betaflight (mmix "
+        "lines), px4 (param set lines), urdf, svg or dxf (1:1 plate outline, mm)",
+        "--format", "-f")] = "betaflight",
     candidate: Annotated[str | None, typer.Option(
         help="of a run directory: A (utopian), B (compromise), C (extreme) or a pareto.csv row "
         "(0-based)")] = None,
@@ -61,8 +60,8 @@ def export_command(
     options = PlateOptions(arm_width_mm=arm_width, pattern=pattern.value)
     try:
         if out is None:
-            typer.echo(export(src, fmt.value, options), nl=False)
+            typer.echo(export(src, fmt, options), nl=False)
         else:
-            typer.echo(f"wrote {write_export(src, fmt.value, out, options)}")
+            typer.echo(f"wrote {write_export(src, fmt, out, options)}")
     except (ValueError, RuntimeError) as exc:
         raise bad_input([f"{source}: {exc}"]) from None

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from enum import StrEnum
 from typing import Annotated
 
 import typer
@@ -18,15 +17,21 @@ from casadrone.cli.common import (
     check_plot_dir,
     load_airframe_or_exit,
     print_json,
+    registry_option,
     reports_config_errors,
     save_figures,
 )
 
 
-class IntegratorName(StrEnum):
-    rk4 = "rk4"
-    cvodes = "cvodes"
-    idas = "idas"
+def _integrators() -> list[str]:
+    from casadrone.simulate import INTEGRATORS
+
+    return list(INTEGRATORS)
+
+
+IntegratorOpt = Annotated[str, registry_option(
+    _integrators, "integrator", "a plant integrator of casadrone.simulate.INTEGRATORS: rk4 "
+    "(fast, compiled) or cvodes/idas (reference)")]
 
 
 # --------------------------------------------------------------------------------------------
@@ -46,9 +51,7 @@ def simulate(
         str | None,
         typer.Option(help="controller YAML or name (default: configs/controllers/default.yaml)"),
     ] = None,
-    integrator: Annotated[
-        IntegratorName, typer.Option(help="rk4 (fast, compiled) or cvodes/idas (reference)")
-    ] = IntegratorName.rk4,
+    integrator: IntegratorOpt = "rk4",
     as_json: JsonOpt = False,
     plot: PlotOpt = None,
 ) -> None:
@@ -74,14 +77,14 @@ def simulate(
         template=cfg,
         controller=load_controller(controller),
         track=load(TrackConfig, resolve_config(track, "tracks") if track else DEFAULT_TRACK),
-        integrator=integrator.value,
+        integrator=integrator,
     )
     ev = evaluate(theta_of(cfg), setup, keep_trajectory=True)
     result = {
         "airframe": cfg.name,
         "track": setup.track.name,
         "controller": setup.controller.name,
-        "integrator": integrator.value,
+        "integrator": integrator,
         "status": ev.status,
         "stage": ev.stage,
         "reason": ev.reason,
@@ -139,9 +142,7 @@ def _simulate_text(r: dict) -> str:
 @app.command()
 @reports_config_errors
 def benchmark(
-    integrator: Annotated[
-        IntegratorName, typer.Option(help="rk4 (fast, compiled) or cvodes/idas (reference)")
-    ] = IntegratorName.rk4,
+    integrator: IntegratorOpt = "rk4",
     as_json: JsonOpt = False,
 ) -> None:
     """Fly the five reference airframes (paper Table 4): the Table-4-style table.
@@ -151,7 +152,7 @@ def benchmark(
     """
     from casadrone.benchmark import format_table, run_benchmark, to_json
 
-    table = run_benchmark(integrator.value)
+    table = run_benchmark(integrator)
     if as_json:
         typer.echo(to_json(table))
     else:

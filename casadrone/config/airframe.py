@@ -1,4 +1,4 @@
-"""The airframe YAML (``configs/airframes/``): geometry, mass model, drag and thrust, and its loader.
+"""The airframe YAML (``configs/airframes/``): geometry, mass model, drag, thrust; its loader.
 
 Every schema is frozen and forbids unknown keys; cross-field (geometry) checks report every problem
 at once. File reading, ``key=value`` overrides and the ``FILE: dotted.key: message`` error reports

@@ -157,9 +157,10 @@ class ProblemConfig(Schema):
         None,
         description="controller YAML or shipped name (default: configs/controllers/default.yaml)",
     )
-    integrator: Literal["rk4", "cvodes", "idas"] = Field(
+    integrator: str = Field(
         "rk4",
-        description="closed-loop integrator: rk4 (compiled, fast), cvodes or idas (SUNDIALS)",
+        description="closed-loop integrator, a name in casadrone.simulate.INTEGRATORS: rk4 "
+        "(compiled, fast), cvodes or idas (SUNDIALS)",
     )
     objectives: list[ObjectiveConfig] = Field(
         default_factory=list,

@@ -9,6 +9,7 @@ Every file starts with the casadrone version, the airframe or run and the candid
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from casadrone.export.mixers import betaflight, px4
@@ -16,8 +17,29 @@ from casadrone.export.plate import PlateOptions, dxf, svg
 from casadrone.export.source import ExportSource
 from casadrone.export.urdf import urdf
 
-#: Format name → file suffix.
-FORMATS = {"betaflight": ".txt", "px4": ".params", "urdf": ".urdf", "svg": ".svg", "dxf": ".dxf"}
+
+@dataclass(frozen=True)
+class ExportFormat:
+    """One export format: its file suffix, what it is, and its writer (source, plate options →
+    the file's text)."""
+
+    suffix: str
+    description: str
+    write: Callable[[ExportSource, PlateOptions | None], str]
+
+
+#: The export formats, by the name the API and the CLI (``--format``) use. A new format is one
+#: entry here and its writer.
+FORMATS: dict[str, ExportFormat] = {
+    "betaflight": ExportFormat(".txt", "Betaflight custom mix (mmix lines)",
+                               lambda src, _: betaflight(src)),
+    "px4": ExportFormat(".params", "PX4 CA_ROTOR* parameters (param set lines)",
+                        lambda src, _: px4(src)),
+    "urdf": ExportFormat(".urdf", "URDF robot description for a simulator",
+                         lambda src, _: urdf(src)),
+    "svg": ExportFormat(".svg", "the frame plate, 1:1 SVG outline (mm)", svg),
+    "dxf": ExportFormat(".dxf", "the frame plate, 1:1 DXF outline (mm)", dxf),
+}
 
 
 def export(src: ExportSource, fmt: str, plate_options: PlateOptions | None = None) -> str:
@@ -28,13 +50,9 @@ def export(src: ExportSource, fmt: str, plate_options: PlateOptions | None = Non
             :func:`casadrone.export.plate.plate`).
         RuntimeError: ``dxf`` without ezdxf installed.
     """
-    writers: dict[str, Callable[[], str]] = {
-        "betaflight": lambda: betaflight(src), "px4": lambda: px4(src), "urdf": lambda: urdf(src),
-        "svg": lambda: svg(src, plate_options), "dxf": lambda: dxf(src, plate_options),
-    }
-    if fmt not in writers:
+    if fmt not in FORMATS:
         raise ValueError(f"format {fmt!r}: one of {', '.join(FORMATS)}")
-    return writers[fmt]()
+    return FORMATS[fmt].write(src, plate_options)
 
 
 def write_export(src: ExportSource, fmt: str, out: str | Path,
@@ -49,4 +67,4 @@ def write_export(src: ExportSource, fmt: str, out: str | Path,
 
 def default_name(src: ExportSource, fmt: str) -> str:
     """``<airframe name><suffix>``, e.g. ``SY250.txt`` for a Betaflight mix."""
-    return f"{src.config.name}-{fmt}{FORMATS[fmt]}"
+    return f"{src.config.name}-{fmt}{FORMATS[fmt].suffix}"

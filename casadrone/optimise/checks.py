@@ -14,6 +14,7 @@ from __future__ import annotations
 import difflib
 import importlib
 import importlib.util
+from collections.abc import Iterable
 from pathlib import Path
 from types import ModuleType
 
@@ -24,6 +25,7 @@ from casadrone.config.problem import ProblemConfig, read_problem
 from casadrone.config.validation import check_config_file
 from casadrone.indices import INDICES
 from casadrone.optimise.algorithms import ALGORITHM_NAMES, REFUSED, settings_problems
+from casadrone.simulate import INTEGRATORS
 
 _PLUGINS: dict[str, ModuleType] = {}
 
@@ -64,6 +66,7 @@ def problem_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
         except Exception as exc:  # noqa: BLE001 - any import failure is a config problem
             found.append((f"plugins.{i}", f"cannot import '{plugin}': {exc}"))
     if problem.test_problem is None:
+        found += _name_problems("integrator", problem.integrator, INTEGRATORS)
         for group in ("objectives", "constraints"):
             for i, o in enumerate(getattr(problem, group)):
                 if o.index not in INDICES:
@@ -74,15 +77,23 @@ def problem_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
     return found + _algorithm_problems(problem)
 
 
+def _name_problems(key: str, name: str, registry: Iterable[str]) -> list[tuple[str, str]]:
+    """``name`` not in ``registry``, as a (key, message) pair with the closest name."""
+    known = list(registry)
+    if name in known:
+        return []
+    close = difflib.get_close_matches(name, known, 1)
+    hint = f"did you mean '{close[0]}'? " if close else ""
+    return [(key, f"unknown {key} '{name}' ({hint}known: {', '.join(known)})")]
+
+
 def _algorithm_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
     """The algorithm section against the algorithm's own parameters (and the objectives)."""
     a = problem.algorithm
     key = a.name.strip().lower()
     if key not in ALGORITHM_NAMES:
-        close = difflib.get_close_matches(a.name, list(ALGORITHM_NAMES), 1)
-        hint = f"did you mean '{close[0]}'? " if close else ""
-        return [("algorithm.name", f"unknown algorithm '{a.name}' ({hint}known: "
-                 f"{', '.join(ALGORITHM_NAMES)})")]
+        return [("algorithm.name", m) for _, m in _name_problems("algorithm", a.name,
+                                                                 ALGORITHM_NAMES)]
     if key in REFUSED:
         return [("algorithm.name", f"{key} cannot run a casadrone problem: {REFUSED[key]}")]
     test = problem.test_problem

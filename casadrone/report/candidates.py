@@ -68,14 +68,14 @@ def _exports(run: Run, c: Candidate, folder: Path) -> str:
                                f"run {run.store.path} (template {template.name})",
                                f"{c.label} ({', '.join(c.methods)}, {PARETO} row {c.row})")
         links = []
-        for fmt, suffix in FORMATS.items():
-            path = write_export(src, fmt, folder / f"candidate-{tag}-{fmt}{suffix}")
+        for fmt, spec in FORMATS.items():
+            path = write_export(src, fmt, folder / f"candidate-{tag}-{fmt}{spec.suffix}")
             links.append(f'<a href="{folder.name}/{esc(path.name)}">{esc(fmt)}</a>')
     except (ConfigError, ValueError, RuntimeError) as exc:
         return note(f"No exports for candidate {c.label}: {exc}", "warn")
     return (f"<p>Exports (files beside the report, <code>casadrone export</code>): "
-            f"{' · '.join(links)}: Betaflight custom mix, PX4 control-allocation parameters, "
-            "URDF, 1:1 frame plate (SVG, DXF).</p>")
+            f"{' · '.join(links)}: "
+            f"{'; '.join(esc(spec.description) for spec in FORMATS.values())}.</p>")
 
 
 def section_candidates(run: Run, cands: list[Candidate], figs: Figures,

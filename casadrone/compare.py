@@ -19,7 +19,9 @@ import numpy as np
 from casadrone.benchmark import _f
 from casadrone.config.airframe import load_airframe
 from casadrone.config.reference import Table4Reference, load_reference
+from casadrone.evaluate import Evaluation
 from casadrone.indices import Interval
+from casadrone.results import AsDict
 
 # --------------------------------------------------------------------------------------------
 # Eq. 21
@@ -65,27 +67,49 @@ CANDIDATE_LABELS: dict[str, str] = {"utopian": "A", "compromise": "B", "extreme"
 NUMERICAL_ZERO = 1e-6
 
 
+#: What each decision picks, for titles (the report's candidate sections).
+DECISION_TEXT: dict[str, str] = {
+    "utopian": "closest to the utopian point",
+    "compromise": "compromise: closest to the front's mean point",
+    "extreme": "extreme on the first objective",
+}
+
+
 @dataclass(frozen=True)
-class Candidate:
-    """One decision on a run's Pareto front.
+class Candidate(AsDict):
+    """A design chosen on a run's Pareto front (``casadrone decide``, ``compare``, the report).
 
     Attributes:
-        label: ``"A"`` (utopian), ``"B"`` (compromise) or ``"C"`` (extreme).
-        method: the decision method (:data:`casadrone.decide.METHODS`).
+        label: ``"A"`` (utopian), ``"B"`` (compromise) or ``"C"`` (extreme); ``"A=C"`` when two
+            decisions pick the same design (the report lists each design once).
+        methods: the decision method(s) (:data:`casadrone.decide.METHODS`), in label order.
         row: row of the design in ``pareto.csv`` (0-based, header excluded).
-        distance: the decision's distance in normalised objective space (see ``decide``).
+        distance: the (first) decision's distance in normalised objective space (``decide``).
         theta: decision variables, name → value (the problem's variable names and units).
         objectives: objective name → value, in its own unit and sense, as in ``pareto.csv``.
         objective: the objective of an extreme decision, else None.
+        evaluation: the design flown again, with its trajectory (the report), else None.
     """
 
     label: str
-    method: str
+    methods: tuple[str, ...]
     row: int
     distance: float
     theta: dict[str, float]
     objectives: dict[str, float]
     objective: str | None = None
+    evaluation: Evaluation | None = None
+
+    _omit = ("evaluation",)
+
+    @property
+    def method(self) -> str:
+        """The (first) decision method."""
+        return self.methods[0]
+
+    @property
+    def title(self) -> str:
+        return f"{self.label}: " + "; ".join(DECISION_TEXT[m] for m in self.methods)
 
 
 def run_candidates(
@@ -131,7 +155,7 @@ def run_candidates(
         d = decide(F, dict(zip(names, senses, strict=True)), method, extreme_on)
         row = rows[d.index]
         out.append(Candidate(
-            label=CANDIDATE_LABELS[method], method=method, row=d.index, distance=d.distance,
+            label=CANDIDATE_LABELS[method], methods=(method,), row=d.index, distance=d.distance,
             theta=dict(zip(header[:n_var], row[:n_var], strict=True)),
             objectives=dict(zip(names, row[n_var:], strict=True)),
             objective=extreme_on if method == "extreme" else None,

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, fields, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -19,13 +19,12 @@ import numpy as np
 from casadrone.airframe import Airframe, build_airframe, decision_keys, with_theta
 from casadrone.config.airframe import AirframeConfig, load_airframe
 from casadrone.config.controller import ControllerConfig, load_controller
-from casadrone.config.io import CONFIG_DIR, ConfigError, load
-from casadrone.config.track import TrackConfig
+from casadrone.config.io import ConfigError, load
+from casadrone.config.track import DEFAULT_TRACK, TrackConfig
 from casadrone.control import design_for
+from casadrone.results import Record
 from casadrone.simulate import SimOptions, Trajectory, simulate
 from casadrone.trim import trim
-
-DEFAULT_TRACK = CONFIG_DIR / "tracks" / "paper-rectangle.yaml"
 
 
 @dataclass(frozen=True)
@@ -88,21 +87,18 @@ def default_setup(
 
 
 @dataclass(frozen=True)
-class Evaluation:
-    """The result of one candidate: indices when the lap was completed, else stage and reason."""
+class Evaluation(Record):
+    """A :class:`Record` with what only this process has: the per-interval table and, on
+    request, the trajectory flown."""
 
-    theta: dict[str, float]
-    status: str  # "completed" or "failed"
-    stage: str  # "geometry", "trim", "control", "lap" or "" when completed
-    reason: str
-    indices: dict[str, float] = field(default_factory=dict)
+    _omit = ("trajectory",)
+
     intervals: tuple = ()
-    wall_time_s: float = 0.0
     trajectory: Trajectory | None = None
 
-    @property
-    def completed(self) -> bool:
-        return self.status == "completed"
+    def record(self) -> Record:
+        """The record the optimiser stores (no intervals, no trajectory)."""
+        return Record(**{f.name: getattr(self, f.name) for f in fields(Record)})
 
 
 def _failed(theta, stage, reason, start) -> Evaluation:

@@ -24,7 +24,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import cached_property, lru_cache, partial
-from typing import Any, Literal
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -36,6 +36,7 @@ from casadrone.control import LQRIDesign
 from casadrone.guidance import GuidanceLayout, guidance, track_vector, wrap
 from casadrone.lapdriver import LapDriver
 from casadrone.model import NU, NX, n_params, quadrotor_model, rotation_matrix
+from casadrone.results import Status
 
 NC = 8  # controller state: ∫e (x, y, z, ψ) (4), active segment (1), shaped velocity ref (3)
 NREF = 10  # logged per sample: p_ref (3), v_ref (3), ψ_ref (1), world acceleration (3)
@@ -65,7 +66,7 @@ class Trajectory:
     Row k holds the state at t[k] and the command applied on [t[k], t[k+1]).
     """
 
-    status: Literal["completed", "failed"]
+    status: Status
     reason: str
     integrator: str
     t: np.ndarray  # (N,) s

@@ -10,7 +10,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "validate": ("casadrone validate configs problems",
                  "casadrone validate my-frame.yaml --json"),
     "trim": ("casadrone trim SY250",
-             "casadrone trim HS210 --condition forward --speed 10 --solver all"),
+             "casadrone trim HS210 --condition climb --speed 10 --climb-angle 20 --solver all"),
     "linearise": ("casadrone linearise SY250 --method both",
                   "casadrone linearise SY250 alpha_deg=80 --condition forward --speed 5 --json"),
     "lqr": ("casadrone lqr SY250",
@@ -38,6 +38,8 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "fit-propulsion": ("casadrone fit-propulsion stand.csv --diameter-in 5.1",
                        "casadrone fit-propulsion stand.csv --diameter-in 5.1 --motor-poles 14 "
                        "--out propulsion.yaml --plot figures"),
+    "trim-study": ("casadrone trim-study SY250 --starts 5",
+                   "casadrone trim-study HS210 --conditions forward:0..40/5 --json"),
 }
 
 

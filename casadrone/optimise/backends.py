@@ -17,7 +17,8 @@ import numpy as np
 from casadrone.config.problem import BackendConfig
 from casadrone.optimise.lifeline import worker_init
 from casadrone.optimise.mainguard import SpawnWithoutMainContext
-from casadrone.optimise.problem import Record, Study, evaluate_rows
+from casadrone.optimise.problem import Study, evaluate_rows
+from casadrone.results import Record
 
 
 def guided_sizes(rows: int, workers: int) -> list[int]:

@@ -11,30 +11,19 @@ from __future__ import annotations
 
 import hashlib
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from pymoo.core.problem import Problem
 
 from casadrone.config.problem import ProblemConfig
+from casadrone.results import Record
 
 #: Constraint violation of a failed candidate, by the stage where it failed: earlier failures are
 #: worse, so feasibility-first selection moves the search towards candidates that fly.
 FAILURE_CV = {"geometry": 4.0, "trim": 3.0, "control": 2.0, "lap": 1.0, "limit": 0.5}
 #: Objective value stored for failed candidates (pymoo needs finite F; feasibility decides first).
 FAILED_F = 1e9
-
-
-@dataclass(frozen=True)
-class Record:
-    """One evaluation as stored in the run history."""
-
-    theta: dict[str, float]
-    status: str
-    stage: str = ""
-    reason: str = ""
-    indices: dict[str, float] = field(default_factory=dict)
-    wall_time_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -166,8 +155,7 @@ def evaluate_rows(study: Study, X: np.ndarray) -> list[Record]:
     records = []
     for x in X:
         ev = evaluate(dict(zip(names, map(float, x), strict=True)), setup)
-        records.append(Record(theta=ev.theta, status=ev.status, stage=ev.stage, reason=ev.reason,
-                              indices=ev.indices, wall_time_s=ev.wall_time_s))
+        records.append(ev.record())
     return records
 
 

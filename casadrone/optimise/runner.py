@@ -37,9 +37,10 @@ from casadrone.optimise.backends import make_backend
 from casadrone.optimise.checkpoint import dumps
 from casadrone.optimise.hypervolume import HypervolumeState, advance
 from casadrone.optimise.mainguard import unguarded_main_call, unguarded_message
-from casadrone.optimise.problem import CandidateProblem, Record, Study, objectives_and_constraints
+from casadrone.optimise.problem import CandidateProblem, Study, objectives_and_constraints
 from casadrone.optimise.store import RunDamaged, RunStore, now, record_of
 from casadrone.optimise.writer import GenerationWriter
+from casadrone.results import Record
 
 
 class Interrupted(KeyboardInterrupt):

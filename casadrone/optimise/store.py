@@ -42,7 +42,7 @@ from pathlib import Path
 import yaml
 
 from casadrone.config.problem import ProblemConfig
-from casadrone.optimise.problem import Record
+from casadrone.results import Record
 
 CONFIG, MANIFEST, HISTORY, CHECKPOINT, PARETO = (
     "config.yaml", "manifest.json", "history.sqlite", "checkpoint.pkl", "pareto.csv")

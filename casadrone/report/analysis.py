@@ -12,16 +12,15 @@ from pathlib import Path
 
 import numpy as np
 
-from casadrone.evaluate import Evaluation
+from casadrone.compare import CANDIDATE_LABELS, DECISION_TEXT, Candidate
 from casadrone.indices import INDICES
 from casadrone.optimise.hypervolume import non_dominated
-from casadrone.optimise.problem import FAILURE_CV, Record, Study, objectives_and_constraints
+from casadrone.optimise.problem import FAILURE_CV, Study, objectives_and_constraints
 from casadrone.optimise.store import PARETO, RunStore
+from casadrone.results import Record
 
 #: Decision methods in label order (paper: A utopian, B trade-off, C extreme).
-LABELS = (("A", "utopian", "closest to the utopian point"),
-          ("B", "compromise", "compromise: closest to the front's mean point"),
-          ("C", "extreme", "extreme on the first objective"))
+LABELS = tuple((CANDIDATE_LABELS[m], m, text) for m, text in DECISION_TEXT.items())
 STAGES = tuple(FAILURE_CV)  # geometry, trim, control, lap, limit
 
 
@@ -96,27 +95,6 @@ def read_run(run_dir: str | Path) -> Run:
 # ---------------------------------------------------------------------------------------------
 # Analysis
 # ---------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Candidate:
-    """A design of the front shown in the report: its label(s) (``"A"``, or ``"A=C"`` when two
-    decisions pick the same design), decision method(s), row of ``pareto.csv``, the first
-    decision's distance (normalised objective space), θ and objectives as stored, and its
-    re-evaluation with trajectory."""
-
-    label: str
-    methods: tuple[str, ...]
-    row: int
-    distance: float
-    theta: dict[str, float]
-    objectives: dict[str, float]
-    evaluation: Evaluation | None = None
-
-    @property
-    def title(self) -> str:
-        text = {m: t for _, m, t in LABELS}
-        return f"{self.label}: " + "; ".join(text[m] for m in self.methods)
 
 
 def choose_candidates(run: Run) -> list[Candidate]:

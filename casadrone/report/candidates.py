@@ -7,10 +7,11 @@ from dataclasses import replace
 from pathlib import Path
 
 from casadrone import plots
+from casadrone.compare import Candidate
 from casadrone.evaluate import Evaluation, evaluate, theta_of
 from casadrone.indices import INDICES
 from casadrone.optimise.store import PARETO, git_revision
-from casadrone.report.analysis import Candidate, Run
+from casadrone.report.analysis import Run
 from casadrone.report.markup import (
     SYMBOL,
     Figures,

@@ -20,6 +20,7 @@ PACKAGE = Path(__file__).resolve().parents[2] / "casadrone"
 STAGES: tuple[str, ...] = (
     "casadrone.data",
     "casadrone.codegen",
+    "casadrone.results",
     "casadrone.config.io",
     "casadrone.massprops",
     "casadrone.config.propulsion",

@@ -1,0 +1,59 @@
+"""What every stage's results share: one word for how a flight ends, the record the optimiser
+keeps of a candidate, and ``as_dict`` (a result as plain data, what every ``--json`` prints).
+
+Light on purpose (no CasADi, no pymoo): the optimiser, the store and the report read records
+without importing the chain.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+#: The one word for how anything flown ends (a lap, an evaluation, a benchmark row, a limit lap):
+#: ``completed``, or ``failed`` with a reason.
+Status = Literal["completed", "failed"]
+
+
+class AsDict:
+    """``as_dict()`` for a frozen dataclass result: its fields as plain data (nested results and
+    containers converted; numpy arrays left as they are: :func:`casadrone.cli.common.jsonable`
+    makes them JSON). ``_omit`` names fields left out (trajectories, matrices kept elsewhere)."""
+
+    _omit: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict[str, Any]:
+        assert dataclasses.is_dataclass(self)
+        return {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)
+                if f.name not in self._omit}
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, AsDict):
+        return value.as_dict()
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    return value
+
+
+@dataclass(frozen=True)
+class Record(AsDict):
+    """One candidate's result as the optimiser keeps it (the run history): θ, how it ended, and
+    its indices when completed, else the stage and reason it failed
+    (:class:`casadrone.evaluate.Evaluation` adds what only the evaluating process has)."""
+
+    theta: dict[str, float]
+    status: Status
+    stage: str = ""  # "geometry", "trim", "control", "lap" or "" when completed
+    reason: str = ""
+    indices: dict[str, float] = field(default_factory=dict)
+    wall_time_s: float = 0.0
+
+    @property
+    def completed(self) -> bool:
+        return self.status == "completed"

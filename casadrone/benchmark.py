@@ -121,7 +121,7 @@ def run_benchmark(
         trk = load(TrackConfig, resolve_config(track, "tracks") if track else DEFAULT_TRACK)
     ref = reference if isinstance(reference, Table4Reference) else load_reference(reference)
     frozen_from = None
-    if ctrl.frozen_gain:
+    if ctrl.frozen_gain and ctrl.reference_airframe is not None:
         frozen_from = build_airframe(load_airframe(ctrl.reference_airframe))
     rows = []
     for item in airframes:
@@ -146,7 +146,7 @@ def run_benchmark(
 # --------------------------------------------------------------------------------------------
 
 
-def _f(value: float, digits: int) -> str:
+def _f(value: float | None, digits: int) -> str:
     return "—" if value is None or not math.isfinite(value) else f"{value:.{digits}f}"
 
 

@@ -108,6 +108,13 @@ class Candidate(AsDict):
         return self.methods[0]
 
     @property
+    def flown(self) -> Evaluation:
+        """The design's evaluation, once the report has flown it again (an error before)."""
+        if self.evaluation is None:
+            raise ValueError(f"candidate {self.label} has not been flown again")
+        return self.evaluation
+
+    @property
     def title(self) -> str:
         return f"{self.label}: " + "; ".join(DECISION_TEXT[m] for m in self.methods)
 
@@ -194,7 +201,7 @@ def magnitude_gain_pct(candidate: float, reference: float) -> float:
 
 
 @dataclass(frozen=True)
-class GainRow:
+class GainRow(AsDict):
     """Percentage gains (paper Eq. 21, positive = better) of one candidate over one reference
     airframe in one interval.
 
@@ -295,17 +302,19 @@ def compare_run(
             flown[cand.row] = ev.intervals if ev.completed else ()
         mine = flown[cand.row]
         for cfg, ref_ev in refs:
-            head = {"candidate": cand.label, "method": cand.method, "reference": cfg.name}
             sim = [(i.split_time_s, i.effort_V, i.pair_thrust_max_N, i.pair_thrust_min_N)
                    for i in ref_ev.intervals]
             m = measured.airframes.get(cfg.name)
             meas = [] if m is None else list(zip(m.split_times_s, m.effort_v, m.pair_thrust_max_n,
                                                  m.pair_thrust_min_n, strict=True))
-            for basis, values, count in (("simulated", sim, n), ("measured", meas, len(meas))):
+            bases: tuple[tuple[Literal["simulated", "measured"], list, int], ...] = (
+                ("simulated", sim, n), ("measured", meas, len(meas)))
+            for basis, values, count in bases:
                 for j in range(count):
                     ok = j < len(mine) and j < len(values)
                     g = _gains(mine[j], *values[j]) if ok else _NAN_GAINS
-                    rows.append(GainRow(**head, basis=basis, interval=j + 1, **g))
+                    rows.append(GainRow(candidate=cand.label, method=cand.method,
+                                        reference=cfg.name, basis=basis, interval=j + 1, **g))
     return rows
 
 

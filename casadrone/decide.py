@@ -65,7 +65,7 @@ def decide(
         ValueError: empty or non-finite front, mismatched senses, unknown method or objective.
     """
     names = list(senses) if isinstance(senses, Mapping) else None
-    sense_list = [senses[n] for n in names] if names is not None else list(senses)
+    sense_list = list(senses.values()) if isinstance(senses, Mapping) else list(senses)
     F = np.asarray(F, dtype=float)
     if F.ndim != 2 or F.shape[0] == 0:
         raise ValueError(f"the front is empty (shape {F.shape}): no feasible design to decide on")

@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -26,6 +27,9 @@ from casadrone.results import Record
 from casadrone.simulate import SimOptions, Trajectory, simulate
 from casadrone.trim import trim
 
+if TYPE_CHECKING:
+    from casadrone.limit.lap import LimitLapOptions
+
 
 @dataclass(frozen=True)
 class EvaluationSetup:
@@ -38,7 +42,7 @@ class EvaluationSetup:
     integrator: str = "rk4"
     trim_solver: str = "newton"
     sim_options: SimOptions = SimOptions()
-    limit: object | None = None  # LimitLapOptions: also compute the limit lap (J3_limit)
+    limit: LimitLapOptions | None = None  # also compute the limit lap (J3_limit)
     limit_references: tuple[dict[str, float], ...] = ()  # θ of the per-study warm starts
 
     @cached_property
@@ -54,6 +58,8 @@ class EvaluationSetup:
         gives the same result on every backend and in any evaluation order."""
         from casadrone.limit.lap import limit_lap
 
+        if self.limit is None:  # no limit lap in this study: nothing to warm-start
+            return ()
         laps = []
         for theta in self.limit_references:
             try:
@@ -185,6 +191,7 @@ def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory
     ``fallback_reference`` (only in that cold call: the references were tried already)."""
     from casadrone.limit.lap import limit_lap
 
+    assert setup.limit is not None
     cold = replace(setup.limit, guess_trajectory=traj, starts=("closed-loop", "point-mass"),
                    warm_starts=(), sensitivities=False)
     warm = setup.limit_warm_starts

@@ -344,7 +344,8 @@ def interval_table(traj: Trajectory) -> list[Interval]:
     W = len(traj.waypoints)
     if np.all(wi[1:] >= wi[:-1]):  # as flown: each interval is one run of samples
         edges = np.searchsorted(wi, np.arange(W + 1), side="left")
-        selections = [slice(int(edges[j]), int(edges[j + 1])) for j in range(W)]
+        selections: list[slice | np.ndarray] = [slice(int(edges[j]), int(edges[j + 1]))
+                                                for j in range(W)]
     else:
         selections = [interval_mask(traj, j) for j in range(1, W + 1)]
     rows = []

@@ -18,7 +18,7 @@ on top); the rotor positions the model uses are referred to it (r_i − c, see
 CoM, in this mode. Body axes: x nose, y left, z up; SI units out, config units (mm) in.
 
 This module sits below :mod:`casadrone.config` (whose schema checks call it), so it takes the
-configs as plain field values and imports nothing of casadrone's.
+configs as plain field values and imports nothing of casadrone's but the results' ``as_dict``.
 """
 
 from __future__ import annotations
@@ -29,6 +29,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from casadrone.results import AsDict
 
 
 def rotor_positions_mm(
@@ -45,7 +47,7 @@ def rotor_positions_mm(
     ]
 
 
-def inertia_tensor(v: dict[str, Any]) -> list[list[float]]:
+def inertia_tensor(v: Mapping[str, Any]) -> list[list[float]]:
     """The symmetric 3×3 tensor (kg·m²) of the ``i??_kgm2`` keys of an airframe's values."""
     return [
         [v["ixx_kgm2"], v["ixy_kgm2"], v["ixz_kgm2"]],
@@ -56,7 +58,7 @@ def inertia_tensor(v: dict[str, Any]) -> list[list[float]]:
 
 
 @dataclass(frozen=True)
-class MassProperties:
+class MassProperties(AsDict):
     """Mass (kg), centre of mass from the hub (m, body axes, 3) and inertia tensor about the
     centre of mass (kg·m², body axes, 3×3)."""
 

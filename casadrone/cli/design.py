@@ -6,7 +6,7 @@ import importlib
 import math
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -92,7 +92,7 @@ def validate(
     from casadrone.config.problem import ProblemConfig
     from casadrone.config.validation import check_config_file
 
-    report = []
+    report: list[dict[str, Any]] = []
     for path in _yaml_files(files):
         try:
             config = check_config_file(path)

@@ -26,8 +26,7 @@ def massprops(airframe: AirframeArg, overrides: OverridesArg = None, as_json: Js
 
     cfg = load_airframe(airframe, overrides or [])
     mp = mass_properties(cfg)
-    result = {"airframe": cfg.name, "mass_model": mp.mass_model, "mass_kg": mp.mass_kg,
-              "com_m": mp.com_m, "inertia_kgm2": mp.inertia_kgm2}
+    result = {"airframe": cfg.name, **mp.as_dict()}
     if as_json:
         print_json(result)
         return

@@ -164,7 +164,7 @@ def run_command(
         typer.Argument(help="dotted problem overrides, e.g. algorithm.generations=20 "
                        "objectives.0.index=J3"),
     ] = None,
-    out: Annotated[Path, typer.Option("--out", "-o", help="new run directory")] = ...,
+    out: Annotated[Path, typer.Option("--out", "-o", help="new run directory")] = ...,  # type: ignore[assignment]
     backend: BackendOpt = None,
     workers: WorkersOpt = None,
     scheduler: SchedulerOpt = None,
@@ -274,8 +274,6 @@ def decide_command(
     point, B the one closest to the front's mean point, C the best on --objective (default the
     problem's first objective), all in normalised objective space.
     """
-    from dataclasses import asdict
-
     from casadrone.compare import run_candidates
 
     require_run_dir(run_dir)
@@ -291,14 +289,14 @@ def decide_command(
         return
     from casadrone.indices import INDICES
 
-    for c in map(asdict, candidates):
-        on = f" on {c['objective']}" if c["objective"] else ""
-        typer.echo(f"{c['label']} {c['method']}{on}: pareto.csv row {c['row']}, distance "
-                   f"{c['distance']:.4f} (normalised objective space)")
-        typer.echo("    theta: " + ", ".join(f"{k}={v:.6g}" for k, v in c["theta"].items()))
+    for c in candidates:
+        on = f" on {c.objective}" if c.objective else ""
+        typer.echo(f"{c.label} {c.method}{on}: pareto.csv row {c.row}, distance "
+                   f"{c.distance:.4f} (normalised objective space)")
+        typer.echo("    theta: " + ", ".join(f"{k}={v:.6g}" for k, v in c.theta.items()))
         typer.echo("    objectives: " + ", ".join(
             f"{k}={v:.6g}" + (f" {INDICES[k].unit}" if k in INDICES else "")
-            for k, v in c["objectives"].items()))
+            for k, v in c.objectives.items()))
 
 
 @app.command()
@@ -320,7 +318,6 @@ def compare(
     and integrator (basis "simulated"). With --measured, also against the paper's Table 4
     (basis "measured": a different time base, orientation only), printed apart.
     """
-    from dataclasses import asdict
 
     from casadrone.compare import compare_run, format_gains
 
@@ -333,7 +330,7 @@ def compare(
     simulated = [r for r in rows if r.basis == "simulated"]
     apart = [r for r in rows if r.basis == "measured"] if measured else []
     if as_json:
-        print_json([asdict(r) for r in simulated + apart])
+        print_json([r.as_dict() for r in simulated + apart])
         return
     typer.echo(format_gains(simulated), nl=False)
     if apart:

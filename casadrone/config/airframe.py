@@ -12,6 +12,7 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import Field
 
 from casadrone.config.io import Schema, has_keys, load, resolve_config
@@ -244,13 +245,11 @@ def inertia_problems(J) -> list[tuple[str, str]]:
         return [("ixx_kgm2", "inertia tensor is not positive definite")]
     names = ("Ixx", "Iyy", "Izz")
     if any(offdiag):
-        import numpy as np
-
         moments, axes = np.linalg.eigh(np.asarray(J, float))
         nearest = [int(np.argmax(np.abs(axes[:, i]))) for i in range(3)]
         label = "principal moment"
     else:
-        moments, nearest, label = [J[i][i] for i in range(3)], [0, 1, 2], ""
+        moments, nearest, label = np.array([J[i][i] for i in range(3)]), [0, 1, 2], ""
     slack = TRIANGLE_RTOL * float(sum(moments))
     found = []
     for i in range(3):

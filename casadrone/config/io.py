@@ -129,7 +129,7 @@ class Schema(BaseModel):
     @field_validator("*", mode="before")
     @classmethod
     def _strict_numbers(cls, value: Any, info: ValidationInfo) -> Any:
-        field = cls.model_fields.get(info.field_name)
+        field = cls.model_fields.get(info.field_name or "")
         if field is not None:
             problem = strict_scalar_problem(scalar_types(field.annotation), value)
             if problem:
@@ -311,7 +311,8 @@ def _short(value: Any) -> str | None:
 def error_pairs(exc: ValidationError, model: type[BaseModel]) -> list[tuple[str, str]]:
     """(dotted key, message) for every error of a pydantic ValidationError."""
     pairs = []
-    n_expected = {}  # tuple too short: one error per missing item; report the length once
+    # tuple too short: one error per missing item; report the length once
+    n_expected: dict[tuple, int] = {}
     for err in exc.errors():
         loc = tuple(err["loc"])
         if err["type"] == "missing" and loc and isinstance(loc[-1], int):
@@ -360,7 +361,7 @@ def field_adapter(model: type[BaseModel], name: str) -> TypeAdapter:
             raise ValueError(problem)
         return value
 
-    annotated = Annotated[field.annotation, *field.metadata, BeforeValidator(strict)]
+    annotated = Annotated[field.annotation, *field.metadata, BeforeValidator(strict)]  # type: ignore[name-defined]
     if _model_in(field.annotation) is None:
         return TypeAdapter(annotated, config=ConfigDict(allow_inf_nan=False))
     return TypeAdapter(annotated)
@@ -469,7 +470,7 @@ def validate_data(
         pairs = error_pairs(exc, model) + partial_problems(model, data)
         return_value = None
     errors += problem_lines(pairs, source, overrides)
-    if errors:
+    if errors or return_value is None:
         raise ConfigError(errors)
     return return_value
 

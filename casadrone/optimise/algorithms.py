@@ -10,7 +10,7 @@ import contextlib
 import importlib
 from collections.abc import Iterator, Mapping
 from math import comb
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from pymoo.core.algorithm import Algorithm
@@ -157,11 +157,43 @@ def reference_directions(n_obj: int, n_points: int) -> np.ndarray:
     return get_reference_directions("das-dennis", n_obj, n_partitions=partitions)
 
 
+@runtime_checkable
+class KeepsFront(Protocol):
+    """What the runner asks of an algorithm that keeps its set of solutions as arrays (ev-MOGA's
+    archive) instead of pymoo's ``opt`` population. Any other pymoo algorithm is read through
+    ``opt``; the runner knows no algorithm's internals (:func:`front_rows`, :func:`front_size`)."""
+
+    def front_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """X, F (minimised) and CV of the kept set, rows alike; None while it is empty."""
+        ...
+
+    def front_size(self) -> int:
+        """How many solutions the kept set holds (all feasible), without building it."""
+        ...
+
+
+def front_rows(algorithm: Algorithm) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """X, F (minimised) and CV of the algorithm's result set; None when it has none."""
+    rows = algorithm.front_rows() if isinstance(algorithm, KeepsFront) else None
+    if rows is not None:
+        return rows
+    opt = algorithm.opt
+    if opt is None or len(opt) == 0:
+        return None
+    return opt.get("X"), opt.get("F"), opt.get("CV")
+
+
+def front_size(algorithm: Algorithm) -> int | None:
+    """The size of the algorithm's kept set where it knows it without building it, else None."""
+    return algorithm.front_size() if isinstance(algorithm, KeepsFront) else None
+
+
 def make_algorithm(
     name: str,
     settings: Mapping[str, Any] | None = None,
     pop_size: int | None = None,
     n_obj: int = 2,
+    generations: int | None = None,
 ) -> Algorithm:
     """Return a configured algorithm.
 
@@ -174,6 +206,8 @@ def make_algorithm(
             ``pop_size`` (100 if not given).
         pop_size: Population size: ev-MOGA's ``n_ind_p`` (P), pymoo's ``pop_size``.
         n_obj: Number of objectives (for reference directions).
+        generations: The run's generations after initialisation: ev-MOGA's dd and σ schedules
+            run over them (its ``generations`` setting); pymoo's algorithms ignore it.
 
     Raises:
         ValueError: for an unknown name, or a ``pop_size`` that contradicts ``settings``.
@@ -182,6 +216,8 @@ def make_algorithm(
     kwargs = dict(settings or {})
     if key == "evmoga":
         _merge_pop_size(kwargs, "n_ind_p", pop_size)
+        if generations is not None:
+            kwargs["generations"] = generations
         return EvMOGA(**kwargs)
     if key not in _PYMOO:
         raise ValueError(

@@ -245,7 +245,18 @@ class EvMOGA(Algorithm):
         # P: its row arrays (ROW_KEYS), set through the ``pop`` property, which pymoo's __init__
         # has already called
 
-    # ---- the archive as pymoo and the tests see it ----------------------------------------------
+    # ---- the archive as the runner (algorithms.KeepsFront), pymoo and the tests see it ---------
+
+    def front_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """X, F (minimised) and CV of the archive; None while it is empty (or not yet set up)."""
+        a = self.box_archive
+        if a is None or not len(a):
+            return None
+        return a.rows["X"], a.F, a.rows["CV"]
+
+    def front_size(self) -> int:
+        """Members of the archive (feasible solutions only)."""
+        return len(self.box_archive) if self.box_archive is not None else 0
 
     @property
     def archive_F(self) -> np.ndarray:

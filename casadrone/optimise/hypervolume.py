@@ -95,7 +95,7 @@ def dominated_by(Z: np.ndarray, S: np.ndarray) -> np.ndarray:
     """Which rows of ``S`` some row of ``Z`` weakly dominates (minimised): as bitsets over
     ``Z`` (:func:`casadrone.optimise.bitsets.points_below`), O(|S| · m · |Z| / 64) word
     operations."""
-    return points_below(S, Z).any(axis=1)
+    return np.asarray(points_below(S, Z).any(axis=1))
 
 
 @dataclass(frozen=True)

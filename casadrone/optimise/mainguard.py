@@ -16,6 +16,7 @@ import multiprocessing.context
 import sys
 from contextlib import contextmanager
 from pathlib import Path
+from types import FrameType
 
 
 def _is_main_test(node: ast.expr) -> bool:
@@ -39,7 +40,7 @@ def unguarded_main_call() -> str | None:
     if not path or not Path(path).is_file():
         return None
     line = None
-    frame = sys._getframe(1)
+    frame: FrameType | None = sys._getframe(1)
     while frame is not None:
         if (frame.f_code.co_name == "<module>"
                 and frame.f_globals.get("__name__") in ("__main__", "__mp_main__")

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from casadrone.config.problem import BackendConfig, ProblemConfig
-from casadrone.optimise.algorithms import seeded_defaults
+from casadrone.optimise.algorithms import front_rows, front_size, seeded_defaults
 from casadrone.optimise.backends import make_backend
 from casadrone.optimise.checkpoint import dumps
 from casadrone.optimise.hypervolume import HypervolumeState, advance
@@ -143,24 +143,18 @@ def build_algorithm(problem: ProblemConfig, n_obj: int):
     from casadrone.optimise.algorithms import make_algorithm
 
     a = problem.algorithm
-    settings = dict(a.settings)
-    if a.name.strip().lower() == "evmoga":
-        settings["generations"] = a.generations  # ev-MOGA's dd and σ schedules need G
-    algorithm = make_algorithm(a.name, settings, pop_size=a.population, n_obj=n_obj)
+    algorithm = make_algorithm(a.name, a.settings, pop_size=a.population, n_obj=n_obj,
+                               generations=a.generations)
     return algorithm, ("n_gen", a.generations + 1)
 
 
 def front(algorithm, study: Study) -> tuple[np.ndarray, np.ndarray]:
     """Feasible non-dominated set of the algorithm's result (objectives back in their sense)."""
-    archive = getattr(algorithm, "box_archive", None)  # ev-MOGA: its arrays, no Population
-    if archive is not None and len(archive):
-        X, F, CV = archive.rows["X"], archive.F, archive.rows["CV"]
-    else:
-        opt = algorithm.opt
-        if opt is None or len(opt) == 0:
-            return (np.empty((0, len(study.variable_names))),
-                    np.empty((0, len(study.objective_names))))
-        X, F, CV = opt.get("X"), opt.get("F"), opt.get("CV")
+    rows = front_rows(algorithm)
+    if rows is None:
+        return (np.empty((0, len(study.variable_names))),
+                np.empty((0, len(study.objective_names))))
+    X, F, CV = rows
     feas = np.asarray(CV).ravel() <= 0
     X, F = X[feas], F[feas]
     sign = np.array([-1.0 if s == "max" else 1.0 for s in study.senses])
@@ -172,10 +166,8 @@ def archive_count(algorithm, study: Study) -> int:
     """Size of the feasible non-dominated set :func:`front` returns, without building it where
     the algorithm keeps it as arrays (ev-MOGA's archive holds feasible solutions only; a pymoo
     population of a 7 000-member archive costs ~35 ms a generation)."""
-    archive = getattr(algorithm, "box_archive", None)
-    if archive is not None:
-        return len(archive)
-    return len(front(algorithm, study)[0])
+    size = front_size(algorithm)
+    return size if size is not None else len(front(algorithm, study)[0])
 
 
 def generation_hypervolume(study: Study, records, state: HypervolumeState | None

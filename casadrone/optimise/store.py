@@ -123,6 +123,7 @@ def snapshot_inputs(problem: ProblemConfig, path: Path) -> ProblemConfig:
 
         for plugin in problem.plugins:
             import_plugin(plugin)
+    assert problem.airframe is not None  # a casadrone problem (not a test problem) names one
     sources = {
         "airframe": resolve_config(problem.airframe, "airframes"),
         "track": Path(problem.track or CONFIG_DIR / "tracks" / "paper-rectangle.yaml"),

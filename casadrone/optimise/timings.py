@@ -31,6 +31,7 @@ from __future__ import annotations
 import csv
 import os
 from pathlib import Path
+from typing import Any
 
 TIMINGS = "timings.csv"
 FIELDS = ("generation", "n_evaluations", "archive_size", "ask_s", "evaluate_s", "advance_s",
@@ -72,8 +73,9 @@ def read_timings(run_dir: Path) -> list[dict]:
     rows: dict[int, dict] = {}
     with open(path, newline="") as fh:
         for raw in csv.DictReader(fh):
-            row = {k: (v if k == "finished" else float(v) if v not in ("", None) else None)
-                   for k, v in raw.items()}
+            row: dict[str, Any] = {
+                k: (v if k == "finished" else float(v) if v not in ("", None) else None)
+                for k, v in raw.items()}
             for k in ("generation", "n_evaluations", "archive_size"):
                 row[k] = int(row[k])
             rows[row["generation"]] = row

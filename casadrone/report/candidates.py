@@ -36,9 +36,9 @@ def evaluate_candidates(run: Run, cands: list[Candidate]) -> list[Candidate]:
 
 
 def _reproduction(run: Run, cands: list[Candidate]) -> Html:
-    failed = [c.label for c in cands if not c.evaluation.completed]
-    diffs = [abs(c.evaluation.indices[n] - v) / max(abs(v), 1e-12) for c in cands
-             if c.evaluation.completed for n, v in c.objectives.items()]
+    failed = [c.label for c in cands if not c.flown.completed]
+    diffs = [abs(c.flown.indices[n] - v) / max(abs(v), 1e-12) for c in cands
+             if c.flown.completed for n, v in c.objectives.items()]
     worst = max(diffs, default=0.0)
     if not failed and worst <= 1e-9:
         return note(f"Re-evaluated now: every objective reproduces {PARETO} (largest relative "
@@ -86,8 +86,8 @@ def section_candidates(run: Run, cands: list[Candidate], figs: Figures,
     if not cands:
         return empty_front(run)
     parts = [_reproduction(run, cands)]
-    flown = {c.title: c.evaluation.trajectory for c in cands
-             if c.evaluation.trajectory is not None}
+    flown = {c.title: c.flown.trajectory for c in cands
+             if c.flown.trajectory is not None}
     colours = {c.title: plots.candidate_colour(c.label) for c in cands}
     if len(flown) > 1:
         parts.append(figs.embed(plots.track_top_view(flown, title="Candidates, top view",
@@ -117,7 +117,7 @@ def _limit_lap(run: Run, c: Candidate, figs: Figures) -> str:
     setup = study_setup(run.study)
     if setup.limit is None or run.test_problem:
         return ""
-    lap = evaluate_limit(with_theta(setup.template, c.theta), setup, c.evaluation.trajectory)
+    lap = evaluate_limit(with_theta(setup.template, c.theta), setup, c.flown.trajectory)
     if not lap.optimal:
         return note(f"Limit lap of {c.title} failed: {lap.reason}", "warn")
     splits = ", ".join(f"{t:.3f}" for t in lap.split_times_s)
@@ -125,7 +125,7 @@ def _limit_lap(run: Run, c: Candidate, figs: Figures) -> str:
            kv_table([("limit lap (s)", num(lap.lap_time_s)), ("split times (s)", splits),
                      ("bang-bang fraction", num(lap.bang_bang_fraction)),
                      ("winning start", lap.start), ("iterations", str(lap.iterations))])]
-    figures = plots.limit_lap_figures(lap, c.evaluation.trajectory, setup.track.waypoints_m)
+    figures = plots.limit_lap_figures(lap, c.flown.trajectory, setup.track.waypoints_m)
     for name in ("limit-top-view", "limit-time-histories"):
         out.append(figs.embed(figures[name], f"{name}-{c.label}",
                               f"Candidate {c.title}: limit lap beside its closed-loop lap."))
@@ -135,7 +135,7 @@ def _limit_lap(run: Run, c: Candidate, figs: Figures) -> str:
 def _candidate(run: Run, c: Candidate, figs: Figures) -> str:
     from casadrone.airframe import family
 
-    s, ev = run.study, c.evaluation
+    s, ev = run.study, c.flown
     lo, hi = s.bounds
     geo = [[SYMBOL.get(n, n), n, unit_of(n), cell(c.theta[n], exact=True), a, b]
            for n, a, b in zip(s.variable_names, lo, hi, strict=True)]
@@ -228,7 +228,7 @@ def _index_gains(run: Run, cands: list[Candidate], cfg, ref: Evaluation) -> str:
         sense, rv = senses.get(n, index.sense), ref.indices.get(n)
         row = [f"{n} ({index.unit})", sense, cell(rv)]
         for c in cands:
-            v = c.evaluation.indices.get(n)
+            v = c.flown.indices.get(n)
             row += [cell(v), cell(gain_pct(v, rv, sense) if v is not None and rv else None,
                                   "+.1f")]
         rows.append(row)

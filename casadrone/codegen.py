@@ -47,7 +47,8 @@ def compile_source(name: str, src: str, flags: tuple[str, ...] = DEFAULT_FLAGS) 
 
     Raises OSError or CalledProcessError when there is no working C compiler (``$CC``, else gcc).
     """
-    digest = hashlib.sha256("\0".join([src, *flags, ca.__version__]).encode()).hexdigest()[:16]
+    version = ca.__version__  # type: ignore[attr-defined]  # absent from the stubs
+    digest = hashlib.sha256("\0".join([src, *flags, version]).encode()).hexdigest()[:16]
     cache = cache_dir()
     target = cache / f"{name}_{digest}.so"
     if target.exists():

@@ -28,7 +28,7 @@ from casadrone.results import AsDict
 # --------------------------------------------------------------------------------------------
 
 
-def gain_pct(candidate, reference, sense: Literal["min", "max"] = "min"):
+def gain_pct(candidate, reference, sense: str = "min"):
     """Percentage gain of a candidate over a reference, positive meaning better (paper Eq. 21).
 
     Paper Eq. 21, for lap times::

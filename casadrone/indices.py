@@ -32,7 +32,7 @@ track without curves) is NaN.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Literal
@@ -283,7 +283,7 @@ def get_index(name: str) -> Index:
         raise ValueError(f"unknown index {name!r}; known: {', '.join(_REGISTRY)}") from None
 
 
-def compute_indices(traj: Trajectory, names: list[str] | tuple[str, ...] | None = None
+def compute_indices(traj: Trajectory, names: Sequence[str] | None = None
                     ) -> dict[str, float]:
     """Values of the named closed-loop indices (all registered ones by default) for a completed
     lap; limit-lap indices are skipped (see :func:`limit_indices`).
@@ -301,7 +301,7 @@ def limit_index_names(names) -> tuple[str, ...]:
     return tuple(n for n in names if n in INDICES and INDICES[n].source == "limit")
 
 
-def limit_indices(lap, names: list[str] | tuple[str, ...] | None = None) -> dict[str, float]:
+def limit_indices(lap, names: Sequence[str] | None = None) -> dict[str, float]:
     """Values of the named limit-lap indices (all of them by default) of an optimal limit lap."""
     selected = [get_index(n) for n in (INDICES if names is None else names)]
     return {i.name: i(lap) for i in selected if i.source == "limit"}

@@ -28,9 +28,16 @@ NOMINAL = "tab:blue"
 ENSEMBLE = "0.6"
 
 
+def _figure_of(ax: Axes) -> Figure:
+    """The figure an Axes is drawn on (every Axes has one)."""
+    fig = ax.get_figure(root=True)
+    assert isinstance(fig, Figure)
+    return fig
+
+
 def _figure_axes(ax: Axes | None, figsize: tuple[float, float], **kw) -> tuple[Figure, Axes]:
     if ax is not None:
-        return ax.get_figure(root=True), ax
+        return _figure_of(ax), ax
     fig = Figure(figsize=figsize, layout="constrained")
     return fig, fig.add_subplot(**kw)
 
@@ -293,12 +300,12 @@ def eigenvalue_cloud(design: LQRIDesign, ensemble: Ensemble | None = None, *,
     nominal = np.asarray(design.closed_loop_eigenvalues)
     cloud = np.asarray(ensemble.eigenvalues).ravel() if ensemble is not None else np.empty(0)
     every = np.concatenate([nominal, cloud])
-    windows: list[tuple[float, float, float, float] | None] = [None]
+    windows: list[tuple[float, ...] | None] = [None]
     if zoom is not False:
         windows.append(_zoom_window(every) if zoom is True else tuple(zoom))
     if ax is not None:
         windows = [windows[-1] if not isinstance(zoom, bool) else None]
-        fig, axes = ax.get_figure(root=True), [ax]
+        fig, axes = _figure_of(ax), [ax]
     else:
         fig = Figure(figsize=(5.0 * len(windows), 5.4), layout="constrained")
         axes = list(np.atleast_1d(fig.subplots(1, len(windows))))
@@ -308,15 +315,16 @@ def eigenvalue_cloud(design: LQRIDesign, ensemble: Ensemble | None = None, *,
         a.plot(np.cos(phi), np.sin(phi), color="k", lw=0.8, gid="unit-circle")
         a.axhline(0.0, color="k", lw=0.4)
         a.axvline(0.0, color="k", lw=0.4)
-        if cloud.size:
+        if ensemble is not None and cloud.size:
             worst = ensemble.max_spectral_radius
             a.plot(cloud.real, cloud.imag, ".", color=ENSEMBLE, ms=4, gid="ensemble",
                    label=f"{ensemble.n} perturbed plants (max |z| = {worst:.4f})")
         a.plot(nominal.real, nominal.imag, "x", color=NOMINAL, ms=7, mew=1.5, gid="nominal",
                label=f"nominal (max |z| = {rho:.4f})")
         a.set_aspect("equal", adjustable="box")
-        if win is None and len(windows) > 1:  # outline the zoom window on the whole disc
-            zx0, zx1, zy0, zy1 = windows[1]
+        zoomed = windows[-1]
+        if win is None and zoomed is not None:  # outline the zoom window on the whole disc
+            zx0, zx1, zy0, zy1 = zoomed
             a.plot([zx0, zx1, zx1, zx0, zx0], [zy0, zy0, zy1, zy1, zy0], color="k", ls=":",
                    lw=0.8, gid="zoom-window")
         if win is not None:
@@ -514,7 +522,8 @@ def pareto_front(F: np.ndarray, names: Sequence[str], highlight: Mapping[str, in
         raise ValueError(f"{len(names)} names for {m} objectives")
     if m < 2:
         raise ValueError("a Pareto front needs at least two objectives")
-    labels = [_objective_label(n, u) for n, u in zip(names, units or [None] * m, strict=True)]
+    unit_of: list[str | None] = list(units) if units else [None] * m
+    labels = [_objective_label(n, u) for n, u in zip(names, unit_of, strict=True)]
     highlight = dict(highlight or {})
     if m == 2:
         fig = Figure(figsize=(6.5, 5.0), layout="constrained")

@@ -46,7 +46,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Literal
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -71,7 +71,8 @@ from casadrone.model import (
 )
 from casadrone.propulsion import hover_rotors
 
-Condition = Literal["hover", "forward", "climb", "turn"]
+#: A trim condition's name: a key of :data:`casadrone.conditions.CONDITION_REGISTRY`.
+Condition = str
 UNKNOWN_NAMES = ("phi", "theta", "delta1", "delta2", "delta3", "delta4")
 _K = PARAM_NAMES.index("K")
 _PSI_ROW = STATE_NAMES.index("psi")
@@ -235,7 +236,7 @@ def _ipopt(tol: float, max_iter: int, level: bool, propulsion: str = "paper") ->
     NP = n_params(propulsion)
     z, pv = ca.SX.sym("z", n_unknowns(propulsion)), ca.SX.sym("pv", NP + 3)
     g = fn.residual(z, pv[:NP], pv[NP:])
-    opts = {
+    opts: dict[str, Any] = {
         "print_time": False,
         "ipopt.print_level": 0,
         "ipopt.sb": "yes",

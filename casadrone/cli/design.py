@@ -30,6 +30,7 @@ from casadrone.config.io import ConfigError
 
 #: The trim conditions, from their one registry (:mod:`casadrone.conditions`).
 Condition = StrEnum("Condition", {name: name for name in CONDITIONS})  # type: ignore[misc]
+HOVER = Condition("hover")
 
 
 def _trim_solvers() -> tuple[str, ...]:
@@ -130,7 +131,7 @@ def validate(
 def trim(
     airframe: AirframeArg,
     overrides: OverridesArg = None,
-    condition: Annotated[Condition, typer.Option(help="operating point")] = Condition.hover,
+    condition: Annotated[Condition, typer.Option(help="operating point")] = HOVER,
     speed: Annotated[
         float | None, typer.Option(help="speed along the flight path (m/s), required with "
                                    "forward, climb and turn")
@@ -177,7 +178,7 @@ _OPTION_OF = {"speed_mps": "--speed", "climb_angle_deg": "--climb-angle",
 
 
 def operating_point_options(condition: str, speed: float | None, climb_angle: float | None,
-                            turn_rate: float | None) -> dict[str, float]:
+                            turn_rate: float | None) -> dict[str, Any]:
     """The keyword arguments of :func:`casadrone.trim.trim` for a condition's options; exit 2
     naming the option when one is missing, not finite, foreign to the condition or out of
     range."""
@@ -272,7 +273,7 @@ def linearise(
     method: Annotated[
         LinMethod, typer.Option(help="exact (AD), fd (finite differences) or both, compared")
     ] = LinMethod.exact,
-    condition: Annotated[Condition, typer.Option(help="operating point")] = Condition.hover,
+    condition: Annotated[Condition, typer.Option(help="operating point")] = HOVER,
     speed: Annotated[float | None, typer.Option(help="speed along the path (m/s)")] = None,
     climb_angle: Annotated[float | None, typer.Option(help="climb angle (deg)")] = None,
     turn_rate: Annotated[float | None, typer.Option(help="turn rate (deg/s)")] = None,

@@ -230,12 +230,15 @@ def _input_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
         template = load_airframe(v["airframe"])
     except ConfigError as exc:
         return [("airframe", f"referenced file is invalid: {_first(exc)}")]
-    for key, loader in (("controller", load_controller), ("track", _load_track)):
+    for key in ("controller", "track"):
         if v.get(key) is not None:
             try:
-                ctrl = loader(v[key])
-                if key == "controller" and ctrl.reference_airframe is not None:
-                    load_airframe(ctrl.reference_airframe)
+                if key == "track":
+                    _load_track(v[key])
+                    continue
+                reference = load_controller(v[key]).reference_airframe
+                if reference is not None:
+                    load_airframe(reference)
             except ConfigError as exc:
                 found.append((key, f"referenced file is invalid: {_first(exc)}"))
     base = template.model_dump()

@@ -142,7 +142,7 @@ def svg(src: ExportSource, options: PlateOptions | None = None) -> str:
     def pt(xy) -> str:  # drawing (Y up) → SVG (Y down)
         return f"{xy[0] + 0.0:.4f},{-xy[1] + 0.0:.4f}"
 
-    d = []
+    d: list[str] = []
     for piece in p.outline:
         if piece[0] == "line":
             d.append(("M" if not d else "L") + pt(piece[1]) + " L" + pt(piece[2]))
@@ -172,10 +172,11 @@ def svg(src: ExportSource, options: PlateOptions | None = None) -> str:
     cx, cy = p.com
     out.append(f'<circle class="com" cx="{cx + 0.0:.4f}" cy="{-cy + 0.0:.4f}" r="1.5" '
                'fill="#cc3333"/>')
-    for a, b, label in _dimensions(p):
-        mid = (a + b) / 2
-        out.append(f'<line class="dimension" x1="{a[0]:.4f}" y1="{-a[1] + 0.0:.4f}" '
-                   f'x2="{b[0]:.4f}" y2="{-b[1] + 0.0:.4f}" stroke="#cc3333" stroke-width="0.15"/>')
+    for start, end, label in _dimensions(p):
+        mid = (start + end) / 2
+        out.append(f'<line class="dimension" x1="{start[0]:.4f}" y1="{-start[1] + 0.0:.4f}" '
+                   f'x2="{end[0]:.4f}" y2="{-end[1] + 0.0:.4f}" stroke="#cc3333" '
+                   'stroke-width="0.15"/>')
         out.append(f'<text x="{mid[0]:.4f}" y="{-mid[1] - 1.5 + 0.0:.4f}" font-size="4" '
                    f'text-anchor="middle" fill="#cc3333">{label} mm</text>')
     out.append(f'<text x="{x0 + 3:.3f}" y="{-y1 + 6:.3f}" font-size="3.5">'
@@ -231,8 +232,8 @@ def dxf(src: ExportSource, options: PlateOptions | None = None) -> str:
         msp.add_point((float(m[0]), float(m[1])), dxfattribs={"layer": "MOTOR_CENTRES"})
         msp.add_circle((float(m[0]), float(m[1])), p.prop_radius, dxfattribs={"layer": "PROPS"})
     msp.add_point((float(p.com[0]), float(p.com[1])), dxfattribs={"layer": "COM"})
-    for a, b, _ in _dimensions(p):
-        msp.add_aligned_dim(p1=tuple(a), p2=tuple(b), distance=8.0,
+    for start, end, _ in _dimensions(p):
+        msp.add_aligned_dim(p1=tuple(start), p2=tuple(end), distance=8.0,
                             dxfattribs={"layer": "DIMENSIONS"}).render()
     x0, y0, _, y1 = _extent(p)
     msp.add_text(f"{src.config.name}: X right, Y nose; mm", height=3.5,

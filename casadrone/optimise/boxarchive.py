@@ -51,13 +51,13 @@ __all__ = [
 def pareto_dominates(f: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Whether ``f`` Pareto-dominates each row of ``F`` (minimisation)."""
     F = np.atleast_2d(F)
-    return (f <= F).all(axis=1) & (f < F).any(axis=1)
+    return np.asarray((f <= F).all(axis=1) & (f < F).any(axis=1))
 
 
 def pareto_dominates_rows(F: np.ndarray, f: np.ndarray) -> np.ndarray:
     """Whether each row of ``F`` Pareto-dominates ``f`` (minimisation)."""
     F = np.atleast_2d(F)
-    return (F <= f).all(axis=1) & (F < f).any(axis=1)
+    return np.asarray((F <= f).all(axis=1) & (F < f).any(axis=1))
 
 
 def box_index(F: np.ndarray, f_min: np.ndarray, eps: np.ndarray) -> np.ndarray:
@@ -310,12 +310,20 @@ class BoxArchive:
         self.grid_max = np.array(f_max, dtype=float)
         self.eps = (self.grid_max - self.grid_min) / self.n_div
 
+    def _grid(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``grid_min``, ``grid_max`` and ``eps``, which :meth:`set_grid` sets before any member
+        is inserted."""
+        if self.grid_min is None or self.grid_max is None or self.eps is None:
+            raise RuntimeError("the archive's grid is not set")
+        return self.grid_min, self.grid_max, self.eps
+
     def _box_columns(self, F: np.ndarray) -> np.ndarray:
         """:func:`box_index` of the rows of ``F``, one row per objective (same arithmetic)."""
+        f_min, _, eps = self._grid()
         out = np.zeros((F.shape[1], len(F)), dtype=np.int64)
         for j in range(F.shape[1]):
-            if self.eps[j] > 0.0:
-                out[j] = np.ceil(np.round((F[:, j] - self.grid_min[j]) / self.eps[j], 6))
+            if eps[j] > 0.0:
+                out[j] = np.ceil(np.round((F[:, j] - f_min[j]) / eps[j], 6))
         return out
 
     def _set(self, rows: Mapping[str, np.ndarray], box_columns: np.ndarray) -> None:
@@ -355,7 +363,7 @@ class BoxArchive:
         for k, v in self._rows.items():
             v[n] = self._row(row, k)
         self._box[:, n] = b
-        if self._packed is not None:
+        if self._packed is not None and self._packing is not None:
             key = pack_box(b, self._packing)
             if key is None or len(self._packed) <= n:  # does not fit, or storage grew
                 self._packed = None
@@ -397,7 +405,8 @@ class BoxArchive:
             eps = self.eps
             self.set_grid(f, f)
             self.eps = eps
-            self._only(row, box_index(f, self.grid_min, self.eps)[0])
+            f_min, _, eps = self._grid()
+            self._only(row, box_index(f, f_min, eps)[0])
         else:
             F = self.F
             lower, higher = F[:, 0] < f[0], F[:, 0] > f[0]  # column by column: no axis-1 reduce
@@ -435,9 +444,10 @@ class BoxArchive:
                 i += 1
                 continue
             rest = F[i:]
+            f_min, f_max, _ = self._grid()
             inside = np.ones(len(rest), dtype=bool)
             for j in range(rest.shape[1]):
-                inside &= (rest[:, j] < self.grid_max[j]) & (rest[:, j] > self.grid_min[j])
+                inside &= (rest[:, j] < f_max[j]) & (rest[:, j] > f_min[j])
             end = i + (int(inside.argmin()) if not inside.all() else len(rest))
             if end - i >= self.BATCH:
                 self._insert_batch({k: v[i:end] for k, v in rows.items()})
@@ -474,24 +484,26 @@ class BoxArchive:
         """Insert with the current grid (insertion cases 1-4, docs/concepts/evmoga.md#insertion);
         return whether the child entered."""
         f = np.asarray(row["F"], dtype=float).ravel()
-        b = box_index(f, self.grid_min, self.eps)[0]
+        f_min, _, eps = self._grid()
+        b = box_index(f, f_min, eps)[0]
         if self._n == 0:
             self._append(row, b)
             return True
         Bt = self._box[:, :self._n]
-        packed = self._packed_boxes()
-        packed_b = None if packed is None else pack_box(b, self._packing)
+        packed, packing = self._packed_boxes(), self._packing
+        packed_b = None if packed is None or packing is None else pack_box(b, packing)
         if packed_b is None:
             below = np.flatnonzero(_all_le(Bt, b))  # members whose box is <= the child's
         else:  # the same test on packed boxes (box_packing)
-            guard = self._packing[2]
+            assert packed is not None and packing is not None
+            guard = packing[2]
             below = np.flatnonzero((((packed_b | guard) - packed) & guard) == guard)
         if len(below):
             if not (Bt[:, below] == b[:, None]).all():
                 return False  # case 1: the child's box is dominated
             # case 3: the one member of the child's box (nothing for case 2 to delete)
             k = int(below[0])
-            if not challenger_wins(f, self.F[k], b, self.grid_min, self.eps):
+            if not challenger_wins(f, self.F[k], b, f_min, eps):
                 return False
             for key, v in self._rows.items():
                 v[k] = self._row(row, key)
@@ -501,6 +513,7 @@ class BoxArchive:
             for j in range(1, len(b)):
                 gone &= Bt[j] >= b[j]
         else:
+            assert packed is not None
             gone = (((packed | guard) - packed_b) & guard) == guard
         if gone.any():
             self._take(~gone)
@@ -547,6 +560,7 @@ class BoxArchive:
         sizes = np.bincount(group, minlength=len(keys))
         crowded = np.flatnonzero(sizes[keep] > 1)
         if len(crowded):  # fold case 3 over each crowded box's items, in order
+            f_min, _, eps = self._grid()
             members = _stable_argsort(group)  # items grouped by box, in order
             bounds = np.r_[0, np.cumsum(sizes)]
             for i in crowded:
@@ -554,7 +568,7 @@ class BoxArchive:
                 queue = members[bounds[g]:bounds[g + 1]]
                 k = queue[0]
                 for c in queue[1:]:
-                    if challenger_wins(F[c], F[k], new[:, c], self.grid_min, self.eps):
+                    if challenger_wins(F[c], F[k], new[:, c], f_min, eps):
                         k = c
                 winner[i] = k
         if len(winner) == n and np.array_equal(winner, np.arange(n)):

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from pymoo.core.algorithm import Algorithm
@@ -203,6 +204,13 @@ class EvMOGA(Algorithm):
     solution has been seen).
     """
 
+    # set by pymoo's __init__ through the ``pop`` and ``opt`` setters, and by pymoo's advance
+    pop_rows: dict[str, np.ndarray] | None
+    _opt: Population | None
+    _opt_rows: dict[str, np.ndarray] | None
+    is_initialized: bool
+    archive: Any
+
     def __init__(
         self,
         n_ind_p: int = 100,
@@ -247,6 +255,13 @@ class EvMOGA(Algorithm):
 
     # ---- the archive as the runner (algorithms.KeepsFront), pymoo and the tests see it ---------
 
+    @property
+    def _box(self) -> BoxArchive:
+        """The archive, once ``_setup`` has made it."""
+        if self.box_archive is None:
+            raise RuntimeError("ev-MOGA has no archive before setup")
+        return self.box_archive
+
     def front_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """X, F (minimised) and CV of the archive; None while it is empty (or not yet set up)."""
         a = self.box_archive
@@ -261,32 +276,32 @@ class EvMOGA(Algorithm):
     @property
     def archive_F(self) -> np.ndarray:
         """Objectives (minimised) of the archive members, in archive order."""
-        return self.box_archive.F
+        return self._box.F
 
     @property
     def archive_X(self) -> np.ndarray:
-        return self.box_archive.rows["X"]
+        return self._box.rows["X"]
 
     @property
     def archive_box(self) -> np.ndarray:
-        return self.box_archive.box
+        return self._box.box
 
     @property
     def grid_min(self) -> np.ndarray | None:
-        return self.box_archive.grid_min
+        return self._box.grid_min
 
     @property
     def grid_max(self) -> np.ndarray | None:
-        return self.box_archive.grid_max
+        return self._box.grid_max
 
     @property
     def eps(self) -> np.ndarray | None:
-        return self.box_archive.eps
+        return self._box.eps
 
     @property
     def archive_pop(self) -> Population:
         """The archive as a new pymoo ``Population`` (built on each call: O(|A|) objects)."""
-        return _population_of_rows(self.box_archive.rows)
+        return _population_of_rows(self._box.rows)
 
     @property
     def pop(self) -> Population | None:
@@ -334,7 +349,7 @@ class EvMOGA(Algorithm):
         opt_rows = state.get("_opt_rows")
         if opt_rows is not None:
             state["_opt"] = None
-            if _same_rows(opt_rows, self.box_archive.rows):
+            if _same_rows(opt_rows, self._box.rows):
                 state["_opt_rows"] = _ARCHIVE
         if isinstance(state.get("off"), Population):
             state["off"] = None
@@ -360,16 +375,17 @@ class EvMOGA(Algorithm):
             self.pop = pop
         if legacy:
             self._n_seen = int(self.evaluator.n_eval)
+            assert self.n_div is not None  # set up before any checkpoint
             self.box_archive = BoxArchive(self.n_div, self._widths())
             pop = archive["archive_pop"]
             if len(pop):  # the old members get ids below zero: new ones count up from n_eval
                 rows = _rows(pop, self._widths(with_id=False))
                 rows["id"] = -1.0 - np.arange(len(pop), dtype=float)[:, None]
-                self.box_archive._set(rows, np.asarray(archive["archive_box"]).T)
+                self._box._set(rows, np.asarray(archive["archive_box"]).T)
             if archive["grid_min"] is not None:
-                self.box_archive.grid_min = archive["grid_min"]
-                self.box_archive.grid_max = archive["grid_max"]
-                self.box_archive.eps = archive["eps"]
+                self._box.grid_min = archive["grid_min"]
+                self._box.grid_max = archive["grid_max"]
+                self._box.eps = archive["eps"]
 
     # ---- pymoo hooks --------------------------------------------------------------------------
 
@@ -429,9 +445,8 @@ class EvMOGA(Algorithm):
             self.is_initialized = True
             self._post_advance()
         else:
-            val = self._advance(infills=infills, **kwargs)
-            if val is None or val:
-                self._post_advance()
+            self._advance(infills=infills, **kwargs)  # pymoo: a None or true return → post
+            self._post_advance()
         if self.termination.has_terminated():
             self.finalize()
         if self.archive is not None and infills is not None:
@@ -447,12 +462,13 @@ class EvMOGA(Algorithm):
         nd = feasible[NonDominatedSorting().do(F[feasible], only_non_dominated_front=True)]
         nd = np.sort(nd)
         F_nd = F[nd]
-        self.box_archive.set_grid(F_nd.min(axis=0), F_nd.max(axis=0))
-        self.box_archive.fill({k: v[nd] for k, v in rows.items()})
+        self._box.set_grid(F_nd.min(axis=0), F_nd.max(axis=0))
+        self._box.fill({k: v[nd] for k, v in rows.items()})
 
     def _infill(self) -> Population:
         rs = self.random_state
         t = self.n_iter - 2  # pymoo's generation 2 is ev-MOGA's generation t = 0
+        assert self.pop_rows is not None and self.schedule_generations is not None  # set up
         dd = shrinking_schedule(self.dd_ini, self.dd_fin, t, self.schedule_generations)
         sigma = shrinking_schedule(self.sigma_ini, self.sigma_fin, t, self.schedule_generations)
         xl, xu = self.problem.bounds()
@@ -460,8 +476,8 @@ class EvMOGA(Algorithm):
 
         X_p = self.pop_rows["X"]
         p1 = X_p[rs.integers(len(X_p), size=n_pairs)]
-        if len(self.box_archive):
-            p2 = self.archive_X[rs.integers(len(self.box_archive), size=n_pairs)]
+        if len(self._box):
+            p2 = self.archive_X[rs.integers(len(self._box), size=n_pairs)]
         else:  # A empty: both parents from P
             p2 = X_p[rs.integers(len(X_p), size=n_pairs)]
         mutate = rs.random(n_pairs) < self.p_m
@@ -477,18 +493,19 @@ class EvMOGA(Algorithm):
         rows = self._rows_of_children(infills)
         F, cv = _violation_of_rows(rows)
         feasible = np.flatnonzero(cv <= 0.0)
-        self.box_archive.offer_many({k: v[feasible] for k, v in rows.items()})
+        self._box.offer_many({k: v[feasible] for k, v in rows.items()})
         taken = replacements(self.pop_F, self.pop_cv, F, cv, self.random_state)
         if taken:  # slot j of P takes child i
+            assert self.pop_rows is not None
             j = np.fromiter(taken.keys(), dtype=np.intp, count=len(taken))
             i = np.fromiter(taken.values(), dtype=np.intp, count=len(taken))
             for key in ROW_KEYS:
                 self.pop_rows[key][j] = rows[key][i]
 
     def _set_optimum(self) -> None:
-        if len(self.box_archive):  # a snapshot: A is edited in place later
+        if len(self._box):  # a snapshot: A is edited in place later
             self._opt, self._opt_rows = None, {k: v.copy()
-                                               for k, v in self.box_archive.rows.items()}
+                                               for k, v in self._box.rows.items()}
         else:  # nothing feasible yet: pymoo's convention, the least infeasible member of P
             self.opt = filter_optimum(self.pop, least_infeasible=True)
 

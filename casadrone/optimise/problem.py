@@ -71,6 +71,8 @@ def pymoo_test_problem(cfg: ProblemConfig):
     from pymoo.problems import get_problem
 
     tp = cfg.test_problem
+    if tp is None:
+        raise ValueError(f"problem {cfg.name!r} names no test problem")
     if tp.name == "dtlz2":
         return get_problem("dtlz2", n_var=tp.n_var, n_obj=tp.n_obj)
     return get_problem(tp.name, n_var=tp.n_var)
@@ -94,6 +96,7 @@ def _setup(key: str, problem: ProblemConfig):
 
     for plugin in problem.plugins:  # workers start fresh: register custom indices here too
         import_plugin(plugin)
+    assert problem.airframe is not None  # a casadrone problem (a test problem has no setup)
     template = load_airframe(problem.airframe)
     if problem.fixed:
         template = template.model_validate({**template.model_dump(), **problem.fixed})

@@ -103,7 +103,8 @@ def versions() -> dict[str, str]:
 
     from casadrone import __version__
 
-    return {"casadrone": __version__, "casadi": casadi.__version__,
+    return {"casadrone": __version__,
+            "casadi": casadi.__version__,  # type: ignore[attr-defined]  # absent from the stubs
             "pymoo": pymoo.__version__, "numpy": numpy.__version__,
             "python": platform.python_version()}
 

@@ -85,7 +85,7 @@ def section_candidates(run: Run, cands: list[Candidate], figs: Figures,
     each candidate's exported files, linked."""
     if not cands:
         return empty_front(run)
-    parts = [_reproduction(run, cands)]
+    parts: list[str] = [_reproduction(run, cands)]
     flown = {c.title: c.flown.trajectory for c in cands
              if c.flown.trajectory is not None}
     colours = {c.title: plots.candidate_colour(c.label) for c in cands}
@@ -200,7 +200,7 @@ def section_airframes(run: Run, cands: list[Candidate], references, figs: Figure
     frames = [build_airframe(with_theta(setup.template, c.theta, name=f"Candidate {c.label}"))
               for c in cands]
     colours = {f.name: plots.candidate_colour(c.label) for f, c in zip(frames, cands, strict=True)}
-    parts = []
+    parts: list[str] = []
     for ref in references:
         cfg = load_airframe(ref)
         fig = plots.airframe_top_view(frames, build_airframe(cfg),

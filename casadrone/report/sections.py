@@ -124,7 +124,7 @@ def section_pareto(run: Run, cands: list[Candidate], figs: Figures) -> str:
     s = run.study
     names = s.objective_names
     mark = {c.row: c.label for c in cands}
-    parts = []
+    parts: list[str] = []
     if len(names) >= 2:
         fig = plots.pareto_front(run.F, names, {c.label: c.row for c in cands},
                                  units=[run.unit(n) for n in names],
@@ -183,7 +183,8 @@ def section_failures(run: Run, figs: Figures) -> str:
              100 * (done & ~ok).sum() / n]]
     rows += [[f"failed at {s}", stage.get(s, 0), 100 * stage.get(s, 0) / n]
              for s in STAGES + tuple(sorted(set(stage) - set(STAGES)))]
-    parts = [table(["outcome", "evaluations", "share (%)"], rows + [["total", n, 100.0]])]
+    parts: list[str] = [table(["outcome", "evaluations", "share (%)"],
+                              rows + [["total", n, 100.0]])]
     viol = _constraint_violations(run, done)
     if viol:
         parts.append(table(["constraint", "completed laps violating it"], viol))
@@ -315,7 +316,7 @@ def _hover_trims(run: Run, cands: list[Candidate], figs: Figures, sample: int) -
              stat("smallest command u0 (–)", lambda r: min(r["u0"])),
              stat("largest command u0 (–)", lambda r: max(r["u0"]))]
     head = ["over the sample", "chain: min", "median", "max", "cold start: min", "median", "max"]
-    parts = [note(text), table(head, stats)]
+    parts: list[str] = [note(text), table(head, stats)]
     crows = []
     for c in cands:
         r = _trims(setup, c.theta)

@@ -28,6 +28,7 @@ from casadrone.config.reference import MeasuredAirframe, Table4Reference, load_r
 from casadrone.config.track import DEFAULT_TRACK, TrackConfig
 from casadrone.control import design_for
 from casadrone.indices import INDICES, Interval, compute_indices, interval_table
+from casadrone.results import Status
 from casadrone.simulate import Integrator, simulate
 
 #: The paper's reference airframes (Table 4), as names of configs/airframes/ files.
@@ -56,7 +57,7 @@ class BenchmarkRow:
 
     airframe: str
     config: str
-    status: str
+    status: Status
     reason: str
     intervals: tuple[Interval, ...]
     indices: dict[str, float]

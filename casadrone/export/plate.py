@@ -172,10 +172,10 @@ def svg(src: ExportSource, options: PlateOptions | None = None) -> str:
     cx, cy = p.com
     out.append(f'<circle class="com" cx="{cx + 0.0:.4f}" cy="{-cy + 0.0:.4f}" r="1.5" '
                'fill="#cc3333"/>')
-    for start, end, label in _dimensions(p):
-        mid = (start + end) / 2
-        out.append(f'<line class="dimension" x1="{start[0]:.4f}" y1="{-start[1] + 0.0:.4f}" '
-                   f'x2="{end[0]:.4f}" y2="{-end[1] + 0.0:.4f}" stroke="#cc3333" '
+    for p1, p2, label in _dimensions(p):
+        mid = (p1 + p2) / 2
+        out.append(f'<line class="dimension" x1="{p1[0]:.4f}" y1="{-p1[1] + 0.0:.4f}" '
+                   f'x2="{p2[0]:.4f}" y2="{-p2[1] + 0.0:.4f}" stroke="#cc3333" '
                    'stroke-width="0.15"/>')
         out.append(f'<text x="{mid[0]:.4f}" y="{-mid[1] - 1.5 + 0.0:.4f}" font-size="4" '
                    f'text-anchor="middle" fill="#cc3333">{label} mm</text>')
@@ -232,8 +232,8 @@ def dxf(src: ExportSource, options: PlateOptions | None = None) -> str:
         msp.add_point((float(m[0]), float(m[1])), dxfattribs={"layer": "MOTOR_CENTRES"})
         msp.add_circle((float(m[0]), float(m[1])), p.prop_radius, dxfattribs={"layer": "PROPS"})
     msp.add_point((float(p.com[0]), float(p.com[1])), dxfattribs={"layer": "COM"})
-    for start, end, _ in _dimensions(p):
-        msp.add_aligned_dim(p1=tuple(start), p2=tuple(end), distance=8.0,
+    for p1, p2, _ in _dimensions(p):
+        msp.add_aligned_dim(p1=tuple(p1), p2=tuple(p2), distance=8.0,
                             dxfattribs={"layer": "DIMENSIONS"}).render()
     x0, y0, _, y1 = _extent(p)
     msp.add_text(f"{src.config.name}: X right, Y nose; mm", height=3.5,

@@ -244,7 +244,8 @@ def test_the_config_package_imports_no_solver(code):
     import sys
 
     root = PACKAGE.parent
+    env = {**os.environ, "PYTHONPATH": str(root)}
     run = subprocess.run([sys.executable, "-c", LIGHT.format(code)], capture_output=True,
-                         text=True, cwd=root, timeout=120, env={**os.environ, "PYTHONPATH": str(root)})
+                         text=True, cwd=root, timeout=120, env=env)
     assert run.returncode == 0, run.stderr
     assert run.stdout.strip() == ""

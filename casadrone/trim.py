@@ -406,7 +406,8 @@ def trim(
     take (hover with a speed), raise ValueError.
     """
     if solver not in TRIM_SOLVERS:
-        raise ValueError(f"unknown trim solver '{solver}'; choose one of {', '.join(SOLVERS)}")
+        raise ValueError(f"unknown trim solver '{solver}'; choose one of "
+                         f"{', '.join(TRIM_SOLVERS)}")
     op = operating_vector(condition, speed_mps, climb_angle_deg, turn_rate_dps)
     o = options or TrimOptions()
     fn = _functions(_level(op), airframe.propulsion)
@@ -499,7 +500,7 @@ def trim_all(
     airframe, condition and options), for comparison; ``operating_point``: ``climb_angle_deg`` or
     ``turn_rate_dps`` as in :func:`trim`."""
     return [trim(airframe, condition, speed_mps, s, options, **operating_point)
-            for s in solvers or SOLVERS]
+            for s in solvers or tuple(TRIM_SOLVERS)]
 
 
 def rotor_thrusts(airframe: Airframe, x, u) -> np.ndarray:

@@ -33,10 +33,10 @@ Condition = StrEnum("Condition", {name: name for name in CONDITIONS})  # type: i
 HOVER = Condition("hover")
 
 
-def _trim_solvers() -> tuple[str, ...]:
-    from casadrone.trim import SOLVERS
+def _trim_solvers() -> list[str]:
+    from casadrone.trim import TRIM_SOLVERS
 
-    return SOLVERS
+    return list(TRIM_SOLVERS)
 
 
 class LinMethod(StrEnum):

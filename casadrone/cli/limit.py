@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, cast
 
 import typer
 
@@ -27,6 +27,9 @@ LIMIT_KEYS = ("status", "reason", "lap_time_s", "point_mass_reference_s", "split
 #: What the propulsion did (:func:`casadrone.limit.check.lap_propulsion`), added to ``--json``.
 PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio",
                    "min_thrust_ratio")
+
+if TYPE_CHECKING:  # the limit lap is imported when the command runs (CasADi)
+    from casadrone.limit.lap import Attitude, TiltLimit
 
 
 @app.command("limit-lap")
@@ -73,8 +76,9 @@ def limit_lap_command(
     if attitude == "quaternion" and tilt == "axes":
         raise ConfigError(["--tilt axes bounds Euler angles: with --attitude quaternion use cone "
                        "or none"])
-    lap = limit_lap(cfg, trk, LimitLapOptions(intervals=intervals, attitude=attitude,
-                                              tilt_limit=tilt))
+    lap = limit_lap(cfg, trk, LimitLapOptions(intervals=intervals,
+                                              attitude=cast("Attitude", attitude),
+                                              tilt_limit=cast("TiltLimit", tilt)))
     result = {k: getattr(lap, k) for k in LIMIT_KEYS}
     from casadrone.airframe import build_airframe
     from casadrone.limit.check import lap_propulsion

@@ -65,7 +65,11 @@ class GateConfig(Schema):
     @property
     def rpy_rad(self) -> tuple[float, float, float]:
         """Roll, pitch, yaw of the gate frame (rad)."""
-        r, p, y = self.rpy_deg if self.rpy_deg is not None else (0.0, 0.0, self.heading_deg)
+        if self.rpy_deg is not None:
+            r, p, y = self.rpy_deg
+        else:  # the validator has made sure of one of the two
+            assert self.heading_deg is not None
+            r, p, y = 0.0, 0.0, self.heading_deg
         return math.radians(r), math.radians(p), math.radians(y)
 
 

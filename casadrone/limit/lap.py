@@ -51,7 +51,13 @@ from casadrone.config.airframe import AirframeConfig
 from casadrone.config.controller import ControllerConfig
 from casadrone.config.track import TrackConfig
 from casadrone.guidance import segment_headings
-from casadrone.limit.gates import MAX_EDGES, gate_frame, polygon_edges, target_vector
+from casadrone.limit.gates import (
+    MAX_EDGES,
+    TargetKind,
+    gate_frame,
+    polygon_edges,
+    target_vector,
+)
 from casadrone.limit.nlp import (
     ATTITUDE_MODELS,
     Layout,
@@ -73,6 +79,9 @@ from casadrone.propulsion import (
 )
 
 Start = Literal["closed-loop", "point-mass", "coarse-grid", "relaxed-tolerance"]
+#: The attitude models of the limit lap, and the ways it limits the tilt.
+Attitude = Literal["euler", "quaternion"]
+TiltLimit = Literal["axes", "cone", "none"]
 BANG_BANG_TOL = 0.02  # a command within this of 0 or 1 counts as saturated
 #: Share of the intervals of the coarse grid of the "coarse-grid" start (40 -> 30).
 COARSE_SHARE = 0.75
@@ -82,6 +91,12 @@ RELAXED_RADIUS_M = 1.0
 CERTAIN_REL = 1e-3
 #: Constant speeds (m/s) of the straight-line starts of the point-mass reference (best of them).
 REFERENCE_SPEEDS_MPS = (5.0, 10.0, 20.0)
+
+#: The target kind of each gate shape (a ball is a waypoint without a gate).
+KIND_OF_SHAPE: dict[str, TargetKind] = {"rectangle": "gate", "circle": "circle",
+                                        "polygon": "polygon"}
+#: How far the verified starts agree (:func:`_certainty`).
+Certainty = Literal["agreed", "single", "spread"]
 
 
 def euler_states(attitude: str, X: np.ndarray) -> np.ndarray:
@@ -129,11 +144,11 @@ class LimitLapOptions:
     max_tilt_deg: float | None = None  # None: the track's max_tilt_deg
     # Attitude of the full model: "euler" (ZYX angles, singular at 90 deg of pitch) or
     # "quaternion" (no singularity: split-S, loops, inverted flight; casadrone.limit.attitude).
-    attitude: Literal["euler", "quaternion"] = "euler"
+    attitude: Attitude = "euler"
     # Tilt limit at max_tilt_deg: "axes" |phi|, |theta| each (the closed loop's failure test;
     # Euler only; together they allow up to 88 deg of total tilt at 80), "cone" on the total
     # tilt (angle between body z and world z, at every node), or "none".
-    tilt_limit: Literal["axes", "cone", "none"] = "axes"
+    tilt_limit: TiltLimit = "axes"
     start_state: tuple[float, ...] | None = None  # 16 values; None: hover at the start
     controller: ControllerConfig | None = None  # closed-loop guess; None: default controller
     tol: float = 1e-6  # IPOPT: laps agree with tol 1e-8's to ~1e-6 s in 5-20 % fewer iterations
@@ -194,7 +209,7 @@ class LimitLap:
     point_mass_reference_s: float = math.nan  # best local optimum found, not a bound
     lap_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))  # time of each lap
     spread_s: float = math.nan  # slowest minus fastest verified start (NaN: only one)
-    certainty: Literal["agreed", "single", "spread"] = "single"
+    certainty: Certainty = "single"
     attitude: str = "euler"
     resimulation_miss_m: float = math.nan
     param_sensitivity: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -234,7 +249,7 @@ class LimitLap:
 class Targets:
     """The legs of a track as the NLP sees them."""
 
-    kinds: tuple[str, ...]
+    kinds: tuple[TargetKind, ...]
     vector: np.ndarray  # the ``targets`` part of P
     first_timed: int  # leg that ends at the first waypoint
     lap_ends: tuple[int, ...] = ()  # leg that ends each lap
@@ -278,7 +293,7 @@ def track_targets(track: TrackConfig, options: LimitLapOptions,
         else track.tolerance_m
     radii = np.full(n_legs, acc)
     radii[first:] = np.broadcast_to(np.asarray(tol, float), (len(track.waypoints_m),))[items]
-    kinds = ["ball"] * n_legs
+    kinds: list[TargetKind] = ["ball"] * n_legs
     heads = segment_headings(route, math.radians(track.start_yaw_deg))
     frames = np.array([gate_frame(0.0, 0.0, h) for h in heads])
     hw, hh = np.zeros(n_legs), np.zeros(n_legs)
@@ -288,8 +303,7 @@ def track_targets(track: TrackConfig, options: LimitLapOptions,
     for k, j in enumerate(items):
         if track.gates:
             gate, leg = track.gates[j], first + k
-            kinds[leg] = {"rectangle": "gate", "circle": "circle",
-                          "polygon": "polygon"}[gate.shape]
+            kinds[leg] = KIND_OF_SHAPE[gate.shape]
             frames[leg] = gate_frame(*gate.rpy_rad)
             hw[leg] = gate.width_m / 2 - clear
             hh[leg] = gate.height_m / 2 - clear
@@ -440,13 +454,13 @@ def guess_from_trajectory(nlp: Nlp, traj, x0: np.ndarray) -> np.ndarray | None:
     switched segment); None when the lap did not reach the end (or the NLP has more legs than
     the closed loop flew: a multi-lap course)."""
     L, N = nlp.layout.n_legs, nlp.layout.intervals
-    ends = []
+    switches = []
     for k in range(L):
         hit = np.flatnonzero(traj.segment > k)
         if not hit.size:
             return None
-        ends.append(traj.t[hit[0]])
-    ends = np.maximum.accumulate(np.maximum(ends, 1e-2 * np.arange(1, L + 1)))
+        switches.append(traj.t[hit[0]])
+    ends = np.maximum.accumulate(np.maximum(switches, 1e-2 * np.arange(1, L + 1)))
     T = np.diff(np.concatenate([[0.0], ends]))
     t_nodes = np.concatenate([[0.0]] + [s + np.linspace(0, d, N + 1)[1:] for s, d in
                                         zip(ends - T, T, strict=True)])
@@ -758,7 +772,7 @@ def _start_results(solves, misses) -> tuple[StartResult, ...]:
                              s.wall_time_s, misses.get(n, math.nan)) for n, s in solves)
 
 
-def _certainty(good: list[tuple[str, NlpSolution]]) -> tuple[str, float]:
+def _certainty(good: list[tuple[str, NlpSolution]]) -> tuple[Certainty, float]:
     """("agreed" | "single" | "spread", spread in s) of the verified starts' lap times:
     "agreed" only when every verified start lands within CERTAIN_REL of the best."""
     times = np.array([s.objective for _, s in good])
@@ -780,7 +794,7 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
 
     start = time.perf_counter()
     cfg = airframe if isinstance(airframe, AirframeConfig) else None
-    frame = build_airframe(cfg) if cfg is not None else airframe
+    frame: Airframe = build_airframe(airframe) if isinstance(airframe, AirframeConfig) else airframe
     prop_diameter_m = cfg.prop_diameter_mm / 1000 if cfg is not None else 0.127
     why = check_inputs(track, options, frame_clearance_m(frame, prop_diameter_m))
     if why:
@@ -815,7 +829,7 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
         reason, starts = _failure(solves, misses, options)
         return _failed(reason, start, starts=starts, layout=pb.layout)
     result = _assemble_lap(pb, good, solves, misses)
-    if options.sensitivities and cfg is not None:
+    if options.sensitivities and cfg is not None and result.solution is not None:
         dT_dx0 = -result.solution.lam_p[len(frame.p):len(frame.p) + pb.full.model.nx]
         result = replace(result, sensitivities=theta_sensitivities(
             cfg, result.param_sensitivity, dT_dx0,

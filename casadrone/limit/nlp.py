@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
@@ -173,7 +173,8 @@ class Nlp:
     #: :meth:`row_bounds`, the box on w the limit lap's ``bounds``.
     problem: dict = field(default_factory=dict, compare=False, repr=False)
 
-    def row_bounds(self, cos_tilt: float = -np.inf, end_velocity: np.ndarray | None = None
+    def row_bounds(self, cos_tilt: float = -np.inf,
+                   end_velocity: np.ndarray | tuple[float, float, float] | None = None
                    ) -> tuple[np.ndarray, np.ndarray]:
         """(lbg, ubg) with the tilt cone's rows at ``cos_tilt`` (cos of the largest total tilt)
         and the end rows at the world ``end_velocity`` (m/s; default at rest)."""
@@ -334,7 +335,8 @@ def interval_blocks(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Fun
     tag = f"{model.name.replace('-', '_')}_rk4x{substeps}"
     jac = ca.Function(f"limit_jac_{tag}", [z, p, inv_n], [x_next, ca.densify(
         ca.jacobian(x_next, z))], ["z", "p", "inv_n"], ["x_next", "J"])
-    hess = ca.Function(f"limit_hess_{tag}", [z, p, inv_n, lam], [ca.vertcat(*H.nonzeros())],
+    nonzeros = ca.vertcat(*H.nonzeros())  # type: ignore[call-overload]  # SXElem: not in stubs
+    hess = ca.Function(f"limit_hess_{tag}", [z, p, inv_n, lam], [nonzeros],
                        ["z", "p", "inv_n", "lam"], ["H"])
     built = (compile_function(jac, BLOCK_FLAGS), compile_function(hess, BLOCK_FLAGS), rows, cols)
     _BLOCKS[key] = built
@@ -402,18 +404,21 @@ def _shooting_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np
     r_, c_, i_ = np.meshgrid(np.arange(nx), np.arange(per), np.arange(M), indexing="ij")
     tr = [(nx * i_ + r_).ravel(order="F")]  # matches vec(J) of the mapped output
     tc = [(per * i_ + c_).ravel(order="F")]
-    vals = [-ca.vec(J)]
+    vals: list[Any] = [-ca.vec(J)]
     node = np.arange(1, M + 1)[:, None] * per + (1 + nu) + np.arange(nx)[None, :]
     node[-1] = M * per + np.arange(nx)  # x_{i+1}: the next block's state, or the last node
-    tr.append(np.arange(n_dyn)), tc.append(node.ravel())
-    tr.append(n_dyn + np.arange(n_same)), tc.append(per * same_i)
-    tr.append(n_dyn + np.arange(n_same)), tc.append(per * (same_i - 1))
-    tr.append(n_dyn + n_same + np.arange(nx)), tc.append(1 + nu + np.arange(nx))
+    for r_idx, c_idx in ((np.arange(n_dyn), node.ravel()),
+                         (n_dyn + np.arange(n_same), per * same_i),
+                         (n_dyn + np.arange(n_same), per * (same_i - 1)),
+                         (n_dyn + n_same + np.arange(nx), 1 + nu + np.arange(nx))):
+        tr.append(r_idx)
+        tc.append(c_idx)
     consts = np.concatenate([np.ones(n_dyn), np.ones(n_same), -np.ones(n_same), np.ones(nx)])
     vals.append(ca.DM(consts))
     Jt = ca.jacobian(gt, W)
     jr, jc = (np.array(a, dtype=int) for a in Jt.sparsity().get_triplet())
-    tr.append(n_dyn + n_same + nx + jr), tc.append(jc)
+    tr.append(n_dyn + n_same + nx + jr)
+    tc.append(jc)
     vals.append(Jt.nz[:] if Jt.nnz() else ca.MX(0, 1))
     Jg = _assemble(ng, nw, np.concatenate(tr), np.concatenate(tc), ca.vertcat(*vals))
     jac_g = ca.Function("nlp_jac_g", [W, P], [g, Jg], ["x", "p"], ["g", "jac_g_x"])
@@ -430,7 +435,9 @@ def _shooting_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np
     Ht = ca.triu(ca.hessian(ca.dot(lam_t, gt), W)[0]) if gt.numel() else ca.MX(nw, nw)
     if Ht.nnz():
         a, b = (np.array(v, dtype=int) for v in Ht.sparsity().get_triplet())
-        hrow.append(a), hcol.append(b), hvals.append(Ht.nz[:])
+        hrow.append(a)
+        hcol.append(b)
+        hvals.append(Ht.nz[:])
     H = _assemble(nw, nw, np.concatenate(hrow), np.concatenate(hcol), ca.vertcat(*hvals))
     hess_lag = ca.Function("nlp_hess_l", [W, P, lam_f, lam_g], [H],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])

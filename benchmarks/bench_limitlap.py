@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{i}: {lap.status} {lap.lap_time_s:.4f} s "
               f"(reference {lap.point_mass_reference_s:.4f}) "
               f"{cold[-1][2]:.1f} s CPU {lap.reason}", flush=True)
-    ok = [i for i, (_, lap, _) in enumerate(cold) if lap.optimal]
+    ok = [i for i, (_, lap, _) in enumerate(cold) if lap.completed]
     warm = []
     for i in ok:
         others = [j for j in ok if j != i]
@@ -119,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
              f"| cold iterations of the winning start (median) | "
              f"{med([cold[i][1].iterations for i in ok]) if ok else float('nan'):.0f} |"]
     if warm:
-        wok = [w for w in warm if w[1].optimal]
+        wok = [w for w in warm if w[1].completed]
         diff = [w[1].lap_time_s - cold[w[0]][1].lap_time_s for w in wok]
         lines += [f"| warm success (from nearest neighbour) | {len(wok)}/{len(warm)} |",
                   f"| warm CPU per solve (median, max) | {med([w[2] for w in warm]):.2f} s, "

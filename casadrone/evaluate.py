@@ -67,7 +67,7 @@ class EvaluationSetup:
             except ConfigError:  # a reference outside the valid geometries is skipped
                 continue
             laps.append(limit_lap(cfg, self.track, self.limit))
-        return tuple(lap for lap in laps if lap.optimal)
+        return tuple(lap for lap in laps if lap.completed)
 
     @cached_property
     def template_data(self) -> dict:
@@ -173,7 +173,7 @@ def evaluate(
     indices = compute_indices(traj, index_names)
     if setup.limit is not None:
         lap = evaluate_limit(cfg, setup, traj)  # the candidate's config, validated once
-        if not lap.optimal:
+        if not lap.completed:
             return _failed(theta, "limit", lap.reason, start)
         indices.update(limit_indices(lap, index_names))
     return Evaluation(
@@ -199,10 +199,10 @@ def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory
         return limit_lap(cfg, setup.track, cold)
     first = limit_lap(cfg, setup.track, replace(cold, starts=(), warm_starts=warm,
                                                 fallback_reference=None))
-    if first.optimal:
+    if first.completed:
         return first
     lap = limit_lap(cfg, setup.track, cold)  # every warm start failed: the cold starts decide
-    if not lap.optimal:
+    if not lap.completed:
         lap = replace(lap, reason=f"warm starts: {first.reason}; cold starts: {lap.reason}")
     return lap
 

@@ -71,7 +71,7 @@ class Index:
 
     def __call__(self, result) -> float:
         if self.source == "limit":
-            if not result.optimal:
+            if not result.completed:
                 raise ValueError(f"{self.name} is not defined for a failed limit lap "
                                  f"({result.reason or 'failed'})")
         else:

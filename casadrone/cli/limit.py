@@ -95,7 +95,7 @@ def limit_lap_command(
 
 
 def _figures(cfg, trk, lap, folder, frame, prop) -> list[str]:
-    if not lap.optimal:
+    if not lap.completed:
         typer.echo("--plot: nothing to plot, the limit lap failed", err=True)
         return []
     from casadrone import plots
@@ -110,7 +110,7 @@ def _figures(cfg, trk, lap, folder, frame, prop) -> list[str]:
 
 
 def _text(name: str, track: str, r: dict) -> str:
-    if r["status"] != "optimal":
+    if r["status"] != "completed":
         return f"{name} on {track}: limit lap FAILED: {r['reason']} ({r['wall_time_s']:.1f} s)"
     splits = ", ".join(f"{t:.3f}" for t in r["split_times_s"])
     lines = [

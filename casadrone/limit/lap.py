@@ -77,6 +77,7 @@ from casadrone.propulsion import (
     rotor_thrust_bound,
     static_thrusts,
 )
+from casadrone.results import Status
 
 Start = Literal["closed-loop", "point-mass", "coarse-grid", "relaxed-tolerance"]
 #: The attitude models of the limit lap, and the ways it limits the tilt.
@@ -195,7 +196,7 @@ class LimitLap:
     is dT/dp over the model parameters (PARAM_NAMES order), s per SI unit.
     """
 
-    status: Literal["optimal", "failed"]
+    status: Status  # completed: a verified optimum (casadrone.results' one word for success)
     reason: str
     lap_time_s: float = math.nan
     split_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))  # at each waypoint
@@ -220,8 +221,13 @@ class LimitLap:
     solution: NlpPoint | None = None  # primal-dual point, for warm starts
 
     @property
+    def completed(self) -> bool:
+        return self.status == "completed"
+
+    @property
     def optimal(self) -> bool:
-        return self.status == "optimal"
+        """The same as :attr:`completed` (the limit lap's earlier word for it)."""
+        return self.completed
 
     @property
     def x_euler(self) -> np.ndarray:
@@ -603,7 +609,7 @@ def node_times(T: np.ndarray, intervals: int) -> np.ndarray:
 def _trajectory(nlp: Nlp, w: np.ndarray, layout: Layout) -> LimitLap:
     """A decision vector as a (not yet checked) LimitLap: enough to re-simulate it."""
     T, X, U = nlp.unpack(w)
-    return LimitLap(status="optimal", reason="", t=node_times(T, layout.intervals), x=X, u=U,
+    return LimitLap(status="completed", reason="", t=node_times(T, layout.intervals), x=X, u=U,
                     layout=layout, attitude=nlp.model.attitude)
 
 
@@ -714,7 +720,7 @@ def _run_starts(pb: _Problem) -> list[tuple[str, NlpSolution]]:
             options, intervals=max(2, round(COARSE_SHARE * options.intervals)),
             starts=("closed-loop",), warm_starts=(), point_mass_reference=False,
             sensitivities=False, fallback_reference=None))
-        if coarse.optimal:
+        if coarse.completed:
             solves.append(("coarse-grid", pb.solve(guess_from_lap(full, coarse, x0))))
     lifted = None
     if pb.reference is not None and {"point-mass", "relaxed-tolerance"} & set(options.starts):
@@ -868,7 +874,7 @@ def _assemble_lap(pb: _Problem, good, solves, misses) -> LimitLap:
     certainty, spread = _certainty(good)
     ref = pb.reference if pb.options.point_mass_reference else None
     return LimitLap(
-        status="optimal", reason="", lap_time_s=float(np.sum(T)),
+        status="completed", reason="", lap_time_s=float(np.sum(T)),
         split_times_s=ends[pb.targets.first_timed:], leg_times_s=T,
         t=node_times(T, pb.layout.intervals), x=X, u=U, iterations=best.iterations,
         bang_bang_fraction=bang_bang_fraction(U, BANG_BANG_TOL),

@@ -118,7 +118,7 @@ def _limit_lap(run: Run, c: Candidate, figs: Figures) -> str:
     if setup.limit is None or run.test_problem:
         return ""
     lap = evaluate_limit(with_theta(setup.template, c.theta), setup, c.flown.trajectory)
-    if not lap.optimal:
+    if not lap.completed:
         return note(f"Limit lap of {c.title} failed: {lap.reason}", "warn")
     splits = ", ".join(f"{t:.3f}" for t in lap.split_times_s)
     out = [f"<h4>Limit lap of {esc(c.title)}</h4>",

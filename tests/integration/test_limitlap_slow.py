@@ -30,7 +30,7 @@ def laps():
 @pytest.mark.parametrize("name", REFERENCES)
 def test_reference_lap_faster_than_the_closed_loop(laps, name):
     lap = laps[name]
-    assert lap.optimal, lap.reason
+    assert lap.completed, lap.reason
     J3 = evaluate(theta_of(load_airframe(name)), default_setup(name)).indices["J3"]
     assert lap.lap_time_s <= J3
     assert np.isfinite(lap.point_mass_reference_s)  # reported; not a bound (lap.py)
@@ -50,11 +50,11 @@ def test_grid_refinement_changes_the_lap_little(laps, name):
     fine = limit_lap(cfg, TRACK, replace(FAST, intervals=2 * FAST.intervals,
                                          point_mass_reference=False, starts=(),
                                          warm_starts=(coarse,)))
-    assert fine.optimal, fine.reason
+    assert fine.completed, fine.reason
     assert fine.start == "resampled-1"
     back = limit_lap(cfg, TRACK, replace(FAST, point_mass_reference=False, starts=(),
                                          warm_starts=(fine,)))
-    best = min([coarse.lap_time_s] + ([back.lap_time_s] if back.optimal else []))
+    best = min([coarse.lap_time_s] + ([back.lap_time_s] if back.completed else []))
     assert abs(fine.lap_time_s - best) <= 1e-3 * best
 
 
@@ -63,7 +63,7 @@ def test_slower_lag_and_weaker_thrust_never_faster(laps):
     for override in (["thrust.time_constant_s=0.09"], ["thrust.gain_n=8.0"]):
         cfg = load_airframe("SY250", override)
         lap = limit_lap(cfg, TRACK, replace(FAST, warm_starts=(base,)))
-        assert lap.optimal, lap.reason
+        assert lap.completed, lap.reason
         assert lap.lap_time_s >= base.lap_time_s - 1e-4, override
 
 
@@ -99,7 +99,7 @@ def _reflect_lap(lap):
 
     sol = lap.solution
     point = NlpPoint(vec(sol.w), vec(sol.lam_x), rows(sol.lam_g), sol.lam_p)
-    return LimitLap(status="optimal", reason="", layout=lap.layout, solution=point)
+    return LimitLap(status="completed", reason="", layout=lap.layout, solution=point)
 
 
 def test_mirror_track_same_lap_on_mirror_image_frame(laps):
@@ -114,7 +114,7 @@ def test_mirror_track_same_lap_on_mirror_image_frame(laps):
     lap = limit_lap(load_airframe("SY250"), mirror,
                     replace(FAST, starts=(), warm_starts=(_reflect_lap(base),),
                             point_mass_reference=False))
-    assert lap.optimal, lap.reason
+    assert lap.completed, lap.reason
     assert lap.iterations <= 20
     np.testing.assert_allclose(lap.lap_time_s, base.lap_time_s, rtol=1e-6)
     # the flight path is the reflected one to a centimetre (rates and thrusts on saturated arcs
@@ -125,7 +125,7 @@ def test_mirror_track_same_lap_on_mirror_image_frame(laps):
 def test_sensitivities_match_finite_differences_on_asymmetric_frame():
     cfg = load_airframe("HS210")
     lap = limit_lap(cfg, TRACK, LimitLapOptions())
-    assert lap.optimal, lap.reason
+    assert lap.completed, lap.reason
     for key, step in (("lambda_a_mm", 2.0), ("ixx_kgm2", 1e-4)):
         v = getattr(cfg, key)
         T = [limit_lap(load_airframe("HS210", [f"{key}={v + s}"]), TRACK,
@@ -149,7 +149,8 @@ def test_cli_json_keys_exactly(cli_runner):
     assert r.exit_code == 0, r.output
     out = json.loads(r.stdout)
     assert tuple(out) == LIMIT_KEYS
-    assert out["status"] == "optimal" and set(out["sensitivities"]) >= {"lambda_a_mm", "alpha_deg"}
+    assert out["status"] == "completed"
+    assert set(out["sensitivities"]) >= {"lambda_a_mm", "alpha_deg"}
 
 
 def test_optimisation_same_front_serial_and_processes(tmp_path):
@@ -193,7 +194,7 @@ def test_a_start_that_misses_on_resimulation_is_never_chosen(laps):
     base = laps["SY250"]
     opts = replace(FAST, starts=(), warm_starts=(base,), point_mass_reference=False)
     lap = limit_lap(load_airframe("SY250"), TRACK, opts)
-    assert lap.optimal and 0 < lap.resimulation_miss_m <= opts.max_miss_m
+    assert lap.completed and 0 < lap.resimulation_miss_m <= opts.max_miss_m
     strict = limit_lap(load_airframe("SY250"), TRACK,
                        replace(opts, max_miss_m=0.5 * lap.resimulation_miss_m))
     assert strict.status == "failed" and "re-simulation" in strict.reason
@@ -202,7 +203,7 @@ def test_a_start_that_misses_on_resimulation_is_never_chosen(laps):
 def test_gate_track_lap_passes_every_gate_opening():
     trk = load(TrackConfig, "configs/tracks/multigp-cdra-gates.yaml")
     lap = limit_lap(load_airframe("SY250"), trk, FAST)
-    assert lap.optimal, lap.reason
+    assert lap.completed, lap.reason
     assert lap.resimulation_miss_m <= 0.05
     assert len(lap.split_times_s) == len(trk.gates)
 
@@ -224,9 +225,9 @@ def test_a_frame_whose_own_starts_fail_is_started_from_sy250():
     opts = replace(FAST, starts=("closed-loop",), guess_trajectory=broken)
     without = limit_lap(cfg, TRACK, replace(opts, fallback_reference=None,
                                             point_mass_reference=False))
-    assert not without.optimal and "no start converged" in without.reason
+    assert not without.completed and "no start converged" in without.reason
     lap = limit_lap(cfg, TRACK, opts)
-    assert lap.optimal, lap.reason
+    assert lap.completed, lap.reason
     assert lap.starts[-1].start == "reference-SY250" == lap.start
     assert not any(s.success for s in lap.starts[:-1])
     J3 = evaluate(theta_of(cfg), default_setup("HS210")).indices["J3"]
@@ -244,11 +245,11 @@ def test_quaternion_and_euler_laps_agree_where_euler_is_regular():
     representations; both pass the re-simulation check of their own model."""
     euler = limit_lap(load_airframe("SY250"), TRACK, replace(FAST, tilt_limit="cone",
                                                               max_tilt_deg=60.0))
-    assert euler.optimal, euler.reason
+    assert euler.completed, euler.reason
     assert np.degrees(np.abs(euler.x[:, 10]).max()) < 60.0 + 1e-3
     quat = limit_lap(load_airframe("SY250"), TRACK, replace(QUAT, max_tilt_deg=60.0, starts=(),
                                                              warm_starts=(euler,)))
-    assert quat.optimal, quat.reason
+    assert quat.completed, quat.reason
     assert quat.attitude == "quaternion" and quat.x.shape[1] == 17
     assert abs(quat.lap_time_s - euler.lap_time_s) <= 1e-3 * euler.lap_time_s
     np.testing.assert_allclose(quat.x_euler[:, 0:3], euler.x[:, 0:3], atol=0.05)
@@ -261,7 +262,7 @@ def test_split_s_is_flown_and_resimulated_within_5_cm():
     pointing down), and its commands flown by CVODES pass every gate within 5 cm."""
     trk = load(TrackConfig, "configs/tracks/uzh-split-s.yaml")
     lap = limit_lap(load_airframe("SY250"), trk, replace(QUAT, tilt_limit="none"))
-    assert lap.optimal, lap.reason
+    assert lap.completed, lap.reason
     assert lap.resimulation_miss_m <= 0.05
     n = lap.layout.intervals
     between = lap.x[3 * n:4 * n + 1]  # from gate 4 to gate 5
@@ -278,7 +279,7 @@ def test_two_laps_from_a_flying_start_take_twice_one_lap():
     base = ["climb_to_m=null", "start_position_m=[0, 0, 20]"]
     trk = load(TrackConfig, DEFAULT_TRACK, [*base, "start={velocity_mps: [10, 0, 0]}"])
     first = limit_lap(load_airframe("SY250"), trk, FAST)
-    assert first.optimal, first.reason
+    assert first.completed, first.reason
     v_end = first.x_euler[-1]
     from casadrone.limit.attitude import euler_rotation_np
 
@@ -287,7 +288,7 @@ def test_two_laps_from_a_flying_start_take_twice_one_lap():
     one = limit_lap(load_airframe("SY250"), load(TrackConfig, DEFAULT_TRACK, flying), FAST)
     two = limit_lap(load_airframe("SY250"), load(TrackConfig, DEFAULT_TRACK,
                                                  [*flying, "laps=2"]), FAST)
-    assert one.optimal and two.optimal, (one.reason, two.reason)
+    assert one.completed and two.completed, (one.reason, two.reason)
     assert len(two.lap_times_s) == 2
     np.testing.assert_allclose(two.lap_time_s, 2 * one.lap_time_s, rtol=5e-3)
     np.testing.assert_allclose(two.lap_times_s.sum(), two.lap_time_s, rtol=1e-12)

@@ -190,7 +190,7 @@ def test_resampled_start_keeps_the_coarse_lap_on_a_finer_grid():
     rng = np.random.default_rng(0)
     T = np.array([1.5, 0.7])
     X, U = rng.normal(size=(9, 6)), rng.normal(size=(8, 3))
-    lap = LimitLap(status="optimal", reason="", leg_times_s=T, t=node_times(T, 4), x=X, u=U,
+    lap = LimitLap(status="completed", reason="", leg_times_s=T, t=node_times(T, 4), x=X, u=U,
                    layout=coarse.layout)
     Tf, Xf, Uf = fine.unpack(guess_from_lap(fine, lap, X[0]))
     np.testing.assert_allclose(Tf, T)

@@ -7,6 +7,8 @@ command without any, and parses every example against its command's options).
 from __future__ import annotations
 
 EXAMPLES: dict[str, tuple[str, ...]] = {
+    "codesign": ("casadrone codesign codesign-paper --out codesign-out",
+                 "casadrone codesign codesign-season codesign.starts=2 --json"),
     "validate": ("casadrone validate configs problems",
                  "casadrone validate my-frame.yaml --json"),
     "trim": ("casadrone trim SY250",

@@ -21,7 +21,7 @@ import math
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
@@ -34,6 +34,7 @@ from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
 from casadrone.limit.lap import LimitLap, LimitLapOptions, _prepare, limit_lap
+from casadrone.results import Status
 
 #: Two optima agree when their objectives differ by at most this fraction (acceptance: 0.1 %).
 AGREE_REL = 1e-3
@@ -95,7 +96,7 @@ class CodesignResult:
     """The co-design of a problem: the best frame, every start, the distinct optima, and the
     certificate of the returned point."""
 
-    status: Literal["optimal", "failed"]
+    status: Status  # casadrone.results' one word for success: completed
     reason: str
     problem: str
     keys: tuple[str, ...]
@@ -142,6 +143,7 @@ class CodesignResult:
 
 
 def _template(problem: CodesignProblemConfig) -> AirframeConfig:
+    assert problem.airframe is not None  # the schema requires it
     cfg = load_airframe(problem.airframe)
     if problem.fixed:
         cfg = AirframeConfig.model_validate({**cfg.model_dump(), **problem.fixed})
@@ -154,6 +156,7 @@ def _tracks(problem: CodesignProblemConfig) -> tuple[tuple[str, ...], tuple[Trac
         items = problem.codesign.tracks.items()
         return (tuple(k for k, _ in items), tuple(load(TrackConfig, t.track) for _, t in items),
                 tuple(t.weight for _, t in items))
+    assert problem.track is not None  # the schema requires a track or tracks
     track = load(TrackConfig, problem.track)
     return (track.name,), (track,), (1.0,)
 
@@ -252,11 +255,11 @@ def initial_vector(prep: Prepared, theta: dict[str, float]) -> np.ndarray | None
                        starts=() if ref.solution is not None else prep.options.starts,
                        point_mass_reference=False)
         lap = limit_lap(cfg, track, opts)
-        if not lap.optimal:
+        if not lap.completed or lap.solution is None:
             return None
         ws.append(lap.solution.w)
         laps.append(lap.lap_time_s)
-    z = [*ws, prep.nlp.frame.normalise(theta)]
+    z: list[Any] = [*ws, prep.nlp.frame.normalise(theta)]
     if prep.nlp.combine == "worst":
         z.append([max(w * t for w, t in zip(prep.weights, laps, strict=True))])
     return np.concatenate(z)
@@ -346,7 +349,7 @@ def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
         if ok:
             points.append(pt)
     names = tuple(prep.labels)
-    common = dict(problem=problem.name, keys=prep.keys, tracks=names,
+    common: dict[str, Any] = dict(problem=problem.name, keys=prep.keys, tracks=names,
                   combine=problem.codesign.combine, starts=tuple(reports), build_cpu_s=build_cpu)
     if not points:
         return CodesignResult("failed", "no start converged: " + "; ".join(
@@ -366,7 +369,7 @@ def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
             from casadrone.codesign.front import write_run
 
             write_run(run_dir, prep, front, len(front.points))
-    return CodesignResult("optimal", "", best=best, distinct=tuple(distinct), certificate=cert,
+    return CodesignResult("completed", "", best=best, distinct=tuple(distinct), certificate=cert,
                           front=front, cpu_s=time.process_time() - cpu0,
                           wall_time_s=time.perf_counter() - wall0, **common)
 

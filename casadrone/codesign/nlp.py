@@ -16,7 +16,7 @@ epigraph form that keeps the NLP smooth).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal, cast
 
 import casadi as ca
 import numpy as np
@@ -105,16 +105,20 @@ class CodesignNlp:
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Decision-vector bounds: each track's, with the start thrusts freed to [0, ∞) where they
         follow the frame (the start equality row holds them), s in [0, 1], t free."""
-        lo, hi = [], []
+        lo: list[Any] = []
+        hi: list[Any] = []
         for part in self.parts:
             lbx, ubx = part.lbx.copy(), part.ubx.copy()
             if part.hover_start:
                 first = start_thrust_index(part.nlp)
                 lbx[first], ubx[first] = 0.0, part.thrust_max
-            lo.append(lbx), hi.append(ubx)
-        lo.append(np.zeros(self.n_theta)), hi.append(np.ones(self.n_theta))
+            lo.append(lbx)
+            hi.append(ubx)
+        lo.append(np.zeros(self.n_theta))
+        hi.append(np.ones(self.n_theta))
         if self.combine == "worst":
-            lo.append([0.0]), hi.append([np.inf])
+            lo.append([0.0])
+            hi.append([np.inf])
         return np.concatenate(lo), np.concatenate(hi)
 
 
@@ -140,16 +144,22 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
         sym = part.nlp.problem
         inner = ca.Function(f"limit_{k}", [sym["x"], sym["p"]], [sym["f"], sym["g"]])
         w = ca.MX.sym(f"w{k}", sym["x"].numel())
-        x0 = ca.DM(part.x_start)
+        x0: Any = ca.DM(part.x_start)
         if part.hover_start:
             rotor = part.nlp.model.rotor
+            assert rotor is not None  # a hover start has rotor states
             x0 = ca.vertcat(x0[:rotor.start], hover, x0[rotor.stop:])
         f, g = inner(w, ca.vertcat(p, x0, ca.DM(part.targets)))
-        ws.append(w), fs.append(part.weight * f), gs.append(g)
-        lbg.append(part.lbg), ubg.append(part.ubg)
+        ws.append(w)
+        fs.append(part.weight * f)
+        gs.append(g)
+        lbg.append(part.lbg)
+        ubg.append(part.ubg)
         offsets.append(offsets[-1] + w.numel())
         row_offsets.append(row_offsets[-1] + g.numel())
-    gs.append(feas), lbg.append(np.zeros(feas.numel())), ubg.append(np.full(feas.numel(), np.inf))
+    gs.append(feas)
+    lbg.append(np.zeros(feas.numel()))
+    ubg.append(np.full(feas.numel(), np.inf))
     n_feas = feas.numel()
     z = ca.vertcat(*ws, s)
     if combine == "worst":
@@ -157,16 +167,18 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
         z = ca.vertcat(z, t)
         objective = t
         gs.append(ca.vertcat(*fs) - t)
-        lbg.append(np.full(len(fs), -np.inf)), ubg.append(np.zeros(len(fs)))
+        lbg.append(np.full(len(fs), -np.inf))
+        ubg.append(np.zeros(len(fs)))
     else:
-        objective = sum(fs)
+        objective = cast(ca.MX, sum(fs))
     eps = ca.MX.sym("eps", len(epsilon))
     measures = {"mass_kg": mass, "span_m": diagonals}
     if "effort" in epsilon:
         measures["effort"] = sum(effort(part, w) for part, w in zip(parts, ws, strict=True))
     for i, name in enumerate(epsilon):
         m = measures[name]
-        gs.append(m - eps[i]), lbg.append(np.full(m.numel(), -np.inf))
+        gs.append(m - eps[i])
+        lbg.append(np.full(m.numel(), -np.inf))
         ubg.append(np.zeros(m.numel()))
     problem = {"x": z, "p": eps, "f": objective, "g": ca.vertcat(*gs)}
     tag = f"codesign_{len(parts)}x{combine}_{'_'.join(epsilon) or 'free'}"

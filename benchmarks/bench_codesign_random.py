@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
             out.writerow(rows[-1])
             fh.flush()
             print(*rows[-1], flush=True)
-        ok = sorted((r for r in rows if r[len(keys) + 1] == "optimal"),
+        ok = sorted((r for r in rows if r[len(keys) + 1] == "completed"),
                     key=lambda r: r[len(keys) + 2])
         for r in ok[:args.top]:
             cfg = with_theta(template, thetas[r[0]], name=f"frame{r[0]}")
@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
             out.writerow(row)
             fh.flush()
             print(*row, flush=True)
-    print(f"{len(ok)}/{args.n} optimal ({rejected} draws rejected as infeasible)")
+    print(f"{len(ok)}/{args.n} completed ({rejected} draws rejected as infeasible)")
     return 0
 
 

@@ -31,7 +31,7 @@ def codesign_command(
     A problem with a closed-loop index (J1-J5, Jp) is refused by name (exit code 2).
     """
     from casadrone.codesign.checks import load_codesign_problem
-    from casadrone.codesign.driver import codesign
+    from casadrone.codesign.design import codesign
 
     if out is not None and out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise bad_input([f"{out}: --out must be a new or empty folder (nothing is overwritten)"])

@@ -19,6 +19,6 @@ def codesign(problem: Any, **kwargs: Any):
     """The fastest frame of ``problem`` (a :class:`~casadrone.config.codesign.
     CodesignProblemConfig`, or a path or shipped name of one) in one NLP: a
     :class:`~casadrone.codesign.driver.CodesignResult`."""
-    from casadrone.codesign.driver import codesign as run
+    from casadrone.codesign.design import codesign as run
 
     return run(problem, **kwargs)

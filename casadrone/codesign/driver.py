@@ -20,16 +20,14 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from casadrone.airframe import build_airframe, random_thetas, with_theta
-from casadrone.codesign.checks import load_codesign_problem
 from casadrone.codesign.frame import CODESIGN_KEYS, SymbolicFrame
 from casadrone.codesign.nlp import CodesignNlp, TrackPart, build_codesign_nlp
-from casadrone.config import AirframeConfig, load_airframe
+from casadrone.config.airframe import AirframeConfig, load_airframe
 from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
@@ -322,57 +320,5 @@ def distinct_optima(points: list[CodesignPoint]) -> list[CodesignPoint]:
     return out
 
 
-def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
-             run_dir: Path | None = None) -> CodesignResult:
-    """The fastest frame of ``problem`` (see the module docstring) and, when the problem names
-    a front measure beside J3_limit, the design front (written as a run directory to
-    ``run_dir`` if given); never raises for a start that fails (it is reported), raises
-    ConfigError for a problem co-design cannot pose."""
-    from casadrone.codesign.certificate import certify as make_certificate
-
-    if not isinstance(problem, CodesignProblemConfig):
-        problem = load_codesign_problem(problem)
-    wall0, cpu0 = time.perf_counter(), time.process_time()
-    prep = prepare(problem)
-    build_cpu = time.process_time() - cpu0
-    reports, points = [], []
-    for label, theta in start_points(prep):
-        c0 = time.process_time()
-        z0 = initial_vector(prep, theta)
-        if z0 is None:
-            reports.append(StartReport(label, theta, "start frame has no limit lap", False,
-                                       math.nan, theta, 0, time.process_time() - c0))
-            continue
-        ok, status, pt = solve_from(prep, z0)
-        reports.append(StartReport(label, theta, status, ok, pt.objective, pt.theta,
-                                   pt.iterations, time.process_time() - c0))
-        if ok:
-            points.append(pt)
-    names = tuple(prep.labels)
-    common: dict[str, Any] = dict(problem=problem.name, keys=prep.keys, tracks=names,
-                  combine=problem.codesign.combine, starts=tuple(reports), build_cpu_s=build_cpu)
-    if not points:
-        return CodesignResult("failed", "no start converged: " + "; ".join(
-            f"{r.label}: {r.status}" for r in reports), best=None, distinct=(), **common,
-            cpu_s=time.process_time() - cpu0, wall_time_s=time.perf_counter() - wall0)
-    distinct = distinct_optima(points)
-    best = distinct[0]
-    cert = make_certificate(prep, best) if certify else None
-    front = None
-    measures = [o.index for o in problem.objectives if o.index in FRONT_MEASURES]
-    if measures:
-        from casadrone.codesign.front import design_front
-
-        front = design_front(prep, best, measures[0], problem.codesign.front.points,
-                             problem.codesign.front.lowest)
-        if run_dir is not None:
-            from casadrone.codesign.front import write_run
-
-            write_run(run_dir, prep, front, len(front.points))
-    return CodesignResult("completed", "", best=best, distinct=tuple(distinct), certificate=cert,
-                          front=front, cpu_s=time.process_time() - cpu0,
-                          wall_time_s=time.perf_counter() - wall0, **common)
-
-
-__all__ = ["FRONT_MEASURES", "CodesignPoint", "CodesignResult", "StartReport", "codesign",
-           "prepare", "solve_from"]
+__all__ = ["FRONT_MEASURES", "CodesignPoint", "CodesignResult", "StartReport", "prepare",
+           "solve_from"]

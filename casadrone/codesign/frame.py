@@ -25,7 +25,7 @@ import casadi as ca
 import numpy as np
 
 from casadrone.airframe import PARAM_NAMES, THETA_KEYS, build_airframe
-from casadrone.config import ROTOR_LABELS, AirframeConfig
+from casadrone.config.airframe import ROTOR_LABELS, AirframeConfig
 
 #: θ keys co-design can vary: the geometry and (``free`` mass model) the principal inertias.
 CODESIGN_KEYS = THETA_KEYS

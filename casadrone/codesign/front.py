@@ -1,6 +1,6 @@
 """Design fronts by ε-continuation: the lap against one other measure, one NLP solve per point.
 
-From the fastest frame (:func:`casadrone.codesign.driver.codesign`), the measure m (mass, span,
+From the fastest frame (:func:`casadrone.codesign.design.codesign`), the measure m (mass, span,
 or the limit lap's effort, :func:`casadrone.codesign.nlp.effort`) is bounded, m ≤ ε, and ε is
 lowered step by step; each solve starts from the previous point's primal and dual values (a
 primal-dual warm start, the previous ε-row multiplier included), so the front is followed as a

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from casadrone.airframe import build_airframe, with_theta
-from casadrone.codesign.driver import codesign
+from casadrone.codesign.design import codesign
 from casadrone.config.codesign import CodesignProblemConfig
 from casadrone.config.io import load
 from casadrone.config.track import TrackConfig

@@ -1,0 +1,72 @@
+"""The co-design of a problem: the fastest frame from every start
+(:mod:`casadrone.codesign.driver`), its certificate (:mod:`casadrone.codesign.certificate`) and,
+when the problem names a front measure, the design front (:mod:`casadrone.codesign.front`).
+Above the three, so that the front builds on the driver without an import circle.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+from casadrone.codesign.certificate import certify as make_certificate
+from casadrone.codesign.checks import load_codesign_problem
+from casadrone.codesign.driver import (
+    CodesignResult,
+    StartReport,
+    distinct_optima,
+    initial_vector,
+    prepare,
+    solve_from,
+    start_points,
+)
+from casadrone.codesign.front import design_front, write_run
+from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
+
+
+def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
+             run_dir: Path | None = None) -> CodesignResult:
+    """The fastest frame of ``problem`` (see the module docstring) and, when the problem names
+    a front measure beside J3_limit, the design front (written as a run directory to
+    ``run_dir`` if given); never raises for a start that fails (it is reported), raises
+    ConfigError for a problem co-design cannot pose."""
+    if not isinstance(problem, CodesignProblemConfig):
+        problem = load_codesign_problem(problem)
+    wall0, cpu0 = time.perf_counter(), time.process_time()
+    prep = prepare(problem)
+    build_cpu = time.process_time() - cpu0
+    reports, points = [], []
+    for label, theta in start_points(prep):
+        c0 = time.process_time()
+        z0 = initial_vector(prep, theta)
+        if z0 is None:
+            reports.append(StartReport(label, theta, "start frame has no limit lap", False,
+                                       math.nan, theta, 0, time.process_time() - c0))
+            continue
+        ok, status, pt = solve_from(prep, z0)
+        reports.append(StartReport(label, theta, status, ok, pt.objective, pt.theta,
+                                   pt.iterations, time.process_time() - c0))
+        if ok:
+            points.append(pt)
+    names = tuple(prep.labels)
+    common: dict[str, Any] = dict(problem=problem.name, keys=prep.keys, tracks=names,
+                  combine=problem.codesign.combine, starts=tuple(reports), build_cpu_s=build_cpu)
+    if not points:
+        return CodesignResult("failed", "no start converged: " + "; ".join(
+            f"{r.label}: {r.status}" for r in reports), best=None, distinct=(), **common,
+            cpu_s=time.process_time() - cpu0, wall_time_s=time.perf_counter() - wall0)
+    distinct = distinct_optima(points)
+    best = distinct[0]
+    cert = make_certificate(prep, best) if certify else None
+    front = None
+    measures = [o.index for o in problem.objectives if o.index in FRONT_MEASURES]
+    if measures:
+        front = design_front(prep, best, measures[0], problem.codesign.front.points,
+                             problem.codesign.front.lowest)
+        if run_dir is not None:
+            write_run(run_dir, prep, front, len(front.points))
+    return CodesignResult("completed", "", best=best, distinct=tuple(distinct), certificate=cert,
+                          front=front, cpu_s=time.process_time() - cpu0,
+                          wall_time_s=time.perf_counter() - wall0, **common)

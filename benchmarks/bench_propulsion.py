@@ -66,7 +66,7 @@ def lap_row(cfg, track, options: LimitLapOptions | None = None) -> tuple[dict, o
     frame = build_airframe(cfg)
     lap, t = cpu(lambda: limit_lap(cfg, track, options))
     row = {"status": lap.status, "reason": lap.reason[:200], "cpu_s": t}
-    if lap.optimal:
+    if lap.completed:
         prop = lap_propulsion(frame, lap.x_euler, lap.u)
         J = prop["advance_ratio"]
         row |= {"lap_s": lap.lap_time_s, "lower_bound_s": lap.point_mass_reference_s,
@@ -93,7 +93,7 @@ def warm_solves(name: str, lap0, track, n: int, seed: int) -> list[float]:
         opts = LimitLapOptions(starts=(), warm_starts=(lap0,), point_mass_reference=False,
                                sensitivities=False)
         lap, t = cpu(lambda c=c, opts=opts: limit_lap(c, track, opts))
-        times.append(t if lap.optimal else np.nan)
+        times.append(t if lap.completed else np.nan)
     return times
 
 
@@ -144,7 +144,7 @@ def main() -> None:
         for k, name in MODELS.items():
             row, lap = lap_row(load_airframe(name), trk)
             laps[(tname, k)] = lap
-            if lap.optimal:
+            if lap.completed:
                 lines.append(
                     f"| {tname} | {k} | optimal | {row['lap_s']:.3f} | "
                     f"{row['lower_bound_s']:.3f} | {row['miss_m']:.2g} | "
@@ -167,7 +167,7 @@ def main() -> None:
         med = {}
         for k, name in MODELS.items():
             lap0 = laps[("paper track", k)]
-            if not lap0.optimal:
+            if not lap0.completed:
                 lines.append(f"| {k} | no SY250 lap to start from | | |")
                 continue
             t = np.array(warm_solves(name, lap0, trk, a.warm, a.seed))
@@ -187,7 +187,7 @@ def main() -> None:
                   "| CPU (s) |", "|---|---|---|---|---|---|---|"]
         for name in REFERENCES:
             row, lap = lap_row(with_propeller(name), trk)
-            if lap.optimal:
+            if lap.completed:
                 lines.append(f"| {name} | optimal | {row['lap_s']:.3f} | "
                              f"{row['lower_bound_s']:.3f} | {row['miss_m']:.2g} | "
                              f"{row['top_speed_m_s']:.1f} | {row['cpu_s']:.1f} |")

@@ -31,6 +31,8 @@ ORDER = [
      "python benchmarks/bench_propulsion.py; casadrone limit-lap SY250-propeller --json"),
     ("trimstudy", "Trim solvers from many starts across the envelope (issue 23)",
      "python benchmarks/bench_trimstudy.py"),
+    ("trimstudy-propeller", "Trim solvers with the propeller model (issue 23)",
+     "python benchmarks/bench_trimstudy.py --propeller SY250-propeller --starts 10"),
     ("identity", "ev-MOGA's vectorised archive against the sequential one (issue 10)",
      "python benchmarks/check_evmoga_identity.py"),
     ("coordinator", "ev-MOGA's coordinator alone against archive size (issue 10)",

@@ -208,3 +208,16 @@ def test_envelope_spec():
                        ("forward:10..0/5", "speed range"), ("turn:10:nan", "turn_rate_dps")]:
         with pytest.raises(ValueError, match=words):
             envelope(bad)
+
+
+def test_study_of_a_propeller_frame_varies_the_shared_unknowns():
+    # rotor speeds are further unknowns of the propeller model: the starts vary (φ, θ, δ) and
+    # the trim starts the rotors at its own guess; hover's roots still balance the weight
+    frame = build_airframe(load_airframe("SY250-propeller"))
+    study = trim_study(frame, "hover,forward:10", StudyOptions(starts=3, solvers=("newton",)))
+    for p in study.points:
+        assert p.starts.shape == (4, 6)
+        assert p.summary("newton").from_guess == "converged"
+    ref = study.points[0].reference
+    tp = trim(frame, "hover", solver="newton", options=TrimOptions(initial_guess=tuple(ref)))
+    np.testing.assert_allclose(tp.thrusts.sum(), frame.mass * frame.gravity, rtol=2e-15)  # 2e-16

@@ -844,22 +844,25 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
 
 
 def param_sensitivity(pb: _Problem, point: NlpPoint) -> np.ndarray:
-    """dT/dp (PARAM_NAMES order, s per SI unit) at a solution: minus the parameter multipliers,
-    plus, for the thrust gain K, the active bounds set from K (each rotor's thrust ≤ K): bounds
-    are numbers, not parameters of the NLP, so the parameter multipliers miss them. Measured on
-    SY250 (a 30 m straight and a 2.5 m curve, 20 intervals per leg), where the thrust
-    saturates: without the bound term dT/dK was 3.4 % short of central differences of warm
-    re-solves, with it they agree to 1e-5 (tests/integration/test_limitlap_optimality.py)."""
-    from casadrone.airframe import PARAM_NAMES
+    """dT/dp (the airframe's parameter order, s per SI unit) at a solution: minus the parameter
+    multipliers, plus, for the thrust gain K, the active bounds set from K (each rotor's thrust
+    ≤ K): bounds are numbers, not parameters of the NLP, so the parameter multipliers miss them.
+    Measured on SY250 (a 30 m straight and a 2.5 m curve, 20 intervals per leg), where the
+    thrust saturates: without the bound term dT/dK was 3.4 % short of central differences of
+    warm re-solves, with it they agree to 1e-5 (tests/integration/test_limitlap_optimality.py)."""
+    from casadrone.model import param_names
 
     out = -point.lam_p[:len(pb.frame.p)].copy()
-    if "K" in PARAM_NAMES:  # the bounds are linear in K: their slope is one difference
+    names = param_names(pb.frame.propulsion)
+    # paper propulsion: the rotor-state bounds are [0, K] (propulsion.rotor_state_bounds), linear
+    # in K, so their slope is one difference (a propeller's rotor-speed bound has no K)
+    if pb.frame.propulsion == "paper" and "K" in names:
         lo0, hi0 = pb.box
         lo1, hi1 = bounds(pb.full, replace(pb.frame, thrust_gain=pb.frame.thrust_gain + 1.0),
                           pb.track, pb.options, point_mass=False)
         with np.errstate(invalid="ignore"):  # inf - inf where unbounded: no bound moves
             slope = np.nan_to_num(np.where(point.lam_x > 0, hi1 - hi0, lo1 - lo0), nan=0.0)
-        out[PARAM_NAMES.index("K")] -= float(point.lam_x @ slope)
+        out[names.index("K")] -= float(point.lam_x @ slope)
     return out
 
 

@@ -69,14 +69,14 @@ MUTANTS = (
            "for name in (PREVIOUS_CHECKPOINT, CHECKPOINT):",
            ("tests/integration/test_hardening.py", "tests/integration/test_optimise.py")),
     Mutant("bound-2K", "point-mass thrust bound 4K → 2K (the lower bound corrupted)",
-           "ul[:, 3], uu[:, 3] = 0.0, 4 * airframe.thrust_gain",
-           "ul[:, 3], uu[:, 3] = 0.0, 2 * airframe.thrust_gain", LIMIT_TESTS),
+           "ul[:, 3], uu[:, 3] = 0.0, 4 * rotor_thrust_bound(airframe)",
+           "ul[:, 3], uu[:, 3] = 0.0, 2 * rotor_thrust_bound(airframe)", LIMIT_TESTS),
     Mutant("sensitivity-x2", "limit-lap sensitivities scaled ×2",
            "out = -point.lam_p[:len(pb.frame.p)].copy()",
            "out = -2 * point.lam_p[:len(pb.frame.p)].copy()", LIMIT_TESTS),
     Mutant("thrust-0.9K", "every rotor's thrust capped at 0.9 K inside the limit-lap NLP",
-           "xl[:, model.rotor], xu[:, model.rotor] = 0.0, airframe.thrust_gain",
-           "xl[:, model.rotor], xu[:, model.rotor] = 0.0, 0.9 * airframe.thrust_gain",
+           "        return 0.0, float(airframe.thrust_gain)\n    return 0.0, max_speed(",
+           "        return 0.0, 0.9 * float(airframe.thrust_gain)\n    return 0.0, max_speed(",
            LIMIT_TESTS),
 )
 

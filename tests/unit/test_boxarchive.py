@@ -43,10 +43,10 @@ KEYS = ("X", "F", "G", "H", "CV")
 
 
 def reference_box_index(F: np.ndarray, f_min: np.ndarray, eps: np.ndarray) -> np.ndarray:
-    """The ε-box of each row of ``F``, element by element from EVMOGA.md's definition
-    ``ceil((f - min) / ε)`` (0 where ε = 0), the ratio rounded to 6 decimals first (floating
-    noise must not move a point across a box edge). Written here, not imported: the oracle must
-    not share the code it checks."""
+    """The ε-box of each row of ``F``, element by element from the definition of
+    docs/concepts/evmoga.md#boxes, ``ceil((f - min) / ε)`` (0 where ε = 0), the ratio rounded to
+    6 decimals first (floating noise must not move a point across a box edge). Written here, not
+    imported: the oracle must not share the code it checks."""
     F = np.atleast_2d(np.asarray(F, float))
     width = np.asarray(eps, float)
     boxes = np.ceil(np.round((F - f_min) / np.where(width > 0.0, width, 1.0), 6))

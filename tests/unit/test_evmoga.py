@@ -62,8 +62,8 @@ def assert_archive_invariants(alg: EvMOGA | BoxArchive) -> None:
     assert np.all(alg.rows["CV"] <= 0.0), "infeasible member in A"
     assert np.all(np.isfinite(F))
     # stored boxes are the boxes of the members on the stored grid, inside [0, n_div]: the box
-    # ceil((f - min) / ε), rounded to 6 decimals first, 0 where ε = 0 (EVMOGA.md), computed here
-    # rather than by the package's box_index, which it checks
+    # ceil((f - min) / ε), rounded to 6 decimals first, 0 where ε = 0 (docs/concepts/evmoga.md),
+    # computed here rather than by the package's box_index, which it checks
     width = np.where(alg.eps > 0.0, alg.eps, 1.0)
     boxes = np.where(alg.eps > 0.0, np.ceil(np.round((F - alg.grid_min) / width, 6)), 0.0)
     np.testing.assert_array_equal(B, boxes.astype(np.int64))

@@ -38,7 +38,10 @@ def export_command(
         help="of a run directory: A (utopian), B (compromise), C (extreme) or a pareto.csv row "
         "(0-based)")] = None,
     out: Annotated[Path | None, typer.Option(
-        "--out", "-o", help="write to this file (default: print)")] = None,
+        "--out", "-o", help="write to this new file (default: print); never inside a run "
+        "directory")] = None,
+    force: Annotated[bool, typer.Option(
+        "--force", help="replace the --out file if it exists")] = False,
     arm_width: Annotated[float, typer.Option(
         help="svg/dxf: arm width (mm)", min=1.0)] = 14.0,
     pattern: Annotated[Pattern, typer.Option(
@@ -52,7 +55,13 @@ def export_command(
     from casadrone.export import export, write_export
     from casadrone.export.plate import PlateOptions
     from casadrone.export.source import source_of
+    from casadrone.outfile import OutputRefused, check_out
 
+    if out is not None:
+        try:
+            check_out(out, force)  # before reading anything
+        except OutputRefused as exc:
+            raise bad_input([f"--out: {exc}"]) from None
     try:
         src = source_of(source, candidate, overrides)
     except (FileNotFoundError, ValueError) as exc:
@@ -62,6 +71,8 @@ def export_command(
         if out is None:
             typer.echo(export(src, fmt, options), nl=False)
         else:
-            typer.echo(f"wrote {write_export(src, fmt, out, options)}")
+            typer.echo(f"wrote {write_export(src, fmt, out, options, force)}")
+    except OutputRefused as exc:
+        raise bad_input([f"--out: {exc}"]) from None
     except (ValueError, RuntimeError) as exc:
         raise bad_input([f"{source}: {exc}"]) from None

@@ -100,10 +100,12 @@ def require_run_dir(run_dir: Path) -> None:
 
 def open_problem(run_dir: Path):
     """The resolved problem of a run directory; an unreadable config.yaml is bad input."""
-    from casadrone.optimise.store import CONFIG, RunStore
+    from casadrone.optimise.store import CONFIG, RunDamaged, RunStore
 
     try:
         return RunStore(run_dir).problem()
+    except RunDamaged:
+        raise  # one line naming the file (an edited input, a damaged manifest)
     except Exception as exc:  # noqa: BLE001 (yaml or pydantic: a damaged run directory)
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise bad_input([f"{run_dir / CONFIG}: not a valid resolved problem: {first}"]) from None

@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 import difflib
 import math
+import os
 import re
 import types
 import typing
@@ -32,6 +33,8 @@ from pydantic import (
     field_validator,
     model_validator,
 )
+
+from casadrone import yamlsafe
 
 #: The checkout (or, installed, site-packages): relative paths in configs resolve here too.
 ROOT = Path(__file__).resolve().parents[2]
@@ -171,8 +174,9 @@ PATH_KEYS = {
 }
 
 
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """SafeLoader that rejects a key given twice in one mapping (the second would win silently)."""
+class _UniqueKeyLoader(yamlsafe.BaseLoader):
+    """SafeLoader (libyaml's where installed) that rejects a key given twice in one mapping (the
+    second would win silently)."""
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
         seen: dict[Any, int] = {}
@@ -206,10 +210,13 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
     """Read a YAML mapping; malformed YAML or a missing file raises ConfigError with the line."""
     path = Path(path)
     if not path.is_file():
-        raise ConfigError([f"{path}: file not found"])
+        raise ConfigError([f"{path}: {not_a_file(path)}"])
     try:
+        yamlsafe.check_size(path.stat().st_size)
         text = path.read_text(encoding="utf-8")
-        data = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader subclass)
+        data = yamlsafe.safe_load(text, _UniqueKeyLoader)
+    except yamlsafe.TooCostly as exc:
+        raise ConfigError([f"{path}: {exc}"]) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError([f"{path}: cannot read: {exc}"]) from None
     except yaml.YAMLError as exc:
@@ -229,10 +236,26 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
     return data
 
 
-def parse_value(text: str) -> Any:
-    """Parse the value of a ``key=value`` override as YAML (numbers, lists, strings)."""
+def not_a_file(path: Path) -> str:
+    """Why ``path`` (not a regular file) cannot be read: missing, a folder, a link loop."""
+    import errno
+
     try:
-        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader subclass)
+        path.stat()
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            return "symbolic link loop (the link points back at itself); not read"
+        if path.is_symlink():
+            return f"broken symbolic link (to {os.readlink(path)}); not read"
+        return "file not found"
+    return "is a folder, not a file" if path.is_dir() else "not a regular file; not read"
+
+
+def parse_value(text: str) -> Any:
+    """Parse the value of a ``key=value`` override as YAML (numbers, lists, strings); one
+    beyond :mod:`casadrone.yamlsafe`'s limits raises TooCostly."""
+    try:
+        return yamlsafe.safe_load(text, _UniqueKeyLoader)
     except yaml.YAMLError:
         return text
 
@@ -249,6 +272,11 @@ def apply_overrides(data: dict[str, Any], overrides: list[str] | None, source: s
             continue
         node: Any = data
         try:
+            parsed = parse_value(value)
+        except yamlsafe.TooCostly as exc:
+            errors.append(f"{source}: override '{key.strip()}=…': {exc}")
+            continue
+        try:
             for part in parts[:-1]:
                 if isinstance(node, list):  # list item by position: objectives.0.index=J3
                     node = node[int(part)]
@@ -257,9 +285,9 @@ def apply_overrides(data: dict[str, Any], overrides: list[str] | None, source: s
                     node[part] = {}
                 node = node[part]
             if isinstance(node, list):
-                node[int(parts[-1])] = parse_value(value)
+                node[int(parts[-1])] = parsed
             else:
-                node[parts[-1]] = parse_value(value)
+                node[parts[-1]] = parsed
         except (ValueError, IndexError):
             errors.append(f"{source}: override '{item}': {key.strip()}: no such list item")
     if errors:
@@ -501,8 +529,8 @@ def resolve_config(name: str | Path, kind: str) -> Path:
     candidate = folder / f"{p.stem}.yaml"
     if len(p.parts) == 1 and p.suffix in ("", ".yaml", ".yml") and candidate.is_file():
         return candidate
-    if len(p.parts) > 1:
-        raise ConfigError([f"{name}: file not found"])
+    if len(p.parts) > 1 or p.is_symlink():
+        raise ConfigError([f"{name}: {not_a_file(p)}"])
     known = sorted(f.stem for f in folder.glob("*.yaml"))
     close = difflib.get_close_matches(p.stem, known, n=1, cutoff=0.6)
     hint = f"did you mean '{close[0]}'? " if close else ""

@@ -56,13 +56,20 @@ def export(src: ExportSource, fmt: str, plate_options: PlateOptions | None = Non
 
 
 def write_export(src: ExportSource, fmt: str, out: str | Path,
-                 plate_options: PlateOptions | None = None) -> Path:
-    """Write one format to ``out`` (its folder is created); the path written."""
-    text = export(src, fmt, plate_options)
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text, encoding="utf-8")
-    return out
+                 plate_options: PlateOptions | None = None, force: bool = False) -> Path:
+    """Write one format to ``out`` (its folder is created); the path written.
+
+    An existing file is replaced only with ``force``; a path inside a run directory is always
+    refused; the file appears whole or not at all (:func:`casadrone.outfile.write_out`).
+
+    Raises:
+        casadrone.outfile.OutputRefused: ``out`` must not be written (a ValueError).
+        OSError: the write failed (a full disk), naming ``out``.
+    """
+    from casadrone.outfile import check_out, write_out
+
+    check_out(out, force)  # before any work
+    return write_out(out, export(src, fmt, plate_options), force)
 
 
 def default_name(src: ExportSource, fmt: str) -> str:

@@ -21,7 +21,7 @@ class ExportSource:
 
     config: AirframeConfig
     airframe: Airframe
-    origin: str  # "airframe SY250 (…/SY250.yaml)" or "run runs/q"
+    origin: str  # "airframe SY250 (shipped configs/airframes/SY250.yaml)" or "run runs/q"
     candidate: str  # "-" for a plain airframe, else e.g. "A (utopian, pareto.csv row 3)"
 
     def header_lines(self, what: str) -> list[str]:
@@ -49,11 +49,13 @@ def airframe_source(airframe: str | Path, overrides: list[str] | None = None) ->
         ConfigError: a missing or invalid file, or a bad override.
     """
     from casadrone.config.io import resolve_config
+    from casadrone.outfile import shown_path
 
     path = resolve_config(airframe, "airframes")
     cfg = load_airframe(path, overrides or [])
     extra = f", overrides {' '.join(overrides)}" if overrides else ""
-    return ExportSource(cfg, build_airframe(cfg), f"airframe {cfg.name} ({path}{extra})", "-")
+    return ExportSource(cfg, build_airframe(cfg), f"airframe {cfg.name} ({shown_path(path)}"
+                        f"{extra})", "-")
 
 
 def run_source(run_dir: str | Path, candidate: str) -> ExportSource:
@@ -68,6 +70,7 @@ def run_source(run_dir: str | Path, candidate: str) -> ExportSource:
     from casadrone.compare import run_candidates
     from casadrone.optimise.problem import Study, study_setup
     from casadrone.optimise.store import PARETO, RunStore
+    from casadrone.outfile import shown_path
 
     run_dir = Path(run_dir)
     store = RunStore(run_dir)
@@ -92,7 +95,7 @@ def run_source(run_dir: str | Path, candidate: str) -> ExportSource:
         raise ValueError(f"--candidate: {candidate!r} is neither A, B, C nor a {PARETO} row number")
     template = study_setup(Study(problem)).template
     return candidate_source(template, theta, f"{run_dir.name}-{key}",
-                            f"run {run_dir} (template {template.name})", label)
+                            f"run {shown_path(run_dir)} (template {template.name})", label)
 
 
 def candidate_source(template: AirframeConfig, theta: dict[str, float], name: str, origin: str,

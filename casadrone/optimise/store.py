@@ -62,6 +62,11 @@ class RunDamaged(RuntimeError):
     """A run directory whose files cannot be read (the message says which and why)."""
 
 
+class InputsChanged(RunDamaged):
+    """A file the run depends on (``config.yaml``, ``inputs/*``) differs from the one it was
+    created with: continuing or reading it would mix two problems in one front."""
+
+
 class NotARunDirectory(RuntimeError):
     """``run --out`` names a folder that holds something else (it is left untouched)."""
 
@@ -114,6 +119,7 @@ def snapshot_inputs(problem: ProblemConfig, path: Path) -> ProblemConfig:
     into ``path/inputs/`` and point the problem at the copies (relative to the run directory), so
     resuming or reporting a run never depends on files edited after it started."""
     from casadrone.config.io import CONFIG_DIR, read_yaml, resolve_config
+    from casadrone.outfile import shown_path
 
     if problem.test_problem is not None:
         return problem
@@ -142,11 +148,24 @@ def snapshot_inputs(problem: ProblemConfig, path: Path) -> ProblemConfig:
                     ref_path = resolve_config(ref, "airframes")
                 atomic_write(inputs / "reference_airframe.yaml", ref_path.read_bytes())
                 data["reference_airframe"] = "reference_airframe.yaml"
-            atomic_write(dst, f"# copied from {src}\n" + yaml.safe_dump(data, sort_keys=False))
+            atomic_write(dst, f"# copied from {shown_path(src)}\n"
+                         + yaml.safe_dump(data, sort_keys=False))
         else:
             atomic_write(dst, Path(src).read_bytes())
         updates[key] = Path("inputs") / dst.name
     return problem.model_copy(update=updates)
+
+
+def file_sha256(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def input_hashes(path: Path) -> dict[str, str]:
+    """SHA-256 of every file a run depends on: ``config.yaml`` and each file under ``inputs/``
+    (the airframe, track, controller and a frozen gain's reference airframe), by path relative
+    to the run directory."""
+    files = [path / CONFIG, *sorted(p for p in (path / "inputs").rglob("*") if p.is_file())]
+    return {f.relative_to(path).as_posix(): file_sha256(f) for f in files}
 
 
 def resolved_yaml(problem: ProblemConfig) -> str:
@@ -226,6 +245,7 @@ class RunStore:
         os.replace(tmp_db, path / HISTORY)
         store.write_manifest({
             "config_hash": hashlib.sha256(text.encode()).hexdigest(),
+            "input_hashes": input_hashes(path),
             "problem": problem.name, "seed": problem.seed, "versions": versions(),
             "git_revision": git_revision(), "host": socket.gethostname(),
             "platform": platform.platform(), "python_executable": sys.executable,
@@ -261,10 +281,38 @@ class RunStore:
         self.write_manifest({**self.manifest, **changes})
 
     def problem(self) -> ProblemConfig:
-        """The resolved problem of this run (its input files from the run's own ``inputs/``)."""
+        """The resolved problem of this run (its input files from the run's own ``inputs/``),
+        after :meth:`check_inputs`."""
         from casadrone.config.io import load
 
+        try:
+            self.check_inputs()
+        except InputsChanged:
+            load(ProblemConfig, self.path / CONFIG)  # one that no longer reads says so first
+            raise
         return load(ProblemConfig, self.path / CONFIG)
+
+    def check_inputs(self) -> None:
+        """Raise :class:`InputsChanged` naming the first file the run depends on that is missing
+        or differs from the one the run was created with (hashes in the manifest; a run from
+        before input hashes is checked on ``config.yaml`` alone)."""
+        m = self.manifest
+        recorded = m.get("input_hashes")
+        if not isinstance(recorded, dict):
+            recorded = {CONFIG: m["config_hash"]} if "config_hash" in m else {}
+        for name, digest in recorded.items():
+            f = self.path / name
+            try:
+                same = file_sha256(f) == digest
+            except FileNotFoundError:
+                raise InputsChanged(f"{f}: missing; the run depends on it (restore it from a "
+                                    "copy of the run)") from None
+            if not same:
+                raise InputsChanged(
+                    f"{f}: changed since the run was created (its SHA-256 is in {MANIFEST}); "
+                    "a run only continues and reads its front on the inputs it started with. "
+                    "Undo the edit, or start a new run from the edited inputs: casadrone run "
+                    f"{self.path / CONFIG} --out NEW_DIR")
 
     # -- history ----------------------------------------------------------------------------
 

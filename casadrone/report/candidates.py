@@ -58,19 +58,23 @@ def _exports(run: Run, c: Candidate, folder: Path) -> str:
     """Write the candidate's exports under ``folder`` (beside report.html) and link them; the
     page stays self-contained, the files are optional extras."""
     from casadrone.config.io import ConfigError
-    from casadrone.export import FORMATS, write_export
+    from casadrone.export import FORMATS, export
     from casadrone.export.source import candidate_source
     from casadrone.optimise.problem import study_setup
+    from casadrone.optimise.store import atomic_write
+    from casadrone.outfile import shown_path
 
     template = study_setup(run.study).template
     tag = c.label.replace("=", "")  # "A=C" (one design, two decisions) → "AC"
     try:
         src = candidate_source(template, c.theta, f"{run.store.path.name}-{tag}",
-                               f"run {run.store.path} (template {template.name})",
+                               f"run {shown_path(run.store.path)} (template {template.name})",
                                f"{c.label} ({', '.join(c.methods)}, {PARETO} row {c.row})")
         links = []
-        for fmt, spec in FORMATS.items():
-            path = write_export(src, fmt, folder / f"candidate-{tag}-{fmt}{spec.suffix}")
+        folder.mkdir(parents=True, exist_ok=True)
+        for fmt, spec in FORMATS.items():  # the report's own files: replaced on each report
+            path = folder / f"candidate-{tag}-{fmt}{spec.suffix}"
+            atomic_write(path, export(src, fmt))
             links.append(f'<a href="{folder.name}/{esc(path.name)}">{esc(fmt)}</a>')
     except (ConfigError, ValueError, RuntimeError) as exc:
         return note(f"No exports for candidate {c.label}: {exc}", "warn")

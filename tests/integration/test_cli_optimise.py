@@ -323,7 +323,9 @@ def test_export_a_run_candidate(cli_runner, tiny_run, tmp_path, fmt):
                     target)
     assert result.exit_code == 0, result.output
     text = target.read_text(encoding="utf-8")
-    assert f"run {out}" in text and f"A (utopian, pareto.csv row {a['row']})" in text
+    # the run by its name, never the machine's absolute path (shared files)
+    assert f"run {out.name} (template" in text and str(out.parent) not in text
+    assert f"A (utopian, pareto.csv row {a['row']})" in text
     # the candidate's own geometry, not the template's
     assert f"lambda_a_mm={a['theta']['lambda_a_mm']:g}" in text
     by_row = invoke(cli_runner, "export", out, "--candidate", str(a["row"]), "--format", fmt)

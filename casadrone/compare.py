@@ -119,6 +119,13 @@ class Candidate(AsDict):
         return f"{self.label}: " + "; ".join(DECISION_TEXT[m] for m in self.methods)
 
 
+def empty_front(run_dir: str | Path) -> str:
+    """What to say about a run whose front holds no design."""
+    return (f"{run_dir}: the Pareto front is empty (no evaluated candidate was feasible), so "
+            "there is no design to choose or export; 'casadrone run -v' and history.sqlite "
+            "show why the candidates failed")
+
+
 def run_candidates(
     run_dir: str | Path,
     methods: tuple[str, ...] | None = None,
@@ -152,6 +159,8 @@ def run_candidates(
     if header[n_var:] != names:
         raise ValueError(f"{run_dir}: {PARETO} columns {header} do not end with the problem's "
                          f"objectives {names}")
+    if not rows:
+        raise ValueError(empty_front(run_dir))
     if objective is not None and objective not in names:
         raise ValueError(f"unknown objective {objective!r}; objectives of this run: "
                          f"{', '.join(names)}")

@@ -86,21 +86,30 @@ def _yaml_files(paths: list[Path]) -> list[Path]:
 def validate(
     files: Annotated[list[Path], typer.Argument(
         help="config YAML files or folders of them; a shipped name (SY250, quick), or configs "
-        "and problems for every shipped file")],
+        "and problems for every shipped file; after one file, key=value overrides (validate "
+        "SY250 izz_kgm2=0.0045)")],
     as_json: JsonOpt = False,
 ) -> None:
-    """Validate config files: exit 0 when all are valid, 2 otherwise (one line per problem)."""
+    """Validate config files: exit 0 when all are valid, 2 otherwise (one line per problem).
+
+    With ``key=value`` arguments after a single file, that file is validated with the overrides
+    applied, as every other command applies them."""
     from casadrone.config.problem import ProblemConfig
     from casadrone.config.validation import check_config_file
 
+    overrides = [str(p) for p in files if "=" in str(p) and not p.exists()]
+    files = [p for p in files if str(p) not in overrides]
+    if overrides and len(files) != 1:
+        raise bad_input([f"validate: key=value overrides ({overrides[0]}) apply to one file; "
+                         f"got {len(files)}"])
     report: list[dict[str, Any]] = []
     for path in _yaml_files(files):
         try:
-            config = check_config_file(path)
+            config = check_config_file(path, overrides)
             if isinstance(config, ProblemConfig):  # the optimiser's checks: import it only now
                 from casadrone.optimise.checks import check_problem
 
-                check_problem(config, path)
+                check_problem(config, path, overrides)
             report.append({"file": str(path), "valid": True, "problems": []})
         except ConfigError as exc:
             report.append({"file": str(path), "valid": False, "problems": exc.lines})

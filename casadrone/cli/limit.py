@@ -14,6 +14,7 @@ from casadrone.cli.common import (
     PlotOpt,
     TrackOpt,
     app,
+    bad_input,
     check_plot_dir,
     print_json,
     reports_config_errors,
@@ -38,7 +39,9 @@ def limit_lap_command(
     airframe: AirframeArg,
     overrides: OverridesArg = None,
     track: TrackOpt = None,
-    intervals: Annotated[int, typer.Option(min=2, help="shooting intervals per leg")] = 40,
+    intervals: Annotated[int, typer.Option(
+        min=2, max=400, help="shooting intervals per leg, at most 400 (ten times finer than "
+        "grid refinement needs; memory grows in proportion)")] = 40,
     attitude: Annotated[str, typer.Option(
         help="euler (ZYX angles) or quaternion (no singularity: split-S, loops)")] = "euler",
     tilt: Annotated[str, typer.Option(
@@ -54,31 +57,37 @@ def limit_lap_command(
     local optima of that relaxation, not a bound), split and lap times, whether the starts
     agree (certainty), the share of
     saturated commands, the re-simulation miss and dT/dθ per decision variable (s per unit). A
-    lap the solver cannot find (an unreachable gate, no convergence) is a result with status
-    "failed" and a reason, exit code 0; a bad config (a malformed track, a frame too heavy to
-    hover) is bad input, exit code 2.
+    lap the solver cannot find (no convergence) is a result with status "failed" and a reason,
+    exit code 0; a bad config (a malformed track, a frame too heavy to hover, a gate narrower
+    than twice the frame's clearance) is bad input, exit code 2.
 
     --plot DIR saves the limit lap beside the closed-loop lap (top view, 3-D) and its speed and
     commands over time.
     """
     check_plot_dir(plot)
+    from casadrone.airframe import build_airframe
     from casadrone.config.airframe import load_airframe
     from casadrone.config.io import ConfigError, load, resolve_config
     from casadrone.config.track import TrackConfig
     from casadrone.evaluate import DEFAULT_TRACK
-    from casadrone.limit.lap import LimitLapOptions, limit_lap
+    from casadrone.limit.lap import LimitLapOptions, check_inputs, frame_clearance_m, limit_lap
 
     cfg = load_airframe(airframe, overrides or [])
-    trk = load(TrackConfig, resolve_config(track, "tracks") if track else DEFAULT_TRACK)
+    track_path = resolve_config(track, "tracks") if track else DEFAULT_TRACK
+    trk = load(TrackConfig, track_path)
     if attitude not in ("euler", "quaternion") or tilt not in ("axes", "cone", "none"):
         raise ConfigError([f"--attitude {attitude} --tilt {tilt}: attitude is euler or quaternion, "
                        "tilt is axes, cone or none"])
     if attitude == "quaternion" and tilt == "axes":
         raise ConfigError(["--tilt axes bounds Euler angles: with --attitude quaternion use cone "
                        "or none"])
-    lap = limit_lap(cfg, trk, LimitLapOptions(intervals=intervals,
-                                              attitude=cast("Attitude", attitude),
-                                              tilt_limit=cast("TiltLimit", tilt)))
+    options = LimitLapOptions(intervals=intervals, attitude=cast("Attitude", attitude),
+                              tilt_limit=cast("TiltLimit", tilt))
+    frame = build_airframe(cfg)
+    impossible = check_inputs(trk, options, frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
+    if impossible:  # known before any solve: bad input, not a failed lap
+        raise bad_input([f"{track_path}: {impossible}; no limit lap can pass it"])
+    lap = limit_lap(cfg, trk, options)
     result = {k: getattr(lap, k) for k in LIMIT_KEYS}
     from casadrone.airframe import build_airframe
     from casadrone.limit.check import lap_propulsion

@@ -37,6 +37,10 @@ TABLE1_BOUNDS = {
     "iyy_kgm2": (0.0012, 0.0021),
     "izz_kgm2": (0.0027, 0.0042),
 }
+#: A part's size or position (``mass_model: components``), within the arm ceiling: a part beyond
+#: it would not be on the airframe (a battery 1 km out moved the centre of mass 250 m).
+PartSize = Annotated[float, Field(gt=0, le=MAX_ARM_MM)]
+PartOffset = Annotated[float, Field(ge=-MAX_ARM_MM, le=MAX_ARM_MM)]
 
 
 # --------------------------------------------------------------------------------------------
@@ -61,26 +65,27 @@ INERTIA_KEYS = ("ixx_kgm2", "iyy_kgm2", "izz_kgm2")
 class ComponentsConfig(Schema):
     """The parts of an airframe (``mass_model: components``, :mod:`casadrone.massprops`).
 
-    Positions are body axes (x nose, y left, z up) from the arm hub, the point where the arms meet
-    and from which λa, λb, α, β place the rotors; the rotor plane is z = 0. The centre of mass
-    follows from the parts (it moves forward when λa > λb).
+    Sizes and positions are at most :data:`MAX_ARM_MM` (5 m) and masses at most 1000 kg, the
+    ceilings of ``mass_model: free``. Positions are body axes (x nose, y left, z up) from the arm
+    hub, the point where the arms meet and from which λa, λb, α, β place the rotors; the rotor
+    plane is z = 0. The centre of mass follows from the parts (it moves forward when λa > λb).
     """
 
-    body_mass_kg: float = Field(gt=0, description="central body: plates, standoffs, flight "
-                                "controller and ESC stack, camera, video transmitter, receiver, "
-                                "wiring (a uniform box)")
-    body_size_mm: tuple[Positive, Positive, Positive] = Field(
+    body_mass_kg: float = Field(gt=0, le=1000, description="central body: plates, standoffs, "
+                                "flight controller and ESC stack, camera, video transmitter, "
+                                "receiver, wiring (a uniform box)")
+    body_size_mm: tuple[PartSize, PartSize, PartSize] = Field(
         description="central body box along body x, y, z (mm)")
-    body_position_mm: tuple[float, float, float] = Field(
+    body_position_mm: tuple[PartOffset, PartOffset, PartOffset] = Field(
         (0.0, 0.0, 0.0), description="centre of the body box from the hub (mm)")
-    motor_mass_kg: float = Field(gt=0, description="one motor with its prop and screws, a point "
-                                 "mass at the rotor centre (kg)")
-    arm_linear_density_kgpm: float = Field(ge=0, description="arm mass per metre: a thin rod "
-                                           "from the hub to each rotor (kg/m)")
-    battery_mass_kg: float = Field(gt=0, description="battery pack, a uniform box (kg)")
-    battery_size_mm: tuple[Positive, Positive, Positive] = Field(
+    motor_mass_kg: float = Field(gt=0, le=1000, description="one motor with its prop and "
+                                 "screws, a point mass at the rotor centre (kg)")
+    arm_linear_density_kgpm: float = Field(ge=0, le=1000, description="arm mass per metre: a "
+                                           "thin rod from the hub to each rotor (kg/m)")
+    battery_mass_kg: float = Field(gt=0, le=1000, description="battery pack, a uniform box (kg)")
+    battery_size_mm: tuple[PartSize, PartSize, PartSize] = Field(
         description="battery box along body x, y, z (mm)")
-    battery_position_mm: tuple[float, float, float] = Field(
+    battery_position_mm: tuple[PartOffset, PartOffset, PartOffset] = Field(
         description="centre of the battery from the hub (mm)")
 
 

@@ -507,7 +507,15 @@ def load(model: type[M], path: str | Path, overrides: list[str] | None = None) -
     """Load and validate a YAML file, with optional ``key=value`` overrides."""
     path = Path(path)
     data = apply_overrides(read_yaml(path), overrides, str(path))
-    return validate_data(model, data, str(path), path.parent, overrides)
+    try:
+        return validate_data(model, data, str(path), path.parent, overrides)
+    except ConfigError:
+        from casadrone.config.validation import other_kind  # above the schemas: imported now
+
+        other = other_kind(model, path, data)
+        if other:  # a problem given for an airframe: one line, not every missing key
+            raise ConfigError([f"{path}: {other}"]) from None
+        raise
 
 
 def kind_dir(kind: str) -> Path:

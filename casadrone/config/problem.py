@@ -105,8 +105,13 @@ class AlgorithmConfig(Schema):
         "evmoga",
         description="evmoga, or a pymoo algorithm by name (nsga2, nsga3, ...)",
     )
-    population: int = Field(100, ge=2, description="ev-MOGA n_ind_p / pymoo pop_size")
-    generations: int = Field(50, ge=1, description="generations after the initial population")
+    # Ceilings: over ten times the paper's budget (850 individuals, 350 generations, Table 6);
+    # each candidate is a trim, an LQR design and a lap (~0.1-1 s), so more is months of
+    # computing: a typing slip, refused at load.
+    population: int = Field(100, ge=2, le=10_000,
+                            description="ev-MOGA n_ind_p / pymoo pop_size (at most 10 000)")
+    generations: int = Field(50, ge=1, le=100_000, description="generations after the initial "
+                             "population (at most 100 000)")
     settings: dict[str, Any] = Field(default_factory=dict, description="algorithm keywords")
 
 
@@ -133,8 +138,11 @@ class PymooProblemConfig(Schema):
     """A pymoo test problem with a known front, to check algorithm settings."""
 
     name: Literal["zdt1", "zdt2", "zdt3", "dtlz2"] = Field(description="the pymoo test problem")
-    n_var: int = Field(4, ge=2, description="number of decision variables")
-    n_obj: int = Field(3, ge=2, description="dtlz2 only")
+    n_var: int = Field(4, ge=2, le=1000, description="number of decision variables, at most 1000 "
+                       "(the test problems' fronts are known for any size; beyond is memory, "
+                       "not a test)")
+    n_obj: int = Field(3, ge=2, le=10, description="dtlz2 only; at most 10 (reference "
+                       "directions grow combinatorially with the objectives)")
 
 
 class ProblemConfig(Schema):
@@ -283,6 +291,13 @@ def _computed_variables(v: dict[str, Any]) -> list[tuple[str, str]]:
         return []  # the airframe file's own problems are reported with it
     if template.get("mass_model") != "components":
         return []
+    computed = [x.name for x in v["variables"] if x.name in MASS_KEYS]
+    if computed and [x.model_dump() for x in v["variables"]] == [
+            x.model_dump() for x in _table1_variables()]:  # not written in the file
+        return [("variables", f"not given, so the default (paper Table 1) applies, and it "
+                 f"varies {', '.join(computed)}, which the airframe's mass_model: components "
+                 "computes from the parts; list the geometry variables (lambda_a_mm, "
+                 "lambda_b_mm, alpha_deg, beta_deg) under variables")]
     return [(f"variables.{i}.name", f"'{x.name}' is computed from the parts with the airframe's "
              "mass_model: components, so it cannot be a decision variable; list the geometry "
              "variables (lambda_a_mm, lambda_b_mm, alpha_deg, beta_deg) under variables")

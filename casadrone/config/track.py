@@ -157,7 +157,10 @@ class TrackConfig(Schema):
     @model_validator(mode="before")
     @classmethod
     def _gate_centres(cls, data):
-        """With ``gates:`` and no ``waypoints_m``, the waypoints are the gate centres."""
+        """With ``gates:`` and no ``waypoints_m``, the waypoints are the gate centres; an empty
+        ``gates:`` list is named as such (not as missing waypoints)."""
+        if isinstance(data, dict) and data.get("gates") == [] and "waypoints_m" not in data:
+            raise ValueError("gates: give at least one gate (or waypoints_m instead of gates)")
         if isinstance(data, dict) and data.get("gates") and "waypoints_m" not in data:
             gates = data["gates"]
             if isinstance(gates, list) and all(isinstance(g, dict) for g in gates):

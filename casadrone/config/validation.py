@@ -67,11 +67,35 @@ def detect_schema(path: Path, data: dict[str, Any]) -> type[BaseModel] | None:
     return None
 
 
-def check_config_file(path: str | Path) -> BaseModel:
-    """Validate any known config file, and the config files it references; ConfigError lists
-    every problem."""
+def kind_name(model: type[BaseModel]) -> str | None:
+    """The kind of config a schema reads, singular (``airframe``, ``problem``), or None."""
+    for folder, entry in SCHEMAS_BY_FOLDER.items():
+        if entry is model:
+            return folder.removesuffix("s")
+    return None
+
+
+def other_kind(model: type[BaseModel], path: Path, data: dict[str, Any]) -> str | None:
+    """When ``data`` (which failed ``model``) is plainly another kind of config, one line that
+    says so (``this is a problem, not an airframe …``); else None."""
+    found = detect_schema(path, data)
+    if found is None or found is model:
+        return None
+    theirs, ours = kind_name(found), kind_name(model)
+    if theirs is None or ours is None:
+        return None
+    article = "an" if ours[0] in "aeiou" else "a"
+    return (f"this is {'an' if theirs[0] in 'aeiou' else 'a'} {theirs}, not {article} {ours}; "
+            f"give {article} {ours} here (a YAML file or a shipped name)")
+
+
+def check_config_file(path: str | Path, overrides: list[str] | None = None) -> BaseModel:
+    """Validate any known config file (with ``key=value`` overrides applied), and the config
+    files it references; ConfigError lists every problem."""
+    from casadrone.config.io import apply_overrides
+
     path = Path(path)
-    data = read_yaml(path)
+    data = apply_overrides(read_yaml(path), overrides, str(path))
     model = detect_schema(path, data)
     if model is None:
         kinds = ", ".join(SCHEMAS_BY_FOLDER)
@@ -79,7 +103,7 @@ def check_config_file(path: str | Path) -> BaseModel:
                            f"in a folder named after its kind ({kinds})"])
     errors: list[str] = []
     try:
-        obj = validate_data(model, data, str(path), path.parent)
+        obj = validate_data(model, data, str(path), path.parent, overrides)
     except ConfigError as exc:
         errors += exc.lines
         obj = None

@@ -86,6 +86,10 @@ def run_source(run_dir: str | Path, candidate: str) -> ExportSource:
     elif key.isdigit():
         header, rows = store.read_pareto()
         row = int(key)
+        if not rows:
+            from casadrone.compare import empty_front
+
+            raise ValueError(empty_front(run_dir))
         if row >= len(rows):
             raise ValueError(f"{run_dir}: {PARETO} has rows 0..{len(rows) - 1}, not {row}")
         n_var = len(Study(problem).variable_names)

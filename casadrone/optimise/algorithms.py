@@ -42,12 +42,20 @@ REFUSED: dict[str, str] = {
 }
 
 
+#: Ceiling of every whole-number setting (counts of individuals, offspring, neighbours,
+#: divisions): over ten times the paper's largest (850 individuals, 200 divisions, Table 6),
+#: low enough that no setting can ask for more memory than a workstation has.
+MAX_COUNT = 10_000
+
+
 def _int(lo: int, even: bool = False):
     def check(v: Any) -> str | None:
         if isinstance(v, bool) or not isinstance(v, int):
             return f"expected a whole number, got {v!r}"
         if v < lo:
             return f"must be >= {lo}, got {v}"
+        if v > MAX_COUNT:
+            return f"must be <= {MAX_COUNT} (far beyond any use; memory grows with it), got {v}"
         if even and v % 2:
             return f"must be even (children come in pairs), got {v}"
         return None

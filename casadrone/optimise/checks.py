@@ -74,6 +74,8 @@ def problem_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
                     hint = f"did you mean '{close[0]}'? " if close else ""
                     found.append((f"{group}.{i}.index", f"unknown index '{o.index}' ({hint}"
                                   f"known: {', '.join(INDICES)})"))
+    if problem.test_problem is None and not found:
+        found += _limit_problems(problem)
     return found + _algorithm_problems(problem)
 
 
@@ -85,6 +87,59 @@ def _name_problems(key: str, name: str, registry: Iterable[str]) -> list[tuple[s
     close = difflib.get_close_matches(name, known, 1)
     hint = f"did you mean '{close[0]}'? " if close else ""
     return [(key, f"unknown {key} '{name}' ({hint}known: {', '.join(known)})")]
+
+
+def _limit_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
+    """What makes a limit-lap index impossible before any solve (a gate narrower than twice the
+    limit lap's clearance, :func:`casadrone.limit.lap.check_inputs`): a problem optimising or
+    constraining one could only fill its budget with failed evaluations, so it is refused at
+    load, like a bad value."""
+    from casadrone.indices import limit_index_names
+
+    names = [o.index for o in problem.objectives] + [c.index for c in problem.constraints]
+    used = limit_index_names(names)
+    if not used:
+        return []
+    from casadrone.config.io import CONFIG_DIR, load
+    from casadrone.config.track import TrackConfig
+    from casadrone.limit.lap import LimitLapOptions, check_inputs
+
+    try:
+        track = load(TrackConfig, problem.track or CONFIG_DIR / "tracks" / "paper-rectangle.yaml")
+    except ConfigError:
+        return []  # the track's own problems are reported with it
+    why = check_inputs(track, LimitLapOptions(), smallest_frame_clearance(problem))
+    return [("track", f"{why}: no limit lap can pass it, so {', '.join(used)} cannot be "
+             "computed for any candidate")] if why else []
+
+
+def smallest_frame_clearance(problem: ProblemConfig) -> float | None:
+    """The smallest gate clearance a candidate of ``problem`` needs (the limit lap shrinks each
+    gate by the frame's own size, :func:`casadrone.limit.lap.frame_clearance_m`), over the
+    search box's centre and corners (a frame grows with its arms, so its smallest is at a
+    corner); None when no such point is a valid airframe."""
+    import itertools
+
+    from casadrone.airframe import build_airframe, with_theta
+    from casadrone.config.airframe import AirframeConfig, load_airframe
+    from casadrone.limit.lap import frame_clearance_m
+
+    template = load_airframe(problem.airframe)
+    if problem.fixed:
+        template = AirframeConfig.model_validate({**template.model_dump(), **problem.fixed})
+    names = [v.name for v in problem.variables]
+    points = [{v.name: (v.lower + v.upper) / 2 for v in problem.variables}]
+    if len(names) <= 10:
+        points += [dict(zip(names, c, strict=True)) for c in
+                   itertools.product(*[(v.lower, v.upper) for v in problem.variables])]
+    clearances = []
+    for point in points:
+        try:
+            cfg = with_theta(template, point)
+            clearances.append(frame_clearance_m(build_airframe(cfg), cfg.prop_diameter_mm / 1000))
+        except (ConfigError, ValueError):
+            continue
+    return min(clearances) if clearances else None
 
 
 def _algorithm_problems(problem: ProblemConfig) -> list[tuple[str, str]]:

@@ -547,7 +547,9 @@ def test_disk_full_in_the_history_write_is_one_line(tmp_path, monkeypatch):
     d = tmp_path / "run"
     line = one_line_exit_2(cli("run", QUICK, *TINY, "--backend", "serial", "--quiet",
                                "--out", d))
-    assert line == f"{d / 'history.sqlite'}: cannot write the generation (database or disk is full)"
+    assert line.startswith(f"{d / 'history.sqlite'}: cannot write the generation (database or "
+                           "disk is full) (the disk is full")
+    assert line.endswith(f"continue with: casadrone resume {d}")
     m = json.loads((d / "manifest.json").read_text())
     assert m["status"] == "stopped" and "disk is full" in m["error"]
 

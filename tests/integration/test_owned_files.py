@@ -16,9 +16,10 @@ import pytest
 from typer.testing import CliRunner
 
 from casadrone.cli import app
+from casadrone.config.problem import BackendConfig
+from casadrone.optimise.checks import load_problem
 from casadrone.optimise.runner import resume, run
 from casadrone.optimise.store import InputsChanged, RunStore
-from casadrone.problemconfig import BackendConfig, load_problem
 
 QUICK = "problems/quick.yaml"
 TINY = ["algorithm.population=12", "algorithm.generations=2", "algorithm.settings.n_ind_ga=6"]

@@ -32,8 +32,8 @@ def export_command(
         help="key=value overrides of the airframe, e.g. alpha_deg=75")] = None,
     fmt: Annotated[str, registry_option(
         _formats, "format", "an export format of casadrone.export.FORMATS: betaflight (mmix "
-        "lines), px4 (param set lines), urdf, svg or dxf (1:1 plate outline, mm)",
-        "--format", "-f")] = "betaflight",
+        "lines), px4 (QGroundControl parameter file), px4-shell (param set lines), urdf, svg or "
+        "dxf (1:1 plate outline, mm)", "--format", "-f")] = "betaflight",
     candidate: Annotated[str | None, typer.Option(
         help="of a run directory: A (utopian), B (compromise), C (extreme) or a pareto.csv row "
         "(0-based)")] = None,

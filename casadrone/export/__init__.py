@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from casadrone.export.mixers import betaflight, px4
+from casadrone.export.mixers import betaflight, px4, px4_shell
 from casadrone.export.plate import PlateOptions, dxf, svg
 from casadrone.export.source import ExportSource
 from casadrone.export.urdf import urdf
@@ -33,8 +33,10 @@ class ExportFormat:
 FORMATS: dict[str, ExportFormat] = {
     "betaflight": ExportFormat(".txt", "Betaflight custom mix (mmix lines)",
                                lambda src, _: betaflight(src)),
-    "px4": ExportFormat(".params", "PX4 CA_ROTOR* parameters (param set lines)",
+    "px4": ExportFormat(".params", "PX4 CA_ROTOR* parameters (QGroundControl parameter file)",
                         lambda src, _: px4(src)),
+    "px4-shell": ExportFormat(".txt", "PX4 CA_ROTOR* parameters (param set lines, NSH console)",
+                              lambda src, _: px4_shell(src)),
     "urdf": ExportFormat(".urdf", "URDF robot description for a simulator",
                          lambda src, _: urdf(src)),
     "svg": ExportFormat(".svg", "the frame plate, 1:1 SVG outline (mm)", svg),
@@ -43,7 +45,8 @@ FORMATS: dict[str, ExportFormat] = {
 
 
 def export(src: ExportSource, fmt: str, plate_options: PlateOptions | None = None) -> str:
-    """The text of ``src`` in one format (``betaflight``, ``px4``, ``urdf``, ``svg``, ``dxf``).
+    """The text of ``src`` in one format (``betaflight``, ``px4`` (QGroundControl's parameter
+    file), ``px4-shell`` (``param set`` lines), ``urdf``, ``svg``, ``dxf``).
 
     Raises:
         ValueError: an unknown format, or a plate that cannot be drawn (see

@@ -114,29 +114,79 @@ def to_frd(r: np.ndarray) -> np.ndarray:
     return r * np.array([1.0, -1.0, -1.0])
 
 
-def px4(src: ExportSource) -> str:
-    """PX4 ``param set`` lines for dynamic control allocation: CA_AIRFRAME 0 (multirotor),
-    CA_ROTOR_COUNT, CA_ROTORn_PX/PY/PZ (m, FRD, relative to the centre of mass) and CA_ROTORn_KM
-    (torque per thrust, m; positive for a rotor turning counter-clockwise seen from above, PX4's
-    parameter reference)."""
+#: MAVLink parameter types (MAV_PARAM_TYPE) of the parameters written: CA_AIRFRAME and
+#: CA_ROTOR_COUNT are INT32 enums, the geometry REAL32 (PX4's control_allocator module.yaml).
+MAV_PARAM_INT32, MAV_PARAM_REAL32 = 6, 9
+
+
+def px4_parameters(src: ExportSource) -> list[tuple[str, float, int]]:
+    """(name, value, MAV_PARAM_TYPE) of PX4's dynamic control allocation: CA_AIRFRAME 0
+    (multirotor), CA_ROTOR_COUNT, CA_ROTORn_PX/PY/PZ (m, FRD, relative to the centre of mass) and
+    CA_ROTORn_KM (torque per thrust, m; positive for a rotor turning counter-clockwise seen from
+    above, PX4's parameter reference)."""
     a = src.airframe
-    lines = [f"# {h}" for h in src.header_lines("PX4 control-allocation parameters")]
-    lines += [
-        "# Positions in PX4's body frame FRD (x forward, y right, z down), metres from the centre",
-        "# of mass: casadrone's (x, y, z) becomes (x, -y, -z). KM = +kappa for a CCW rotor (seen",
-        "# from above), -kappa for a CW one. CA_ROTORn_AX/AY/AZ stay at PX4's default (0, 0, -1):",
-        "# thrust up the body; CA_ROTORn_CT stays yours (it depends on the motor and ESC).",
-        "# Rotor order (PX4 quadrotor-x numbering):",
-        *(f"#   CA_ROTOR{n} = motor {n + 1} = {LABELS[i]}, {spin_word(a.rotor_spins[i])}"
-          for n, i in enumerate(PX4_ORDER)),
-        "param set CA_AIRFRAME 0",
-        "param set CA_ROTOR_COUNT 4",
-    ]
+    out = [("CA_AIRFRAME", 0, MAV_PARAM_INT32), ("CA_ROTOR_COUNT", 4, MAV_PARAM_INT32)]
     frd = to_frd(a.rotor_positions)
     for n, i in enumerate(PX4_ORDER):
         km = -a.rotor_spins[i] * a.kappa
-        lines += [f"param set CA_ROTOR{n}_PX {frd[i, 0]:.5f}",
-                  f"param set CA_ROTOR{n}_PY {frd[i, 1] + 0.0:.5f}",
-                  f"param set CA_ROTOR{n}_PZ {frd[i, 2] + 0.0:.5f}",
-                  f"param set CA_ROTOR{n}_KM {km:.5f}"]
+        out += [(f"CA_ROTOR{n}_PX", frd[i, 0] + 0.0, MAV_PARAM_REAL32),
+                (f"CA_ROTOR{n}_PY", frd[i, 1] + 0.0, MAV_PARAM_REAL32),
+                (f"CA_ROTOR{n}_PZ", frd[i, 2] + 0.0, MAV_PARAM_REAL32),
+                (f"CA_ROTOR{n}_KM", km + 0.0, MAV_PARAM_REAL32)]
+    return out
+
+
+def _px4_notes(src: ExportSource) -> list[str]:
+    a = src.airframe
+    return [
+        "Positions in PX4's body frame FRD (x forward, y right, z down), metres from the centre",
+        "of mass: casadrone's (x, y, z) becomes (x, -y, -z). KM = +kappa for a CCW rotor (seen",
+        "from above), -kappa for a CW one. CA_ROTORn_AX/AY/AZ stay at PX4's default (0, 0, -1):",
+        "thrust up the body; CA_ROTORn_CT stays yours (it depends on the motor and ESC).",
+        "Rotor order (PX4 quadrotor-x numbering):",
+        *(f"  CA_ROTOR{n} = motor {n + 1} = {LABELS[i]}, {spin_word(a.rotor_spins[i])}"
+          for n, i in enumerate(PX4_ORDER)),
+    ]
+
+
+def _value(value: float, kind: int) -> str:
+    return str(int(value)) if kind == MAV_PARAM_INT32 else f"{value:.6f}"
+
+
+def px4(src: ExportSource) -> str:
+    """QGroundControl's parameter file (``.params``) of :func:`px4_parameters`, with how to apply
+    it. QGroundControl's reader (``ParameterManager::readParametersFromStream``) skips lines
+    starting with ``#`` and reads every other line as five tab-separated fields: vehicle (system)
+    id, component id, name, value, MAV_PARAM_TYPE; it refuses a file whose system id is not the
+    vehicle's and skips a parameter whose type differs from the vehicle's. PX4's autopilot is
+    system 1, component 1 by default (MAV_SYS_ID, MAV_COMP_ID_AUTOPILOT1)."""
+    lines = [f"# {h}" for h in src.header_lines("PX4 control-allocation parameters "
+                                                  "(QGroundControl parameter file)")]
+    lines += [f"# {n}" for n in _px4_notes(src)]
+    lines += [
+        "# How to apply: QGroundControl > Vehicle Setup > Parameters > Tools > Load from file...,",
+        "# choose this file, confirm, then reboot the vehicle (PX4 reads CA_* at boot). Check the",
+        "# motor order and directions in Actuators > Identify & Assign Motors before flying.",
+        "# Vehicle-Id 1 is PX4's default MAV_SYS_ID; QGroundControl refuses the file for a vehicle",
+        "# with another id: edit the first column to match. For the NSH console instead, use",
+        "# 'casadrone export ... --format px4-shell' (param set lines).",
+        "#",
+        "# Vehicle-Id Component-Id Name Value Type",
+    ]
+    lines += [f"1\t1\t{name}\t{_value(value, kind)}\t{kind}"
+              for name, value, kind in px4_parameters(src)]
+    return "\n".join(lines) + "\n"
+
+
+def px4_shell(src: ExportSource) -> str:
+    """The same parameters as ``param set`` lines for PX4's NSH console (MAVLink shell), or an
+    ``etc/extras.txt`` on the SD card."""
+    lines = [f"# {h}" for h in src.header_lines("PX4 control-allocation parameters "
+                                                  "(param set lines)")]
+    lines += [f"# {n}" for n in _px4_notes(src)]
+    lines += ["# How to apply: paste into QGroundControl's MAVLink Console (Analyze Tools), or",
+              "# the NSH console, then 'param save' and reboot. For QGroundControl's Load from",
+              "# file, use 'casadrone export ... --format px4' (a .params file)."]
+    lines += [f"param set {name} {_value(value, kind)}" for name, value, kind in
+              px4_parameters(src)]
     return "\n".join(lines) + "\n"

@@ -5,17 +5,28 @@ directory and moved into the cache atomically (write to a temporary name in the 
 ``os.replace``), so concurrent processes (Dask workers starting cold, a process pool) never read
 each other's half-written files, and nothing is written to the current working directory (a
 read-only one is fine). The cache is ``$CASADRONE_CACHE`` or ``~/.cache/casadrone``; a library's
-name carries the hash of its source, compiler flags and CasADi version. The temporary directory
-is removed on every exit Python sees (an error, Ctrl-C); a staged file that a killed process
-(SIGKILL) left in the cache is removed by a later compile once it is an hour old.
+name carries the hash of its source, compiler flags and CasADi version.
+
+A compile ends with its command: the compiler runs in a process group of its own, killed whole
+(driver, ``cc1``, assembler) on any exit Python sees (an error, Ctrl-C, and SIGTERM, which is
+turned into a cleanup and then re-delivered when nothing else handles it); the kernel also kills
+the driver if casadrone dies by SIGKILL. The temporary directory is removed on every such exit; one
+that a SIGKILLed process left behind, and a staged file in the cache, are removed by a later
+compile once an hour old. The first compile of a large source says what it does on stderr (the
+limit lap's Hessian block takes about a minute). Without a C compiler :class:`NoCompiler` says
+so; the closed-loop lap then runs on CasADi's virtual machine (slower), the limit lap needs one.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import os
+import shutil
+import signal
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -42,10 +53,22 @@ def casadi_source(fun: ca.Function, extra: str = "") -> str:
     return gen.dump() + extra
 
 
+#: Sources at least this long (characters) are announced on stderr when compiled: the limit lap's
+#: Hessian block (~10⁵ lines) takes about a minute; the closed loop's few seconds stay silent
+#: unless stderr is a terminal.
+ANNOUNCE_CHARS = 1_000_000
+TEMP_PREFIX = "casadrone-cc-"
+
+
+class NoCompiler(OSError):
+    """No working C compiler (``$CC``, else gcc) on this machine."""
+
+
 def compile_source(name: str, src: str, flags: tuple[str, ...] = DEFAULT_FLAGS) -> Path:
     """The shared library of C source ``src``: from the cache, or compiled now and cached.
 
-    Raises OSError or CalledProcessError when there is no working C compiler (``$CC``, else gcc).
+    Raises NoCompiler when ``$CC`` (else gcc) is not a program here, CalledProcessError when it
+    fails on the source.
     """
     version = ca.__version__  # type: ignore[attr-defined]  # absent from the stubs
     digest = hashlib.sha256("\0".join([src, *flags, version]).encode()).hexdigest()[:16]
@@ -54,22 +77,104 @@ def compile_source(name: str, src: str, flags: tuple[str, ...] = DEFAULT_FLAGS) 
     if target.exists():
         return target
     _remove_stale(cache)
-    with tempfile.TemporaryDirectory(prefix="casadrone-cc-") as tmp:  # removed on any exit
-        c_file, so_file = Path(tmp) / f"{name}.c", Path(tmp) / f"{name}.so"
-        c_file.write_text(src)
-        cc = os.environ.get("CC", "gcc")
-        subprocess.run([cc, *flags, "-shared", "-fPIC", str(c_file), "-o", str(so_file), "-lm"],
-                       check=True, capture_output=True)
-        fd, staged = tempfile.mkstemp(prefix=f".{name}_", suffix=".tmp", dir=cache)
-        try:
-            with os.fdopen(fd, "wb") as out:
-                out.write(so_file.read_bytes())
-            os.chmod(staged, 0o755)
-            os.replace(staged, target)  # atomic: readers see the old name absent or complete
-        finally:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(staged)
+    _remove_stale_temp_dirs()
+    cc = os.environ.get("CC", "gcc")
+    if shutil.which(cc) is None:
+        raise NoCompiler(errno.ENOENT, f"no C compiler: {cc!r} is not a program on this machine "
+                         "(install gcc, or set CC to a C compiler); the closed-loop lap then runs "
+                         "on CasADi's virtual machine, slower, and the limit lap needs one")
+    if len(src) >= ANNOUNCE_CHARS or sys.stderr.isatty():
+        print(f"casadrone: compiling {name} ({len(src) // 1000} kB of C from CasADi) once for "
+              f"this machine, cached in {cache}; a large one takes a minute or two",
+              file=sys.stderr, flush=True)
+    try:
+        with tempfile.TemporaryDirectory(prefix=TEMP_PREFIX) as tmp:  # removed on any exit
+            c_file, so_file = Path(tmp) / f"{name}.c", Path(tmp) / f"{name}.so"
+            c_file.write_text(src)
+            run_compiler([cc, *flags, "-shared", "-fPIC", str(c_file), "-o", str(so_file),
+                          "-lm"])
+            _install(so_file, target, name, cache)
+    except _Terminated:  # cleaned up: now end as SIGTERM would have ended the process
+        _terminated_again()
+        raise
     return target
+
+
+def _install(so_file: Path, target: Path, name: str, cache: Path) -> None:
+    fd, staged = tempfile.mkstemp(prefix=f".{name}_", suffix=".tmp", dir=cache)
+    try:
+        with os.fdopen(fd, "wb") as out:
+            out.write(so_file.read_bytes())
+        os.chmod(staged, 0o755)
+        os.replace(staged, target)  # atomic: readers see the old name absent or complete
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(staged)
+
+
+class _Terminated(BaseException):
+    """SIGTERM arrived while the compiler ran (re-delivered after the cleanup)."""
+
+
+def _death_signal_setter():
+    """A function for ``preexec_fn`` that asks Linux to SIGKILL the compiler when casadrone
+    dies (prctl PR_SET_PDEATHSIG), prepared before the fork (nothing is imported in the child);
+    None elsewhere."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        import ctypes
+
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    return lambda: prctl(1, signal.SIGKILL, 0, 0, 0)
+
+
+def run_compiler(command: list[str]) -> None:
+    """Run a compiler command in a process group of its own; on any exception or signal kill
+    the whole group (driver and its cc1/as children) and wait for it, then pass it on.
+
+    Raises CalledProcessError (with the compiler's output) when the compiler fails.
+    """
+    handler = None
+    main = threading.current_thread() is threading.main_thread()
+    if main and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        def handler(signum, frame):
+            raise _Terminated
+
+        signal.signal(signal.SIGTERM, handler)
+    proc = None
+    try:
+        proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                start_new_session=True, preexec_fn=_death_signal_setter())
+        out, _ = proc.communicate()
+        if proc.returncode:
+            raise subprocess.CalledProcessError(proc.returncode, command, out)
+    except BaseException:
+        if proc is not None and proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+        raise
+    finally:
+        if handler is not None:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _terminated_again() -> None:
+    """Deliver SIGTERM again, now with its default action (the process ends as it would have)."""
+    os.kill(os.getpid(), signal.SIGTERM)
+
+
+def _remove_stale_temp_dirs(age_s: float = 3600.0) -> None:
+    """Remove compile folders (``casadrone-cc-*``) that a SIGKILLed process left in the
+    temporary directory more than ``age_s`` ago (a compile in progress is younger)."""
+    now = time.time()
+    for folder in Path(tempfile.gettempdir()).glob(f"{TEMP_PREFIX}*"):
+        with contextlib.suppress(OSError):
+            if folder.is_dir() and now - folder.stat().st_mtime > age_s:
+                shutil.rmtree(folder, ignore_errors=True)
 
 
 def _remove_stale(cache: Path, age_s: float = 3600.0) -> None:

@@ -1,0 +1,102 @@
+"""A compile ends with its command (issue 20, point 6): SIGTERM during a compile kills the whole
+compiler process group and leaves no temporary folder, the first compile of a large source says
+what it does, and a missing compiler is named as such. A fake compiler (a shell script that forks
+a long-lived child, as gcc forks cc1) stands in for gcc, so the test takes seconds."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from casadrone import codegen
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def alive(pid: int) -> bool:
+    """True while ``pid`` runs (a zombie awaiting its reaper counts as ended)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (FileNotFoundError, IndexError):
+        return False
+    return state != "Z"
+
+
+@pytest.fixture
+def env(tmp_path):
+    (tmp_path / "tmp").mkdir()
+    return {**os.environ, "PYTHONPATH": str(ROOT), "CASADRONE_CACHE": str(tmp_path / "cache"),
+            "TMPDIR": str(tmp_path / "tmp")}
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_sigterm_during_a_compile_kills_the_compiler_and_removes_its_folder(tmp_path, env):
+    cc = tmp_path / "slowcc"
+    mark = tmp_path / "pids"
+    cc.write_text(f'#!/bin/sh\nsleep 300 &\necho "$$ $!" > "{mark}.tmp"\nmv "{mark}.tmp" '
+                  f'"{mark}"\nwait\n')
+    cc.chmod(0o755)
+    child = subprocess.Popen([sys.executable, "-c", "from casadrone.codegen import compile_source;"
+                              " compile_source('t', 'int x;')"], env={**env, "CC": str(cc)})
+    deadline = time.monotonic() + 60
+    while not mark.exists():
+        assert child.poll() is None and time.monotonic() < deadline, "the compiler never started"
+        time.sleep(0.05)
+    driver, grandchild = (int(p) for p in mark.read_text().split())
+    assert alive(driver) and alive(grandchild)
+    child.send_signal(signal.SIGTERM)
+    assert child.wait(timeout=30) == -signal.SIGTERM  # ends as SIGTERM ends a process
+    deadline = time.monotonic() + 10
+    while (alive(driver) or alive(grandchild)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not alive(driver) and not alive(grandchild), "the compiler outlived its command"
+    assert list((tmp_path / "tmp").iterdir()) == []  # no casadrone-cc-* folder left
+
+
+def fake_cc(tmp_path: Path) -> Path:
+    """A 'compiler' that writes an empty output file (the library is not loaded here)."""
+    cc = tmp_path / "fakecc"
+    cc.write_text('#!/bin/sh\nwhile [ "$1" != "-o" ]; do shift; done\n: > "$2"\n')
+    cc.chmod(0o755)
+    return cc
+
+
+def test_a_large_first_compile_says_what_it_does(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("CC", str(fake_cc(tmp_path)))
+    monkeypatch.setenv("CASADRONE_CACHE", str(tmp_path / "cache"))
+    src = "/* padding */\n" * (codegen.ANNOUNCE_CHARS // 14 + 1) + "int x;\n"
+    target = codegen.compile_source("big", src)
+    err = capsys.readouterr().err
+    assert "compiling big" in err and "once for this machine" in err
+    assert codegen.compile_source("big", src) == target  # cached: silent the second time
+    assert capsys.readouterr().err == ""
+
+
+def test_no_compiler_is_named_as_such(tmp_path, monkeypatch):
+    from casadrone.cli.common import one_line
+
+    monkeypatch.setenv("CC", "nogcc")
+    monkeypatch.setenv("CASADRONE_CACHE", str(tmp_path / "cache"))
+    with pytest.raises(codegen.NoCompiler) as err:
+        codegen.compile_source("t", "int x;")
+    line = one_line(err.value)
+    assert line.startswith("no C compiler: 'nogcc' is not a program") and "set CC" in line
+    assert "No such file or directory" not in line
+
+
+def test_a_folder_left_by_a_killed_compile_is_removed_an_hour_later(tmp_path, monkeypatch):
+    monkeypatch.setenv("CC", str(fake_cc(tmp_path)))
+    monkeypatch.setenv("CASADRONE_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(codegen.tempfile, "tempdir", str(tmp_path))
+    old, young = tmp_path / "casadrone-cc-old", tmp_path / "casadrone-cc-young"
+    for folder in (old, young):
+        folder.mkdir()
+    os.utime(old, (time.time() - 7200, time.time() - 7200))
+    codegen.compile_source("t2", "int y;")
+    assert not old.exists() and young.exists()  # a compile in progress elsewhere is younger

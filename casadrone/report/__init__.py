@@ -22,6 +22,7 @@ from __future__ import annotations
 import datetime as _dt
 from pathlib import Path
 
+from casadrone.outfile import shown_path
 from casadrone.report.analysis import (
     choose_candidates,
     read_run,
@@ -124,7 +125,7 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
     page = (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
             f'<meta name="viewport" content="width=device-width, initial-scale=1">'
             f"<title>{esc(title)}</title><style>{CSS}</style></head><body><header>"
-            f"<h1>{esc(title)}</h1><p>Run directory <code>{esc(run.store.path.resolve())}</code>"
+            f"<h1>{esc(title)}</h1><p>Run directory <code>{esc(shown_path(run.store.path))}</code>"
             f" · status {esc(m.get('status'))} · {len(run.history)} evaluations · "
             f"{len(run.F)} designs on the front · report written {esc(stamp)}</p>"
             f"<nav>{nav}</nav></header>{sections}</body></html>")

@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 
 from casadrone import plots
 from casadrone.indices import INDICES
+from casadrone.outfile import shown_path
 from casadrone.report.analysis import (
     STAGES,
     Candidate,
@@ -57,7 +58,8 @@ def section_problem(run: Run) -> str:
                 ("track", p.track), ("controller", p.controller),
                 ("fixed airframe keys", ", ".join(f"{k} = {v}" for k, v in p.fixed.items()) or
                  "none"), ("test problem", p.test_problem.name if p.test_problem else "none")]
-    man = [(k, v) for k, v in m.items() if k not in ("versions", "variables", "indices")]
+    man = [(k, shown_path(v) if k == "python_executable" and v else v)  # no machine paths
+           for k, v in m.items() if k not in ("versions", "variables", "indices")]
     man += [(f"version {k}", v) for k, v in (m.get("versions") or {}).items()]
     text = (run.store.path / "config.yaml").read_text()
     return (f"<h3>Decision variables</h3>{variables}<h3>Objectives</h3>{objectives}"

@@ -265,11 +265,25 @@ def test_report_of_a_test_problem_run(tmp_path):
 def test_candidate_exports_are_linked_and_written(report):
     run_dir, html = report
     require_front(run_dir)
-    links = re.findall(r'<a href="exports/(candidate-([ABC]+)-(\w+)\.\w+)">', html)
-    assert {fmt for _, _, fmt in links} == {"betaflight", "px4", "urdf", "svg", "dxf"}
+    links = re.findall(r'<a href="exports/(candidate-([ABC]+)-([\w-]+)\.\w+)">', html)
+    assert {fmt for _, _, fmt in links} == {"betaflight", "px4", "px4-shell", "urdf", "svg",
+                                            "dxf"}
     for name, label, _ in links:
         text = (run_dir / "exports" / name).read_text(encoding="utf-8")
         assert f"candidate: {'='.join(label)} (" in text and "casadrone" in text
+
+
+def test_report_and_its_exports_name_no_machine_path(report):
+    import sys
+
+    import casadrone
+
+    run_dir, html = report
+    install = str(Path(casadrone.__file__).resolve().parent.parent)
+    machine = (str(run_dir.resolve().parent), install, sys.executable)
+    texts = [html] + [p.read_text(encoding="utf-8") for p in (run_dir / "exports").iterdir()]
+    for text in texts:
+        assert not any(m in text for m in machine)
 
 
 def test_measured_table4_gains_are_apart_and_collapsed(report):

@@ -34,7 +34,7 @@ from pydantic import (
     model_validator,
 )
 
-from casadrone import yamlsafe
+from casadrone.config import yamlsafe
 
 #: The checkout (or, installed, site-packages): relative paths in configs resolve here too.
 ROOT = Path(__file__).resolve().parents[2]
@@ -253,7 +253,7 @@ def not_a_file(path: Path) -> str:
 
 def parse_value(text: str) -> Any:
     """Parse the value of a ``key=value`` override as YAML (numbers, lists, strings); one
-    beyond :mod:`casadrone.yamlsafe`'s limits raises TooCostly."""
+    beyond :mod:`casadrone.config.yamlsafe`'s limits raises TooCostly."""
     try:
         return yamlsafe.safe_load(text, _UniqueKeyLoader)
     except yaml.YAMLError:
@@ -510,12 +510,35 @@ def load(model: type[M], path: str | Path, overrides: list[str] | None = None) -
     try:
         return validate_data(model, data, str(path), path.parent, overrides)
     except ConfigError:
-        from casadrone.config.validation import other_kind  # above the schemas: imported now
-
-        other = other_kind(model, path, data)
+        other = other_kind(model, data)
         if other:  # a problem given for an airframe: one line, not every missing key
             raise ConfigError([f"{path}: {other}"]) from None
         raise
+
+
+#: Keys that only one kind of config has (the kind is its schema's name without ``Config``),
+#: to tell a file given for the wrong kind: ``massprops problems/quick.yaml``.
+TELLING_KEYS = {
+    "airframe": ("lambda_a_mm", "lambda_b_mm", "mass_model"),
+    "problem": ("objectives", "variables", "algorithm"),
+    "track": ("waypoints_m", "gates"),
+    "controller": ("sample_time_s", "gain_policy"),
+}
+
+
+def other_kind(model: type[BaseModel], data: dict[str, Any]) -> str | None:
+    """When ``data`` (which failed ``model``) is plainly another kind of config (its telling keys
+    there, none of ``model``'s), one line that says so; else None."""
+    ours = model.__name__.removesuffix("Config").lower()
+    if ours not in TELLING_KEYS or any(k in data for k in TELLING_KEYS[ours]):
+        return None
+    theirs = next((kind for kind, keys in TELLING_KEYS.items()
+                   if kind != ours and any(k in data for k in keys)), None)
+    if theirs is None:
+        return None
+    article = "an" if ours[0] in "aeiou" else "a"
+    return (f"this is {'an' if theirs[0] in 'aeiou' else 'a'} {theirs}, not {article} {ours}; "
+            f"give {article} {ours} here (a YAML file or a shipped name)")
 
 
 def kind_dir(kind: str) -> Path:

@@ -67,28 +67,6 @@ def detect_schema(path: Path, data: dict[str, Any]) -> type[BaseModel] | None:
     return None
 
 
-def kind_name(model: type[BaseModel]) -> str | None:
-    """The kind of config a schema reads, singular (``airframe``, ``problem``), or None."""
-    for folder, entry in SCHEMAS_BY_FOLDER.items():
-        if entry is model:
-            return folder.removesuffix("s")
-    return None
-
-
-def other_kind(model: type[BaseModel], path: Path, data: dict[str, Any]) -> str | None:
-    """When ``data`` (which failed ``model``) is plainly another kind of config, one line that
-    says so (``this is a problem, not an airframe …``); else None."""
-    found = detect_schema(path, data)
-    if found is None or found is model:
-        return None
-    theirs, ours = kind_name(found), kind_name(model)
-    if theirs is None or ours is None:
-        return None
-    article = "an" if ours[0] in "aeiou" else "a"
-    return (f"this is {'an' if theirs[0] in 'aeiou' else 'a'} {theirs}, not {article} {ours}; "
-            f"give {article} {ours} here (a YAML file or a shipped name)")
-
-
 def check_config_file(path: str | Path, overrides: list[str] | None = None) -> BaseModel:
     """Validate any known config file (with ``key=value`` overrides applied), and the config
     files it references; ConfigError lists every problem."""

@@ -488,10 +488,17 @@ def test_table1_box_is_partly_impossible():
 def test_components_problem_refuses_mass_and_inertia_variables(tmp_path):
     problem = tmp_path / "p.yaml"
     problem.write_text("name: p\nairframe: SY250-components\nobjectives: [{index: J3}]\n")
-    lines = problems_of_file(problem)
-    assert [ln.split(": ")[1] for ln in lines] == [
-        "variables.4.name", "variables.5.name", "variables.6.name"]
+    (line,) = problems_of_file(problem)  # the default variables: named as the default (the
+    assert line.split(": ")[1] == "variables"  # file has no variables.4 to point at)
+    assert "default (paper Table 1)" in line and "ixx_kgm2, iyy_kgm2, izz_kgm2" in line
+    assert "computes from the parts" in line
+    problem.write_text(problem.read_text() + "variables:\n" + "".join(
+        f"  - {{name: {k}, lower: {lo}, upper: {hi}}}\n"
+        for k, (lo, hi) in list(TABLE1_BOUNDS.items())[3:5]))
+    lines = problems_of_file(problem)  # written in the file: named where they are
+    assert [ln.split(": ")[1] for ln in lines] == ["variables.1.name"]
     assert "computed from the parts" in lines[0]
+    problem.write_text("name: p\nairframe: SY250-components\nobjectives: [{index: J3}]\n")
     problem.write_text(problem.read_text() + "variables:\n" + "".join(
         f"  - {{name: {k}, lower: {lo}, upper: {hi}}}\n"
         for k, (lo, hi) in list(TABLE1_BOUNDS.items())[:4]))

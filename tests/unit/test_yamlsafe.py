@@ -9,7 +9,7 @@ import os
 import pytest
 import yaml
 
-from casadrone import yamlsafe
+from casadrone.config import yamlsafe
 from casadrone.config.io import (
     DATA_DIR,
     ConfigError,

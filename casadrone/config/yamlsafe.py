@@ -12,6 +12,8 @@ text is refused with a one-line reason. The ceilings are ~300 times what a confi
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import yaml
 
 #: Largest config file read, bytes (the largest shipped config is ~3 kB).
@@ -22,8 +24,16 @@ MAX_NODES = 100_000
 MAX_DEPTH = 64
 
 #: libyaml's parser when installed (~20x faster than the pure-Python one), else PyYAML's.
-BaseLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+if TYPE_CHECKING:
+    BaseLoader = yaml.SafeLoader
+else:
+    BaseLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 _EventLoader = getattr(yaml, "CBaseLoader", yaml.BaseLoader)
+
+
+def _line(event: yaml.Event) -> int:
+    mark = event.start_mark
+    return mark.line + 1 if mark is not None else 0
 
 
 class TooCostly(ValueError):
@@ -49,7 +59,7 @@ def check_cost(text: str) -> None:
             if isinstance(event, yaml.CollectionStartEvent):
                 stack.append([event.anchor, 1])
                 if len(stack) - 1 > MAX_DEPTH:
-                    raise TooCostly(f"line {event.start_mark.line + 1}: nested more than "
+                    raise TooCostly(f"line {_line(event)}: nested more than "
                                     f"{MAX_DEPTH} levels deep (a config needs a few)")
                 continue
             if isinstance(event, yaml.CollectionEndEvent):
@@ -57,14 +67,14 @@ def check_cost(text: str) -> None:
             elif isinstance(event, yaml.ScalarEvent):
                 anchor, size = event.anchor, 1
             elif isinstance(event, yaml.AliasEvent):
-                anchor, size = None, sizes.get(event.anchor, 1)
+                anchor, size = None, sizes.get(event.anchor or "", 1)
             else:
                 continue
             if anchor is not None:
                 sizes[anchor] = size
             stack[-1][1] += size
             if sum(s for _, s in stack) > MAX_NODES:
-                raise TooCostly(f"line {event.start_mark.line + 1}: expands to more than "
+                raise TooCostly(f"line {_line(event)}: expands to more than "
                                 f"{MAX_NODES} values (aliases repeating aliases?); a config "
                                 "needs a few hundred")
     except yaml.YAMLError:

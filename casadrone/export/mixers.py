@@ -125,7 +125,8 @@ def px4_parameters(src: ExportSource) -> list[tuple[str, float, int]]:
     CA_ROTORn_KM (torque per thrust, m; positive for a rotor turning counter-clockwise seen from
     above, PX4's parameter reference)."""
     a = src.airframe
-    out = [("CA_AIRFRAME", 0, MAV_PARAM_INT32), ("CA_ROTOR_COUNT", 4, MAV_PARAM_INT32)]
+    out: list[tuple[str, float, int]] = [("CA_AIRFRAME", 0, MAV_PARAM_INT32),
+                                         ("CA_ROTOR_COUNT", 4, MAV_PARAM_INT32)]
     frd = to_frd(a.rotor_positions)
     for n, i in enumerate(PX4_ORDER):
         km = -a.rotor_spins[i] * a.kappa

@@ -7,6 +7,7 @@ the evaluation chain once per process (:func:`casadrone.optimise.problem.study_s
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import pickle
@@ -85,6 +86,11 @@ def _warm(study: Study, linger_s: float = 0.0) -> int:
     return os.getpid()
 
 
+#: Seconds a stopped run's workers get to end on SIGTERM (a compiling one kills its compiler and
+#: removes its folder in milliseconds) before SIGKILL.
+TERMINATE_GRACE_S = 2.0
+
+
 class ProcessBackend:
     """A pool of ``workers`` spawned processes (no fork: CasADi and BLAS are not fork-safe).
 
@@ -126,11 +132,27 @@ class ProcessBackend:
     def close(self) -> None:
         self.pool.shutdown(cancel_futures=True)
 
-    def terminate(self) -> None:
-        """Stop now (the run was interrupted): kill the workers, do not wait for their tasks."""
+    def terminate(self, grace_s: float = TERMINATE_GRACE_S) -> None:
+        """Stop now (the run was interrupted): end the workers, do not wait for their tasks.
+
+        SIGTERM first: a worker ends at once, or, while it compiles, after killing its compiler
+        and removing its temporary folder (:mod:`casadrone.codegen`); SIGKILL for any worker
+        still alive after ``grace_s``."""
+        import time
+
         manager = getattr(self.pool, "_executor_manager_thread", None)  # shutdown forgets it
-        for proc in list(getattr(self.pool, "_processes", {}).values()):
-            proc.kill()
+        procs = list(getattr(self.pool, "_processes", {}).values())
+        for proc in procs:
+            with contextlib.suppress(OSError, ValueError):
+                proc.terminate()
+        deadline = time.monotonic() + grace_s
+        for proc in procs:
+            with contextlib.suppress(OSError, ValueError, AssertionError):
+                proc.join(max(0.0, deadline - time.monotonic()))
+        for proc in procs:
+            with contextlib.suppress(OSError, ValueError, AssertionError):
+                if proc.is_alive():
+                    proc.kill()
         self.pool.shutdown(wait=False, cancel_futures=True)
         _forget_wakeup(manager)
 

@@ -100,3 +100,33 @@ def test_a_folder_left_by_a_killed_compile_is_removed_an_hour_later(tmp_path, mo
     os.utime(old, (time.time() - 7200, time.time() - 7200))
     codegen.compile_source("t2", "int y;")
     assert not old.exists() and young.exists()  # a compile in progress elsewhere is younger
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_stopped_runs_compiling_worker_leaves_no_compiler_and_no_folder(tmp_path, env,
+                                                                         monkeypatch):
+    from casadrone.optimise.backends import ProcessBackend
+
+    cc = tmp_path / "slowcc"
+    mark = tmp_path / "pids"
+    cc.write_text(f'#!/bin/sh\nsleep 300 &\necho "$$ $!" > "{mark}.tmp"\nmv "{mark}.tmp" '
+                  f'"{mark}"\nwait\n')
+    cc.chmod(0o755)
+    for key in ("CASADRONE_CACHE", "TMPDIR"):
+        monkeypatch.setenv(key, env[key])
+    monkeypatch.setenv("CC", str(cc))
+    backend = ProcessBackend(1)  # spawned: the worker reads this environment
+    try:
+        backend.pool.submit(codegen.compile_source, "w", "int w;")
+        deadline = time.monotonic() + 120
+        while not mark.exists():
+            assert time.monotonic() < deadline, "the worker's compiler never started"
+            time.sleep(0.05)
+        driver, grandchild = (int(p) for p in mark.read_text().split())
+    finally:
+        backend.terminate()  # as a stopped run ends its pool
+    deadline = time.monotonic() + 10
+    while (alive(driver) or alive(grandchild)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not alive(driver) and not alive(grandchild)
+    assert list((tmp_path / "tmp").iterdir()) == []

@@ -152,7 +152,8 @@ def test_reading_a_finished_run_with_an_edited_input_is_refused(tmp_path, finish
                                                                 name, change):
     out = tmp_path / "run"
     shutil.copytree(finished, out)
-    assert cli(command[0], out, *command[1:]).exit_code == 0 or command[0] != "decide"
+    if command[0] == "decide":  # the unedited copy reads (the others take long to run whole)
+        assert cli(command[0], out, *command[1:]).exit_code == 0
     edit(out / name, *change)
     result = cli(command[0], out, *command[1:])
     assert result.exit_code == 2, result.output

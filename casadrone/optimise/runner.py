@@ -225,20 +225,20 @@ def _loop(store: RunStore, algorithm, study: Study, backend, elapsed0: float,
         with contextlib.suppress(Exception):
             store.update_manifest(status="stopped", stopped=now(),
                                   error=f"{type(exc).__name__}: {exc}"[:300])
-        if isinstance(exc, OSError | RunDamaged):
-            raise RunDamaged(storage_failure(exc, store.path)) from None
+        if isinstance(exc, OSError) and exc.strerror:  # the same error, saying what to do
+            raise OSError(exc.errno, storage_failure(exc.strerror, store.path),
+                          exc.filename) from None
+        if isinstance(exc, RunDamaged):
+            raise RunDamaged(storage_failure(str(exc), store.path)) from None
         raise
     finally:
         store.release()
 
 
-def storage_failure(exc: OSError | RunDamaged, run_dir: Path) -> str:
-    """A failed write of a run's files as one line: the file, the cause, and that ``casadrone
-    resume`` continues from the last generation stored (each is written whole or not at all)."""
-    if isinstance(exc, OSError):
-        text = f"{exc.filename}: {exc.strerror}" if exc.filename and exc.strerror else str(exc)
-    else:
-        text = str(exc)
+def storage_failure(text: str, run_dir: Path) -> str:
+    """A failed write of a run's files (``text``: the cause), with what to do: every generation
+    stored before it is kept (each is written whole or not at all), and ``casadrone resume``
+    continues."""
     if "disk I/O error" in text or "disk is full" in text or "No space left" in text:
         text += " (the disk is full, or the folder was removed or made read-only)"
     return (f"{text}; every generation stored before it is kept: free space or fix the folder, "

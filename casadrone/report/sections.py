@@ -54,8 +54,10 @@ def section_problem(run: Run) -> str:
                 ("generations (after the initial population)", a.generations),
                 *[(f"setting {k}", v) for k, v in a.settings.items()],
                 ("seed", p.seed), ("backend", f"{p.backend.name} (workers {p.backend.workers})"),
-                ("integrator", p.integrator), ("airframe template", p.airframe),
-                ("track", p.track), ("controller", p.controller),
+                ("integrator", p.integrator),  # files by relative path (no machine paths)
+                *[(label, shown_path(f) if f else f) for label, f in (
+                    ("airframe template", p.airframe), ("track", p.track),
+                    ("controller", p.controller))],
                 ("fixed airframe keys", ", ".join(f"{k} = {v}" for k, v in p.fixed.items()) or
                  "none"), ("test problem", p.test_problem.name if p.test_problem else "none")]
     man = [(k, shown_path(v) if k == "python_executable" and v else v)  # no machine paths

@@ -124,6 +124,8 @@ def smallest_frame_clearance(problem: ProblemConfig) -> float | None:
     from casadrone.config.airframe import AirframeConfig, load_airframe
     from casadrone.limit.lap import frame_clearance_m
 
+    if problem.airframe is None:
+        return None
     template = load_airframe(problem.airframe)
     if problem.fixed:
         template = AirframeConfig.model_validate({**template.model_dump(), **problem.fixed})

@@ -197,6 +197,10 @@ _BUILT: dict[tuple, CodesignNlp] = {}
 def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Prepared:
     """The template, the variables, the tracks and the co-design NLP (cached per shape)."""
     template = _template(problem)
+    if template.propulsion.model != "paper":
+        raise ConfigError([f"{problem.name}: airframe: co-design poses the paper propulsion model "
+                           f"only (its start state and effort are rotor thrusts); the template "
+                           f"uses '{template.propulsion.model}'"])
     keys = tuple(v.name for v in problem.variables)
     bad = [k for k in keys if k not in CODESIGN_KEYS]
     if bad:

@@ -98,7 +98,8 @@ def param_vector(cfg: AirframeConfig, theta: Mapping[str, Any], base_p: np.ndarr
     new = {"mass": mass, "Ixx": J[0, 0], "Iyy": J[1, 1], "Izz": J[2, 2], "Ixy": J[0, 1],
            "Ixz": J[0, 2], "Iyz": J[1, 2]}
     new |= {f"r{i + 1}{c}": r[i, j] for i in range(4) for j, c in enumerate("xyz")}
-    return ca.vertcat(*[new.get(name, float(base_p[k])) for k, name in enumerate(PARAM_NAMES)])
+    head = [new.get(name, float(base_p[k])) for k, name in enumerate(PARAM_NAMES)]
+    return ca.vertcat(*head, ca.DM(np.asarray(base_p[len(PARAM_NAMES):], float)))
 
 
 def hover_thrusts(p):

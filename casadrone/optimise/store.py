@@ -168,6 +168,18 @@ def input_hashes(path: Path) -> dict[str, str]:
     return {f.relative_to(path).as_posix(): file_sha256(f) for f in files}
 
 
+def plugin_hashes(problem: ProblemConfig) -> dict[str, str]:
+    """SHA-256 of each plugin's source file, by the file's absolute path: a plugin is code the
+    run depends on (it registers the indices the run computes), so an edited one is refused like
+    an edited input."""
+    if not problem.plugins:
+        return {}
+    from casadrone.optimise.checks import import_plugin
+
+    files = (getattr(import_plugin(plugin), "__file__", None) for plugin in problem.plugins)
+    return {str(Path(f).resolve()): file_sha256(Path(f)) for f in files if f}
+
+
 def resolved_yaml(problem: ProblemConfig) -> str:
     """The resolved problem as YAML (input paths relative to the run directory)."""
     return yaml.safe_dump(json.loads(problem.model_dump_json()), sort_keys=False)
@@ -246,6 +258,7 @@ class RunStore:
         store.write_manifest({
             "config_hash": hashlib.sha256(text.encode()).hexdigest(),
             "input_hashes": input_hashes(path),
+            "plugin_hashes": plugin_hashes(problem),
             "problem": problem.name, "seed": problem.seed, "versions": versions(),
             "git_revision": git_revision(), "host": socket.gethostname(),
             "platform": platform.platform(), "python_executable": sys.executable,
@@ -293,15 +306,17 @@ class RunStore:
         return load(ProblemConfig, self.path / CONFIG)
 
     def check_inputs(self) -> None:
-        """Raise :class:`InputsChanged` naming the first file the run depends on that is missing
-        or differs from the one the run was created with (hashes in the manifest; a run from
-        before input hashes is checked on ``config.yaml`` alone)."""
+        """Raise :class:`InputsChanged` naming the first file the run depends on (its inputs and
+        its plugins' sources) that is missing or differs from the one the run was created with
+        (hashes in the manifest; a run from before input hashes is checked on ``config.yaml``
+        alone)."""
         m = self.manifest
         recorded = m.get("input_hashes")
         if not isinstance(recorded, dict):
             recorded = {CONFIG: m["config_hash"]} if "config_hash" in m else {}
-        for name, digest in recorded.items():
-            f = self.path / name
+        files = [(self.path / name, digest) for name, digest in recorded.items()]
+        files += [(Path(name), digest) for name, digest in (m.get("plugin_hashes") or {}).items()]
+        for f, digest in files:
             try:
                 same = file_sha256(f) == digest
             except FileNotFoundError:

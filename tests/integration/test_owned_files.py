@@ -132,6 +132,25 @@ def test_resume_after_editing_an_input_is_refused_naming_it(tmp_path, stopped, n
     assert "pareto.csv" not in {p.name for p in out.iterdir()}  # nothing was run
 
 
+def test_resume_after_editing_a_plugin_is_refused_naming_it(tmp_path):
+    """A plugin is code the run depends on: its source is hashed at creation like an input."""
+    import hashlib
+    import json
+
+    plugin = tmp_path / "my_plugin.py"
+    plugin.write_text("SCALE = 1.0\n")
+    out = tmp_path / "run"
+    run(load_problem(QUICK, [*TINY, f"plugins=[{plugin}]"]), out, SERIAL, quiet=True,
+        stop_after=1)
+    recorded = json.loads((out / "manifest.json").read_text())["plugin_hashes"]
+    assert recorded == {str(plugin.resolve()): hashlib.sha256(plugin.read_bytes()).hexdigest()}
+    RunStore(out).check_inputs()  # unchanged: accepted
+    plugin.write_text("SCALE = 2.0\n")
+    with pytest.raises(InputsChanged, match=f"{plugin.resolve()}: changed since the run"):
+        resume(out, SERIAL, quiet=True)
+    assert "pareto.csv" not in {p.name for p in out.iterdir()}  # nothing was run
+
+
 def test_the_suggested_new_run_reads_the_edited_inputs(tmp_path, stopped):
     out = tmp_path / "run"
     shutil.copytree(stopped, out)

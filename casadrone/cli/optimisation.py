@@ -349,8 +349,15 @@ def report(
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="report file (default: DIR/report.html)")
     ] = None,
+    force: Annotated[bool, typer.Option(
+        "--force", help="replace an existing --out file (the run's own report.html is always "
+        "rewritten)")] = False,
 ) -> None:
     """Write the HTML report of a run (front, candidates, gains over the references)."""
+    if out is not None and not force and (out.is_file() or out.is_symlink()) \
+            and out.resolve() != (run_dir / "report.html").resolve():
+        raise bad_input([f"--out: {out}: exists and was left untouched; choose another --out "
+                         "or pass --force to replace it"])
     require_run_dir(run_dir)
     open_problem(run_dir)
     try:

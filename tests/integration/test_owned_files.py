@@ -76,6 +76,15 @@ def test_export_never_writes_inside_a_run_directory(finished, target):
     RunStore(finished).check_inputs()  # the run is intact
 
 
+def test_report_out_refuses_an_existing_file_before_any_work(tmp_path, finished):
+    notes = tmp_path / "notes.html"
+    notes.write_text("my notes\n")
+    refused = cli("report", finished, "--out", notes)
+    assert refused.exit_code == 2 and "exists" in refused.stderr and "--force" in refused.stderr
+    assert notes.read_text() == "my notes\n"
+    assert not (finished / "plots").exists() and not (finished / "report.html").exists()
+
+
 def test_export_under_a_regular_file_says_so(tmp_path):
     (tmp_path / "file").write_text("x")
     result = cli("export", "SY250", "--out", tmp_path / "file" / "mix.txt")

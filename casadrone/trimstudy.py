@@ -31,13 +31,14 @@ from __future__ import annotations
 import math
 import time
 import zlib
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
 
 from casadrone.airframe import Airframe
 from casadrone.conditions import OperatingPoint, envelope
+from casadrone.results import AsDict
 from casadrone.trim import (
     SOLVERS,
     UNKNOWN_NAMES,
@@ -53,7 +54,7 @@ OUTCOMES: tuple[str, ...] = ("converged", "other-trim", "out-of-domain", "failed
 
 
 @dataclass(frozen=True)
-class StudyOptions:
+class StudyOptions(AsDict):
     """Settings of a study; ValueError naming the field on a bad value.
 
     Attributes:
@@ -92,9 +93,6 @@ class StudyOptions:
                 raise ValueError(f"{name}: {getattr(self, name)!r} is out of range "
                                  f"({_RANGES[name]})")
 
-    def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
 
 _RANGES = {
     "starts": "0 to 100000", "angle_spread_deg": "0 to 80 deg", "command_spread": "0 to < 1",
@@ -104,7 +102,7 @@ _RANGES = {
 
 
 @dataclass(frozen=True)
-class StartResult:
+class StartResult(AsDict):
     """One solver from one start: its outcome, cost and where it ended.
 
     Attributes:
@@ -129,12 +127,9 @@ class StartResult:
     z: np.ndarray
     message: str
 
-    def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
 
 @dataclass(frozen=True)
-class SolverSummary:
+class SolverSummary(AsDict):
     """One solver at one point over all its starts. Spreads are the quartiles (25 %, 75 %).
 
     Attributes:
@@ -166,12 +161,9 @@ class SolverSummary:
     solutions: int
     from_guess: str
 
-    def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
 
 @dataclass(frozen=True)
-class Solution:
+class Solution(AsDict):
     """A distinct root of the trim equations found at a point: its Z, distance from the
     reference, which solvers found it how often, whether it lies in the model's domain (tilt
     within ``max_tilt_deg``: a trim) and whether its commands lie in [0, 1] (a flyable one)."""
@@ -181,9 +173,6 @@ class Solution:
     found_by: dict[str, int]
     in_domain: bool
     commands_in_range: bool
-
-    def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
 
 @dataclass(frozen=True)
@@ -463,7 +452,7 @@ def basin_slice(frame: Airframe, point: OperatingPoint, options: StudyOptions | 
 
 
 @dataclass(frozen=True)
-class ResidualHistory:
+class ResidualHistory(AsDict):
     """Residual norm (SI) after k iterations of one solver from one start: the same solver run
     again with its iteration cap at k (each solver is deterministic, so this is its k-th
     iterate, restarts of Nelder–Mead included); k = 0 is the start."""
@@ -472,9 +461,6 @@ class ResidualHistory:
     start: str
     iterations: np.ndarray
     residual_norm: np.ndarray
-
-    def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
 
 def residual_history(frame: Airframe, point: OperatingPoint, solver: str, z0: np.ndarray,

@@ -48,7 +48,7 @@ from __future__ import annotations
 import csv
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -337,7 +337,6 @@ class PropulsionFit:
     rotor_inertia_kgm2: float | None
     steps: tuple[StepFit, ...]
     residuals: tuple[Residual, ...]
-    duty: np.ndarray = field(repr=False)
 
     def section(self, shape: str | None = None) -> dict[str, Any]:
         """The airframe's ``propulsion:`` section (the keys of the propeller model).
@@ -537,7 +536,7 @@ def fit_propulsion(log: StandLog, diameter_m: float, air_density_kg_m3: float = 
                              esc_min_us, esc_max_us)
     return PropulsionFit(log.source, diameter_m, air_density_kg_m3, tuple(powered), ct0, cp0,
                          kv, R, i0, v0, r_int, tau, inertia, steps,
-                         (*res_prop, *res_motor, res_batt), duty)
+                         (*res_prop, *res_motor, res_batt))
 
 
 def _rotor_inertia(steps: tuple[StepFit, ...], cp0: float, kv_rpm_per_v: float, R: float,

@@ -29,8 +29,9 @@ import numpy as np
 from casadrone.airframe import build_airframe
 from casadrone.config.io import ConfigError
 from casadrone.limit.check import resimulation_miss, theta_sensitivities
-from casadrone.limit.lap import _prepare, _trajectory, limit_lap, model_states, start_state
+from casadrone.limit.lap import limit_lap, model_states, start_state
 from casadrone.limit.nlp import NlpPoint
+from casadrone.limit.starts import prepare, trajectory
 from casadrone.model import NP
 
 #: Largest relative gap between the co-design lap and the fixed-frame lap (issue: 0.05 %).
@@ -110,7 +111,7 @@ def _fixed_laps(prep, point, k: int, cfg):
     cd = prep.nlp
     track = prep.tracks[k]
     frame = build_airframe(cfg)
-    pb = _prepare(frame, track, prep.options, prep.options.gate_clearance_m or 0.0)
+    pb = prepare(frame, track, prep.options, prep.options.gate_clearance_m or 0.0)
     w = point.z[cd.offsets[k]:cd.offsets[k + 1]]
     lam_x = point.lam_x[cd.offsets[k]:cd.offsets[k + 1]]
     lam_g = point.lam_g[cd.row_offsets[k]:cd.row_offsets[k + 1]]
@@ -147,7 +148,7 @@ def certify(prep, point) -> Certificate:
         fixed = min(laps)
         ref = point.laps_s[label]
         gap = 100 * (fixed - ref) / ref
-        miss = (resimulation_miss(pb.frame, _trajectory(pb.full, warm.point.w, pb.layout),
+        miss = (resimulation_miss(pb.frame, trajectory(pb.full, warm.point.w, pb.layout),
                                   pb.targets.vector, pb.targets.kinds)
                 if warm.success else math.inf)
         ok = abs(gap) <= 100 * LAP_RTOL and miss <= prep.options.max_miss_m

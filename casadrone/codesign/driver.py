@@ -31,7 +31,8 @@ from casadrone.config.airframe import AirframeConfig, load_airframe
 from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
-from casadrone.limit.lap import LimitLap, LimitLapOptions, _prepare, limit_lap
+from casadrone.limit.lap import LimitLap, LimitLapOptions, limit_lap
+from casadrone.limit.starts import prepare as prepare_lap
 from casadrone.results import Status
 
 #: Two optima agree when their objectives differ by at most this fraction (acceptance: 0.1 %).
@@ -162,9 +163,9 @@ def _tracks(problem: CodesignProblemConfig) -> tuple[tuple[str, ...], tuple[Trac
 def _part(template: AirframeConfig, track: TrackConfig, options: LimitLapOptions,
           weight: float) -> TrackPart:
     """One track's limit-lap problem as the limit lap poses it for the template
-    (:func:`casadrone.limit.lap._prepare`): its NLP, box, row bounds, start and targets."""
+    (:func:`casadrone.limit.starts.prepare`): its NLP, box, row bounds, start and targets."""
     frame = build_airframe(template)
-    pb = _prepare(frame, track, options, options.gate_clearance_m or 0.0)
+    pb = prepare_lap(frame, track, options, options.gate_clearance_m or 0.0)
     return TrackPart(pb.full, *pb.box, *pb.rows, pb.x0, pb.targets.vector, weight,
                      hover_start=options.start_state is None, thrust_max=frame.thrust_gain)
 

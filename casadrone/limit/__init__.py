@@ -1,8 +1,14 @@
 """The limit lap: the physically fastest lap of an airframe, a minimum-time optimal-control problem.
 
 - :mod:`casadrone.limit.nlp` builds the NLP once per track layout (the airframe is a parameter);
-- :mod:`casadrone.limit.check` analyses a solution (re-simulation, sensitivities);
+- :mod:`casadrone.limit.gates` holds the target kinds (waypoint balls, gate openings);
 - :mod:`casadrone.limit.attitude` is the quaternion model (no attitude singularity);
-- :mod:`casadrone.limit.lap` drives the starts and assembles the
-  :class:`~casadrone.limit.lap.LimitLap`.
+- :mod:`casadrone.limit.check` analyses a solution (re-simulation, sensitivities);
+- :mod:`casadrone.limit.result`: the options and the :class:`~casadrone.limit.result.LimitLap`;
+- the steps of :func:`casadrone.limit.lap.limit_lap`, each a module of pure functions:
+  :mod:`~casadrone.limit.problem` (track → targets, refusals, start state, bounds),
+  :mod:`~casadrone.limit.guesses` (initial guesses), :mod:`~casadrone.limit.pointmass` (the
+  point-mass reference), :mod:`~casadrone.limit.starts` (the prepared problem and one solve per
+  start), :mod:`~casadrone.limit.choose` (re-simulation check, best start, certainty) and
+  :mod:`~casadrone.limit.lap` (the result and its sensitivities).
 """

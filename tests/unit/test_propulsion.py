@@ -350,7 +350,7 @@ def test_lap_propulsion_summary(frame):
 def test_limit_lap_falls_back_on_a_reference_of_the_same_propulsion():
     """A propeller frame's fallback start is SY250-propeller's lap (its rotor states are rotor
     speeds), never SY250's (thrusts); none when no such reference is shipped."""
-    from casadrone.limit.lap import _fallback_name
+    from casadrone.limit.starts import fallback_name as _fallback_name
 
     assert _fallback_name("SY250", "paper") == "SY250"
     assert _fallback_name("SY250", "propeller") == "SY250-propeller"

@@ -1,0 +1,59 @@
+"""The point-mass reference of the limit lap: the best of a few local optima of the point-mass
+relaxation, solved once per (mass, thrust, drag, track) and cached, never per frame."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from casadrone.airframe import Airframe
+from casadrone.config.track import TrackConfig
+from casadrone.limit.guesses import straight_guess
+from casadrone.limit.nlp import Nlp, NlpSolution, solve
+from casadrone.limit.problem import Targets, bounds, row_bounds
+from casadrone.limit.result import LimitLapOptions
+from casadrone.model import rotation_matrix
+
+#: Constant speeds (m/s) of the straight-line starts of the point-mass reference (best of them).
+REFERENCE_SPEEDS_MPS = (5.0, 10.0, 20.0)
+#: Entries of p the point-mass model reads (casadrone.limit.nlp.point_mass_ocp_model).
+POINT_MASS_PARAMS = ("mass", "g", "rho", "CdA_x", "CdA_y", "CdA_z")
+_POINT_MASS: dict[bytes, NlpSolution | None] = {}
+
+
+def point_mass_p(airframe: Airframe) -> np.ndarray:
+    """p with every entry the point mass does not read set to zero, so the point-mass problem,
+    and its cache key, depend on mass, gravity, drag and density only (thrust is its bound)."""
+    from casadrone.model import param_names
+    from casadrone.propulsion import PROPELLER_PARAM_NAMES
+
+    names = np.array(param_names(airframe.propulsion))
+    # the propeller's data set the point mass's thrust bound: they stay in the key
+    keep = np.isin(names, POINT_MASS_PARAMS + PROPELLER_PARAM_NAMES)
+    return np.where(keep, airframe.p, 0.0)
+
+
+def point_mass_reference(pm: Nlp, airframe: Airframe, track: TrackConfig,
+                         options: LimitLapOptions, targets: Targets, x0: np.ndarray
+                         ) -> NlpSolution | None:
+    """The best converged point-mass solve over straight-line starts at REFERENCE_SPEEDS_MPS,
+    cached per (mass, gravity, drag, thrust, track targets, start, bounds): never per frame.
+
+    Not a lower bound: the point-mass problem is a relaxation of the limit lap (every flight of
+    the full model is one of the point mass), so its *global* optimum bounds the lap from below,
+    but IPOPT finds local optima, and the best of a few starts is only the best found.
+    """
+    R = np.asarray(rotation_matrix(*x0[9:12])).reshape(3, 3)
+    x0_pm = np.concatenate([x0[0:3], R @ x0[3:6]])
+    P = np.concatenate([point_mass_p(airframe), x0_pm, targets.vector])
+    lbx, ubx = bounds(pm, airframe, track, options, point_mass=True)
+    lbg, ubg = row_bounds(pm, track, options)
+    key = b"".join(np.ascontiguousarray(a, float).tobytes() for a in (P, lbx, ubx, lbg, ubg)) \
+        + repr((pm.layout, options.tol, options.max_iter)).encode()
+    if key not in _POINT_MASS:
+        x0_guess = np.concatenate([x0_pm[0:3], np.zeros(3)])
+        sols = [solve(pm, straight_guess(pm, targets.route, x0_guess, v,
+                                     airframe.mass * airframe.gravity), P, lbx, ubx,
+                      lbg=lbg, ubg=ubg) for v in REFERENCE_SPEEDS_MPS]
+        good = [s for s in sols if s.success]
+        _POINT_MASS[key] = min(good, key=lambda s: s.objective) if good else None
+    return _POINT_MASS[key]

@@ -1,0 +1,197 @@
+"""The limit-lap problem posed from a track: its targets, the checks that it can be posed, the
+start state and the bounds (docs/concepts/limit-lap.md). Pure functions of the airframe, the
+track and the options."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from casadrone.airframe import Airframe
+from casadrone.config.track import TrackConfig
+from casadrone.guidance import segment_headings
+from casadrone.limit.gates import (
+    MAX_EDGES,
+    TargetKind,
+    gate_frame,
+    polygon_edges,
+    target_vector,
+)
+from casadrone.limit.nlp import Nlp
+from casadrone.limit.result import MAX_INTERVALS, LimitLapOptions, model_states
+from casadrone.model import NX
+from casadrone.propulsion import hover_rotors, rotor_state_bounds, rotor_thrust_bound
+
+#: The target kind of each gate shape (a ball is a waypoint without a gate).
+KIND_OF_SHAPE: dict[str, TargetKind] = {"rectangle": "gate", "circle": "circle",
+                                        "polygon": "polygon"}
+
+
+@dataclass(frozen=True)
+class Targets:
+    """The legs of a track as the NLP sees them."""
+
+    kinds: tuple[TargetKind, ...]
+    vector: np.ndarray  # the ``targets`` part of P
+    first_timed: int  # leg that ends at the first waypoint
+    lap_ends: tuple[int, ...] = ()  # leg that ends each lap
+    route: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # start, climb, targets
+
+
+def _lap_items(track: TrackConfig) -> list[int]:
+    """Waypoint index of each timed target over ``track.laps`` laps. A lap that ends where it
+    began (last waypoint = first, as a gate track closing through its first gate) is not flown
+    through that point twice: the next lap starts at the second waypoint."""
+    n = len(track.waypoints_m)
+    closes = n > 1 and np.allclose(track.waypoints_m[0], track.waypoints_m[-1])
+    items = list(range(n))
+    for _ in range(track.laps - 1):
+        items += list(range(1 if closes else 0, n))
+    return items
+
+
+def frame_clearance_m(airframe: Airframe, prop_diameter_m: float = 0.127) -> float:
+    """The frame's own size as a gate clearance (m): the farthest rotor centre from the centre
+    of mass in the rotor plane plus a propeller's radius (the default 127 mm is the paper's
+    5-inch propeller, AirframeConfig's default)."""
+    from casadrone.airframe import PARAM_NAMES
+
+    at = PARAM_NAMES.index("r1x")
+    r = np.asarray(airframe.p[at:at + 12]).reshape(4, 3)[:, 0:2]
+    return float(np.linalg.norm(r, axis=1).max()) + prop_diameter_m / 2
+
+
+def track_targets(track: TrackConfig, options: LimitLapOptions,
+                  clearance_m: float | None = None) -> Targets:
+    """Ball or gate per route leg (the climb point is always a ball), over every lap. Gates
+    shrink by ``options.gate_clearance_m``, or by ``clearance_m`` (the frame's size) when the
+    option is None."""
+    first = track.first_timed_segment
+    items = _lap_items(track)
+    route = np.vstack([track.route[:first + 1], np.asarray(track.waypoints_m, float)[items]])
+    n_legs = len(route) - 1
+    acc = track.acceptance_radius_m if options.ball_radius_m is None else options.ball_radius_m
+    tol = acc if track.tolerance_m is None or options.ball_radius_m is not None \
+        else track.tolerance_m
+    radii = np.full(n_legs, acc)
+    radii[first:] = np.broadcast_to(np.asarray(tol, float), (len(track.waypoints_m),))[items]
+    kinds: list[TargetKind] = ["ball"] * n_legs
+    heads = segment_headings(route, math.radians(track.start_yaw_deg))
+    frames = np.array([gate_frame(0.0, 0.0, h) for h in heads])
+    hw, hh = np.zeros(n_legs), np.zeros(n_legs)
+    edges = np.tile([0.0, 0.0, 1.0], (n_legs, MAX_EDGES, 1))
+    clear = options.gate_clearance_m if options.gate_clearance_m is not None else clearance_m
+    clear = 0.0 if clear is None else clear
+    for k, j in enumerate(items):
+        if track.gates:
+            gate, leg = track.gates[j], first + k
+            kinds[leg] = KIND_OF_SHAPE[gate.shape]
+            frames[leg] = gate_frame(*gate.rpy_rad)
+            hw[leg] = gate.width_m / 2 - clear
+            hh[leg] = gate.height_m / 2 - clear
+            if gate.vertices_m is not None:
+                edges[leg] = polygon_edges(np.asarray(gate.vertices_m), clear)
+    n_wp = len(track.waypoints_m)
+    ends = [first + i for i in range(len(items)) if items[i] == n_wp - 1]
+    return Targets(tuple(kinds), target_vector(route[1:], tuple(kinds), heads, hw, hh, radii,
+                                               frames, edges), first, tuple(ends), route)
+
+
+def check_inputs(track: TrackConfig, options: LimitLapOptions,
+                 clearance_m: float | None = None) -> str:
+    """Why the problem cannot be posed (empty string when it can)."""
+    if not 2 <= options.intervals <= MAX_INTERVALS or not 1 <= options.degree <= 9 \
+            or not 1 <= options.substeps <= 20:
+        return (f"intervals must be 2…{MAX_INTERVALS}, degree 1…9 and substeps 1…20 (got "
+                f"{options.intervals}, {options.degree}, {options.substeps})")
+    if options.start_state is not None and len(options.start_state) != NX:
+        return f"start_state needs {NX} values, got {len(options.start_state)}"
+    if options.attitude == "quaternion" and options.tilt_limit == "axes":
+        return ("tilt_limit 'axes' bounds Euler angles: with the quaternion attitude use 'cone' "
+                "or 'none'")
+    clear = options.gate_clearance_m if options.gate_clearance_m is not None else clearance_m
+    for j, gate in enumerate(track.gates or []):
+        if clear is None:
+            break
+        inner = min(gate.width_m, gate.height_m) / 2
+        if gate.vertices_m is not None:  # the largest circle inside the polygon's edges
+            inner = float(np.min(polygon_edges(np.asarray(gate.vertices_m), 0.0)[
+                :len(gate.vertices_m), 2]))
+        if inner <= clear:
+            return (f"gate {j + 1}: opening {gate.width_m:g} x {gate.height_m:g} m is not wider "
+                    f"than twice the clearance {clear:.3g} m")
+    if options.ball_radius_m is not None and options.ball_radius_m < 0:
+        return "ball_radius_m must not be negative"
+    return ""
+
+
+def start_state(airframe: Airframe, track: TrackConfig, options: LimitLapOptions) -> np.ndarray:
+    """The state the limit lap starts from, as 16 Euler-model states: level at the track's start
+    yaw, rotors at hover thrust, at rest or at the track's ``start.velocity_mps`` (world), unless
+    ``options.start_state`` gives it."""
+    if options.start_state is not None:
+        return np.asarray(options.start_state, float)
+    x = np.zeros(NX)
+    x[0:3] = track.start_position_m
+    psi = math.radians(track.start_yaw_deg)
+    x[11] = psi
+    c, s = math.cos(psi), math.sin(psi)
+    vw = np.asarray(track.start.velocity_mps, float)
+    x[3:6] = [c * vw[0] + s * vw[1], -s * vw[0] + c * vw[1], vw[2]]  # Rz(ψ)ᵀ v
+    x[12:16] = hover_rotors(airframe, airframe.hover_thrusts())[0]
+    return x
+
+
+def row_bounds(nlp: Nlp, track: TrackConfig, options: LimitLapOptions
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(lbg, ubg): the tilt cone at the track's tilt limit, the end velocity."""
+    tilt = math.radians(track.max_tilt_deg if options.max_tilt_deg is None
+                        else options.max_tilt_deg)
+    return nlp.row_bounds(math.cos(tilt), track.end_velocity_mps if track.end == "velocity"
+                          else None)
+
+
+def bounds(nlp: Nlp, airframe: Airframe, track: TrackConfig, options: LimitLapOptions,
+           point_mass: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Box on the decision vector: leg durations, floor and ceiling, tilt (axes), body rates,
+    rotor states and commands, the start state. The point mass keeps only what it has
+    (durations, altitude, its attitude controls within ±tilt per axis, which contains the
+    cone, and total thrust ≤ 4K): every flight of the full model stays one of the point mass."""
+    model = nlp.model
+    L, M = nlp.layout.n_legs, nlp.layout.n_intervals
+    tilt = math.radians(track.max_tilt_deg if options.max_tilt_deg is None
+                        else options.max_tilt_deg)
+    t_lo, t_hi = np.full(L, 1e-3), np.full(L, track.time_limit_s * track.laps)
+    if track.floor_m is not None:
+        floor = track.floor_m
+    else:
+        floor = min(track.start_position_m[2], 0.0) - 0.1 if options.start_state is None \
+            else -np.inf
+    nx, nu = model.nx, model.nu
+    xl, xu = np.full((M + 1, nx), -np.inf), np.full((M + 1, nx), np.inf)
+    ul, uu = np.full((M, nu), -np.inf), np.full((M, nu), np.inf)
+    xl[:, 2] = floor
+    if track.ceiling_m is not None:
+        xu[:, 2] = track.ceiling_m
+    zl, zu = xl, xu  # collocation states: the same box, the start state not fixed
+    if point_mass:
+        if options.tilt_limit != "none":
+            ul[:, 0:2], uu[:, 0:2] = -tilt, tilt
+        ul[:, 3], uu[:, 3] = 0.0, 4 * rotor_thrust_bound(airframe)
+    else:
+        if options.tilt_limit == "axes":
+            xl[:, 9:11], xu[:, 9:11] = -tilt, tilt
+        xl[:, model.rotor], xu[:, model.rotor] = rotor_state_bounds(airframe)
+        rate = track.max_body_rate_rad_s
+        if rate is not None and model.rates is not None:
+            lim = np.array([rate.roll_pitch, rate.roll_pitch, rate.yaw])
+            xl[:, model.rates], xu[:, model.rates] = -lim, lim
+        ul[:], uu[:] = 0.0, 1.0
+        x0 = model_states(model.attitude, start_state(airframe, track, options))[0]
+        zl, zu = xl.copy(), xu.copy()
+        xl[0], xu[0] = x0, x0  # also an equality on the parameter; the bound helps IPOPT
+    d = nlp.layout.n_coll
+    return (nlp.pack(t_lo, xl, ul, np.repeat(zl[1:, None, :], d, axis=1)),
+            nlp.pack(t_hi, xu, uu, np.repeat(zu[1:, None, :], d, axis=1)))

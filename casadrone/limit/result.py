@@ -1,0 +1,185 @@
+"""The limit lap's options and result types (docs/concepts/limit-lap.md): what goes into
+:func:`casadrone.limit.lap.limit_lap` and what comes out, with the conversions between the
+model's states and the 16 Euler-model states."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from casadrone.config.controller import ControllerConfig
+from casadrone.limit.nlp import Layout, NlpPoint
+from casadrone.model import NX
+from casadrone.results import Status
+
+Start = Literal["closed-loop", "point-mass", "coarse-grid", "relaxed-tolerance"]
+#: The attitude models of the limit lap, and the ways it limits the tilt.
+Attitude = Literal["euler", "quaternion"]
+TiltLimit = Literal["axes", "cone", "none"]
+#: How far the verified starts agree (:func:`casadrone.limit.choose.certainty`).
+Certainty = Literal["agreed", "single", "spread"]
+
+
+def euler_states(attitude: str, X: np.ndarray) -> np.ndarray:
+    """Model states (rows) as 16 Euler-model states."""
+    if attitude == "quaternion":
+        from casadrone.limit.attitude import quat_states_to_euler
+
+        return quat_states_to_euler(X)
+    return np.asarray(X, float)
+
+
+def model_states(attitude: str, X: np.ndarray) -> np.ndarray:
+    """16 Euler-model states (rows) as the model's states."""
+    if attitude == "quaternion":
+        from casadrone.limit.attitude import euler_states_to_quat
+
+        return euler_states_to_quat(X)
+    return np.atleast_2d(np.asarray(X, float))
+
+
+#: Most intervals per leg. Grid refinement moved SY250's lap by 0.02 % from 40 to 80 intervals
+#: (LimitLapOptions.intervals), so 400 is ten times finer than any measured need; the NLP's
+#: memory grows in proportion (20 000 intervals reached 5.8 GB and failed to allocate), so 400
+#: stays near 0.1 GB.
+MAX_INTERVALS = 400
+
+
+@dataclass(frozen=True)
+class LimitLapOptions:
+    """Numerical and modelling settings of the limit lap (identical for every candidate)."""
+
+    # Intervals per leg. Grid refinement on SY250, from the coarse optimum resampled: 30 -> 60
+    # changed the lap by 0.13 %, 40 -> 80 by 0.02 % (the acceptance is < 0.1 %); 40 with 2 RK4
+    # steps per interval instead of 3 changed by up to 0.16 %.
+    intervals: int = 40
+    method: Literal["shooting", "collocation"] = "shooting"  # see casadrone.limit.nlp
+    substeps: int = 3  # RK4 steps per interval (shooting)
+    degree: int = 3  # Radau collocation points per interval (collocation)
+    # "coarse-grid": grid continuation, the closed-loop start solved on COARSE_SHARE of the
+    # intervals and its optimum resampled onto this grid (a coarse grid smooths the problem);
+    # "relaxed-tolerance": tolerance homotopy from the point-mass start (balls of at least
+    # RELAXED_RADIUS_M first, then the track's tolerances from that point).
+    # Measured (benchmarks/RESULTS-limitlap-issue19.md): on the gate track the coarse-grid start
+    # is 0.34 % faster than the other two; on the paper track it adds nothing (+0.03 %).
+    starts: tuple[Start, ...] = ("closed-loop", "point-mass", "coarse-grid")
+    warm_starts: tuple[LimitLap, ...] = ()  # neighbouring solutions (same legs; any grid)
+    guess_trajectory: object | None = None  # the frame's closed-loop lap, if already flown
+    ball_radius_m: float | None = None  # None: the track's acceptance radius
+    # Kept from the gate's frame on each side (m); None: the frame's own size (the farthest
+    # rotor plus a propeller radius, frame_clearance_m).
+    gate_clearance_m: float | None = None
+    max_tilt_deg: float | None = None  # None: the track's max_tilt_deg
+    # Attitude of the full model: "euler" (ZYX angles, singular at 90 deg of pitch) or
+    # "quaternion" (no singularity: split-S, loops, inverted flight; casadrone.limit.attitude).
+    attitude: Attitude = "euler"
+    # Tilt limit at max_tilt_deg: "axes" |phi|, |theta| each (the closed loop's failure test;
+    # Euler only; together they allow up to 88 deg of total tilt at 80), "cone" on the total
+    # tilt (angle between body z and world z, at every node), or "none".
+    tilt_limit: TiltLimit = "axes"
+    start_state: tuple[float, ...] | None = None  # 16 values; None: hover at the start
+    controller: ControllerConfig | None = None  # closed-loop guess; None: default controller
+    tol: float = 1e-6  # IPOPT: laps agree with tol 1e-8's to ~1e-6 s in 5-20 % fewer iterations
+    max_iter: int = 1000
+    # The point-mass reference (not a bound: the best of REFERENCE_SPEEDS_MPS local optima of
+    # the point-mass relaxation), solved once per (mass, thrust, drag, track) and cached.
+    point_mass_reference: bool = True
+    resimulate: bool = True  # re-simulate every converged start; choose among those that pass
+    # Largest re-simulation miss (m) of a chosen start. Honest optima miss by 0.003-0.09 m (the
+    # open-loop drift of a 4 s lap at up to 55 m/s); optima that exploit the discretisation
+    # (RK4 near the Euler-angle singularity at 80 deg tilt) missed by 0.2-60 m.
+    max_miss_m: float = 0.15
+    sensitivities: bool = True
+    # Shipped airframe whose limit lap (same track and options) starts a frame whose own starts
+    # all fail (module docstring, "fallback"); None: no fallback.
+    fallback_reference: str | None = "SY250"
+
+
+@dataclass(frozen=True)
+class StartResult:
+    """What one start of the solver gave."""
+
+    start: str
+    success: bool
+    return_status: str
+    lap_time_s: float
+    iterations: int
+    wall_time_s: float
+    resimulation_miss_m: float = math.nan  # NaN: not converged or not re-simulated
+
+
+@dataclass(frozen=True)
+class LimitLap:
+    """The limit lap of one airframe on one track.
+
+    ``t`` holds the node times (M + 1), ``x`` the node states (M + 1, the model's states: 16 for
+    the Euler model, 17 for the quaternion model; :attr:`x_euler` gives 16 with Euler angles),
+    ``u`` the ESC commands held on each interval (M, 4). ``certainty`` says whether the verified
+    starts agree: "agreed" (two or more, all within CERTAIN_REL of the best), "single" (one
+    verified start), "spread" (farther apart: a better optimum may exist). Agreement is no
+    proof: the best known SY250 optimum (3.8951 s) is reached by none of the default starts.
+    ``sensitivities`` maps decision-variable keys to dT/dθ in
+    seconds per unit of the key (only when the airframe config was given); ``param_sensitivity``
+    is dT/dp over the model parameters (PARAM_NAMES order), s per SI unit.
+    """
+
+    status: Status  # completed: a verified optimum (casadrone.results' one word for success)
+    reason: str
+    lap_time_s: float = math.nan
+    split_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))  # at each waypoint
+    leg_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))  # every route leg
+    t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    x: np.ndarray = field(default_factory=lambda: np.zeros((0, NX)))
+    u: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    iterations: int = 0
+    wall_time_s: float = 0.0
+    bang_bang_fraction: float = math.nan
+    point_mass_reference_s: float = math.nan  # best local optimum found, not a bound
+    lap_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))  # time of each lap
+    spread_s: float = math.nan  # slowest minus fastest verified start (NaN: only one)
+    certainty: Certainty = "single"
+    attitude: str = "euler"
+    resimulation_miss_m: float = math.nan
+    param_sensitivity: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    sensitivities: dict[str, float] = field(default_factory=dict)
+    start: str = ""
+    starts: tuple[StartResult, ...] = ()
+    layout: Layout | None = None
+    solution: NlpPoint | None = None  # primal-dual point, for warm starts
+
+    @property
+    def completed(self) -> bool:
+        return self.status == "completed"
+
+    @property
+    def optimal(self) -> bool:
+        """The same as :attr:`completed` (the limit lap's earlier word for it)."""
+        return self.completed
+
+    @property
+    def x_euler(self) -> np.ndarray:
+        """Node states with ZYX Euler angles (16 columns), whatever the model's attitude."""
+        return euler_states(self.attitude, self.x)
+
+    @property
+    def speed(self) -> np.ndarray:
+        """Speed at the nodes (m/s)."""
+        return np.linalg.norm(self.x[:, 3:6], axis=1)
+
+    @property
+    def waypoint_index(self) -> np.ndarray:
+        """Route leg (0-based) each interval belongs to."""
+        n = self.layout.intervals if self.layout else 1
+        return np.arange(len(self.u)) // n
+
+
+
+def node_times(T: np.ndarray, intervals: int) -> np.ndarray:
+    """Node times (s) of leg durations ``T`` with ``intervals`` uniform intervals per leg."""
+    ends = np.cumsum(T)
+    return np.concatenate([[0.0]] + [e - d + np.linspace(0, d, intervals + 1)[1:]
+                                     for e, d in zip(ends, T, strict=True)])
+

@@ -1,0 +1,262 @@
+"""The starts of the limit lap: the problem prepared once (NLP, parameters, bounds), then one
+solve per start (docs/concepts/limit-lap.md, "Robustness").
+
+Each cold start is one entry of :data:`COLD_STARTS` (``LimitLapOptions.starts`` chooses among
+them, solved in the registry's order); warm starts come from ``LimitLapOptions.warm_starts``; the
+fallback start is the limit lap of a shipped reference frame. A start that needs a limit lap of
+its own (the coarse grid, the fallback reference) gets the solver as ``lap_of``, so this module
+does not import :mod:`casadrone.limit.lap`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from functools import cached_property
+
+import numpy as np
+
+from casadrone.airframe import Airframe
+from casadrone.config.airframe import AirframeConfig
+from casadrone.config.track import TrackConfig
+from casadrone.limit.guesses import (
+    closed_loop_lap,
+    guess_from_lap,
+    guess_from_trajectory,
+    lifted_guess,
+    straight_guess,
+)
+from casadrone.limit.nlp import (
+    ATTITUDE_MODELS,
+    Layout,
+    Nlp,
+    NlpPoint,
+    NlpSolution,
+    build_nlp,
+    point_mass_ocp_model,
+    solve,
+)
+from casadrone.limit.pointmass import point_mass_reference
+from casadrone.limit.problem import Targets, bounds, row_bounds, start_state, track_targets
+from casadrone.limit.result import LimitLap, LimitLapOptions, Start, model_states, node_times
+from casadrone.propulsion import hover_rotors
+
+#: Share of the intervals of the coarse grid of the "coarse-grid" start (40 -> 30).
+COARSE_SHARE = 0.75
+#: Smallest ball radius (m) of the first solve of the "relaxed-tolerance" start.
+RELAXED_RADIUS_M = 1.0
+
+#: A named solve: the start's name and what IPOPT gave from it.
+StartSolve = tuple[str, NlpSolution]
+#: The limit lap itself (:func:`casadrone.limit.lap.limit_lap`), for starts that need one.
+LapOf = Callable[[Airframe | AirframeConfig, TrackConfig, LimitLapOptions], LimitLap]
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One limit-lap problem, prepared: the frame, its NLP, parameters and bounds."""
+
+    frame: Airframe
+    track: TrackConfig
+    options: LimitLapOptions
+    targets: Targets
+    layout: Layout
+    full: Nlp
+    x0_euler: np.ndarray
+    x0: np.ndarray  # in the model's states
+    P: np.ndarray
+    box: tuple[np.ndarray, np.ndarray]
+    rows: tuple[np.ndarray, np.ndarray]
+
+    def solve(self, w0: np.ndarray, warm: NlpPoint | None = None) -> NlpSolution:
+        return solve(self.full, w0, self.P, *self.box, warm=warm, lbg=self.rows[0],
+                     ubg=self.rows[1])
+
+    @cached_property
+    def point_mass(self) -> Nlp:  # only when a point-mass start or the reference needs it
+        return build_nlp(point_mass_ocp_model(self.frame.propulsion),
+                         replace(self.layout, tilt_cone=False),
+                         self.options.tol, self.options.max_iter)
+
+    @cached_property
+    def reference(self) -> NlpSolution | None:
+        return point_mass_reference(self.point_mass, self.frame, self.track, self.options,
+                                    self.targets, self.x0_euler)
+
+    @cached_property
+    def lifted(self) -> np.ndarray | None:
+        """The point-mass reference lifted to the full model (None without a reference)."""
+        if self.reference is None:
+            return None
+        return lifted_guess(self.full, self.point_mass, self.reference.point.w, self.frame,
+                            self.x0)
+
+
+def prepare(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
+            clearance_m: float) -> Problem:
+    """The problem of ``frame`` on ``track``: the NLP of its layout (built once per process),
+    P = [p, x0, targets], the box and the row bounds."""
+    targets = track_targets(track, options, clearance_m)
+    layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
+                    options.substeps, end_at_rest=track.end != "free",
+                    tilt_cone=options.tilt_limit == "cone")
+    full = build_nlp(ATTITUDE_MODELS[options.attitude](frame.propulsion), layout, options.tol,
+                     options.max_iter)
+    x0_euler = start_state(frame, track, options)
+    x0 = model_states(options.attitude, x0_euler)[0]
+    return Problem(frame, track, options, targets, layout, full, x0_euler, x0,
+                   np.concatenate([frame.p, x0, targets.vector]),
+                   bounds(full, frame, track, options, point_mass=False),
+                   row_bounds(full, track, options))
+
+
+def trajectory(nlp: Nlp, w: np.ndarray, layout: Layout) -> LimitLap:
+    """A decision vector as a (not yet checked) LimitLap: enough to re-simulate it."""
+    T, X, U = nlp.unpack(w)
+    return LimitLap(status="completed", reason="", t=node_times(T, layout.intervals), x=X, u=U,
+                    layout=layout, attitude=nlp.model.attitude)
+
+
+# --------------------------------------------------------------------------------------------
+# Cold starts
+# --------------------------------------------------------------------------------------------
+
+
+def closed_loop_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
+    """From the frame's closed-loop lap sampled onto the grid (straight lines when it does not
+    fly the track)."""
+    options, full, x0 = pb.options, pb.full, pb.x0
+    guess = None
+    traj = options.guess_trajectory or closed_loop_lap(pb.frame, pb.track, options.controller)
+    if traj is not None:
+        guess = guess_from_trajectory(full, traj, x0)
+    if guess is None:
+        guess = straight_guess(full, pb.targets.route, x0, hover_command=None if
+                               pb.frame.propulsion == "paper" else float(np.mean(
+                                   hover_rotors(pb.frame, pb.frame.hover_thrusts())[1])))
+    return pb.solve(guess)
+
+
+def coarse_grid_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
+    """Grid continuation: the closed-loop start on COARSE_SHARE of the intervals, its optimum
+    resampled onto this grid (None when the coarse lap fails)."""
+    options = pb.options
+    coarse = lap_of(pb.frame, pb.track, replace(
+        options, intervals=max(2, round(COARSE_SHARE * options.intervals)),
+        starts=("closed-loop",), warm_starts=(), point_mass_reference=False,
+        sensitivities=False, fallback_reference=None))
+    if not coarse.completed:
+        return None
+    return pb.solve(guess_from_lap(pb.full, coarse, pb.x0))
+
+
+def point_mass_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
+    """From the point-mass reference lifted to the full model (None without a reference)."""
+    return None if pb.lifted is None else pb.solve(pb.lifted)
+
+
+def relaxed_tolerance_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
+    """Tolerance homotopy from the lifted point mass (straight lines without one)."""
+    w0 = pb.lifted if pb.lifted is not None else straight_guess(pb.full, pb.targets.route, pb.x0)
+    return relaxed_then_tight(pb, w0)
+
+
+#: The cold starts, in the order they are solved; ``LimitLapOptions.starts`` names those to run.
+COLD_STARTS: dict[Start, Callable[[Problem, LapOf], NlpSolution | None]] = {
+    "closed-loop": closed_loop_start,
+    "coarse-grid": coarse_grid_start,
+    "point-mass": point_mass_start,
+    "relaxed-tolerance": relaxed_tolerance_start,
+}
+
+
+def relaxed_then_tight(pb: Problem, w0: np.ndarray) -> NlpSolution:
+    """Tolerance homotopy: solve with every ball at least RELAXED_RADIUS_M, then from that
+    primal-dual point with the track's tolerances (the same NLP: radii are parameters)."""
+    from casadrone.limit.gates import TARGET_SIZE
+
+    P = pb.P.copy()
+    at = len(pb.frame.p) + pb.full.model.nx + 14  # the first target's ball radius
+    radii = P[at::TARGET_SIZE]
+    P[at::TARGET_SIZE] = np.maximum(radii, RELAXED_RADIUS_M)
+    loose = solve(pb.full, w0, P, *pb.box, lbg=pb.rows[0], ubg=pb.rows[1])
+    if not loose.success:
+        return loose
+    tight = pb.solve(loose.point.w, warm=loose.point)
+    return replace(tight, iterations=loose.iterations + tight.iterations,
+                   wall_time_s=loose.wall_time_s + tight.wall_time_s)
+
+
+def warm_solves(pb: Problem) -> list[StartSolve]:
+    """One solve per usable warm start: ``warm-i`` (primal-dual, same layout and attitude) or
+    ``resampled-i`` (same legs and method, another grid or attitude)."""
+    solves: list[StartSolve] = []
+    for i, ws in enumerate(pb.options.warm_starts):
+        if ws.solution is None or ws.layout is None:
+            continue
+        if ws.layout == pb.layout and ws.attitude == pb.full.model.attitude:
+            solves.append((f"warm-{i + 1}", pb.solve(ws.solution.w, warm=ws.solution)))
+        elif ws.layout.kinds == pb.layout.kinds and ws.layout.method == pb.layout.method:
+            solves.append((f"resampled-{i + 1}", pb.solve(guess_from_lap(pb.full, ws, pb.x0))))
+    return solves
+
+
+def run_starts(pb: Problem, lap_of: LapOf) -> list[StartSolve]:
+    """Solve from each of the options' cold starts (registry order), then the warm starts."""
+    solves: list[StartSolve] = []
+    for name, start in COLD_STARTS.items():
+        if name in pb.options.starts and (sol := start(pb, lap_of)) is not None:
+            solves.append((name, sol))
+    return solves + warm_solves(pb)
+
+
+# --------------------------------------------------------------------------------------------
+# The fallback start
+# --------------------------------------------------------------------------------------------
+
+_REFERENCE_LAPS: dict[tuple, LimitLap] = {}
+
+
+def reference_lap(name: str, track: TrackConfig, options: LimitLapOptions,
+                  lap_of: LapOf) -> LimitLap:
+    """The limit lap of the shipped airframe ``name`` on ``track`` with ``options`` (its own
+    cold starts only, no point-mass reference or sensitivities), solved once per process and
+    cached: deterministic, so a cache hit is the same result as a new solve."""
+    from casadrone.config.airframe import load_airframe
+
+    ref_options = replace(options, warm_starts=(), guess_trajectory=None,
+                          point_mass_reference=False, sensitivities=False,
+                          fallback_reference=None, starts=LimitLapOptions.starts)
+    key = (name, track.model_dump_json(), repr(ref_options))
+    if key not in _REFERENCE_LAPS:
+        _REFERENCE_LAPS[key] = lap_of(load_airframe(name), track, ref_options)
+    return _REFERENCE_LAPS[key]
+
+
+def fallback_name(name: str | None, propulsion: str) -> str | None:
+    """The shipped reference whose limit lap may start a frame with propulsion kind
+    ``propulsion``: ``name`` itself with the paper model, ``name-propeller`` (SY250-propeller)
+    with the propeller model, None when that airframe is not shipped or has another kind (its
+    rotor states would mean something else)."""
+    if name is None or propulsion == "paper":
+        return name
+    from casadrone.config.airframe import load_airframe
+    from casadrone.config.io import ConfigError
+
+    try:
+        ref = load_airframe(f"{name}-{propulsion}")
+    except ConfigError:
+        return None
+    return f"{name}-{propulsion}" if ref.propulsion.model == propulsion else None
+
+
+def fallback_solve(pb: Problem, lap_of: LapOf) -> StartSolve | None:
+    """``reference-<name>``: a primal-dual warm start from the shipped reference frame's limit
+    lap on the same track and options (None when there is none or its layout differs)."""
+    name = fallback_name(pb.options.fallback_reference, pb.frame.propulsion)
+    if name is None:
+        return None
+    ref = reference_lap(name, pb.track, pb.options, lap_of)
+    if ref.solution is None or ref.layout != pb.layout:
+        return None
+    return f"reference-{name}", pb.solve(ref.solution.w, warm=ref.solution)

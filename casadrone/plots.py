@@ -89,13 +89,15 @@ def _waypoints(trajectories: Mapping[str, Trajectory], waypoints) -> np.ndarray:
 
 def track_top_view(trajectories: Mapping[str, Trajectory], waypoints=None, *,
                    ax: Axes | None = None, title: str | None = None,
-                   colours: Mapping[str, Any] | None = None) -> Figure:
+                   colours: Mapping[str, Any] | None = None,
+                   outlines: Sequence[np.ndarray] = ()) -> Figure:
     """Ground track (x east, y north) of each flight, waypoints marked and numbered from 1.
 
     ``waypoints`` (W × 3, m) defaults to the first trajectory's. Equal aspect: the paper's track
     is 50 m × 2.5 m, so the figure is wide and the cross-track overshoot shows at true scale.
     ``colours`` maps a flight's name to its colour (e.g. :func:`candidate_colour`); flights not
-    in it take the default colour cycle.
+    in it take the default colour cycle. ``outlines`` (each k × 3, m) are the targets'
+    boundaries (:func:`target_outlines`), drawn thin.
     """
     wp = _waypoints(trajectories, waypoints)
     pts = np.vstack([wp[:, :2]] + [tr.x[:, :2] for tr in trajectories.values()])
@@ -106,6 +108,9 @@ def track_top_view(trajectories: Mapping[str, Trajectory], waypoints=None, *,
         ax.plot(tr.x[:, 0], tr.x[:, 1], color=c, lw=1.4, label=_label(name, tr),
                 gid=f"track:{name}")
         ax.plot(tr.x[0, 0], tr.x[0, 1], "o", color=c, mfc="white", ms=6)
+    for i, line in enumerate(outlines):
+        ax.plot(line[:, 0], line[:, 1], color="0.35", lw=0.9, gid=f"target:{i + 1}",
+                label="targets" if i == 0 else None)
     ax.plot(wp[:, 0], wp[:, 1], "s", color="k", ms=7, mfc="gold", label="waypoints",
             gid="waypoints", zorder=5)
     for i, (x, y) in enumerate(wp[:, :2], start=1):
@@ -121,12 +126,13 @@ def track_top_view(trajectories: Mapping[str, Trajectory], waypoints=None, *,
 
 
 def trajectory_3d(trajectories: Mapping[str, Trajectory], waypoints=None, *,
-                  title: str | None = None, colours: Mapping[str, Any] | None = None) -> Figure:
+                  title: str | None = None, colours: Mapping[str, Any] | None = None,
+                  outlines: Sequence[np.ndarray] = ()) -> Figure:
     """3-D flight paths (m) with numbered waypoints and their shadows on the ground.
 
     The axes are not to scale: each spans its data so the narrow paper track (50 m × 2.5 m at
-    20 m) reads as a loop; use :func:`track_top_view` for true proportions. ``colours`` as in
-    :func:`track_top_view`.
+    20 m) reads as a loop; use :func:`track_top_view` for true proportions. ``colours`` and
+    ``outlines`` as in :func:`track_top_view`.
     """
     wp = _waypoints(trajectories, waypoints)
     fig = Figure(figsize=(10.0, 6.0), layout="constrained")
@@ -136,6 +142,9 @@ def trajectory_3d(trajectories: Mapping[str, Trajectory], waypoints=None, *,
         ax.plot(tr.x[:, 0], tr.x[:, 1], tr.x[:, 2], color=c, lw=1.4, label=_label(name, tr),
                 gid=f"track:{name}")
         ax.plot(tr.x[:, 0], tr.x[:, 1], np.zeros(len(tr.t)), color=c, lw=0.8, alpha=0.3)
+    for i, line in enumerate(outlines):
+        ax.plot(line[:, 0], line[:, 1], line[:, 2], color="0.35", lw=0.9,
+                label="targets" if i == 0 else None)
     ax.scatter(wp[:, 0], wp[:, 1], wp[:, 2], marker="s", s=40, color="gold", edgecolor="k",
                label="waypoints", depthshade=False)
     for i, p in enumerate(wp, start=1):
@@ -216,9 +225,21 @@ def limit_lap_trajectory(lap, waypoints) -> Trajectory:
     )
 
 
-def limit_lap_figures(lap, closed_loop: Trajectory | None, waypoints) -> dict[str, Figure]:
-    """Top view and 3-D path of the limit lap beside the closed-loop lap, and the limit lap's
-    speed (with the closed loop's) and ESC commands over time."""
+def target_outlines(targets) -> list[np.ndarray]:
+    """The boundary (k × 3, m) of every target of a limit lap's track (a
+    :class:`casadrone.limit.problem.Targets`), each drawn as its kind draws it
+    (:func:`casadrone.limit.targets.target_outline`)."""
+    from casadrone.limit.targets import TARGET_SIZE, target_outline
+
+    vec = np.asarray(targets.vector, float).reshape(len(targets.kinds), TARGET_SIZE)
+    return [target_outline(tp, kind) for tp, kind in zip(vec, targets.kinds, strict=True)]
+
+
+def limit_lap_figures(lap, closed_loop: Trajectory | None, waypoints,
+                      targets=None) -> dict[str, Figure]:
+    """Top view and 3-D path of the limit lap beside the closed-loop lap (with the outlines of
+    ``targets``, the track's :class:`casadrone.limit.problem.Targets`, when given), and the limit
+    lap's speed (with the closed loop's) and ESC commands over time."""
     flights = {"limit lap": limit_lap_trajectory(lap, waypoints)}
     if closed_loop is not None:
         flights["closed loop"] = closed_loop
@@ -241,10 +262,12 @@ def limit_lap_figures(lap, closed_loop: Trajectory | None, waypoints) -> dict[st
     fig.suptitle(f"Limit lap {lap.lap_time_s:.3f} s: speed and commands "
                  f"(bang-bang fraction {lap.bang_bang_fraction:.2f})")
     wp = flights["limit lap"].waypoints
+    outlines = target_outlines(targets) if targets is not None else []
     return {
         "limit-top-view": track_top_view(flights, wp, title="Limit lap and closed-loop lap, top "
-                                         "view"),
-        "limit-3d": trajectory_3d(flights, wp, title="Limit lap and closed-loop lap, 3-D"),
+                                         "view", outlines=outlines),
+        "limit-3d": trajectory_3d(flights, wp, title="Limit lap and closed-loop lap, 3-D",
+                                  outlines=outlines),
         "limit-time-histories": fig,
     }
 

@@ -70,6 +70,7 @@ from casadrone.model import (
     rotation_matrix,
 )
 from casadrone.propulsion import hover_rotors
+from casadrone.results import AsDict
 
 #: A trim condition's name: a key of :data:`casadrone.conditions.CONDITION_REGISTRY`.
 Condition = str
@@ -77,7 +78,8 @@ UNKNOWN_NAMES = ("phi", "theta", "delta1", "delta2", "delta3", "delta4")
 _K = PARAM_NAMES.index("K")
 _PSI_ROW = STATE_NAMES.index("psi")
 __all__ = ["CONDITION_REGISTRY", "CONDITIONS", "SOLVERS", "TRIM_SOLVERS", "TrimOptions",
-           "TrimPoint", "initial_guess", "operating_vector", "residual_norm", "trim", "trim_all"]
+           "TrimPoint", "initial_guess", "operating_vector", "residual_norm", "trim", "trim_all",
+           "trim_residual"]
 
 
 @dataclass(frozen=True)
@@ -117,7 +119,7 @@ class TrimOptions:
 
 
 @dataclass(frozen=True)
-class TrimPoint:
+class TrimPoint(AsDict):
     """An operating point and how it was found.
 
     Attributes:
@@ -148,6 +150,14 @@ class TrimPoint:
     turn_rate_dps: float = 0.0
     state_names: tuple[str, ...] = field(default=STATE_NAMES)
     input_names: tuple[str, ...] = field(default=INPUT_NAMES)
+
+    _omit = ("state_names", "input_names")
+    _keys = {"thrusts": "thrusts_N"}
+
+    def as_dict(self) -> dict[str, Any]:
+        """The fields as plain data, the state ``x0`` by state name (``trim --json``)."""
+        return super().as_dict() | {
+            "x0": dict(zip(self.state_names, (float(v) for v in self.x0), strict=True))}
 
     @property
     def pitch_deg(self) -> float:
@@ -486,6 +496,15 @@ def residual_norm(
     op = operating_vector(condition, speed_mps, climb_angle_deg, turn_rate_dps)
     fn = _functions(_level(op), airframe.propulsion)
     return float(fn.point(_wrap_angles(z), airframe.p, op)[2][0, 0])
+
+
+def trim_residual(p: np.ndarray, op: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """Q(Z): the rows a trim zeroes (the velocity and body-rate derivatives, and with the
+    propeller model the rotor rows) as a function of the unknowns Z, at the airframe's parameter
+    vector ``p`` and operating vector ``op`` (:func:`operating_vector`): what a solver of
+    :data:`TRIM_SOLVERS` written outside this module solves."""
+    fn = _functions(_level(op), _kind(p))
+    return lambda z: np.asarray(fn.residual(z, p, op)).ravel()
 
 
 def trim_all(

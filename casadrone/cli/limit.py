@@ -21,10 +21,6 @@ from casadrone.cli.common import (
     save_figures,
 )
 
-#: The keys of ``--json``, in order.
-LIMIT_KEYS = ("status", "reason", "lap_time_s", "point_mass_reference_s", "split_times_s",
-              "lap_times_s", "certainty", "spread_s", "start", "attitude", "bang_bang_fraction",
-              "resimulation_miss_m", "sensitivities", "iterations", "wall_time_s")
 #: What the propulsion did (:func:`casadrone.limit.check.lap_propulsion`), added to ``--json``.
 PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio",
                    "min_thrust_ratio")
@@ -88,7 +84,7 @@ def limit_lap_command(
     if impossible:  # known before any solve: bad input, not a failed lap
         raise bad_input([f"{track_path}: {impossible}; no limit lap can pass it"])
     lap = limit_lap(cfg, trk, options)
-    result = {k: getattr(lap, k) for k in LIMIT_KEYS}
+    result = lap.as_dict()
     from casadrone.airframe import build_airframe
     from casadrone.limit.check import lap_propulsion
 
@@ -96,23 +92,24 @@ def limit_lap_command(
     prop = lap_propulsion(frame, lap.x_euler, lap.u)
     result |= {k: prop[k] for k in PROPULSION_KEYS}
     if plot is not None:
-        result["figures"] = _figures(cfg, trk, lap, plot, frame, prop)
+        result["figures"] = _figures(cfg, trk, lap, plot, frame, prop, options)
     if as_json:
         print_json(result)
         return
     typer.echo(_text(cfg.name, trk.name, result))
 
 
-def _figures(cfg, trk, lap, folder, frame, prop) -> list[str]:
+def _figures(cfg, trk, lap, folder, frame, prop, options) -> list[str]:
     if not lap.completed:
         typer.echo("--plot: nothing to plot, the limit lap failed", err=True)
         return []
     from casadrone import plots
-    from casadrone.limit.lap import closed_loop_lap
+    from casadrone.limit.lap import closed_loop_lap, frame_clearance_m, track_targets
     from casadrone.propulsion import max_static_thrust
 
     traj = closed_loop_lap(frame, trk)
-    figures = plots.limit_lap_figures(lap, traj, trk.waypoints_m)
+    targets = track_targets(trk, options, frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
+    figures = plots.limit_lap_figures(lap, traj, trk.waypoints_m, targets)
     figures["limit-thrust-airspeed"] = plots.thrust_against_airspeed(
         prop, lap.u, max_static_thrust(frame), frame.propulsion)
     return save_figures(figures, folder)

@@ -11,9 +11,10 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from casadrone.config.io import CONFIG_DIR, Schema, load, resolve_config
+from casadrone.limit.targets import TARGET_KINDS, gate_shapes, kind_of_shape
 
 #: The paper's rectangular track (Fig. 7), flown when no track is named.
 DEFAULT_TRACK = CONFIG_DIR / "tracks" / "paper-rectangle.yaml"
@@ -35,31 +36,35 @@ class GateConfig(Schema):
                                  "frame: x through the gate, y left, z up in the opening; "
                                  "instead of heading_deg ([0, 0, h] is heading h; pitch 90 is "
                                  "a horizontal gate flown downwards)")
-    shape: Literal["rectangle", "circle", "polygon"] = Field(
-        "rectangle", description="opening: width_m x height_m, a circle of diameter width_m "
-        "(= height_m), or the convex polygon vertices_m")
+    shape: str = Field("rectangle", description="the opening, a gate shape of the target-kind "
+                       "registry (casadrone.limit.targets): " + "; ".join(
+                           f"{k.shape}: {k.description}" for k in TARGET_KINDS.values()
+                           if k.shape is not None))
     width_m: float = Field(gt=0, description="inner width of the opening (m)")
     height_m: float = Field(gt=0, description="inner height of the opening (m)")
     vertices_m: list[tuple[float, float]] | None = Field(
         None, description="polygon: vertices (left, up; m from the centre, in the gate plane), "
         "counter-clockwise, convex, 3 to 8")
 
+    @field_validator("shape")
+    @classmethod
+    def _a_registered_shape(cls, shape: str) -> str:
+        if shape not in gate_shapes():
+            raise ValueError(f"{shape!r} is not a gate shape; known: {', '.join(gate_shapes())}")
+        return shape
+
     @model_validator(mode="after")
     def _one_orientation_and_a_shape(self) -> GateConfig:
         if (self.heading_deg is None) == (self.rpy_deg is None):
             raise ValueError("give heading_deg or rpy_deg (one of them)")
-        if self.shape == "circle" and self.width_m != self.height_m:
-            raise ValueError("shape: a circle's width_m and height_m are its diameter (equal)")
-        if (self.shape == "polygon") != (self.vertices_m is not None):
-            raise ValueError("vertices_m: give them with shape: polygon (only)")
-        if self.vertices_m is not None:
-            v = np.asarray(self.vertices_m, float)
-            if not 3 <= len(v) <= 8:
-                raise ValueError(f"vertices_m: 3 to 8 vertices, got {len(v)}")
-            e = np.roll(v, -1, axis=0) - v
-            cross = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
-            if np.any(cross <= 0):
-                raise ValueError("vertices_m: not a convex polygon given counter-clockwise")
+        kind = kind_of_shape(self.shape)  # what the shape asks of the gate: its target kind
+        if kind.vertices != (self.vertices_m is not None):
+            with_vertices = " or ".join(k.shape for k in TARGET_KINDS.values()
+                                        if k.vertices and k.shape is not None)
+            raise ValueError(f"vertices_m: give them with shape: {with_vertices} (only)")
+        why = kind.check(self)
+        if why:
+            raise ValueError(why)
         return self
 
     @property

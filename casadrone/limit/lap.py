@@ -77,7 +77,6 @@ from casadrone.limit.pointmass import (
     point_mass_reference,
 )
 from casadrone.limit.problem import (
-    KIND_OF_SHAPE,
     Targets,
     bounds,
     check_inputs,
@@ -112,7 +111,7 @@ from casadrone.propulsion import max_static_thrust
 
 #: The limit lap's names, wherever their step lives (``from casadrone.limit.lap import ...``).
 __all__ = [
-    "BANG_BANG_TOL", "CERTAIN_REL", "COARSE_SHARE", "KIND_OF_SHAPE", "MAX_INTERVALS",
+    "BANG_BANG_TOL", "CERTAIN_REL", "COARSE_SHARE", "MAX_INTERVALS",
     "POINT_MASS_PARAMS", "REFERENCE_SPEEDS_MPS", "RELAXED_RADIUS_M", "Attitude", "Certainty",
     "LimitLap", "LimitLapOptions", "Start", "StartResult", "Targets", "TiltLimit", "bounds",
     "check_inputs", "closed_loop_lap", "euler_states", "frame_clearance_m", "guess_from_lap",

@@ -12,21 +12,12 @@ import numpy as np
 from casadrone.airframe import Airframe
 from casadrone.config.track import TrackConfig
 from casadrone.guidance import segment_headings
-from casadrone.limit.gates import (
-    MAX_EDGES,
-    TargetKind,
-    gate_frame,
-    polygon_edges,
-    target_vector,
-)
+from casadrone.limit.gates import MAX_EDGES, TargetKind, gate_frame, target_vector
 from casadrone.limit.nlp import Nlp
 from casadrone.limit.result import MAX_INTERVALS, LimitLapOptions, model_states
+from casadrone.limit.targets import kind_of_shape
 from casadrone.model import NX
 from casadrone.propulsion import hover_rotors, rotor_state_bounds, rotor_thrust_bound
-
-#: The target kind of each gate shape (a ball is a waypoint without a gate).
-KIND_OF_SHAPE: dict[str, TargetKind] = {"rectangle": "gate", "circle": "circle",
-                                        "polygon": "polygon"}
 
 
 @dataclass(frozen=True)
@@ -87,12 +78,13 @@ def track_targets(track: TrackConfig, options: LimitLapOptions,
     for k, j in enumerate(items):
         if track.gates:
             gate, leg = track.gates[j], first + k
-            kinds[leg] = KIND_OF_SHAPE[gate.shape]
+            kind = kind_of_shape(gate.shape)  # its packing: casadrone.limit.targets
+            packed = kind.pack(gate, clear)
+            kinds[leg] = kind.name
             frames[leg] = gate_frame(*gate.rpy_rad)
-            hw[leg] = gate.width_m / 2 - clear
-            hh[leg] = gate.height_m / 2 - clear
-            if gate.vertices_m is not None:
-                edges[leg] = polygon_edges(np.asarray(gate.vertices_m), clear)
+            hw[leg], hh[leg] = packed.half_width_m, packed.half_height_m
+            if packed.edges is not None:
+                edges[leg] = packed.edges
     n_wp = len(track.waypoints_m)
     ends = [first + i for i in range(len(items)) if items[i] == n_wp - 1]
     return Targets(tuple(kinds), target_vector(route[1:], tuple(kinds), heads, hw, hh, radii,
@@ -115,10 +107,7 @@ def check_inputs(track: TrackConfig, options: LimitLapOptions,
     for j, gate in enumerate(track.gates or []):
         if clear is None:
             break
-        inner = min(gate.width_m, gate.height_m) / 2
-        if gate.vertices_m is not None:  # the largest circle inside the polygon's edges
-            inner = float(np.min(polygon_edges(np.asarray(gate.vertices_m), 0.0)[
-                :len(gate.vertices_m), 2]))
+        inner = kind_of_shape(gate.shape).inner_m(gate)  # its largest inscribed radius
         if inner <= clear:
             return (f"gate {j + 1}: opening {gate.width_m:g} x {gate.height_m:g} m is not wider "
                     f"than twice the clearance {clear:.3g} m")

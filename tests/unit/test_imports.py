@@ -28,6 +28,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.propulsion",
     "casadrone.config.airframe",
     "casadrone.config.controller",
+    "casadrone.limit.targets",  # the target kinds: the track schema reads their gate shapes
     "casadrone.config.track",
     "casadrone.config.reference",
     "casadrone.config.problem",

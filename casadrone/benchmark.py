@@ -28,7 +28,7 @@ from casadrone.config.reference import MeasuredAirframe, Table4Reference, load_r
 from casadrone.config.track import DEFAULT_TRACK, TrackConfig
 from casadrone.control import design_for
 from casadrone.indices import INDICES, Interval, compute_indices, interval_table
-from casadrone.results import Status
+from casadrone.results import AsDict, Status
 from casadrone.simulate import Integrator, simulate
 
 #: The paper's reference airframes (Table 4), as names of configs/airframes/ files.
@@ -43,7 +43,7 @@ SIMULATED_LABEL = "simulated (casadrone)"
 
 
 @dataclass(frozen=True)
-class BenchmarkRow:
+class BenchmarkRow(AsDict):
     """One reference airframe: its simulated lap beside the measured values (if any).
 
     Attributes:
@@ -64,6 +64,9 @@ class BenchmarkRow:
     measured: MeasuredAirframe | None
     wall_time_s: float
 
+    _keys = {"intervals": "simulated"}
+    _properties = ("lap_time_s",)
+
     @property
     def lap_time_s(self) -> float:
         """Simulated lap time (s), NaN for a failed lap."""
@@ -71,7 +74,7 @@ class BenchmarkRow:
 
 
 @dataclass(frozen=True)
-class BenchmarkTable:
+class BenchmarkTable(AsDict):
     """Table-4-style comparison of the reference airframes (simulated beside measured)."""
 
     rows: tuple[BenchmarkRow, ...]
@@ -82,6 +85,11 @@ class BenchmarkTable:
     measured_label: str = MEASURED_LABEL
     simulated_label: str = SIMULATED_LABEL
     extras: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain data (``benchmark --json``), with every registered index's unit; NaN → None."""
+        return _clean(super().as_dict() | {
+            "index_units": {name: INDICES[name].unit for name in INDICES}})
 
     def row(self, airframe: str) -> BenchmarkRow:
         """The row of the named airframe."""
@@ -216,36 +224,8 @@ def _clean(value: Any) -> Any:
 
 
 def as_dict(table: BenchmarkTable) -> dict[str, Any]:
-    """Plain-data form of the table (what :func:`to_json` writes)."""
-    units = {name: INDICES[name].unit for name in INDICES}
-    return _clean({
-        "integrator": table.integrator,
-        "controller": table.controller,
-        "track": table.track,
-        "reference": table.reference,
-        "simulated_label": table.simulated_label,
-        "measured_label": table.measured_label,
-        "index_units": units,
-        "rows": [
-            {
-                "airframe": r.airframe,
-                "config": r.config,
-                "status": r.status,
-                "reason": r.reason,
-                "lap_time_s": r.lap_time_s,
-                "wall_time_s": r.wall_time_s,
-                "indices": r.indices,
-                "simulated": [
-                    {k: getattr(i, k) for k in ("waypoint", "split_time_s", "effort_V",
-                                                "pair_thrust_max_N", "pair_thrust_min_N",
-                                                "straight", "n_samples")}
-                    for i in r.intervals
-                ],
-                "measured": r.measured.model_dump() if r.measured else None,
-            }
-            for r in table.rows
-        ],
-    })
+    """Plain-data form of the table (what :func:`to_json` writes; BenchmarkTable.as_dict)."""
+    return table.as_dict()
 
 
 def to_json(table: BenchmarkTable, indent: int | None = 2) -> str:

@@ -20,6 +20,7 @@ from casadrone.config.controller import ControllerConfig
 from casadrone.linearise import LinearModel, linearise
 from casadrone.model import IDX, NX, STATE_NAMES, THR
 from casadrone.propulsion import hover_rotors
+from casadrone.results import AsDict
 
 INTEGRATED = ("x", "y", "z", "psi")
 AUG_STATE_NAMES = STATE_NAMES + tuple(f"int_{n}" for n in INTEGRATED)
@@ -98,7 +99,7 @@ def solve_dare(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray,
 
 
 @dataclass(frozen=True)
-class LQRIDesign:
+class LQRIDesign(AsDict):
     """A discrete LQR-I gain and its certificate.
 
     Attributes:
@@ -121,6 +122,14 @@ class LQRIDesign:
     lyapunov_min_eig: float
     riccati: np.ndarray
     state_names: tuple[str, ...] = AUG_STATE_NAMES
+
+    _omit = ("Ad", "Bd", "x0", "u0", "riccati")  # the design's inputs and internals
+    _properties = ("spectral_radius",)
+
+    @property
+    def spectral_radius(self) -> float:
+        """Largest |eigenvalue| of the closed loop (< 1: stable)."""
+        return float(np.max(np.abs(self.closed_loop_eigenvalues)))
 
 
 def certify(Acl: np.ndarray, lyapunov: bool = True) -> tuple[np.ndarray, bool, float]:
@@ -286,13 +295,21 @@ def perturb_inertia(J: np.ndarray, d: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class Ensemble:
+class Ensemble(AsDict):
     """Closed loops of N perturbed plants under one gain."""
 
     n: int
     eigenvalues: np.ndarray  # n × 20 complex
     stable_each: np.ndarray  # n bool
     plants: tuple[tuple[np.ndarray, np.ndarray], ...]  # (Aa, Ba) per plant
+
+    _omit = ("eigenvalues", "stable_each", "plants")
+    _properties = ("stable", "n_stable", "max_spectral_radius")
+
+    @property
+    def n_stable(self) -> int:
+        """Plants of the ensemble stable under the shared gain."""
+        return int(np.sum(self.stable_each))
 
     @property
     def stable(self) -> bool:

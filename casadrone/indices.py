@@ -39,6 +39,7 @@ from typing import Literal
 
 import numpy as np
 
+from casadrone.results import AsDict
 from casadrone.simulate import Trajectory, row_norm
 
 Sense = Literal["min", "max"]
@@ -313,7 +314,7 @@ def limit_indices(lap, names: Sequence[str] | None = None) -> dict[str, float]:
 
 
 @dataclass(frozen=True)
-class Interval:
+class Interval(AsDict):
     """One row of the paper's Table 4 for a simulated lap.
 
     Attributes:

@@ -16,12 +16,13 @@ import numpy as np
 from casadrone.airframe import Airframe
 from casadrone.codegen import ZeroCopyCall
 from casadrone.model import INPUT_NAMES, NU, NX, STATE_NAMES, quadrotor_model
+from casadrone.results import AsDict
 
 Method = Literal["exact", "fd"]
 
 
 @dataclass(frozen=True)
-class LinearModel:
+class LinearModel(AsDict):
     """δẋ = A δx + B δu about (x0, u0); E, A′, B′ are the Jacobians of the implicit F."""
 
     E: np.ndarray
@@ -81,7 +82,7 @@ def linearise(airframe: Airframe, trim_point, method: Method = "exact") -> Linea
 
 
 @dataclass(frozen=True)
-class JacobianComparison:
+class JacobianComparison(AsDict):
     """Largest differences between two linearisations."""
 
     max_abs_diff_A: float

@@ -95,14 +95,14 @@ def validate(
     With ``key=value`` arguments after a single file, that file is validated with the overrides
     applied, as every other command applies them."""
     from casadrone.config.problem import ProblemConfig
-    from casadrone.config.validation import check_config_file
+    from casadrone.config.validation import FileReport, check_config_file
 
     overrides = [str(p) for p in files if "=" in str(p) and not p.exists()]
     files = [p for p in files if str(p) not in overrides]
     if overrides and len(files) != 1:
         raise bad_input([f"validate: key=value overrides ({overrides[0]}) apply to one file; "
                          f"got {len(files)}"])
-    report: list[dict[str, Any]] = []
+    report: list[FileReport] = []
     for path in _yaml_files(files):
         try:
             config = check_config_file(path, overrides)
@@ -110,17 +110,17 @@ def validate(
                 from casadrone.optimise.checks import check_problem
 
                 check_problem(config, path, overrides)
-            report.append({"file": str(path), "valid": True, "problems": []})
+            report.append(FileReport(str(path), True))
         except ConfigError as exc:
-            report.append({"file": str(path), "valid": False, "problems": exc.lines})
-    n_bad = sum(not r["valid"] for r in report)
+            report.append(FileReport(str(path), False, tuple(exc.lines)))
+    n_bad = sum(not r.valid for r in report)
     if as_json:
-        print_json({"valid": n_bad == 0, "files": report})
+        print_json({"valid": n_bad == 0, "files": [r.as_dict() for r in report]})
     else:
         for r in report:
-            if r["valid"]:
-                typer.echo(f"{r['file']}: ok")
-            for line in r["problems"]:
+            if r.valid:
+                typer.echo(f"{r.file}: ok")
+            for line in r.problems:
                 typer.echo(line, err=True)
         if n_bad:
             typer.echo(f"{n_bad} of {len(report)} file(s) invalid", err=True)
@@ -173,7 +173,7 @@ def trim(
         "kappa_m": frame.kappa,
         "rotor_positions_m": frame.rotor_positions,
         "rotor_spins": frame.rotor_spins.astype(int),
-        "results": [_trim_result(tp) for tp in points],
+        "results": [tp.as_dict() for tp in points],
     }
     if as_json:
         print_json(result)
@@ -216,20 +216,6 @@ def operating_point_options(condition: str, speed: float | None, climb_angle: fl
 #: Fastest flight trimmed (m/s): racing quadrotors fly below about 60 m/s; beyond this the
 #: quadratic drag model and the small-angle controller are meaningless.
 MAX_SPEED_MPS = 100.0
-
-
-def _trim_result(tp) -> dict:
-    return {
-        "solver": tp.solver,
-        "success": tp.success,
-        "residual_norm": tp.residual_norm,
-        "iterations": tp.iterations,
-        "wall_time_s": tp.wall_time_s,
-        "message": tp.message,
-        "x0": dict(zip(tp.state_names, (float(v) for v in tp.x0), strict=True)),
-        "u0": tp.u0,
-        "thrusts_N": tp.thrusts,
-    }
 
 
 def _trim_table(r: dict) -> str:
@@ -299,27 +285,10 @@ def linearise(
         raise bad_input([f"{cfg.name}: trim: {tp.message}"])
     first = "fd" if method is LinMethod.fd else "exact"
     lm = lin_mod.linearise(frame, tp, first)
-    result = {
-        "airframe": frame.name,
-        "condition": condition.value,
-        "method": method.value,
-        "state_names": list(lm.state_names),
-        "input_names": list(lm.input_names),
-        "x0": lm.x0,
-        "u0": lm.u0,
-        "E": lm.E,
-        "A_prime": lm.A_prime,
-        "B_prime": lm.B_prime,
-        "A": lm.A,
-        "B": lm.B,
-    }
+    result = {"airframe": frame.name, "condition": condition.value, **lm.as_dict(),
+              "method": method.value}
     if method is LinMethod.both:
-        cmp = lin_mod.compare(lm, lin_mod.linearise(frame, tp, "fd"))
-        result |= {
-            "max_abs_diff_A": cmp.max_abs_diff_A,
-            "max_abs_diff_B": cmp.max_abs_diff_B,
-            "max_rel_diff": cmp.max_rel_diff,
-        }
+        result |= lin_mod.compare(lm, lin_mod.linearise(frame, tp, "fd")).as_dict()
     if as_json:
         print_json(result)
         return
@@ -361,7 +330,6 @@ def lqr(
     cloud and the hover disturbance responses of the nominal and perturbed plants. Without
     --ensemble they use the controller's robustness.n_plants perturbed plants.
     """
-    import numpy as np
 
     from casadrone.config.controller import load_controller
 
@@ -374,28 +342,12 @@ def lqr(
     if ctrl.frozen_gain:
         _, reference = load_airframe_or_exit(str(ctrl.reference_airframe), None)
     design = control.design_for(frame, ctrl, reference)
-    eig = np.asarray(design.closed_loop_eigenvalues)
-    result = {
-        "airframe": frame.name,
-        "controller": ctrl.name,
-        "gain_policy": ctrl.gain_policy,
-        "sample_time_s": design.sample_time_s,
-        "state_names": list(design.state_names),
-        "K": design.K,
-        "closed_loop_eigenvalues": [[float(e.real), float(e.imag)] for e in eig],
-        "spectral_radius": float(np.max(np.abs(eig))),
-        "stable": design.stable,
-        "lyapunov_min_eig": design.lyapunov_min_eig,
-    }
+    result = {"airframe": frame.name, "controller": ctrl.name,
+              "gain_policy": ctrl.gain_policy, **design.as_dict()}
     ens = None
     if ensemble is not None or plot is not None:
         ens = control.robustness_ensemble(frame, design, ctrl, ensemble)
-        result |= {
-            "ensemble_n": ens.n,
-            "ensemble_stable": ens.stable,
-            "ensemble_n_stable": int(np.sum(ens.stable_each)),
-            "ensemble_max_spectral_radius": ens.max_spectral_radius,
-        }
+        result |= {f"ensemble_{k}": v for k, v in ens.as_dict().items()}
     if plot is not None:
         from casadrone import plots
 

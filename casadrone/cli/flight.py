@@ -38,9 +38,6 @@ IntegratorOpt = Annotated[str, registry_option(
 # simulate
 # --------------------------------------------------------------------------------------------
 
-INTERVAL_KEYS = ("waypoint", "split_time_s", "effort_V", "pair_thrust_max_N", "pair_thrust_min_N")
-
-
 @app.command()
 @reports_config_errors
 def simulate(
@@ -80,19 +77,9 @@ def simulate(
         integrator=integrator,
     )
     ev = evaluate(theta_of(cfg), setup, keep_trajectory=True)
-    result = {
-        "airframe": cfg.name,
-        "track": setup.track.name,
-        "controller": setup.controller.name,
-        "integrator": integrator,
-        "status": ev.status,
-        "stage": ev.stage,
-        "reason": ev.reason,
-        "indices": ev.indices,
-        "index_units": {k: INDICES[k].unit for k in ev.indices},
-        "intervals": [{k: getattr(i, k) for k in INTERVAL_KEYS} for i in ev.intervals],
-        "wall_time_s": ev.wall_time_s,
-    }
+    result = {"airframe": cfg.name, "track": setup.track.name,
+              "controller": setup.controller.name, "integrator": integrator, **ev.as_dict(),
+              "index_units": {k: INDICES[k].unit for k in ev.indices}}
     if plot is not None:
         if ev.trajectory is None:
             typer.echo(f"--plot: nothing to plot, the evaluation failed before the lap "
@@ -150,10 +137,10 @@ def benchmark(
     Per airframe and interval, the simulated split time, roll effort and opposing-pair thrust
     beside the values the paper measured (a different time base: compare trends).
     """
-    from casadrone.benchmark import format_table, run_benchmark, to_json
+    from casadrone.benchmark import format_table, run_benchmark
 
     table = run_benchmark(integrator)
     if as_json:
-        typer.echo(to_json(table))
+        print_json(table.as_dict())
     else:
         typer.echo(format_table(table), nl=False)

@@ -285,9 +285,9 @@ def decide_command(
     except (FileNotFoundError, ValueError) as exc:
         raise run_error(run_dir, exc) from None
     if as_json:
-        print_json([{"candidate": c.label, "method": c.method, "row": c.row,
-                     "distance": c.distance, "objective": c.objective, "theta": c.theta,
-                     "objectives": c.objectives} for c in candidates])
+        # "candidate" and "method": the keys decide --json had before Candidate.as_dict
+        print_json([c.as_dict() | {"candidate": c.label, "method": c.method}
+                    for c in candidates])
         return
     from casadrone.indices import INDICES
 

@@ -8,6 +8,7 @@ file is checked here against the other configs; ``casadrone validate`` and ``cd.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +28,7 @@ from casadrone.config.io import (
 from casadrone.config.problem import ProblemConfig
 from casadrone.config.reference import Table4Reference
 from casadrone.config.track import TrackConfig
+from casadrone.results import AsDict
 
 #: Schemas by config folder name, for ``casadrone validate``.
 SCHEMAS_BY_FOLDER: dict[str, type[BaseModel]] = {
@@ -65,6 +67,16 @@ def detect_schema(path: Path, data: dict[str, Any]) -> type[BaseModel] | None:
     if scored and scored[0][0] > 0 and (len(scored) == 1 or scored[0][0] > scored[1][0]):
         return scored[0][1]
     return None
+
+
+@dataclass(frozen=True)
+class FileReport(AsDict):
+    """What ``casadrone validate`` found in one file: valid, or its problems (one line each,
+    ``FILE: key: message``)."""
+
+    file: str
+    valid: bool
+    problems: tuple[str, ...] = ()
 
 
 def check_config_file(path: str | Path, overrides: list[str] | None = None) -> BaseModel:

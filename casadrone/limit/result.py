@@ -13,7 +13,7 @@ import numpy as np
 from casadrone.config.controller import ControllerConfig
 from casadrone.limit.nlp import Layout, NlpPoint
 from casadrone.model import NX
-from casadrone.results import Status
+from casadrone.results import AsDict, Status
 
 Start = Literal["closed-loop", "point-mass", "coarse-grid", "relaxed-tolerance"]
 #: The attitude models of the limit lap, and the ways it limits the tilt.
@@ -99,7 +99,7 @@ class LimitLapOptions:
 
 
 @dataclass(frozen=True)
-class StartResult:
+class StartResult(AsDict):
     """What one start of the solver gave."""
 
     start: str
@@ -112,7 +112,7 @@ class StartResult:
 
 
 @dataclass(frozen=True)
-class LimitLap:
+class LimitLap(AsDict):
     """The limit lap of one airframe on one track.
 
     ``t`` holds the node times (M + 1), ``x`` the node states (M + 1, the model's states: 16 for
@@ -149,6 +149,8 @@ class LimitLap:
     starts: tuple[StartResult, ...] = ()
     layout: Layout | None = None
     solution: NlpPoint | None = None  # primal-dual point, for warm starts
+
+    _omit = ("t", "x", "u", "layout", "solution")  # the trajectory and the solver's internals
 
     @property
     def completed(self) -> bool:

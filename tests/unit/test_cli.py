@@ -306,7 +306,8 @@ def test_lqr_plot_into_a_file_exits_2(cli_runner, tmp_path):
 # simulate
 # ---------------------------------------------------------------------------------------------
 
-INTERVAL_KEYS = {"waypoint", "split_time_s", "effort_V", "pair_thrust_max_N", "pair_thrust_min_N"}
+INTERVAL_KEYS = {"waypoint", "split_time_s", "effort_V", "pair_thrust_max_N", "pair_thrust_min_N",
+                 "straight", "n_samples"}  # every field of indices.Interval (its as_dict)
 
 
 def test_simulate_json_shape_and_values(cli_runner):

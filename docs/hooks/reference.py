@@ -10,6 +10,9 @@ what the package says now:
   examples, arguments and options;
 - ``<!-- generated: benchmarks -->``: the recorded benchmark results (``benchmarks/RESULTS-*.md``,
   in the order of ``benchmarks/collect.py``);
+- ``<!-- generated: benchmark-summary -->``: one table of the rows of every result file's
+  ``## Summary`` section (what, figure, command), in the same order: the performance page's
+  summary, so its figures are never copied by hand;
 - ``<!-- generated: changelog -->``: ``CHANGELOG.md``.
 
 The same walk over the schemas is what ``tests/unit/test_docs_reference.py`` checks: a key without
@@ -336,25 +339,53 @@ def cli_reference() -> str:
 # --------------------------------------------------------------------------------------------
 
 
-def benchmark_results() -> str:
-    """The recorded benchmark results, each file's headings placed under the page's."""
+def _result_files(folder: Path) -> list[tuple[Path, str, str]]:
+    """(file, title, how to reproduce) of every ``RESULTS-*.md`` in ``folder``: those
+    ``benchmarks/collect.py`` lists first, in its order, then the others by name."""
     from benchmarks.collect import ORDER
 
-    listed = [(ROOT / "benchmarks" / f"RESULTS-{name}.md", title, f"Reproduce: `{command}`")
+    listed = [(folder / f"RESULTS-{name}.md", title, f"Reproduce: `{command}`")
               for name, title, command in ORDER]
     known = {path.name for path, _, _ in listed}
     # result files collect.py does not list yet: shown too, under their own first heading
-    for path in sorted((ROOT / "benchmarks").glob("RESULTS-*.md")):
+    for path in sorted(folder.glob("RESULTS-*.md")):
         if path.name not in known:
             first = next((ln.lstrip("# ") for ln in path.read_text(encoding="utf-8").splitlines()
                           if ln.startswith("#")), path.stem)
             listed.append((path, first, "Its command is in the file"))
+    return [item for item in listed if item[0].exists()]
+
+
+SUMMARY_HEADING = "## Summary"
+
+
+def _split_summary(text: str) -> tuple[str, list[str]]:
+    """A result file's text without its ``## Summary`` section, and that section's table rows
+    (``| what | figure | command |``, header and rule excluded)."""
+    lines = text.splitlines()
+    if SUMMARY_HEADING not in lines:
+        return text, []
+    at = lines.index(SUMMARY_HEADING)
+    end = next((i for i in range(at + 1, len(lines)) if re.match(r"#{1,2} ", lines[i])),
+               len(lines))
+    table = [ln for ln in lines[at + 1:end] if ln.startswith("|")]
+    return "\n".join(lines[:at] + lines[end:]), table[2:]
+
+
+def benchmark_summary(folder: Path = ROOT / "benchmarks") -> str:
+    """The performance page's summary table: the rows of every result file's ``## Summary``."""
+    rows = [row for path, _, _ in _result_files(folder)
+            for row in _split_summary(path.read_text(encoding="utf-8"))[1]]
+    return "\n".join(["| what | figure | command |", "|---|---|---|", *rows]) + "\n"
+
+
+def benchmark_results() -> str:
+    """The recorded benchmark results, each file's headings placed under the page's (its
+    summary rows are in the page's summary table instead)."""
     out = []
-    for path, title, reproduce in listed:
-        if not path.exists():
-            continue
+    for path, title, reproduce in _result_files(ROOT / "benchmarks"):
         out += [f"### {title}", "", f"{reproduce} (file: `benchmarks/{path.name}`)", ""]
-        body = path.read_text(encoding="utf-8").strip().splitlines()
+        body = _split_summary(path.read_text(encoding="utf-8"))[0].strip().splitlines()
         out += [("###" + ln) if re.match(r"#+ ", ln) else ln for ln in body]
         out.append("")
     return "\n".join(out)
@@ -387,6 +418,7 @@ GENERATORS = {
     "yaml-reference": yaml_reference,
     "cli-reference": cli_reference,
     "benchmarks": benchmark_results,
+    "benchmark-summary": benchmark_summary,
     "changelog": changelog,
 }
 

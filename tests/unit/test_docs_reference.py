@@ -77,3 +77,29 @@ def test_cli_page_lists_every_command_and_option(reference):
             for opt in getattr(param, "opts", []):
                 if opt.startswith("-"):
                     assert f"`{opt}`" in page, f"{name} {opt} missing"
+
+
+def test_performance_summary_is_gathered_from_the_result_files(reference, tmp_path):
+    """The summary table is the rows of the result files' ``## Summary`` sections, in the order
+    of benchmarks/collect.py (a file it does not list comes after, by name); a file without one
+    adds nothing; each file's section leaves its body on the page (it is in the summary)."""
+    rule = "| what | figure | command |\n|---|---|---|\n"
+    (tmp_path / "RESULTS-zzz.md").write_text(
+        "# later\n\nbody z\n\n## Summary\n\n" + rule + "| z | 3 s | `z` |\n")
+    (tmp_path / "RESULTS-design.md").write_text(
+        "# design\n\nbody d\n\n## Summary\n\nprose\n\n" + rule + "| d | 1 ms | `d` |\n"
+        "| d2 | 2 ms | `d2` |\n\n## Afterwards\n\nkept\n")
+    (tmp_path / "RESULTS-lap.md").write_text("# lap\n\nno summary here\n")
+    table = reference.benchmark_summary(tmp_path).splitlines()
+    assert table[2:] == ["| d | 1 ms | `d` |", "| d2 | 2 ms | `d2` |", "| z | 3 s | `z` |"]
+    body, rows = reference._split_summary((tmp_path / "RESULTS-design.md").read_text())
+    assert "## Summary" not in body and "1 ms" not in body and "kept" in body
+    assert len(rows) == 2
+
+
+def test_performance_page_has_no_hand_copied_summary():
+    """docs/performance.md holds the marker, not a table of figures; the shipped result files
+    give the summary its rows."""
+    page = (ROOT / "docs" / "performance.md").read_text(encoding="utf-8")
+    assert "<!-- generated: benchmark-summary -->" in page
+    assert "| what | figure | command |" not in page

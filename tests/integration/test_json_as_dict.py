@@ -19,11 +19,11 @@ from casadrone.cli import app
 from casadrone.cli.common import jsonable
 
 #: Keys whose values differ between two runs of the same thing (measured times).
-TIMES = {"wall_time_s"}
+TIMES = {"wall_time_s", "wall_time_median_s", "wall_time_q25_s", "wall_time_q75_s"}
 
 
 def untimed(value):
-    """``value`` with every ``wall_time_s`` removed, at any depth."""
+    """``value`` with every measured time (:data:`TIMES`) removed, at any depth."""
     if isinstance(value, dict):
         return {k: untimed(v) for k, v in value.items() if k not in TIMES}
     if isinstance(value, list):
@@ -140,6 +140,27 @@ def test_decide_json_is_each_candidates_as_dict(tmp_path):
     api = run_candidates(run_dir, None, None)
     assert out == [as_json(c) | {"candidate": c.label, "method": c.method} for c in api]
     assert [c["candidate"] for c in out] == [c.label for c in api] and len(out) >= 2
+
+
+def test_compare_json_is_each_gain_rows_as_dict(tmp_path):
+    from casadrone.compare import compare_run
+    from tests.unit.test_cli import make_run_dir
+
+    run_dir = make_run_dir(tmp_path / "run")
+    out = cli_json("compare", str(run_dir))
+    api = [r for r in compare_run(run_dir, ("SY250",), None) if r.basis == "simulated"]
+    assert out == [as_json(r) for r in api] and out
+
+
+def test_trim_study_json_is_the_studys_as_dict(sy250):
+    from casadrone.trimstudy import StudyOptions, trim_study
+
+    out = cli_json("trim-study", "SY250", "--conditions", "hover,forward:10", "--starts", "3",
+                   "--solvers", "newton,ipopt")
+    options = StudyOptions(starts=3, solvers=("newton", "ipopt"))
+    api = trim_study(sy250[1], "hover,forward:10", options)
+    assert out == as_json(api)
+    assert [p["point"]["condition"] for p in out["points"]] == ["hover", "forward"]
 
 
 @pytest.mark.slow

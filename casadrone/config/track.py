@@ -39,7 +39,8 @@ class GateConfig(Schema):
     shape: str = Field("rectangle", description="the opening, a gate shape of the target-kind "
                        "registry (casadrone.limit.targets): " + "; ".join(
                            f"{k.shape}: {k.description}" for k in TARGET_KINDS.values()
-                           if k.shape is not None))
+                           if k.shape is not None),
+                       json_schema_extra={"enum": list(gate_shapes())})  # the shipped kinds
     width_m: float = Field(gt=0, description="inner width of the opening (m)")
     height_m: float = Field(gt=0, description="inner height of the opening (m)")
     vertices_m: list[tuple[float, float]] | None = Field(

@@ -193,6 +193,15 @@ def type_name(annotation: Any) -> str:
     return str(annotation).replace("typing.", "")
 
 
+def field_type(field: FieldInfo) -> str:
+    """The field's type; a text key whose choices come from a registry (its JSON schema's
+    ``enum``, e.g. a gate's ``shape``) shows those choices."""
+    extra = field.json_schema_extra
+    if isinstance(extra, dict) and isinstance(extra.get("enum"), list | tuple):
+        return " | ".join(f"`{choice}`" for choice in extra["enum"])
+    return type_name(field.annotation)
+
+
 def default_of(field: FieldInfo) -> str:
     """The default as a YAML reader would write it, ``required`` when there is none."""
     if field.is_required():
@@ -235,7 +244,7 @@ def yaml_reference() -> str:
                 "|---|---|---|---|---|---|"]
         for path, _, name, field in walk(schema):
             out.append("| " + " | ".join([
-                f"`{path}`", _cell(type_name(field.annotation)), unit_of(name),
+                f"`{path}`", _cell(field_type(field)), unit_of(name),
                 _cell(bounds_of(field)), _cell(default_of(field)),
                 _cell(field.description or "")]) + " |")
         out.append("")

@@ -171,6 +171,12 @@ def test_cli_writes_the_section_and_never_overwrites(tmp_path, log_file, cli_run
     report = json.loads(r.stdout)
     section = yaml.safe_load(out.read_text(encoding="utf-8"))["propulsion"]
     assert section == report["propulsion"]
+    # the JSON is the fit's as_dict, read back (the API's result, made JSON as the CLI does)
+    from casadrone.cli.common import jsonable
+
+    api = jsonable(fit_propulsion(read_log(log_file), D, RHO).as_dict(None))
+    assert {k: report[k] for k in api} == json.loads(json.dumps(api))
+    assert set(report) - set(api) == {"out", "figures"}
     assert section["motor"]["kv_rpm_per_v"] == pytest.approx(TRUE["kv_rpm_per_v"], rel=0.02)
     assert {q["quantity"] for q in report["residuals"]} >= {"thrust", "torque", "bus voltage"}
     before = out.read_bytes()

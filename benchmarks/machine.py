@@ -54,6 +54,16 @@ def describe() -> dict[str, str]:
     }
 
 
+def summary_section(rows: list[tuple[str, str, str]]) -> str:
+    """A result file's ``## Summary`` section: its rows (what, figure, command) of the
+    documentation's Performance summary, which gathers them when the site is built."""
+    lines = ["## Summary", "", "The row of this benchmark in the performance page's summary "
+             "(docs/performance.md,", "generated from this section).", "",
+             "| what | figure | command |", "|---|---|---|"]
+    return "\n".join(lines + [f"| {what} | {figure} | {command} |"
+                               for what, figure, command in rows]) + "\n"
+
+
 def markdown() -> str:
     """The description as a markdown bullet list."""
     return "\n".join(f"- {k}: {v}" for k, v in describe().items())

@@ -146,6 +146,19 @@ def table(results: list[dict], seeds: int) -> list[str]:
     return lines
 
 
+def summary_rows(results: list[dict], seeds: int) -> list[tuple[str, str, str]]:
+    """The performance page's row: ev-MOGA's medians on ZDT1 (none when ZDT1 was not run)."""
+    rows = [r for r in results if r["problem"] == "zdt1" and r["algorithm"] == "ev-MOGA"]
+    if not rows:
+        return []
+    igd = np.median([r["igd"] for r in rows])
+    hv = np.median([r["hv"] for r in rows])
+    budget = f"{BUDGET:,}".replace(",", " ")
+    return [(f"ev-MOGA on ZDT1 (4 variables, {budget} evaluations, {seeds} seeds)",
+             f"median IGD {igd:.4f}, HV {hv:.4f} (exact {EXACT_HV['zdt1']:.5f})",
+             "`python benchmarks/bench_evmoga_zdt.py`")]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)
@@ -185,6 +198,11 @@ def main() -> None:
         *table(results, args.seeds),
         "",
     ]
+    summary = summary_rows(results, args.seeds)
+    if summary:
+        from benchmarks.machine import summary_section
+
+        lines += [summary_section(summary)]
     text = "\n".join(lines)
     print(text)
     args.out.write_text(text)

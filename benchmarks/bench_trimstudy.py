@@ -35,7 +35,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from benchmarks.machine import markdown  # noqa: E402
+from benchmarks.machine import markdown, summary_section  # noqa: E402
 from casadrone.airframe import build_airframe, random_thetas, with_theta  # noqa: E402
 from casadrone.config import load_airframe  # noqa: E402
 from casadrone.trimstudy import StudyOptions, TrimStudy, trim_study  # noqa: E402
@@ -181,10 +181,13 @@ def main() -> None:
                   "each), to split the time:", "",
                   "| solver | wall time (s) | CPU time (s) | CPU per solve (ms) |",
                   "|---|---:|---:|---:|"]
+    alone = {}
     for solver in o.solvers:
         _, w, c = timed_study(hs210, replace(target, solvers=(solver,)))
         n = len(study.points) * (o.starts + 1)
         per_solver.append(f"| {solver} | {w:.1f} | {c:.1f} | {1e3 * c / n:.2f} |")
+        alone[solver] = c
+    summary = summary_row(len(study.points), o.starts, wall, cpu, os.getloadavg()[0], alone)
     part1 += per_solver
     print("\n".join(part1), flush=True)
 
@@ -208,10 +211,20 @@ def main() -> None:
         print("\n".join(rows), flush=True)
 
     text = "\n".join(["# Trim-solver study", "", f"Command: `{command}`", "", markdown(), "",
-                      *part1, "", *part2, ""])
+                      *part1, "", *part2, "", summary_section([summary])])
     if not args.no_write:
         RESULTS.write_text(text)
         print(f"wrote {RESULTS}")
+
+
+def summary_row(n_points: int, starts: int, wall: float, cpu: float, load: float,
+                alone: dict[str, float]) -> tuple[str, str, str]:
+    """The performance page's row: the whole study's CPU time, and each solver's alone."""
+    each = ", ".join(f"{solver} {c:.1f} s" for solver, c in alone.items())
+    return (f"trim study: one airframe (HS210), {n_points} operating points, {len(alone)} solvers "
+            f"× {starts + 1} starts, one core",
+            f"{cpu:.1f} s CPU time (target < 1 min; {wall:.0f} s wall at load average "
+            f"{load:.0f}); each solver alone: {each}", "`python benchmarks/bench_trimstudy.py`")
 
 
 if __name__ == "__main__":

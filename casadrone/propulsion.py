@@ -248,14 +248,82 @@ def max_speed(q: dict[str, float]) -> float:
     return q["motor_kv"] * q["batt_Voc"]
 
 
-def thrust_bound(q: dict[str, float]) -> float:
-    """An upper bound (N) of one rotor's thrust at every airspeed and rotor speed
-    0 ≤ ω ≤ :func:`max_speed`: T = ρ (c₀ D⁴ n² + c₁ D³ n v + c₂ D² v²) with c₁, c₂ ≤ 0 (the schema
-    refuses others) is largest at the smallest effective inflow, which is v = 0 with signed-off
-    (``positive``) inflow up to the smoothing's −ε/2; so T ≤ ρ (c₀ D⁴ n² + |c₁| D³ n ε/2)."""
+def box_thrust_bound(q: dict[str, float]) -> float:
+    """An upper bound (N) of one rotor's thrust over the limit lap's whole box, every airspeed
+    and every rotor speed 0 ≤ ω ≤ :func:`max_speed`: T = ρ (c₀ D⁴ n² + c₁ D³ n v + c₂ D² v²) with
+    c₁, c₂ ≤ 0 (the schema refuses others) is largest at the smallest effective inflow, v = 0
+    with ``positive`` inflow up to the smoothing's −ε/2; so T ≤ ρ (c₀ D⁴ n² + |c₁| D³ n ε/2).
+    Rigorous but loose (3× the static full thrust of SY250-propeller: the no-load speed at the
+    open-circuit voltage is far above any speed the loaded rotor reaches)."""
     n = max_speed(q) / (2 * math.pi)
     D = q["prop_D"]
     return q["rho"] * (q["ct0"] * D**4 * n**2 + abs(q["ct1"]) * D**3 * n * q["inflow_eps"] / 2)
+
+
+def full_command_speed(q: dict[str, float], v_axial):
+    """Steady rotor speed (rad/s) of all four rotors at full command (δ = 1) with the same
+    effective axial inflow ``v_axial`` (m/s, array), the pack sagging under the four motors'
+    current. DC motor: the motor torque is linear in ω (with the sag), the propeller's torque
+    A ω² + B ω + C (B, C from the inflow), one positive root. First-order: K_V V_oc."""
+    import numpy as np
+
+    v = np.asarray(v_axial, float)
+    if q["motor_dc"] < 0.5:
+        return np.full_like(v, q["motor_kv"] * q["batt_Voc"])
+    kv, R, k, D, rho = q["motor_kv"], q["motor_R"], q["batt_R"] / q["motor_R"], q["prop_D"], \
+        q["rho"]
+    # Q_m = a0 + a1 ω (static_speed with δ = 1)
+    a0 = (q["batt_Voc"] / (1 + 4 * k) / R - q["motor_I0"]) / kv
+    a1 = (4 * k / kv / (1 + 4 * k) - 1 / kv) / R / kv
+    c = rho / (2 * math.pi)
+    A = c * q["cp0"] * D**5 / (2 * math.pi) ** 2
+    B = c * q["cp1"] * D**4 * v / (2 * math.pi) - a1
+    C = c * q["cp2"] * D**3 * v**2 - a0
+    return (-B + np.sqrt(np.maximum(B * B - 4 * A * C, 0.0))) / (2 * A)
+
+
+#: Axial inflows (m/s) over which :func:`thrust_bound` maximises the steady full-command thrust:
+#: from the smoothing's −ε/2 to 150 m/s (three times the fastest lap flown), 0.05 m/s apart.
+BOUND_INFLOW_MAX_M_S, BOUND_INFLOW_STEP_M_S = 150.0, 0.05
+
+
+def thrust_bound(q: dict[str, float]) -> float:
+    """The point mass's thrust bound per rotor (N): the largest steady thrust of a rotor at
+    full command over every effective axial inflow v ≥ −ε/2, all four rotors at full command
+    with the pack's sag (:func:`full_command_speed`, maximised on a grid to
+    :data:`BOUND_INFLOW_MAX_M_S`).
+
+    Why it bounds the total thrust of every steady flight, at every speed:
+
+    - inflow: at a fixed rotor speed T falls with v ≥ 0 (c₁, c₂ ≤ 0, enforced by the schema);
+      the inflow also unloads the propeller, so the rotor speeds up, but for the shipped data
+      that never wins: the maximum is at v = 0 (less than 0.1 % above the static full thrust,
+      from the smoothing's −ε/2). Descent, braking or flight backwards through the disc (J < 0)
+      gives v = 0 with ``inflow: positive``: the static thrust again. With ``inflow: signed``
+      (the linear-inflow form) descent raises the thrust without bound, and
+      :func:`rotor_thrust_bound` is then inf;
+    - commands: the point mass bounds the *sum* ΣT ≤ 4 T_b. One rotor alone can exceed T_b (the
+      others draw less current, so the pack sags less), but then the others give less, and all
+      four at full command draws the most power from the pack below its maximum-power current
+      V_oc/(2 R_b); checked by maximising ΣT over unequal commands and inflows
+      (tests/unit/test_propulsion.py);
+    - rotor drag (the H-force) is in the rotor plane, not along the thrust: it has no
+      counterpart in the point mass (:func:`casadrone.limit.nlp.point_mass_ocp_model`).
+
+    Not covered: transients. The rotor speed is a state with a time constant of 20–30 ms; a
+    rotor unloaded by a large inflow that then drops (the frame pitching up to brake) spins
+    above its new steady speed for that long and can give more than T_b. The rigorous bound
+    over the limit lap's whole box is :func:`box_thrust_bound` (3× looser); how far a lap's
+    total thrust comes to 4 T_b is measured in benchmarks/RESULTS-propulsion.md.
+    """
+    import numpy as np
+
+    eps = q["inflow_eps"]
+    v = np.concatenate([[-eps / 2], np.arange(0.0, BOUND_INFLOW_MAX_M_S, BOUND_INFLOW_STEP_M_S)])
+    n = full_command_speed(q, v) / (2 * math.pi)
+    D, rho = q["prop_D"], q["rho"]
+    T = rho * (q["ct0"] * D**4 * n**2 + q["ct1"] * D**3 * n * v + q["ct2"] * D**2 * v**2)
+    return float(T.max())
 
 
 def values(cfg: PropulsionConfig, rho: float) -> dict[str, float]:
@@ -294,9 +362,11 @@ def max_static_thrust(airframe) -> float:
 
 
 def rotor_thrust_bound(airframe) -> float:
-    """A bound (N) of one rotor's thrust over every state the limit lap allows: K with ``paper``
-    (each lagged thrust stays below K); :func:`thrust_bound` with ``propeller`` (inf with signed
-    inflow, where descent raises the thrust without bound)."""
+    """The point mass's bound (N) of one rotor's share of the total thrust: K with ``paper``
+    (each lagged thrust stays below K); :func:`thrust_bound` with ``propeller``, the largest
+    steady full-command thrust over every airspeed (exceeded only in rotor-speed transients;
+    its docstring argues it); inf with signed inflow, where descent raises the thrust without
+    bound."""
     if airframe.propulsion == "paper":
         return float(airframe.thrust_gain)
     q = airframe_values(airframe)

@@ -48,7 +48,10 @@ class OcpModel:
     ``rates`` and ``rotor`` are the state slices of the body rates and the rotor states (None
     where the model has none); ``up_z(x)`` is the world-vertical component of the body z axis,
     cos(total tilt), for the tilt cone (None: the model has no attitude state); ``attitude``
-    names the representation ("euler", "quaternion", or "none").
+    names the representation ("euler", "quaternion", or "none"). ``scale`` (one positive number
+    per state, or None for none) is the unit of each state in the NLP: the decision vector holds
+    x / scale, and the dynamics rows are divided by it (:func:`state_scale`); ``f`` and every
+    other member stay in the model's own units.
     """
 
     name: str
@@ -58,6 +61,7 @@ class OcpModel:
     rotor: slice | None = None
     up_z: Callable | None = None
     attitude: str = "none"
+    scale: tuple[float, ...] | None = None
 
     @property
     def nx(self) -> int:
@@ -72,6 +76,26 @@ class OcpModel:
         return self.f.size1_in(2)
 
 
+#: The unit of the ``propeller`` kind's rotor states in the NLP (rad/s): krad/s. In rad/s the
+#: rotor speeds (~2·10³) and their rates (~10⁵ rad/s² in a full-command step) are three to five
+#: orders above the other states (m, m/s, rad, rad/s ~ 1–50); IPOPT scales constraints by their
+#: gradients but never the variables, so its steps, bound pushes and restoration phase then act
+#: on badly scaled unknowns. Measured (benchmarks/RESULTS-propulsion.md): unscaled, SY250-propeller
+#: on the paper track ended in Restoration_Failed from both starts.
+ROTOR_SPEED_UNIT_RAD_S = 1000.0
+
+
+def state_scale(nx: int, rotor: slice, propulsion: str) -> tuple[float, ...] | None:
+    """The NLP unit of each of ``nx`` states (:attr:`OcpModel.scale`): None (the model's own
+    units, every state) with ``paper``, whose rotor states are thrusts of a few newtons; with
+    ``propeller`` the rotor speeds in :data:`ROTOR_SPEED_UNIT_RAD_S`."""
+    if propulsion == "paper":
+        return None
+    scale = np.ones(nx)
+    scale[rotor] = ROTOR_SPEED_UNIT_RAD_S
+    return tuple(float(s) for s in scale)
+
+
 def quadrotor_ocp_model(propulsion: str = "paper") -> OcpModel:
     """The 16-state ZYX-Euler model of :mod:`casadrone.model` (rotor dynamics included) with the
     airframe's propulsion kind."""
@@ -82,7 +106,7 @@ def quadrotor_ocp_model(propulsion: str = "paper") -> OcpModel:
     name = "quadrotor" if propulsion == "paper" else f"quadrotor-{propulsion}"
     return OcpModel(name, quadrotor_model(propulsion).f, vw, rates=slice(6, 9),
                     rotor=slice(12, 16), up_z=lambda x: ca.cos(x[9]) * ca.cos(x[10]),
-                    attitude="euler")
+                    attitude="euler", scale=state_scale(16, slice(12, 16), propulsion))
 
 
 def quaternion_ocp_model(propulsion: str = "paper") -> OcpModel:
@@ -95,7 +119,8 @@ def quaternion_ocp_model(propulsion: str = "paper") -> OcpModel:
 
     name = "quadrotor-quat" if propulsion == "paper" else f"quadrotor-quat-{propulsion}"
     return OcpModel(name, quaternion_f(propulsion), lambda x: quat_rotation(x[QUAT]) @ x[3:6],
-                    rates=slice(6, 9), rotor=slice(13, 17), up_z=up_z, attitude="quaternion")
+                    rates=slice(6, 9), rotor=slice(13, 17), up_z=up_z, attitude="quaternion",
+                    scale=state_scale(17, slice(13, 17), propulsion))
 
 
 #: Full-state models of the limit lap, by attitude representation.
@@ -110,9 +135,11 @@ def point_mass_ocp_model(propulsion: str = "paper") -> OcpModel:
 
     Every flight of the full model is a flight of this one (take its attitude and Σ T_i as the
     controls; Σ T_i ≤ 4K because each lagged thrust stays below K; with the ``propeller``
-    kind the bound is :func:`casadrone.propulsion.rotor_thrust_bound`, which holds at every
-    airspeed and rotor speed the NLP allows), so its minimum time is a lower bound of the limit
-    lap. Rotor drag (the propeller kind's in-plane H-force) has no counterpart here: it opposes
+    kind the bound is :func:`casadrone.propulsion.rotor_thrust_bound`, the largest steady
+    full-command thrust over every airspeed, which a rotor can exceed only in a transient of
+    its ~20 ms time constant: see :func:`casadrone.propulsion.thrust_bound`), so its minimum time
+    is a lower bound of the limit lap. Rotor drag (the propeller kind's in-plane H-force) has no
+    counterpart here: it opposes
     the rotors' in-plane airflow, so it mostly slows the full model, but a force off the body z
     axis can also help it turn, so with rotor drag on the bound holds only approximately (exactly
     with ``rotor_drag_n_s2_per_m: 0``). Mass and drag do not depend on the arm geometry, so with the
@@ -198,6 +225,11 @@ class Nlp:
             tau = np.asarray(ca.collocation_points(self.layout.degree, "radau"))
             Z = X[:-1, None, :] + tau[None, :, None] * (X[1:] - X[:-1])[:, None, :]
         h = np.repeat(np.asarray(T, float), self.layout.intervals)
+        if self.model.scale is not None:  # the NLP's units (OcpModel.scale)
+            unit = np.asarray(self.model.scale)
+            X = X / unit
+            if self.layout.n_coll:
+                Z = np.asarray(Z, float) / unit
         parts = [np.column_stack([h, np.asarray(U, float).reshape(len(h), -1),
                                   np.asarray(Z, float).reshape(len(h), -1), X[:-1]]).ravel(),
                  X[-1]]
@@ -211,6 +243,8 @@ class Nlp:
         per = 1 + nu + nx * self.layout.n_coll + nx
         blocks = w[:M * per].reshape(M, per)
         X = np.vstack([blocks[:, per - nx:], w[M * per:][None, :]])
+        if self.model.scale is not None:  # back to the model's units
+            X = X * np.asarray(self.model.scale)
         return blocks[::N, 0], X, blocks[:, 1:1 + nu]
 
 
@@ -382,16 +416,24 @@ def _shooting_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np
     x_start = ca.MX.sym("x_start", nx)
     targets = ca.MX.sym("targets", TARGET_SIZE * L)
     P = ca.vertcat(p, x_start, targets)
-    Zb = ca.reshape(W[:M * per], per, M)  # column i: z_i = [S_i, u_i, x_i]
-    X = ca.horzcat(Zb[1 + nu:, :], W[M * per:])
+    Zb = ca.reshape(W[:M * per], per, M)  # column i: z_i = [S_i, u_i, x_i] (NLP units)
+    Xs = ca.horzcat(Zb[1 + nu:, :], W[M * per:])
     S = Zb[0, :]
+    # OcpModel.scale: W holds x / d; the blocks and targets see x = d·x_s, the dynamics and start
+    # rows are divided by d (x_s,i+1 − step(x_i)/d), so every row is in the NLP's units as well
+    d = None if model.scale is None else np.asarray(model.scale, float)
+    X = Xs if d is None else Xs * ca.DM(np.tile(d[:, None], (1, M + 1)))
+    Zp = Zb if d is None else Zb * ca.DM(np.tile(np.r_[np.ones(1 + nu), d][:, None], (1, M)))
     step = rk4_step(model, layout.substeps)
     x_next = step.map(M)(X[:, :M], Zb[1:1 + nu, :], p, S / N)
+    if d is not None:
+        x_next = x_next / ca.DM(np.tile(d[:, None], (1, M)))
+        x_start = x_start / ca.DM(d)
     same_i = np.array([i for i in range(1, M) if i % N], dtype=int)
     trows = _leg_end_rows(model, layout, X, targets)
     gt = ca.vertcat(*[r[0] for r in trows])
-    rows = [(ca.vec(X[:, 1:] - x_next), 0.0, 0.0),
-            ((S[same_i] - S[same_i - 1]).T, 0.0, 0.0), (X[:, 0] - x_start, 0.0, 0.0), *trows]
+    rows = [(ca.vec(Xs[:, 1:] - x_next), 0.0, 0.0),
+            ((S[same_i] - S[same_i - 1]).T, 0.0, 0.0), (Xs[:, 0] - x_start, 0.0, 0.0), *trows]
     g = ca.vertcat(*[r[0] for r in rows])
     lbg, ubg = _bounds_of(rows)
     f = ca.sum2(S[::N])
@@ -400,7 +442,10 @@ def _shooting_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np
 
     # constraint Jacobian: blocks −J_i, identities, ±1 of the tied durations, target rows
     jac, hess, hr, hc = interval_blocks(model, layout.substeps)
-    J = jac.map(M)(Zb, p, 1.0 / N)[1]
+    J = jac.map(M)(Zp, p, 1.0 / N)[1]
+    dz = np.ones(per) if d is None else np.r_[np.ones(1 + nu), d]  # units of z
+    if d is not None:  # ∂(step(d_z z_s)/d)/∂z_s = J d_z / d, row by row
+        J = J * ca.DM(np.tile(np.outer(1 / d, dz), (1, M)))
     r_, c_, i_ = np.meshgrid(np.arange(nx), np.arange(per), np.arange(M), indexing="ij")
     tr = [(nx * i_ + r_).ravel(order="F")]  # matches vec(J) of the mapped output
     tc = [(per * i_ + c_).ravel(order="F")]
@@ -426,7 +471,12 @@ def _shooting_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np
     # Lagrangian Hessian (upper triangle): interval blocks of −lam_i·step, plus the target rows
     lam_f = ca.MX.sym("lam_f")
     lam_g = ca.MX.sym("lam_g", ng)
-    Hb = hess.map(M)(Zb, p, 1.0 / N, -ca.reshape(lam_g[:n_dyn], nx, M))
+    lam_dyn = -ca.reshape(lam_g[:n_dyn], nx, M)
+    if d is not None:  # the rows are step/d: multipliers lam/d; z = d_z z_s on both sides
+        lam_dyn = lam_dyn / ca.DM(np.tile(d[:, None], (1, M)))
+    Hb = hess.map(M)(Zp, p, 1.0 / N, lam_dyn)
+    if d is not None:
+        Hb = Hb * ca.DM(np.tile((dz[hr] * dz[hc])[:, None], (1, M)))
     i2 = np.repeat(np.arange(M), len(hr))
     hrow = [np.tile(hr, M) + per * i2]
     hcol = [np.tile(hc, M) + per * i2]
@@ -463,15 +513,20 @@ def _collocation_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray,
     x_start = ca.SX.sym("x_start", nx)
     targets = ca.SX.sym("targets", TARGET_SIZE * L)
     interval = collocation_interval(model, d)
+    # OcpModel.scale: X and Z hold x / unit; rows divided by the unit (as in _shooting_nlp)
+    unit = ca.DM.ones(nx) if model.scale is None else ca.DM(model.scale)
+    Xp = X if model.scale is None else X * ca.repmat(unit, 1, M + 1)
+    Zp = Z if model.scale is None else Z * ca.repmat(unit, d, M)
     res, x_end = [], []
     for i in range(M):
-        r, e = interval(X[:, i], ca.reshape(Z[:, i], nx, d), U[:, i], p, h[i])
-        res.append(r)
-        x_end.append(X[:, i + 1] - e)
+        r, e = interval(Xp[:, i], ca.reshape(Zp[:, i], nx, d), U[:, i], p, h[i])
+        res.append(r if model.scale is None else r / ca.repmat(unit, d, 1))
+        x_end.append(X[:, i + 1] - (e if model.scale is None else e / unit))
     same = [S[i] - S[i - 1] for i in range(1, M) if i % N]
+    x0 = x_start if model.scale is None else x_start / unit
     rows = [(ca.vertcat(*res), 0.0, 0.0), (ca.vertcat(*x_end), 0.0, 0.0),
-            (ca.vertcat(*same), 0.0, 0.0), (X[:, 0] - x_start, 0.0, 0.0),
-            *_leg_end_rows(model, layout, X, targets)]
+            (ca.vertcat(*same), 0.0, 0.0), (X[:, 0] - x0, 0.0, 0.0),
+            *_leg_end_rows(model, layout, Xp, targets)]
     lbg, ubg = _bounds_of(rows)
     w = ca.vertcat(ca.vec(ca.vertcat(S, U, Z, X[:, :M])), X[:, M])
     nlp = {"x": w, "p": ca.vertcat(p, x_start, targets), "f": ca.sum2(S[::N]),
@@ -482,7 +537,7 @@ def _collocation_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray,
 def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int = 1000) -> Nlp:
     """The NLP of ``layout`` on ``model``, built once per process and cached (never per airframe).
     """
-    key = (model.name, layout, tol, max_iter)
+    key = (model.name, model.scale, layout, tol, max_iter)
     if key in _NLPS:
         return _NLPS[key]
     make = _shooting_nlp if layout.method == "shooting" else _collocation_nlp

@@ -65,9 +65,10 @@ def test_double_integrator_rest_to_rest_through_a_point():
     np.testing.assert_allclose(T[0], math.sqrt(2 * D / 4 / A), rtol=1e-3)
 
 
-def _nonlinear_toy() -> OcpModel:
+def _nonlinear_toy(scale: tuple[float, ...] | None = None) -> OcpModel:
     """A planar 'drone' with quadratic drag, thrust along a rotating axis and a lagged thrust:
-    every second derivative the quadrotor's RK4 step has (products, trig, |v|v), small."""
+    every second derivative the quadrotor's RK4 step has (products, trig, |v|v), small;
+    ``scale``: the states' units in the NLP (OcpModel.scale)."""
     x = ca.SX.sym("x", 7)  # px, py, pz, vx, vy, vz ... reused: angle x[6]
     u = ca.SX.sym("u", 2)
     p = ca.SX.sym("p", 2)
@@ -75,19 +76,25 @@ def _nonlinear_toy() -> OcpModel:
         - p[0] * ca.fabs(x[3:6]) * x[3:6]
     f = ca.Function("f_toy", [x, u, p], [ca.vertcat(x[3:6], acc, p[1] * u[1])],
                     ["x", "u", "p"], ["xdot"])
-    return OcpModel("toy", f, lambda s: s[3:6], up_z=lambda s: ca.cos(s[6]))
+    return OcpModel("toy", f, lambda s: s[3:6], up_z=lambda s: ca.cos(s[6]), scale=scale)
 
 
-@pytest.mark.parametrize("kinds, cone", [(("ball", "gate"), False),
-                                         (("circle", "polygon"), True)])
-def test_assembled_derivatives_equal_casadi_ad(kinds, cone):
+#: Units of the toy's states in the NLP, far from 1 (as the propeller's krad/s rotor speeds).
+TOY_SCALE = (1.0, 2.0, 1.0, 10.0, 1.0, 0.5, 1000.0)
+
+
+@pytest.mark.parametrize("kinds, cone, scale", [(("ball", "gate"), False, None),
+                                                (("circle", "polygon"), True, None),
+                                                (("ball", "gate"), True, TOY_SCALE)])
+def test_assembled_derivatives_equal_casadi_ad(kinds, cone, scale):
     """The constraint Jacobian and Lagrangian Hessian assembled from the compiled interval
     blocks equal CasADi's own AD of the same NLP, entry by entry (ball, gate, circle and
     polygon targets, a rest condition, the tilt cone's rows, 3 intervals per leg, random point
-    and multipliers)."""
+    and multipliers; also with scaled states, where the blocks are rescaled around the compiled
+    code)."""
     from casadrone.limit.nlp import _shooting_nlp
 
-    model = _nonlinear_toy()
+    model = _nonlinear_toy(scale)
     layout = Layout(kinds, 3, substeps=2, end_at_rest=True, tilt_cone=cone)
     nlp, lbg, ubg, extra = _shooting_nlp(model, layout)
     W, P = nlp["x"], nlp["p"]
@@ -106,6 +113,65 @@ def test_assembled_derivatives_equal_casadi_ad(kinds, cone):
     np.testing.assert_allclose(np.array(H), np.array(ref_hess(w, prm, lam)), rtol=1e-10,
                                atol=1e-11)
     assert np.abs(np.array(H)).max() > 1e-3  # the Hessian is not trivially zero
+
+
+@pytest.mark.parametrize("method", ["shooting", "collocation"])
+def test_scaled_states_pose_the_same_problem(method):
+    """Scaling is a change of units only: at the same physical point (w = pack of the same
+    durations, states and commands) the scaled NLP's rows are the unscaled rows with each
+    dynamics and start row divided by its state's unit, every other row equal; and unpack
+    gives back the physical states. Oracle: the unscaled NLP, a different symbolic graph."""
+    from casadrone.limit.nlp import _collocation_nlp, _shooting_nlp
+
+    make = _shooting_nlp if method == "shooting" else _collocation_nlp
+    layout = Layout(("ball", "gate"), 3, substeps=2, end_at_rest=True, tilt_cone=True,
+                    method=method)
+    plain, scaled = (build_nlp(_nonlinear_toy(s), layout) for s in (None, TOY_SCALE))
+    g_plain, g_scaled = (make(n.model, layout)[0] for n in (plain, scaled))
+    rng = np.random.default_rng(5)
+    M, nx = layout.n_intervals, 7
+    T = rng.uniform(0.5, 2.0, 2)
+    X = rng.uniform(0.2, 1.5, (M + 1, nx)) * np.asarray(TOY_SCALE)
+    U = rng.uniform(0.1, 1.0, (M, 2))
+    Z = None if method == "shooting" else rng.uniform(0.2, 1.5, (M, 3, nx)) * np.asarray(
+        TOY_SCALE)
+    prm = rng.uniform(0.1, 1.0, g_plain["p"].numel())
+    w_plain, w_scaled = plain.pack(T, X, U, Z), scaled.pack(T, X, U, Z)
+    assert not np.allclose(w_plain, w_scaled)  # the decision vectors differ
+    np.testing.assert_allclose(scaled.unpack(w_scaled)[1], X, rtol=1e-15)
+    rows_plain = np.array(ca.Function("g", [g_plain["x"], g_plain["p"]], [g_plain["g"]])(
+        w_plain, prm)).ravel()
+    rows_scaled = np.array(ca.Function("g", [g_scaled["x"], g_scaled["p"]], [g_scaled["g"]])(
+        w_scaled, prm)).ravel()
+    unit = np.ones_like(rows_plain)
+    n_model = M * nx * (1 + layout.n_coll)  # dynamics rows (collocation: points, then ends)
+    unit[:n_model] = np.tile(TOY_SCALE, n_model // nx)
+    start = n_model + (M - layout.n_legs)  # after the tied durations
+    unit[start:start + nx] = TOY_SCALE
+    assert np.abs(rows_plain[:n_model]).max() > 1.0  # the rows are not trivially zero
+    np.testing.assert_allclose(rows_scaled * unit, rows_plain, rtol=1e-12, atol=1e-9)
+
+
+def test_scaled_double_integrator_keeps_its_analytic_time():
+    """The out-and-back double integrator with its velocities in units of 100 m/s in the NLP
+    still takes T = (2 + √2)√(L/A) (the analytic bang-bang time)."""
+    L, A, intervals = 10.0, 2.0, 20
+    base = _double_integrator()
+    model = OcpModel("double-integrator-scaled", base.f, base.world_velocity,
+                     scale=(1.0, 1.0, 1.0, 100.0, 100.0, 100.0))
+    kinds = ("ball", "ball")
+    nlp = build_nlp(model, Layout(kinds, intervals))
+    M = 2 * intervals
+    P = np.concatenate([[0.0], np.zeros(6), target_vector(
+        np.array([[L, 0, 0], [0, 0, 0]], float), kinds, np.zeros(2), np.zeros(2), np.zeros(2),
+        0.0)])
+    lbx = nlp.pack(np.full(2, 1e-2), np.full((M + 1, 6), -np.inf), np.full((M, 3), -A))
+    ubx = nlp.pack(np.full(2, 1e2), np.full((M + 1, 6), np.inf), np.full((M, 3), A))
+    sol = solve(nlp, nlp.pack(np.ones(2), np.zeros((M + 1, 6)), np.zeros((M, 3))), P, lbx, ubx)
+    assert sol.success, sol.return_status
+    T, X, _ = nlp.unpack(sol.point.w)
+    np.testing.assert_allclose(T.sum(), (2 + math.sqrt(2)) * math.sqrt(L / A), rtol=1e-3)
+    assert np.abs(X[:, 3]).max() > 3.0  # physical m/s come back, not hundreds of m/s
 
 
 def test_gate_miss_geometry():

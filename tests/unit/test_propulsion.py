@@ -354,4 +354,50 @@ def test_limit_lap_falls_back_on_a_reference_of_the_same_propulsion():
 
     assert _fallback_name("SY250", "paper") == "SY250"
     assert _fallback_name("SY250", "propeller") == "SY250-propeller"
-    assert _fallback_name("HS210", "propeller") is None
+    assert _fallback_name("HS210", "propeller") == "HS210-propeller"
+    assert _fallback_name("NO-SUCH-FRAME", "propeller") is None
+
+
+def _steady_rotor_speeds(frame, u, vel, rates):
+    """Rotor speeds (rad/s) at which the model's rotor rates vanish for commands ``u``, body
+    velocity and rates held (scipy's root finder on the model's own f)."""
+    from scipy.optimize import fsolve
+
+    f = quadrotor_model("propeller").f
+
+    def rotor_rates(w):
+        return np.asarray(f(_state(vel, rates, w), u, frame.p)).ravel()[THR] / 1e3
+
+    w, info, ok, _ = fsolve(rotor_rates, np.full(4, 2500.0), full_output=True, xtol=1e-12)
+    return w if ok == 1 and np.max(np.abs(rotor_rates(w))) < 1e-6 else None
+
+
+def test_point_mass_thrust_bound_holds_over_steady_flight(frame):
+    """The point mass's bound 4 T_b on the total thrust (propulsion.thrust_bound) against the
+    model itself: over 300 random steady states (commands in [0, 1]⁴, axial airspeed −10…60 m/s,
+    body rates up to ±8 rad/s so the rotors see unequal inflows; the rotor speeds found by scipy's
+    root finder on the model's rotor rates) the total thrust never exceeds it, and it is reached
+    (within 0.1 %) at full command at rest. Unequal commands let one rotor exceed T_b (less sag)
+    but never the sum. Observed: full command at rest 0.9991 of the bound (the bound adds the
+    smoothing's −ε/2 of inflow), the largest random ΣT 0.93 of it; one rotor alone 1.46 T_b."""
+    from casadrone.propulsion import box_thrust_bound, rotor_thrust_bound
+
+    Tb = rotor_thrust_bound(frame)
+    out = propeller_outputs()
+    rng = np.random.default_rng(17)
+    cases = [(np.ones(4), (0, 0, 0), (0, 0, 0)), (np.ones(4), (0, 0, 20.0), (0, 0, 0)),
+             (np.array([1.0, 0.1, 0.1, 0.1]), (0, 0, 0), (0, 0, 0))]
+    cases += [(rng.uniform(0, 1, 4) ** 0.3, (0, 0, rng.uniform(-10, 60)),
+               rng.uniform(-8, 8, 3)) for _ in range(300)]
+    totals, singles = [], []
+    for u, vel, rates in cases:
+        w = _steady_rotor_speeds(frame, u, vel, rates)
+        assert w is not None
+        T = np.asarray(out(_state(vel, rates, w), u, frame.p)[0]).ravel()
+        totals.append(T.sum())
+        singles.append(T.max())
+    assert max(totals) <= 4 * Tb * (1 + 1e-9)
+    assert totals[0] == pytest.approx(4 * Tb, rel=1e-3)  # reached at full command at rest
+    assert max(singles[2:3]) > Tb  # one rotor alone does exceed it (the sag argument matters)
+    assert totals[1] < totals[0]  # 20 m/s of axial inflow: less thrust at full command
+    assert Tb < box_thrust_bound(airframe_values(frame)) / 2  # far tighter than the box bound

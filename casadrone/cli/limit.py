@@ -35,9 +35,10 @@ def limit_lap_command(
     airframe: AirframeArg,
     overrides: OverridesArg = None,
     track: TrackOpt = None,
-    intervals: Annotated[int, typer.Option(
+    intervals: Annotated[int | None, typer.Option(
         min=2, max=400, help="shooting intervals per leg, at most 400 (ten times finer than "
-        "grid refinement needs; memory grows in proportion)")] = 40,
+        "grid refinement needs; memory grows in proportion); default 40 with the paper "
+        "propulsion model, 80 with propeller (its faster rotor dynamics)")] = None,
     attitude: Annotated[str, typer.Option(
         help="euler (ZYX angles) or quaternion (no singularity: split-S, loops)")] = "euler",
     tilt: Annotated[str, typer.Option(

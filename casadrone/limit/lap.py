@@ -86,6 +86,7 @@ from casadrone.limit.problem import (
     track_targets,
 )
 from casadrone.limit.result import (
+    DEFAULT_INTERVALS,
     MAX_INTERVALS,
     Attitude,
     Certainty,
@@ -111,7 +112,7 @@ from casadrone.propulsion import max_static_thrust
 
 #: The limit lap's names, wherever their step lives (``from casadrone.limit.lap import ...``).
 __all__ = [
-    "BANG_BANG_TOL", "CERTAIN_REL", "COARSE_SHARE", "MAX_INTERVALS",
+    "BANG_BANG_TOL", "CERTAIN_REL", "COARSE_SHARE", "DEFAULT_INTERVALS", "MAX_INTERVALS",
     "POINT_MASS_PARAMS", "REFERENCE_SPEEDS_MPS", "RELAXED_RADIUS_M", "Attitude", "Certainty",
     "LimitLap", "LimitLapOptions", "Start", "StartResult", "Targets", "TiltLimit", "bounds",
     "check_inputs", "closed_loop_lap", "euler_states", "frame_clearance_m", "guess_from_lap",
@@ -135,6 +136,8 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     start = time.perf_counter()
     cfg = airframe if isinstance(airframe, AirframeConfig) else None
     frame: Airframe = build_airframe(airframe) if isinstance(airframe, AirframeConfig) else airframe
+    if options.intervals is None:
+        options = replace(options, intervals=DEFAULT_INTERVALS.get(frame.propulsion, 40))
     clearance_m = frame_clearance_m(frame, cfg.prop_diameter_mm / 1000 if cfg is not None
                                     else 0.127)
     why = refusal(frame, track, options, clearance_m)

@@ -94,7 +94,8 @@ def track_targets(track: TrackConfig, options: LimitLapOptions,
 def check_inputs(track: TrackConfig, options: LimitLapOptions,
                  clearance_m: float | None = None) -> str:
     """Why the problem cannot be posed (empty string when it can)."""
-    if not 2 <= options.intervals <= MAX_INTERVALS or not 1 <= options.degree <= 9 \
+    if (options.intervals is not None and not 2 <= options.intervals <= MAX_INTERVALS) \
+            or not 1 <= options.degree <= 9 \
             or not 1 <= options.substeps <= 20:
         return (f"intervals must be 2…{MAX_INTERVALS}, degree 1…9 and substeps 1…20 (got "
                 f"{options.intervals}, {options.degree}, {options.substeps})")

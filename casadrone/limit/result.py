@@ -41,6 +41,13 @@ def model_states(attitude: str, X: np.ndarray) -> np.ndarray:
     return np.atleast_2d(np.asarray(X, float))
 
 
+#: Intervals per leg by propulsion kind (LimitLapOptions.intervals None). ``propeller``: the
+#: rotor speed's time constant (~20 ms with the DC motor and rotor inertia) is shorter than the
+#: paper's thrust lag (61 ms), and RK4 steps of ~14 ms (40 intervals, 3 steps each, a 4.3 s lap
+#: over 5 legs) follow it badly: SY250-propeller's paper-track lap re-simulated 0.30 m off on 40
+#: intervals and 2.1 cm off on 80, the lap itself the same to 0.01 % (4.3094 / 4.3090 s;
+#: benchmarks/RESULTS-propulsion.md).
+DEFAULT_INTERVALS: dict[str, int] = {"paper": 40, "propeller": 80}
 #: Most intervals per leg. Grid refinement moved SY250's lap by 0.02 % from 40 to 80 intervals
 #: (LimitLapOptions.intervals), so 400 is ten times finer than any measured need; the NLP's
 #: memory grows in proportion (20 000 intervals reached 5.8 GB and failed to allocate), so 400
@@ -52,10 +59,11 @@ MAX_INTERVALS = 400
 class LimitLapOptions:
     """Numerical and modelling settings of the limit lap (identical for every candidate)."""
 
-    # Intervals per leg. Grid refinement on SY250, from the coarse optimum resampled: 30 -> 60
-    # changed the lap by 0.13 %, 40 -> 80 by 0.02 % (the acceptance is < 0.1 %); 40 with 2 RK4
-    # steps per interval instead of 3 changed by up to 0.16 %.
-    intervals: int = 40
+    # Intervals per leg; None: DEFAULT_INTERVALS of the frame's propulsion kind. Grid refinement
+    # on SY250, from the coarse optimum resampled: 30 -> 60 changed the lap by 0.13 %, 40 -> 80
+    # by 0.02 % (the acceptance is < 0.1 %); 40 with 2 RK4 steps per interval instead of 3
+    # changed by up to 0.16 %.
+    intervals: int | None = None
     method: Literal["shooting", "collocation"] = "shooting"  # see casadrone.limit.nlp
     substeps: int = 3  # RK4 steps per interval (shooting)
     degree: int = 3  # Radau collocation points per interval (collocation)

@@ -97,6 +97,7 @@ def prepare(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
     """The problem of ``frame`` on ``track``: the NLP of its layout (built once per process),
     P = [p, x0, targets], the box and the row bounds."""
     targets = track_targets(track, options, clearance_m)
+    assert options.intervals is not None  # limit_lap resolved it (DEFAULT_INTERVALS)
     layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
                     options.substeps, end_at_rest=track.end != "free",
                     tilt_cone=options.tilt_limit == "cone")
@@ -142,7 +143,7 @@ def coarse_grid_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
     resampled onto this grid (None when the coarse lap fails)."""
     options = pb.options
     coarse = lap_of(pb.frame, pb.track, replace(
-        options, intervals=max(2, round(COARSE_SHARE * options.intervals)),
+        options, intervals=max(2, round(COARSE_SHARE * pb.layout.intervals)),
         starts=("closed-loop",), warm_starts=(), point_mass_reference=False,
         sensitivities=False, fallback_reference=None))
     if not coarse.completed:

@@ -121,7 +121,7 @@ def lap_row(name: str, model: str, track_name: str, options: LimitLapOptions):
 
 def laps(rep: Report, frames, tracks, options: LimitLapOptions) -> dict:
     grid = options.intervals or "the default number of (40 paper, 80 propeller)"
-    rep.add(f"## Limit lap ({grid} intervals per leg, default starts)", "",
+    rep.add(f"## Limit lap ({grid} intervals per leg, starts: {', '.join(options.starts)})", "",
             "| frame | track | model | lap (s) | point-mass reference (s) | re-simulation miss "
             "(cm) | top speed (m/s) | thrust at top speed (N, 4 rotors) | static full thrust "
             "(N) | J range | min full-command thrust ratio | max ΣT / 4 T_b | starts (lap s) | "
@@ -183,6 +183,8 @@ def main() -> None:
     ap.add_argument("--frames", default=",".join(REFERENCES))
     ap.add_argument("--tracks", default="paper,gates")
     ap.add_argument("--intervals", type=int, default=LimitLapOptions.intervals)
+    ap.add_argument("--starts", default=",".join(LimitLapOptions.starts),
+                    help="cold starts of the limit lap, comma-separated (default: the library's)")
     ap.add_argument("--warm", type=int, default=0)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=str(Path(__file__).with_name(
@@ -191,7 +193,8 @@ def main() -> None:
     argv = " ".join(sys.argv[1:])
     rep = Report(a.out, ["# The paper and propeller propulsion models side by side", "",
                          f"`python benchmarks/bench_propulsion.py {argv}`", "", markdown(), ""])
-    options = LimitLapOptions(intervals=a.intervals, sensitivities=False)
+    options = LimitLapOptions(intervals=a.intervals, sensitivities=False,
+                              starts=tuple(a.starts.split(",")))  # type: ignore[arg-type]
     if a.closed_loop:
         closed_loop(rep, a.evals)
     solved = laps(rep, a.frames.split(","), a.tracks.split(","), options) if a.laps else {}

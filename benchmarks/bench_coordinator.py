@@ -108,6 +108,19 @@ def at_size(rows: list[dict], size: int) -> str:
             f"{mean['coordinator_s']:.3f} s wall, {mean['coordinator_cpu_s']:.3f} s CPU")
 
 
+def summary_row(rows: list[dict]) -> tuple[str, str, str]:
+    """The performance page's row: the coordinator's wall time at the generation that first
+    reaches an archive of 5 000 and of 10 000 members."""
+
+    def at(size: int) -> str:
+        hit = next((r for r in rows if r["archive_size"] >= size), None)
+        return f"{hit['coordinator_s']:.2f} s" if hit else "not reached"
+
+    return ("ev-MOGA coordinator alone, 850 children, 5 objectives, archive 5 000 / 10 000, "
+            "one core", f"{at(5000)} / {at(10_000)} per generation",
+            "`python benchmarks/bench_coordinator.py`")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--archive", type=int, default=10_000,
@@ -159,6 +172,7 @@ def main() -> None:
         "",
         *table(rows),
         "",
+        machine.summary_section([summary_row(rows)]),
     ]
     text = "\n".join(lines)
     args.out.write_text(text)

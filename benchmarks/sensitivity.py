@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from benchmarks.machine import markdown  # noqa: E402
+from benchmarks.machine import markdown, summary_section  # noqa: E402
 from casadrone.airframe import TABLE1_BOUNDS, THETA_KEYS, build_airframe, random_thetas, with_theta
 from casadrone.benchmark import DEFAULT_TRACK
 from casadrone.config.airframe import load_airframe
@@ -102,6 +102,16 @@ def spread(base, ctrl, track, n: int, seed: int) -> dict[str, dict[str, tuple[fl
 
 def fmt(v: float) -> str:
     return f"{v:+.2e}"
+
+
+def summary_row(tol: dict[str, float], J0: dict[str, float]) -> tuple[str, str, str]:
+    """The performance page's row: the largest rk4-against-CVODES difference over the indices
+    and frames, absolute and relative to SY250's value."""
+    worst = max(tol.values())
+    relative = max(tol[n] / abs(J0[n]) for n in tol)
+    return ("rk4 vs CVODES on every index, SY250 and the frames moved from it",
+            f"≤ {worst:.1g} absolute (≤ {relative:.1g} relative)",
+            "`python benchmarks/sensitivity.py`")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -238,6 +248,7 @@ def main(argv: list[str] | None = None) -> int:
         "the turn from the vertical climb into the first straight, a pure pitch manoeuvre. That "
         "is why Ixx and Izz (roll, yaw) leave J4 and Jp unchanged to round-off (~1e-13).",
         "",
+        summary_section([summary_row(tol, J0)]),
     ]
     args.out.write_text("\n".join(lines))
     print(f"wrote {args.out}")

@@ -26,7 +26,7 @@ PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio"
                    "min_thrust_ratio")
 
 if TYPE_CHECKING:  # the limit lap is imported when the command runs (CasADi)
-    from casadrone.limit.lap import Attitude, TiltLimit
+    from casadrone.limit.lap import Attitude, Solver, TiltLimit
 
 
 @app.command("limit-lap")
@@ -44,6 +44,9 @@ def limit_lap_command(
     tilt: Annotated[str, typer.Option(
         help="tilt limit at the track's max_tilt_deg: axes (|φ|, |θ| each; euler only), cone "
              "(total tilt) or none")] = "axes",
+    solver: Annotated[str, typer.Option(
+        help="NLP solver: ipopt (general sparse; the reference) or fatrop (the same NLP in "
+             "stage order, Riccati factorisation; IPOPT re-solves where it fails)")] = "ipopt",
     as_json: JsonOpt = False,
     plot: PlotOpt = None,
 ) -> None:
@@ -75,11 +78,13 @@ def limit_lap_command(
     if attitude not in ("euler", "quaternion") or tilt not in ("axes", "cone", "none"):
         raise ConfigError([f"--attitude {attitude} --tilt {tilt}: attitude is euler or quaternion, "
                        "tilt is axes, cone or none"])
+    if solver not in ("ipopt", "fatrop"):
+        raise ConfigError([f"--solver {solver}: one of ipopt, fatrop"])
     if attitude == "quaternion" and tilt == "axes":
         raise ConfigError(["--tilt axes bounds Euler angles: with --attitude quaternion use cone "
                        "or none"])
     options = LimitLapOptions(intervals=intervals, attitude=cast("Attitude", attitude),
-                              tilt_limit=cast("TiltLimit", tilt))
+                              tilt_limit=cast("TiltLimit", tilt), solver=cast("Solver", solver))
     frame = build_airframe(cfg)
     impossible = check_inputs(trk, options, frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
     if impossible:  # known before any solve: bad input, not a failed lap

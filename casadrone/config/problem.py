@@ -178,6 +178,11 @@ class ProblemConfig(Schema):
         default_factory=list,
         description="limits on indices (the lap-completed constraint is always on)",
     )
+    limit_solver: Literal["ipopt", "fatrop"] = Field(
+        "ipopt",
+        description="NLP solver of the limit-lap indices: ipopt (the reference) or fatrop (the "
+        "same NLP in stage order; IPOPT re-solves where fatrop fails)",
+    )
     algorithm: AlgorithmConfig = Field(
         default_factory=AlgorithmConfig,
         description="the optimiser and its budget",

@@ -54,7 +54,8 @@ def start_results(solves: Sequence[StartSolve], misses: Mapping[str, float]
                   ) -> tuple[StartResult, ...]:
     """What each start gave."""
     return tuple(StartResult(n, s.success, s.return_status, s.objective, s.iterations,
-                             s.wall_time_s, misses.get(n, math.nan)) for n, s in solves)
+                             s.wall_time_s, misses.get(n, math.nan), s.solver)
+                 for n, s in solves)
 
 
 def certainty(good: Sequence[StartSolve]) -> tuple[Certainty, float]:

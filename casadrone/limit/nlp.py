@@ -26,7 +26,7 @@ candidate on a track layout (number and kind of legs), and ``lam_p`` of the solu
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import casadi as ca
@@ -199,6 +199,11 @@ class Nlp:
     #: ``nlpsol`` (co-design wraps it: θ appended to w, p = p(θ) substituted); its row bounds are
     #: :meth:`row_bounds`, the box on w the limit lap's ``bounds``.
     problem: dict = field(default_factory=dict, compare=False, repr=False)
+    #: The derivative functions given to ``nlpsol`` with it (``jac_g``, ``hess_lag``: assembled
+    #: from the compiled interval blocks; empty: CasADi's own AD), for the stage-ordered solver.
+    derivatives: dict = field(default_factory=dict, compare=False, repr=False)
+    tol: float = 1e-8  # the solvers' convergence tolerance and iteration limit
+    max_iter: int = 1000
 
     def row_bounds(self, cos_tilt: float = -np.inf,
                    end_velocity: np.ndarray | tuple[float, float, float] | None = None
@@ -547,7 +552,8 @@ def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int 
                 cold=ca.nlpsol(name, "ipopt", nlp, ipopt_options(tol, max_iter, False) | extra),
                 warm=ca.nlpsol(name + "_warm", "ipopt", nlp,
                                ipopt_options(tol, max_iter, True) | extra),
-                lbg=lbg, ubg=ubg, problem=dict(nlp))
+                lbg=lbg, ubg=ubg, problem=dict(nlp), derivatives=dict(extra), tol=tol,
+                max_iter=max_iter)
     _NLPS[key] = built
     return built
 
@@ -564,7 +570,7 @@ class NlpPoint:
 
 @dataclass(frozen=True)
 class NlpSolution:
-    """One IPOPT solve."""
+    """One solve (IPOPT, or fatrop with IPOPT as its fallback)."""
 
     success: bool
     return_status: str
@@ -572,18 +578,67 @@ class NlpSolution:
     point: NlpPoint
     iterations: int
     wall_time_s: float
+    solver: str = "ipopt"  # the solver whose point this is
+    #: fatrop's (status, iterations, wall time in s) when it ran, whether or not it converged
+    fatrop: tuple[str, int, float] | None = None
+
+
+#: NLP solvers of the limit lap: IPOPT (general sparse, MUMPS: the reference) and fatrop
+#: (Riccati recursion over the stages of the same NLP put in stage order,
+#: :mod:`casadrone.limit.stagewise`; IPOPT re-solves from the same start where it fails).
+SOLVERS: tuple[str, ...] = ("ipopt", "fatrop")
 
 
 def solve(nlp: Nlp, w0: np.ndarray, P: np.ndarray, lbx: np.ndarray, ubx: np.ndarray,
           warm: NlpPoint | None = None, lbg: np.ndarray | None = None,
-          ubg: np.ndarray | None = None) -> NlpSolution:
+          ubg: np.ndarray | None = None, solver: str = "ipopt") -> NlpSolution:
     """Solve from ``w0`` (or from a primal-dual ``warm`` point); never raises. Row bounds
-    default to the NLP's own (:meth:`Nlp.row_bounds` gives others)."""
+    default to the NLP's own (:meth:`Nlp.row_bounds` gives others). ``solver="fatrop"`` solves
+    the stage-ordered NLP with fatrop and falls back to IPOPT from the same start when fatrop
+    does not converge (the result says which solver's point it is)."""
+    lbg = nlp.lbg if lbg is None else lbg
+    ubg = nlp.ubg if ubg is None else ubg
+    if solver == "fatrop":
+        first = _solve_fatrop(nlp, w0, P, lbx, ubx, warm, lbg, ubg)
+        if first.success:
+            return first
+        fallback = _solve_ipopt(nlp, w0, P, lbx, ubx, warm, lbg, ubg)
+        return replace(fallback, wall_time_s=first.wall_time_s + fallback.wall_time_s,
+                       fatrop=first.fatrop)
+    if solver != "ipopt":
+        raise ValueError(f"unknown solver {solver!r} (one of {', '.join(SOLVERS)})")
+    return _solve_ipopt(nlp, w0, P, lbx, ubx, warm, lbg, ubg)
+
+
+def _failed_point(nlp: Nlp, w0: np.ndarray, P: np.ndarray) -> NlpPoint:
+    return NlpPoint(np.asarray(w0, float), np.zeros(len(w0)), np.zeros(len(nlp.lbg)),
+                    np.zeros(len(P)))
+
+
+def _solve_fatrop(nlp: Nlp, w0, P, lbx, ubx, warm, lbg, ubg) -> NlpSolution:
+    import time
+
+    from casadrone.limit.stagewise import StageError, fatrop_solver, solve_stagewise
+
+    start = time.perf_counter()
+    x0 = np.clip(w0 if warm is None else warm.w, lbx, ubx)
+    try:
+        fs = fatrop_solver(nlp, nlp.tol, nlp.max_iter)
+        success, status, f, point, iters = solve_stagewise(fs, x0, P, lbx, ubx, lbg, ubg,
+                                                           warm is not None)
+        sol_point = NlpPoint(*point)
+    except (RuntimeError, StageError) as exc:
+        status, success, iters, f = f"error: {str(exc).splitlines()[-1][:100]}", False, 0, np.nan
+        sol_point = _failed_point(nlp, w0, P)
+    wall = time.perf_counter() - start
+    return NlpSolution(success, status, f, sol_point, iters, wall, "fatrop", (status, iters, wall))
+
+
+def _solve_ipopt(nlp: Nlp, w0, P, lbx, ubx, warm, lbg, ubg) -> NlpSolution:
     import time
 
     start = time.perf_counter()
-    args = dict(x0=np.clip(w0, lbx, ubx), p=P, lbx=lbx, ubx=ubx,
-                lbg=nlp.lbg if lbg is None else lbg, ubg=nlp.ubg if ubg is None else ubg)
+    args = dict(x0=np.clip(w0, lbx, ubx), p=P, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
     solver = nlp.cold
     if warm is not None:
         solver = nlp.warm
@@ -598,6 +653,5 @@ def solve(nlp: Nlp, w0: np.ndarray, P: np.ndarray, lbx: np.ndarray, ubx: np.ndar
         f = float(out["f"])
     except RuntimeError as exc:  # evaluation errors (NaN in the model) end as a failed solve
         status, success, iters, f = f"error: {str(exc).splitlines()[-1][:100]}", False, 0, np.nan
-        point = NlpPoint(np.asarray(w0, float), np.zeros(len(lbx)), np.zeros(len(nlp.lbg)),
-                         np.zeros(len(P)))
+        point = _failed_point(nlp, w0, P)
     return NlpSolution(success, status, f, point, iters, time.perf_counter() - start)

@@ -13,7 +13,7 @@ from casadrone.airframe import Airframe
 from casadrone.config.track import TrackConfig
 from casadrone.guidance import segment_headings
 from casadrone.limit.gates import MAX_EDGES, TargetKind, gate_frame, target_vector
-from casadrone.limit.nlp import Nlp
+from casadrone.limit.nlp import SOLVERS, Nlp
 from casadrone.limit.result import MAX_INTERVALS, LimitLapOptions, model_states
 from casadrone.limit.targets import kind_of_shape
 from casadrone.model import NX
@@ -101,6 +101,10 @@ def check_inputs(track: TrackConfig, options: LimitLapOptions,
                 f"{options.intervals}, {options.degree}, {options.substeps})")
     if options.start_state is not None and len(options.start_state) != NX:
         return f"start_state needs {NX} values, got {len(options.start_state)}"
+    if options.solver not in SOLVERS:
+        return f"solver must be one of {', '.join(SOLVERS)} (got {options.solver!r})"
+    if options.solver == "fatrop" and options.method != "shooting":
+        return "solver 'fatrop' needs method 'shooting' (collocation has no stage order here)"
     if options.attitude == "quaternion" and options.tilt_limit == "axes":
         return ("tilt_limit 'axes' bounds Euler angles: with the quaternion attitude use 'cone' "
                 "or 'none'")

@@ -19,6 +19,8 @@ Start = Literal["closed-loop", "point-mass", "coarse-grid", "relaxed-tolerance"]
 #: The attitude models of the limit lap, and the ways it limits the tilt.
 Attitude = Literal["euler", "quaternion"]
 TiltLimit = Literal["axes", "cone", "none"]
+#: NLP solvers of the full model (casadrone.limit.nlp.SOLVERS).
+Solver = Literal["ipopt", "fatrop"]
 #: How far the verified starts agree (:func:`casadrone.limit.choose.certainty`).
 Certainty = Literal["agreed", "single", "spread"]
 
@@ -90,6 +92,10 @@ class LimitLapOptions:
     tilt_limit: TiltLimit = "axes"
     start_state: tuple[float, ...] | None = None  # 16 values; None: hover at the start
     controller: ControllerConfig | None = None  # closed-loop guess; None: default controller
+    # NLP solver of the full model: "ipopt" (the reference) or "fatrop" (the same NLP in stage
+    # order, Riccati factorisation; IPOPT re-solves where it fails: casadrone.limit.stagewise).
+    # The point-mass reference is always IPOPT's.
+    solver: Solver = "ipopt"
     tol: float = 1e-6  # IPOPT: laps agree with tol 1e-8's to ~1e-6 s in 5-20 % fewer iterations
     max_iter: int = 1000
     # The point-mass reference (not a bound: the best of REFERENCE_SPEEDS_MPS local optima of
@@ -117,6 +123,7 @@ class StartResult(AsDict):
     iterations: int
     wall_time_s: float
     resimulation_miss_m: float = math.nan  # NaN: not converged or not re-simulated
+    solver: str = "ipopt"  # whose point it is ("ipopt" also where fatrop failed first)
 
 
 @dataclass(frozen=True)

@@ -70,7 +70,7 @@ class Problem:
 
     def solve(self, w0: np.ndarray, warm: NlpPoint | None = None) -> NlpSolution:
         return solve(self.full, w0, self.P, *self.box, warm=warm, lbg=self.rows[0],
-                     ubg=self.rows[1])
+                     ubg=self.rows[1], solver=self.options.solver)
 
     @cached_property
     def point_mass(self) -> Nlp:  # only when a point-mass start or the reference needs it
@@ -180,7 +180,8 @@ def relaxed_then_tight(pb: Problem, w0: np.ndarray) -> NlpSolution:
     at = len(pb.frame.p) + pb.full.model.nx + 14  # the first target's ball radius
     radii = P[at::TARGET_SIZE]
     P[at::TARGET_SIZE] = np.maximum(radii, RELAXED_RADIUS_M)
-    loose = solve(pb.full, w0, P, *pb.box, lbg=pb.rows[0], ubg=pb.rows[1])
+    loose = solve(pb.full, w0, P, *pb.box, lbg=pb.rows[0], ubg=pb.rows[1],
+                  solver=pb.options.solver)
     if not loose.success:
         return loose
     tight = pb.solve(loose.point.w, warm=loose.point)

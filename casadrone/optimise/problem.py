@@ -128,7 +128,8 @@ def limit_setup(problem: ProblemConfig, template) -> dict:
     # resimulate: every converged warm start is flown by CVODES (~30 ms) and counts only if it
     # passes the targets, so a lap that exploits the discretisation never reaches the front.
     return {"limit": LimitLapOptions(starts=("closed-loop",), point_mass_reference=False,
-                                     resimulate=True, sensitivities=False),
+                                     resimulate=True, sensitivities=False,
+                                     solver=problem.limit_solver),
             "limit_references": (template_theta, centre)}
 
 

@@ -1,0 +1,142 @@
+"""Benchmark: IPOPT and fatrop side by side on the limit-lap NLP of random Table 1 frames.
+
+For ``--n`` random frames inside paper Table 1 (SY250 template, paper track, the seeds of
+``bench_limitlap.py``), on one core, each solver solves the same NLP (default options, 40
+intervals per leg) from the same starts:
+
+- **cold**: from the frame's closed-loop guess (the ``closed-loop`` start of ``limit_lap``);
+- **warm**: from the nearest neighbour's (normalised θ distance) cold solution by the same
+  solver (IPOPT: primal-dual; fatrop: primal, its CasADi interface takes no multipliers).
+
+fatrop is measured alone (no IPOPT fallback): success, iterations, CPU time (process time) and
+CPU time per iteration, and the lap against IPOPT's from the same start.
+
+Run: ``python benchmarks/bench_limitlap_solvers.py [--n 50] [--seed 0]``. Writes
+``benchmarks/RESULTS-limitlap-solvers.md`` (``--out``).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from benchmarks.machine import markdown  # noqa: E402
+from casadrone.airframe import TABLE1_BOUNDS, build_airframe, random_thetas, with_theta  # noqa: E402
+from casadrone.config.airframe import load_airframe  # noqa: E402
+from casadrone.config.io import load  # noqa: E402
+from casadrone.config.track import TrackConfig  # noqa: E402
+from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
+from casadrone.limit import lap as limit  # noqa: E402
+from casadrone.limit.nlp import NlpPoint, solve  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+SOLVERS = ("ipopt", "fatrop")
+
+
+def _timed(pb, w0, solver: str, warm: NlpPoint | None = None) -> dict:
+    """One solve by ``solver`` alone (fatrop's own result, not its IPOPT fallback)."""
+    c0 = time.process_time()
+    if solver == "fatrop":
+        from casadrone.limit.nlp import _solve_fatrop
+
+        s = _solve_fatrop(pb.full, w0, pb.P, *pb.box, warm, *pb.rows)
+    else:
+        s = solve(pb.full, w0, pb.P, *pb.box, warm=warm, lbg=pb.rows[0], ubg=pb.rows[1])
+    cpu = time.process_time() - c0
+    return {"ok": s.success, "f": s.objective, "it": s.iterations, "cpu": cpu,
+            "status": s.return_status, "point": s.point}
+
+
+def _row(label: str, runs: list[dict]) -> list[str]:
+    ok = [r for r in runs if r["ok"]]
+    cpu = [r["cpu"] for r in runs]
+    per = [r["cpu"] / r["it"] for r in ok if r["it"]]
+    med = np.median
+    return [f"| {label} | {len(ok)}/{len(runs)} | {med([r['it'] for r in ok]):.0f} | "
+            f"{med(cpu):.2f} | {max(cpu):.2f} | {1e3 * med(per):.1f} |"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=50)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--template", default="SY250")
+    ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap-solvers.md")
+    args = ap.parse_args(argv)
+    template = load_airframe(args.template)
+    track = load(TrackConfig, DEFAULT_TRACK)
+    options = limit.LimitLapOptions()
+    thetas, _ = random_thetas(template, args.n, args.seed)
+    keys = list(thetas[0])
+    lo = np.array([TABLE1_BOUNDS[k][0] for k in keys])
+    hi = np.array([TABLE1_BOUNDS[k][1] for k in keys])
+    unit = (np.array([[t[k] for k in keys] for t in thetas]) - lo) / (hi - lo)
+    problems, cold = [], {s: [] for s in SOLVERS}
+    for i, theta in enumerate(thetas):
+        cfg = with_theta(template, theta, name=f"frame{i}")
+        frame = build_airframe(cfg)
+        pb = limit._prepare(frame, track, options,
+                            limit.frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
+        traj = limit.closed_loop_lap(frame, track, options.controller)
+        w0 = limit.guess_from_trajectory(pb.full, traj, pb.x0) if traj is not None else None
+        if w0 is None:
+            w0 = limit.straight_guess(pb.full, pb.targets.route, pb.x0)
+        problems.append(pb)
+        if i == 0:  # warm-up: builds both solvers once
+            for s in SOLVERS:
+                _timed(pb, w0, s)
+        for s in SOLVERS:
+            cold[s].append(_timed(pb, w0, s))
+        print(i, *(f"{s}: {cold[s][-1]['status']} {cold[s][-1]['f']:.5f} "
+                   f"{cold[s][-1]['it']} it {cold[s][-1]['cpu']:.1f} s" for s in SOLVERS),
+              flush=True)
+    warm = {s: [] for s in SOLVERS}
+    for s in SOLVERS:
+        ok = [i for i, r in enumerate(cold[s]) if r["ok"]]
+        for i in ok:
+            j = min((j for j in ok if j != i), key=lambda j: np.linalg.norm(unit[i] - unit[j]),
+                    default=None)
+            if j is None:
+                break
+            ws = cold[s][j]["point"]
+            warm[s].append(_timed(problems[i], ws.w, s, warm=ws) | {"frame": i})
+    both = [i for i in range(args.n) if cold["ipopt"][i]["ok"] and cold["fatrop"][i]["ok"]]
+    rel = np.array([abs(cold["fatrop"][i]["f"] - cold["ipopt"][i]["f"]) / cold["ipopt"][i]["f"]
+                    for i in both])
+    lines = ["# Limit-lap NLP: IPOPT and fatrop side by side", "", markdown(), "",
+             f"Command: `python benchmarks/bench_limitlap_solvers.py --n {args.n} --seed "
+             f"{args.seed} --template {args.template}` (paper track, 40 intervals per leg, "
+             f"one core; CPU = process time; decision variables {', '.join(keys)}).", "",
+             "| solve | converged | iterations (median) | CPU median (s) | CPU max (s) | "
+             "CPU per iteration, median (ms) |", "|---|---|---|---|---|---|"]
+    for s in SOLVERS:
+        lines += _row(f"{s}, cold (closed-loop guess)", cold[s])
+    for s in SOLVERS:
+        if warm[s]:
+            lines += _row(f"{s}, warm (nearest neighbour's solution)", warm[s])
+    if len(rel):
+        lines += ["", f"Same start, both converged ({len(both)} frames): |fatrop − IPOPT| / "
+                  f"IPOPT lap median {100 * np.median(rel):.4f} %, max {100 * rel.max():.4f} %; "
+                  f"within 0.01 %: {int(np.sum(rel <= 1e-4))}/{len(both)}."]
+    fails = [f"frame {i}: {cold['fatrop'][i]['status']}" for i in range(args.n)
+             if not cold["fatrop"][i]["ok"]]
+    if fails:
+        lines += ["", "fatrop cold failures: " + "; ".join(fails) + "."]
+    args.out.write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -9,7 +9,9 @@ intervals per leg) from the same starts:
   solver (IPOPT: primal-dual; fatrop: primal, its CasADi interface takes no multipliers).
 
 fatrop is measured alone (no IPOPT fallback): success, iterations, CPU time (process time) and
-CPU time per iteration, and the lap against IPOPT's from the same start.
+CPU time per iteration, and the lap against IPOPT's from the same start. ``--solvers`` may add
+``ipopt-stage``: IPOPT on the stage-ordered NLP (what MUMPS's fill-in makes of that order; cold
+only).
 
 Run: ``python benchmarks/bench_limitlap_solvers.py [--n 50] [--seed 0]``. Writes
 ``benchmarks/RESULTS-limitlap-solvers.md`` (``--out``).
@@ -41,12 +43,40 @@ from casadrone.limit import lap as limit  # noqa: E402
 from casadrone.limit.nlp import NlpPoint, solve  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-SOLVERS = ("ipopt", "fatrop")
+_STAGE_IPOPT: dict = {}
+
+
+def _ipopt_stage(pb, w0) -> tuple[bool, float, int, str, NlpPoint]:
+    """IPOPT on the stage-ordered NLP (the oracle fatrop uses), from w0."""
+    import casadi as ca
+
+    from casadrone.limit.nlp import ipopt_options
+    from casadrone.limit.stagewise import fatrop_solver
+
+    nlp = pb.full
+    fs = fatrop_solver(nlp, nlp.tol, nlp.max_iter)
+    if id(fs) not in _STAGE_IPOPT:
+        _STAGE_IPOPT[id(fs)] = ca.nlpsol("ipopt_stage", "ipopt", fs.oracle,
+                                         ipopt_options(nlp.tol, nlp.max_iter, False))
+    S, o = _STAGE_IPOPT[id(fs)], fs.order
+    lbx, ubx = pb.box
+    out = S(x0=o.to_stage(np.clip(w0, lbx, ubx)), p=pb.P, lbx=o.to_stage(lbx),
+            ubx=o.to_stage(ubx), lbg=o.to_stage(pb.rows[0], True),
+            ubg=o.to_stage(pb.rows[1], True))
+    st = S.stats()
+    point = NlpPoint(o.from_stage(np.array(out["x"]).ravel()), np.zeros(len(w0)),
+                     np.zeros(len(pb.rows[0])), np.zeros(len(pb.P)))
+    return bool(st["success"]), float(out["f"]), int(st["iter_count"]), \
+        str(st["return_status"]), point
 
 
 def _timed(pb, w0, solver: str, warm: NlpPoint | None = None) -> dict:
     """One solve by ``solver`` alone (fatrop's own result, not its IPOPT fallback)."""
     c0 = time.process_time()
+    if solver == "ipopt-stage":
+        ok, f, it, status, point = _ipopt_stage(pb, w0)
+        return {"ok": ok, "f": f, "it": it, "cpu": time.process_time() - c0, "status": status,
+                "point": point}
     if solver == "fatrop":
         from casadrone.limit.nlp import _solve_fatrop
 
@@ -72,8 +102,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--template", default="SY250")
+    ap.add_argument("--solvers", default="ipopt,fatrop",
+                    help="comma-separated: ipopt, fatrop, ipopt-stage (the first two required)")
     ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap-solvers.md")
     args = ap.parse_args(argv)
+    SOLVERS = tuple(args.solvers.split(","))
     template = load_airframe(args.template)
     track = load(TrackConfig, DEFAULT_TRACK)
     options = limit.LimitLapOptions()
@@ -101,8 +134,8 @@ def main(argv: list[str] | None = None) -> int:
         print(i, *(f"{s}: {cold[s][-1]['status']} {cold[s][-1]['f']:.5f} "
                    f"{cold[s][-1]['it']} it {cold[s][-1]['cpu']:.1f} s" for s in SOLVERS),
               flush=True)
-    warm = {s: [] for s in SOLVERS}
-    for s in SOLVERS:
+    warm: dict[str, list[dict]] = {s: [] for s in SOLVERS if s != "ipopt-stage"}
+    for s in warm:
         ok = [i for i, r in enumerate(cold[s]) if r["ok"]]
         for i in ok:
             j = min((j for j in ok if j != i), key=lambda j: np.linalg.norm(unit[i] - unit[j]),
@@ -116,14 +149,15 @@ def main(argv: list[str] | None = None) -> int:
                     for i in both])
     lines = ["# Limit-lap NLP: IPOPT and fatrop side by side", "", markdown(), "",
              f"Command: `python benchmarks/bench_limitlap_solvers.py --n {args.n} --seed "
-             f"{args.seed} --template {args.template}` (paper track, 40 intervals per leg, "
-             f"one core; CPU = process time; decision variables {', '.join(keys)}).", "",
+             f"{args.seed} --template {args.template} --solvers {args.solvers}` (paper track, "
+             f"40 intervals per leg, one core; CPU = process time; decision variables "
+             f"{', '.join(keys)}).", "",
              "| solve | converged | iterations (median) | CPU median (s) | CPU max (s) | "
              "CPU per iteration, median (ms) |", "|---|---|---|---|---|---|"]
     for s in SOLVERS:
         lines += _row(f"{s}, cold (closed-loop guess)", cold[s])
     for s in SOLVERS:
-        if warm[s]:
+        if warm.get(s):
             lines += _row(f"{s}, warm (nearest neighbour's solution)", warm[s])
     if len(rel):
         lines += ["", f"Same start, both converged ({len(both)} frames): |fatrop − IPOPT| / "

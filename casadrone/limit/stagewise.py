@@ -158,14 +158,18 @@ def _stage_of_position(order: StageOrder) -> np.ndarray:
     return np.repeat(np.arange(order.n_stages), np.add(order.nx, order.nu))
 
 
-def _permuted(A: ca.MX, rows: list[int], cols: list[int], symmetric: bool = False) -> ca.MX:
-    """``A[rows, cols]`` (of ``triu2symm(A)`` if ``symmetric``) as one gather of A's nonzeros:
+def _permuted(A: ca.MX, rows: list[int], cols: list[int], symmetric: bool = False,
+              upper: bool = False) -> ca.MX:
+    """``A[rows, cols]`` (of ``triu2symm(A)`` if ``symmetric``; its upper triangle if ``upper``)
+    as one gather of A's nonzeros:
     the index map is worked out once on numbers, so each evaluation only copies values."""
     sp = A.sparsity()
     tag = ca.DM(sp, ca.DM(np.arange(1, sp.nnz() + 1, dtype=float)))
     if symmetric:
         tag = ca.triu2symm(tag)
     tag = tag[rows, cols]
+    if upper:
+        tag = ca.triu(tag)
     return ca.sparsity_cast(A.nz[(np.array(tag.nonzeros(), dtype=int) - 1).tolist()],
                             tag.sparsity())
 
@@ -218,6 +222,12 @@ def stagewise_functions(problem: dict, jac_g: ca.Function, hess_lag: ca.Function
                                   ["grad_gamma_x", "hess_gamma_x_x"]),
         "nlp_grad": ca.Function("nlp_grad", [x, p, lam_f, lam_g], [f, g[row], grad_x, grad_p],
                                 lag, ["f", "g", "grad_gamma_x", "grad_gamma_p"]),
+        # IPOPT's signatures (to measure IPOPT on the stage order: MUMPS's fill-in)
+        "nlp_grad_f:2": ca.Function("nlp_grad_f", [x, p], [f, grad_f], xp, ["f", "grad_f_x"]),
+        "nlp_hess_l:1": ca.Function("nlp_hess_l", [x, p, lam_f, lam_g],
+                                    [_permuted(hess_lag(xo, p, lam_f, lam_go), col, col,
+                                               symmetric=True, upper=True)],
+                                    lag, ["triu_hess_gamma_x_x"]),
     }
 
 
@@ -254,9 +264,11 @@ class StageOracle(ca.Callback):
         return [self.functions["nlp_f"](*arg), self.functions["nlp_g"](*arg)]
 
     def get_factory(self, name, s_in, s_out, aux, opts):
-        if name not in self.functions:
-            raise NotImplementedError(f"the stage-ordered NLP does not provide {name}")
-        return self.functions[name]
+        for key in (name, f"{name}:{len(s_out)}"):
+            fn = self.functions.get(key)
+            if fn is not None and fn.n_out() == len(s_out):
+                return fn
+        raise NotImplementedError(f"the stage-ordered NLP does not provide {name} -> {s_out}")
 
 
 @dataclass(frozen=True)

@@ -117,8 +117,8 @@ __all__ = [
     "POINT_MASS_PARAMS", "REFERENCE_SPEEDS_MPS", "RELAXED_RADIUS_M", "Attitude", "Certainty",
     "LimitLap", "LimitLapOptions", "Solver", "Start", "StartResult", "Targets", "TiltLimit",
     "bounds", "check_inputs", "closed_loop_lap", "euler_states", "frame_clearance_m",
-    "guess_from_lap", "guess_from_trajectory", "lifted_guess", "limit_lap", "model_states", "node_times",
-    "param_sensitivity", "point_mass_guess", "point_mass_p", "point_mass_reference",
+    "guess_from_lap", "guess_from_trajectory", "lifted_guess", "limit_lap", "model_states",
+    "node_times", "param_sensitivity", "point_mass_guess", "point_mass_p", "point_mass_reference",
     "refusal", "row_bounds", "start_state", "straight_guess", "track_targets",
 ]
 

@@ -41,6 +41,7 @@ from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
 from casadrone.limit import lap as limit  # noqa: E402
 from casadrone.limit.nlp import NlpPoint, solve  # noqa: E402
+from casadrone.limit.starts import prepare  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 _STAGE_IPOPT: dict = {}
@@ -88,6 +89,44 @@ def _timed(pb, w0, solver: str, warm: NlpPoint | None = None) -> dict:
             "status": s.return_status, "point": s.point}
 
 
+def _solver_of(pb, solver: str):
+    """The nlpsol instance that ran the last cold solve of ``solver`` (for its statistics)."""
+    from casadrone.limit.stagewise import fatrop_solver
+
+    nlp = pb.full
+    if solver == "fatrop":
+        return fatrop_solver(nlp, nlp.tol, nlp.max_iter).cold
+    if solver == "ipopt-stage":
+        return _STAGE_IPOPT[id(fatrop_solver(nlp, nlp.tol, nlp.max_iter))]
+    return nlp.cold
+
+
+def profile(template_name: str) -> list[str]:
+    """Per-iteration CPU of one cold solve of the template itself (closed-loop guess) by each
+    solver, split into the NLP's function evaluations (CasADi's t_proc_nlp_* statistics) and
+    the rest (the solver's own work: factorisation, line search, bookkeeping)."""
+    template = load_airframe(template_name)
+    track = load(TrackConfig, DEFAULT_TRACK)
+    options = limit.LimitLapOptions()
+    frame = build_airframe(template)
+    pb = prepare(frame, track, options,
+                 limit.frame_clearance_m(frame, template.prop_diameter_mm / 1000))
+    w0 = limit.guess_from_trajectory(pb.full, limit.closed_loop_lap(frame, track), pb.x0)
+    lines = [f"Per iteration, {template_name} cold from its closed-loop guess "
+             f"(`python benchmarks/bench_limitlap_solvers.py --profile {template_name}`):", "",
+             "| solver | lap (s) | iterations | CPU per iteration (ms) | of it: function "
+             "evaluations (ms) | of it: the solver's own work (ms) |", "|---|---|---|---|---|---|"]
+    for solver in ("ipopt", "fatrop", "ipopt-stage"):
+        _timed(pb, w0, solver)  # builds once
+        r = _timed(pb, w0, solver)
+        st = _solver_of(pb, solver).stats()
+        ev = sum(v for k, v in st.items() if k.startswith("t_proc_nlp"))
+        it = max(r["it"], 1)
+        lines.append(f"| {solver} | {r['f']:.6f} | {r['it']} | {1e3 * r['cpu'] / it:.1f} | "
+                     f"{1e3 * ev / it:.1f} | {1e3 * (r['cpu'] - ev) / it:.1f} |")
+    return lines
+
+
 def _row(label: str, runs: list[dict]) -> list[str]:
     ok = [r for r in runs if r["ok"]]
     cpu = [r["cpu"] for r in runs]
@@ -105,7 +144,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--solvers", default="ipopt,fatrop",
                     help="comma-separated: ipopt, fatrop, ipopt-stage (the first two required)")
     ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap-solvers.md")
+    ap.add_argument("--profile", metavar="AIRFRAME",
+                    help="only print the per-iteration split of one cold solve of AIRFRAME")
     args = ap.parse_args(argv)
+    if args.profile:
+        print("\n".join(profile(args.profile)))
+        return 0
     SOLVERS = tuple(args.solvers.split(","))
     template = load_airframe(args.template)
     track = load(TrackConfig, DEFAULT_TRACK)
@@ -119,8 +163,8 @@ def main(argv: list[str] | None = None) -> int:
     for i, theta in enumerate(thetas):
         cfg = with_theta(template, theta, name=f"frame{i}")
         frame = build_airframe(cfg)
-        pb = limit._prepare(frame, track, options,
-                            limit.frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
+        pb = prepare(frame, track, options,
+                     limit.frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
         traj = limit.closed_loop_lap(frame, track, options.controller)
         w0 = limit.guess_from_trajectory(pb.full, traj, pb.x0) if traj is not None else None
         if w0 is None:

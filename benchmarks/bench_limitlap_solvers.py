@@ -33,7 +33,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.machine import markdown  # noqa: E402
+from benchmarks.machine import markdown, summary_section  # noqa: E402
 from casadrone.airframe import TABLE1_BOUNDS, build_airframe, random_thetas, with_theta  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
@@ -127,6 +127,26 @@ def profile(template_name: str) -> list[str]:
     return lines
 
 
+def summary_row(cold: dict, warm: dict, n: int) -> tuple[str, str, str]:
+    """The performance page's row: median CPU per iteration and per warm solve, both solvers."""
+    def per_it(runs):
+        return 1e3 * float(np.median([r["cpu"] / r["it"] for r in runs if r["ok"] and r["it"]]))
+
+    def med_cpu(runs):
+        return float(np.median([r["cpu"] for r in runs])) if runs else float("nan")
+
+    best_warm = min(med_cpu(warm["ipopt"]), med_cpu(warm["fatrop"]))
+    best_cold = min(med_cpu(cold["ipopt"]), med_cpu(cold["fatrop"]))
+    verdict = "met" if best_warm <= 0.25 and best_cold <= 3.0 else "not met"
+    return (f"limit-lap NLP of {n} random Table 1 frames, IPOPT and fatrop from the same starts, "
+            "one core",
+            f"CPU per iteration {per_it(cold['ipopt']):.1f} ms (IPOPT), "
+            f"{per_it(cold['fatrop']):.1f} ms (fatrop); cold solve {med_cpu(cold['ipopt']):.1f} / "
+            f"{med_cpu(cold['fatrop']):.1f} s, warm {med_cpu(warm['ipopt']):.2f} / "
+            f"{med_cpu(warm['fatrop']):.2f} s median (targets warm ≤ 0.25 s, cold ≤ 3 s: {verdict})",
+            f"`python benchmarks/bench_limitlap_solvers.py --n {n}`")
+
+
 def _row(label: str, runs: list[dict]) -> list[str]:
     ok = [r for r in runs if r["ok"]]
     cpu = [r["cpu"] for r in runs]
@@ -211,6 +231,7 @@ def main(argv: list[str] | None = None) -> int:
              if not cold["fatrop"][i]["ok"]]
     if fails:
         lines += ["", "fatrop cold failures: " + "; ".join(fails) + "."]
+    lines += ["", summary_section([summary_row(cold, warm, args.n)])]
     args.out.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0

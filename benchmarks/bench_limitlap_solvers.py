@@ -143,7 +143,8 @@ def summary_row(cold: dict, warm: dict, n: int) -> tuple[str, str, str]:
             f"CPU per iteration {per_it(cold['ipopt']):.1f} ms (IPOPT), "
             f"{per_it(cold['fatrop']):.1f} ms (fatrop); cold solve {med_cpu(cold['ipopt']):.1f} / "
             f"{med_cpu(cold['fatrop']):.1f} s, warm {med_cpu(warm['ipopt']):.2f} / "
-            f"{med_cpu(warm['fatrop']):.2f} s median (targets warm ≤ 0.25 s, cold ≤ 3 s: {verdict})",
+            f"{med_cpu(warm['fatrop']):.2f} s median (targets warm ≤ 0.25 s, cold ≤ 3 s: "
+            f"{verdict})",
             f"`python benchmarks/bench_limitlap_solvers.py --n {n}`")
 
 

@@ -295,7 +295,9 @@ def compare_run(
     if problem.test_problem is not None:
         raise ValueError(f"{run_dir}: a run of the test problem {problem.test_problem.name!r} has "
                          "no airframes to compare")
-    setup = study_setup(Study(problem))
+    # the gains are the closed-loop laps' (intervals of the shared controller): no limit lap
+    # is solved here, also for a run that optimised a limit-lap index (J3_limit, effort)
+    setup = replace(study_setup(Study(problem)), limit=None)
     measured = (reference_table if isinstance(reference_table, Table4Reference)
                 else load_reference(reference_table))
     refs = []

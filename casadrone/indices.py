@@ -221,6 +221,28 @@ def limit_lap_time(lap) -> float:
     return lap.lap_time_s
 
 
+#: Smoothing of T^{3/2} at zero thrust (N) in the limit lap's effort: (T² + δ²)^{3/4}, twice
+#: differentiable, so the co-design NLP can hold the effort as a constraint
+#: (:func:`casadrone.codesign.nlp.effort` uses the same δ; its effect at hover thrust is 1e-6).
+EFFORT_SMOOTHING_N = 0.01
+
+
+def limit_lap_effort(lap) -> float:
+    """effort: the limit lap's ∫ Σ_i T_i^{3/2} dt (N^1.5·s), each interval's length times the
+    rotor thrusts at its start node (the left rectangle rule the limit lap's commands are held
+    on; the co-design NLP's :func:`casadrone.codesign.nlp.effort` is the same sum).
+
+    Why: by momentum theory a rotor making thrust T in still air needs at least the ideal
+    induced power T^{3/2} / sqrt(2 ρ A) (Leishman, Principles of Helicopter Aerodynamics, 2nd
+    ed., eq. 2.17), so this is the rotors' ideal energy over the lap times sqrt(2 ρ A), a
+    constant of the propellers. The rotor states are thrusts under the paper's propulsion model
+    (rotor speeds under ``propeller``: this index is refused there,
+    :mod:`casadrone.optimise.checks`)."""
+    thrust = np.asarray(lap.x_euler, float)[:-1, 12:16]
+    h = np.diff(np.asarray(lap.t, float))
+    return float(np.sum(h * np.sum((thrust**2 + EFFORT_SMOOTHING_N**2) ** 0.75, axis=1)))
+
+
 _BUILTIN = (
     Index("J1", "m/s", "max", "mean speed on straight sectors (climb excluded)",
           mean_straight_speed),
@@ -233,8 +255,11 @@ _BUILTIN = (
     Index("Jp", "deg", "min", "maximum pitch angle |θ| over the lap", max_pitch),
     Index("J3_limit", "s", "min", "limit lap: minimum-time lap of the airframe (optimal control, "
           "thrust and attitude limits)", limit_lap_time, source="limit"),
+    Index("effort", "N^1.5 s", "min", "limit lap's effort: integral of the sum of T_i^1.5 over "
+          "the lap, the rotors' ideal induced energy times sqrt(2 rho A)", limit_lap_effort,
+          source="limit"),
 )
-#: Built-in closed-loop indices (J1…Jp) and built-in limit-lap indices (J3_limit).
+#: Built-in closed-loop indices (J1…Jp) and built-in limit-lap indices (J3_limit, effort).
 BUILTIN_NAMES: tuple[str, ...] = tuple(i.name for i in _BUILTIN if i.source == "lap")
 BUILTIN_LIMIT_NAMES: tuple[str, ...] = tuple(i.name for i in _BUILTIN if i.source == "limit")
 

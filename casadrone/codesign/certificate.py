@@ -155,30 +155,17 @@ def certify(prep, point) -> Certificate:
         checks.append(TrackCheck(label, ref, laps[0], laps[1], fixed, gap, miss, ok))
         grads.append(_gradient(prep, cfg, warm, prep.tracks[k], prep.keys)
                      if warm.success else np.full(len(prep.keys), np.nan))
-    n_tr = len(prep.labels)
-    row0 = cd.row_offsets[-1]
-    lam_feas = point.lam_g[row0:row0 + cd.n_feas]
-    tail = point.lam_g[row0 + cd.n_feas:]
-    if cd.combine == "worst":
-        mu, tail = tail[:n_tr], tail[n_tr:]
-    else:
-        mu = np.ones(n_tr)
+    lam_feas, mu, lam_eps = _row_multipliers(cd, point.lam_g)
     weights = np.array(prep.weights) * mu
     g_theta = sum(w * g for w, g in zip(weights, grads, strict=True))
     width = prep.upper - prep.lower
     _, s = cd.split(point.z)
     rows = _frame_jacobians(cd, s)
     reduced = g_theta * width + rows["feas"].T @ lam_feas
-    names = list(cd.frame.row_names)
-    active = {n: float(lam) for n, lam in zip(names, lam_feas, strict=True)
-              if abs(lam) > ACTIVE}
-    for i, m in enumerate(cd.epsilon):
-        lam = tail[i:i + 1] if m == "mass_kg" else tail[i:i + 2]
-        J = rows[m]
-        reduced = reduced + J.T @ lam
-        for j, value in enumerate(np.atleast_1d(lam)):
-            if abs(value) > ACTIVE:
-                active[f"ε {m}{'' if J.shape[0] == 1 else f' diagonal {j + 1}'}"] = float(value)
+    for m, lam in lam_eps.items():
+        if m in rows:  # the effort row has no direct θ term: it reaches θ through the lap
+            reduced = reduced + rows[m].T @ lam
+    active = {k: v for k, v in active_constraints(prep, point).items() if "bound" not in k}
     lam_s = point.lam_x[cd.offsets[-1]:cd.offsets[-1] + len(prep.keys)]
     scale = max(float(np.max(np.abs(g_theta * width))), 1e-12)
     tol = max(GRAD_RTOL * scale, GRAD_ATOL)
@@ -195,6 +182,46 @@ def certify(prep, point) -> Certificate:
     failed += [f"{v.key}: reduced gradient {v.reduced_gradient:+.3g} s ({v.state})"
                for v in variables if not v.passed]
     return Certificate(tuple(checks), tuple(variables), active, not failed, "; ".join(failed))
+
+
+def _row_multipliers(cd, lam_g: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                      dict[str, np.ndarray]]:
+    """IPOPT's multipliers of the rows appended to the tracks' own: (feasibility rows, the
+    epigraph rows of ``combine: worst`` (ones for ``sum``), each ε measure's rows)."""
+    n_tr = len(cd.parts)
+    row0 = cd.row_offsets[-1]
+    lam_feas = lam_g[row0:row0 + cd.n_feas]
+    tail = lam_g[row0 + cd.n_feas:]
+    if cd.combine == "worst":
+        mu, tail = tail[:n_tr], tail[n_tr:]
+    else:
+        mu = np.ones(n_tr)
+    lam_eps, i = {}, 0
+    for m in cd.epsilon:
+        n = 2 if m == "span_m" else 1  # span: both rotor diagonals
+        lam_eps[m], i = tail[i:i + n], i + n
+    return lam_feas, mu, lam_eps
+
+
+def active_constraints(prep, point) -> dict[str, float]:
+    """What holds a co-design point: the frame's feasibility rows, the ε rows and the θ bounds
+    whose multiplier exceeds :data:`ACTIVE` (name → IPOPT's multiplier: s of lap per unit of the
+    row, per box width for a bound; negative at a lower bound)."""
+    cd = prep.nlp
+    lam_feas, _, lam_eps = _row_multipliers(cd, point.lam_g)
+    active = {n: float(lam) for n, lam in zip(cd.frame.row_names, lam_feas, strict=True)
+              if abs(lam) > ACTIVE}
+    for m, lam in lam_eps.items():
+        for j, value in enumerate(lam):
+            if abs(value) > ACTIVE:
+                active[f"ε {m}{'' if len(lam) == 1 else f' diagonal {j + 1}'}"] = float(value)
+    _, s = cd.split(point.z)
+    lam_s = point.lam_x[cd.offsets[-1]:cd.offsets[-1] + len(prep.keys)]
+    for key, si, lam in zip(prep.keys, s, lam_s, strict=True):
+        side = "lower" if si <= AT_BOUND else "upper" if si >= 1 - AT_BOUND else ""
+        if side and abs(lam) > ACTIVE:
+            active[f"{key} at its {side} bound"] = float(lam)
+    return active
 
 
 def _frame_jacobians(cd, s: np.ndarray) -> dict[str, np.ndarray]:

@@ -167,7 +167,8 @@ def _part(template: AirframeConfig, track: TrackConfig, options: LimitLapOptions
     frame = build_airframe(template)
     pb = prepare_lap(frame, track, options, options.gate_clearance_m or 0.0)
     return TrackPart(pb.full, *pb.box, *pb.rows, pb.x0, pb.targets.vector, weight,
-                     hover_start=options.start_state is None, thrust_max=frame.thrust_gain)
+                     hover_start=options.start_state is None, thrust_max=frame.thrust_gain,
+                     first_timed=pb.targets.first_timed)
 
 
 def gate_clearance(template: AirframeConfig, lower: np.ndarray, upper: np.ndarray,
@@ -214,15 +215,30 @@ def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Pr
                               gate_clearance_m=gate_clearance(template, lower, upper, keys))
     parts = tuple(_part(template, t, options, w) for t, w in zip(tracks, weights, strict=True))
     frame = SymbolicFrame(template, keys, lower, upper)
+    nlp = _built(problem, template, keys, lower, upper, tracks, weights, parts, frame, epsilon)
+    laps = tuple(limit_lap(template, t, options) for t in tracks)
+    return Prepared(problem, template, keys, lower, upper, labels, tracks, weights, options,
+                    nlp, laps)
+
+
+def _built(problem, template, keys, lower, upper, tracks, weights, parts, frame,
+           epsilon) -> CodesignNlp:
+    """The co-design NLP of this shape, built once per process."""
     key = (template.model_dump_json(), keys, tuple(lower), tuple(upper),
            tuple(t.model_dump_json() for t in tracks), weights, problem.codesign.combine,
            problem.codesign.intervals, epsilon, problem.codesign.expand)
     if key not in _BUILT:
         _BUILT[key] = build_codesign_nlp(parts, frame, problem.codesign.combine, epsilon,
                                          expand=problem.codesign.expand)
-    laps = tuple(limit_lap(template, t, options) for t in tracks)
-    return Prepared(problem, template, keys, lower, upper, labels, tracks, weights, options,
-                    _BUILT[key], laps)
+    return _BUILT[key]
+
+
+def constrained(prep: Prepared, epsilon: tuple[str, ...]) -> Prepared:
+    """``prep`` with the measures ``epsilon`` bounded by ε rows: the same tracks, box and
+    template laps, the NLP built once per process."""
+    nlp = _built(prep.problem, prep.template, prep.keys, prep.lower, prep.upper, prep.tracks,
+                 prep.weights, prep.nlp.parts, prep.nlp.frame, tuple(epsilon))
+    return replace(prep, nlp=nlp)
 
 
 # --------------------------------------------------------------------------------------------

@@ -16,11 +16,11 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from casadrone.codesign.driver import CodesignPoint, Prepared, prepare, solve_from
+from casadrone.codesign.driver import CodesignPoint, Prepared, constrained, solve_from
 
 
 @dataclass(frozen=True)
@@ -42,6 +42,7 @@ class Front:
     points: tuple[FrontPoint, ...]
     cpu_s: float
     stopped: str = ""  # why the sweep ended early ("" when every ε was met)
+    prepared: Prepared | None = field(default=None, repr=False)  # the ε-constrained NLP's
 
 
 def measure_value(prep: Prepared, point: CodesignPoint, measure: str) -> float:
@@ -62,12 +63,12 @@ def measure_value(prep: Prepared, point: CodesignPoint, measure: str) -> float:
 def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points: int = 15,
                  lowest: float = 0.5) -> Front:
     """The front from ``best`` (the unconstrained optimum) down to ``lowest`` × its measure."""
-    prep = prepare(prep_free.problem, epsilon=(measure,))
+    prep = constrained(prep_free, (measure,))
     c0 = time.process_time()
     top = measure_value(prep, best, measure)
     n_rows = 2 if measure == "span_m" else 1
     prev = replace(best, lam_g=np.concatenate([best.lam_g, np.zeros(n_rows)]))
-    out = [FrontPoint(best, top, math.inf, "fastest frame", True)]
+    out = [FrontPoint(prev, top, math.inf, "fastest frame", True)]
     stopped = ""
     for eps in top * lowest ** (np.arange(1, points) / (points - 1)):
         ok, status, pt = solve_from(prep, prev.z, {measure: float(eps)}, warm=prev)
@@ -76,15 +77,62 @@ def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points:
             break
         out.append(FrontPoint(pt, measure_value(prep, pt, measure), float(eps), status, ok))
         prev = pt
-    return Front(measure, tuple(out), time.process_time() - c0, stopped)
+    return Front(measure, tuple(out), time.process_time() - c0, stopped, prep)
+
+
+#: Beside ``pareto.csv`` in a front's run directory: per point, its laps, measures and active
+#: constraints (JSON), and its limit laps' nodes (numpy ``.npz``), read by the report.
+POINTS_FILE = "codesign.json"
+LAPS_FILE = "codesign-laps.npz"
+
+
+def point_laps(prep: Prepared, point: CodesignPoint) -> dict[str, dict[str, np.ndarray]]:
+    """Each track's limit lap of a co-design point: node times (s), node states with Euler
+    angles (16 columns), commands held on each interval, and the split times (s)."""
+    from casadrone.limit.lap import _trajectory
+
+    ws, _ = prep.nlp.split(point.z)
+    out = {}
+    for label, part, w in zip(prep.labels, prep.nlp.parts, ws, strict=True):
+        lap = _trajectory(part.nlp, w, part.nlp.layout)
+        T, _, _ = part.nlp.unpack(w)
+        out[label] = {"t": lap.t, "x": lap.x_euler, "u": lap.u,
+                      "splits": np.cumsum(T)[part.first_timed:]}
+    return out
+
+
+def point_record(prep: Prepared, fp: FrontPoint, measure: str) -> dict:
+    """One front point as plain data for :data:`POINTS_FILE`."""
+    import casadi as ca
+
+    from casadrone.codesign.certificate import active_constraints
+    from casadrone.codesign.nlp import effort
+
+    ws, _ = prep.nlp.split(fp.point.z)
+    efforts = {label: float(ca.evalf(effort(part, ca.DM(w))))
+               for label, part, w in zip(prep.labels, prep.nlp.parts, ws, strict=True)}
+    p = fp.point
+    return {"theta": p.theta, "objective_s": p.objective, "laps_s": p.laps_s,
+            "measure": measure, "value": fp.measure,
+            "epsilon": None if math.isinf(fp.epsilon) else fp.epsilon, "status": fp.status,
+            "mass_kg": p.mass_kg, "span_m": p.span_m, "effort": efforts,
+            "iterations": p.iterations, "cpu_s": p.cpu_s,
+            "active_constraints": active_constraints(prep, p)}
 
 
 def write_run(path, prep: Prepared, front: Front, n_solves: int):
     """The front as a run directory (``config.yaml`` a problem with the lap and the measure as
-    objectives, ``pareto.csv`` variables then objectives, ``manifest.json``), so ``decide`` and
-    the other run readers open it like an optimiser's run. Returns the RunStore."""
+    objectives, ``pareto.csv`` variables then objectives, ``manifest.json``, each solve in
+    ``history.sqlite``, and :data:`POINTS_FILE` and :data:`LAPS_FILE` for the report), so
+    ``decide``, ``report``, ``compare`` and ``export`` open it like an optimiser's run. The
+    manifest's backend is ``codesign`` and records the limit lap's posing (intervals, gate
+    clearance) so a reader re-solves the same lap. Returns the RunStore."""
+    import json
+
+    prep = front.prepared or prep  # the ε-constrained NLP the points were solved in
     from casadrone.config.problem import ProblemConfig
-    from casadrone.optimise.store import RunStore, now
+    from casadrone.optimise.store import RunStore, atomic_write, now
+    from casadrone.results import Record
 
     data = prep.problem.model_dump(exclude={"codesign"})
     data["objectives"] = [{"index": "J3_limit", "sense": "min"},
@@ -98,9 +146,29 @@ def write_run(path, prep: Prepared, front: Front, n_solves: int):
     try:
         X = [[p.point.theta[k] for k in prep.keys] for p in front.points]
         F = [[p.point.objective, p.measure] for p in front.points]
+        records = [Record(theta=p.point.theta, status="completed",
+                          indices=dict(zip(names, f, strict=True)), wall_time_s=p.point.cpu_s)
+                   for p, f in zip(front.points, F, strict=True)]
+        store.write_generation(0, records, {
+            "n_evaluations": len(records), "archive_size": len(records),
+            "feasible_fraction": 1.0, "hypervolume": None, "elapsed_s": front.cpu_s})
+        points = [point_record(prep, p, front.measure) for p in front.points]
+        atomic_write(store.path / POINTS_FILE, json.dumps(
+            {"measure": front.measure, "tracks": list(prep.labels),
+             "intervals": prep.options.intervals,
+             "gate_clearance_m": prep.options.gate_clearance_m, "points": points},
+            indent=1, default=float))
+        laps = [point_laps(prep, p.point) for p in front.points]
+        arrays = {f"{i}/{label}/{k}": v for i, lap in enumerate(laps)
+                  for label, parts in lap.items() for k, v in parts.items()}
+        with open(store.path / LAPS_FILE, "wb") as fh:
+            np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]  # names → arrays
         store.write_pareto(list(prep.keys), names, X, F)
         store.update_manifest(finished=now(), status="completed", n_evaluations=n_solves,
-                              cpu_s=front.cpu_s, front_stopped=front.stopped)
+                              cpu_s=front.cpu_s, front_stopped=front.stopped,
+                              codesign={"intervals": prep.options.intervals,
+                                        "gate_clearance_m": prep.options.gate_clearance_m,
+                                        "tracks": list(prep.labels)})
     finally:
         store.release()
     return store

@@ -22,14 +22,13 @@ import casadi as ca
 import numpy as np
 
 from casadrone.codesign.frame import SymbolicFrame
+from casadrone.indices import EFFORT_SMOOTHING_N  # one δ for the index and the NLP
 from casadrone.limit.nlp import Nlp, ipopt_options
 
 Combine = Literal["sum", "worst"]
 #: The ε-constrained measures a co-design NLP can hold: the frame's mass and span, and the
 #: limit lap's effort (:func:`effort`).
 MEASURES = ("mass_kg", "span_m", "effort")
-#: Smoothing of T^{3/2} at zero thrust (N): (T² + δ²)^{3/4}, twice differentiable.
-EFFORT_SMOOTHING_N = 0.01
 
 
 def effort(part: TrackPart, w):
@@ -70,6 +69,7 @@ class TrackPart:
     weight: float = 1.0
     hover_start: bool = True  # the start state's thrusts follow the frame (hover at the start)
     thrust_max: float = np.inf  # N, a rotor's thrust limit (the bound of the freed start thrusts)
+    first_timed: int = 0  # the leg that ends at the first timed target (split times from there)
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,7 @@ from casadrone.report.candidates import (
     section_airframes,
     section_candidates,
 )
+from casadrone.report.codesign import is_codesign, section_codesign
 from casadrone.report.markup import (
     PLOTS,
     Figures,
@@ -75,8 +76,8 @@ pre { background: #f6f6f6; padding: 0.8em; overflow-x: auto; font-size: 0.8em; }
 """
 
 SECTIONS = (("problem", "Problem"), ("convergence", "Convergence"), ("pareto", "Pareto front"),
-            ("candidates", "Candidates A, B, C"), ("airframes", "Airframes"),
-            ("failures", "Failures"), ("trim", "Trim"))
+            ("codesign", "Co-design points"), ("candidates", "Candidates A, B, C"),
+            ("airframes", "Airframes"), ("failures", "Failures"), ("trim", "Trim"))
 
 
 def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
@@ -103,24 +104,29 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
     run = read_run(run_dir)
     figs = Figures(path.parent / PLOTS)
     cands = choose_candidates(run)
+    codesign = is_codesign(run)
     if not run.test_problem:
-        cands = evaluate_candidates(run, cands)
+        cands = evaluate_candidates(run, cands, limit=not codesign)
     body = {
         "problem": section_problem(run),
         "convergence": section_convergence(run, figs),
         "pareto": section_pareto(run, cands, figs),
-        "candidates": (section_candidates(run, cands, figs, path.parent / EXPORTS)
+        "codesign": section_codesign(run, cands, figs) if codesign else "",
+        "candidates": (section_candidates(run, cands, figs, path.parent / EXPORTS,
+                                          limit=not codesign)
                        if not run.test_problem
                        else note("A pymoo test problem has no trajectories.")),
-        "airframes": section_airframes(run, cands, tuple(references), figs),
+        "airframes": section_airframes(run, cands, tuple(references), figs,
+                                       limit=not codesign),
         "failures": section_failures(run, figs),
         "trim": section_trim(run, cands, figs, trim_sample, trim_study_starts),
     }
     m = run.manifest
     stamp = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-    nav = "".join(f'<a href="#{k}">{esc(t)}</a>' for k, t in SECTIONS)
+    shown = [(k, t) for k, t in SECTIONS if k != "codesign" or codesign]
+    nav = "".join(f'<a href="#{k}">{esc(t)}</a>' for k, t in shown)
     sections = "".join(f'<section id="{k}"><h2>{i}. {esc(t)}</h2>{body[k]}</section>'
-                       for i, (k, t) in enumerate(SECTIONS, start=1))
+                       for i, (k, t) in enumerate(shown, start=1))
     title = f"casadrone run report: {run.study.problem.name}"
     page = (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
             f'<meta name="viewport" content="width=device-width, initial-scale=1">'

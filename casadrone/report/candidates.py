@@ -27,11 +27,15 @@ from casadrone.report.markup import (
 )
 
 
-def evaluate_candidates(run: Run, cands: list[Candidate]) -> list[Candidate]:
-    """Fly each candidate again, keeping its trajectory (the chain is deterministic)."""
+def evaluate_candidates(run: Run, cands: list[Candidate], limit: bool = True
+                        ) -> list[Candidate]:
+    """Fly each candidate again, keeping its trajectory (the chain is deterministic); without
+    ``limit`` the closed-loop lap only (a co-design point's limit lap is stored with it)."""
     from casadrone.optimise.problem import study_setup
 
     setup = study_setup(run.study)
+    if not limit:
+        setup = replace(setup, limit=None)
     return [replace(c, evaluation=evaluate(c.theta, setup, keep_trajectory=True)) for c in cands]
 
 
@@ -84,12 +88,15 @@ def _exports(run: Run, c: Candidate, folder: Path) -> str:
 
 
 def section_candidates(run: Run, cands: list[Candidate], figs: Figures,
-                       exports: Path | None = None) -> str:
+                       exports: Path | None = None, limit: bool = True) -> str:
     """The candidates with their flights; with ``exports`` (a folder beside the report) also
-    each candidate's exported files, linked."""
+    each candidate's exported files, linked; without ``limit`` (a co-design front) the stored
+    limit-lap values are not re-solved here (the co-design section shows each point's lap)."""
     if not cands:
         return empty_front(run)
-    parts: list[str] = [_reproduction(run, cands)]
+    parts: list[str] = [_reproduction(run, cands) if limit else note(
+        "Closed-loop laps flown again now; the limit-lap objectives are the co-design points' "
+        "own (frame and lap optimised together), shown in the co-design section.")]
     flown = {c.title: c.flown.trajectory for c in cands
              if c.flown.trajectory is not None}
     colours = {c.title: plots.candidate_colour(c.label) for c in cands}
@@ -105,7 +112,8 @@ def section_candidates(run: Run, cands: list[Candidate], figs: Figures,
     for c in cands:
         parts.append(f'<h3 id="candidate-{c.label}">Candidate {esc(c.title)}</h3>')
         parts.append(_candidate(run, c, figs))
-        parts.append(_limit_lap(run, c, figs))
+        if limit:
+            parts.append(_limit_lap(run, c, figs))
         if exports is not None:
             parts.append(_exports(run, c, exports))
     return "".join(parts)
@@ -191,7 +199,10 @@ def _candidate(run: Run, c: Candidate, figs: Figures) -> str:
     return "".join(out)
 
 
-def section_airframes(run: Run, cands: list[Candidate], references, figs: Figures) -> str:
+def section_airframes(run: Run, cands: list[Candidate], references, figs: Figures,
+                      limit: bool = True) -> str:
+    """The candidates over the reference airframes, with the Eq. 21 gains of the indices
+    (without ``limit``, the references' limit laps are not solved: a co-design front)."""
     if run.test_problem:
         return note("A pymoo test problem has no airframe.")
     if not cands:
@@ -201,6 +212,8 @@ def section_airframes(run: Run, cands: list[Candidate], references, figs: Figure
     from casadrone.optimise.problem import study_setup
 
     setup = study_setup(run.study)
+    if not limit:
+        setup = replace(setup, limit=None)
     frames = [build_airframe(with_theta(setup.template, c.theta, name=f"Candidate {c.label}"))
               for c in cands]
     colours = {f.name: plots.candidate_colour(c.label) for f, c in zip(frames, cands, strict=True)}

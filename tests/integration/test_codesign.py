@@ -139,3 +139,67 @@ def test_front_run_directory_is_read_by_decide(short_front, cli_runner):
     decided = cli_runner.invoke(app, ["decide", str(out), "--json"])
     assert decided.exit_code == 0, decided.output
     assert json.loads(decided.stdout)
+
+
+def test_front_run_directory_is_read_like_a_run(short_front, cli_runner, tmp_path):
+    """report, compare and export open a co-design front's run directory like an optimiser's.
+
+    Oracles, each reading the files with a consumer of its own: ``pareto.csv`` with the csv
+    module; the stored limit laps with numpy (lap time = last node time, effort recomputed from
+    the nodes: both must equal pareto.csv's columns); ``codesign.json`` with json (every ε-bounded
+    point's lap is slower than the previous one, so its ε row must hold it: a multiplier listed
+    as active); the report with html.parser (a row per front point in the co-design section)."""
+    import csv
+    from html.parser import HTMLParser
+
+    from casadrone.cli import app
+    from casadrone.indices import EFFORT_SMOOTHING_N
+    from casadrone.report import write_report
+
+    _, out = short_front
+    with open(out / "pareto.csv", newline="") as fh:
+        header, *rows = list(csv.reader(fh))
+    F = np.array([[float(r[header.index("J3_limit")]), float(r[header.index("effort")])]
+                  for r in rows])
+    laps = np.load(out / "codesign-laps.npz")
+    for i, (lap, eff) in enumerate(F):
+        t, x = laps[f"{i}/short/t"], laps[f"{i}/short/x"]
+        thrust = x[:-1, 12:16]
+        assert t[-1] - t[0] == pytest.approx(lap, rel=1e-9)
+        assert float(np.diff(t) @ np.sum((thrust ** 2 + EFFORT_SMOOTHING_N ** 2) ** 0.75, 1)) \
+            == pytest.approx(eff, rel=1e-9)
+    points = json.loads((out / "codesign.json").read_text())["points"]
+    assert np.all(np.diff(F[:, 0]) > 0)  # tighter ε, slower lap (observed +0.3 %, +1.3 %)
+    for p in points[1:]:
+        assert any(k.startswith("ε effort") for k in p["active_constraints"]), p
+
+    html = write_report(out, out=tmp_path / "report.html", trim_sample=4,
+                        trim_study_starts=-1).read_text()
+
+    class Sections(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.section, self.rows = "", {}
+
+        def handle_starttag(self, tag, attrs):
+            if tag == "section":
+                self.section = dict(attrs)["id"]
+            elif tag == "tr":
+                self.rows[self.section] = self.rows.get(self.section, 0) + 1
+
+    parsed = Sections()
+    parsed.feed(html)
+    assert parsed.rows["codesign"] >= len(rows) + 1  # the points' table (with its header row)
+    assert "candidates" in parsed.rows and "ε effort" in html
+
+    compared = cli_runner.invoke(app, ["compare", str(out), "--json"])
+    assert compared.exit_code == 0, compared.output
+    gains = json.loads(compared.stdout)
+    assert {g["candidate"] for g in gains} >= {"A"} and all(
+        g["reference"] == "SY250" for g in gains)
+    exported = cli_runner.invoke(app, ["export", str(out), "--candidate", "A", "--format",
+                                       "urdf", "--out", str(tmp_path / "a.urdf")])
+    assert exported.exit_code == 0, exported.output
+    import xml.etree.ElementTree as ET
+
+    assert ET.parse(tmp_path / "a.urdf").getroot().tag == "robot"

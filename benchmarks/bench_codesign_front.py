@@ -1,0 +1,119 @@
+"""Benchmark: the co-design front (lap against effort) beside ev-MOGA's on the same objectives.
+
+Phase 1 (``--front DIR``): ``casadrone codesign``'s front for ``--problem`` (default
+``codesign-front``: the paper track, 40 intervals per leg, 15 points, effort ε from the fastest
+frame's down to half of it) from the template's geometry alone (``codesign.starts=0``; the
+template start reaches the best of six starts on this track, RESULTS-codesign.md), timed by
+phase in CPU seconds of this one process (one core): the template's limit lap and the NLP's
+build, the fastest frame, the ε-continuation. Writes the run directory to DIR and the timings
+to DIR/timings.json.
+
+Phase 2 (``--ga RUN --ga-cpu S``): the comparison with a finished ``casadrone run`` of
+``problems/limit-effort.yaml`` (ev-MOGA, the same airframe, track, box and objectives; its CPU
+time S, user + system of the run and its worker processes, measured outside by
+``/usr/bin/time``): which GA points some co-design point dominates or equals, and the
+hypervolume of both fronts (pymoo's HV) from one reference point, the worst lap and effort over
+both fronts plus 10 % of their ranges.
+
+Run: ``python benchmarks/bench_codesign_front.py --front /tmp/front``, then
+``python benchmarks/bench_codesign_front.py --compare /tmp/front --ga runs/limit-effort
+--ga-cpu 1234``.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+
+def run_front(problem: str, out: Path, overrides: list[str]) -> dict:
+    """The co-design front, timed by phase (CPU s of this process)."""
+    from casadrone.codesign.checks import load_codesign_problem
+    from casadrone.codesign.driver import initial_vector, prepare, solve_from, start_points
+    from casadrone.codesign.front import design_front, write_run
+
+    cfg = load_codesign_problem(problem, ["codesign.starts=0", *overrides])
+    t = {"start": time.process_time()}
+    wall0 = time.perf_counter()
+    prep = prepare(cfg)
+    t["prepared"] = time.process_time()
+    (_, theta), = start_points(prep)
+    z0 = initial_vector(prep, theta)
+    assert z0 is not None, "the template has no limit lap"
+    ok, status, best = solve_from(prep, z0)
+    assert ok, status
+    t["fastest"] = time.process_time()
+    front = design_front(prep, best, cfg.objectives[1].index, cfg.codesign.front.points,
+                         cfg.codesign.front.lowest)
+    t["front"] = time.process_time()
+    write_run(out, prep, front, len(front.points))
+    timings = {"prepare_cpu_s": t["prepared"] - t["start"],
+               "fastest_cpu_s": t["fastest"] - t["prepared"],
+               "fastest_iterations": best.iterations,
+               "continuation_cpu_s": t["front"] - t["fastest"],
+               "total_cpu_s": t["front"] - t["start"], "wall_s": time.perf_counter() - wall0,
+               "points": len(front.points), "stopped": front.stopped,
+               "iterations": [p.point.iterations for p in front.points],
+               "load_average": os.getloadavg()}
+    (out / "timings.json").write_text(json.dumps(timings, indent=1))
+    return timings
+
+
+def read_front(run: Path, names=("J3_limit", "effort")) -> np.ndarray:
+    with open(run / "pareto.csv", newline="") as fh:
+        header, *rows = list(csv.reader(fh))
+    return np.array([[float(r[header.index(n)]) for n in names] for r in rows])
+
+
+def compare(codesign: np.ndarray, ga: np.ndarray) -> dict:
+    """Dominance of the GA points by the co-design front, and both hypervolumes."""
+    from pymoo.indicators.hv import HV
+
+    both = np.vstack([codesign, ga])
+    lo, hi = both.min(axis=0), both.max(axis=0)
+    ref = hi + 0.1 * (hi - lo)
+    covered = [bool(np.any(np.all(codesign <= g, axis=1))) for g in ga]
+    hv = HV(ref_point=ref)
+    return {"reference_point": ref.tolist(), "hv_codesign": float(hv(codesign)),
+            "hv_ga": float(hv(ga)), "ga_points": len(ga), "codesign_points": len(codesign),
+            "ga_points_dominated_or_equalled": int(sum(covered)),
+            "ga_points_not_covered": ga[~np.array(covered)].tolist()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--problem", default="codesign-front")
+    ap.add_argument("--front", type=Path, help="run the co-design front into this new folder")
+    ap.add_argument("--compare", type=Path, help="a co-design front's run directory")
+    ap.add_argument("--ga", type=Path, help="a finished ev-MOGA run of limit-effort.yaml")
+    ap.add_argument("--ga-cpu", type=float, help="the GA run's CPU seconds (/usr/bin/time)")
+    ap.add_argument("overrides", nargs="*", help="co-design problem overrides (key=value)")
+    args = ap.parse_args(argv)
+    if args.front:
+        print(json.dumps(run_front(args.problem, args.front, args.overrides), indent=1))
+    if args.compare and args.ga:
+        result = compare(read_front(args.compare), read_front(args.ga))
+        timings = json.loads((args.compare / "timings.json").read_text())
+        if args.ga_cpu:
+            result["ga_cpu_s"] = args.ga_cpu
+            result["codesign_cpu_s"] = timings["total_cpu_s"]
+            result["cpu_ratio"] = timings["total_cpu_s"] / args.ga_cpu
+        print(json.dumps(result, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -208,3 +208,39 @@ def test_registration_errors():
         unregister_index("J3")
     with pytest.raises(ValueError, match="unknown index 'J7'"):
         compute_indices(make_traj(), ["J7"])
+
+
+def test_limit_lap_effort_by_hand():
+    """effort = ∫ Σ T_i^1.5 dt by hand: thrusts held at 2 N for 1 s then 8 N for 0.5 s on every
+    rotor give 4 (2^1.5 · 1 + 8^1.5 · 0.5) N^1.5 s (the δ = 0.01 N smoothing changes it by
+    ~1e-5 relative); a failed limit lap has none."""
+    from casadrone.indices import INDICES
+    from casadrone.limit.lap import LimitLap
+
+    t = np.array([0.0, 1.0, 1.5])
+    x = np.zeros((3, 16))
+    x[0, 12:16], x[1, 12:16], x[2, 12:16] = 2.0, 8.0, 5.0  # the last node holds no interval
+    lap = LimitLap(status="completed", reason="", lap_time_s=1.5, t=t, x=x, u=np.zeros((2, 4)))
+    expected = 4 * (2.0 ** 1.5 * 1.0 + 8.0 ** 1.5 * 0.5)
+    assert INDICES["effort"](lap) == pytest.approx(expected, rel=1e-4)
+    assert INDICES["effort"].source == "limit" and INDICES["effort"].sense == "min"
+    with pytest.raises(ValueError, match="failed limit lap"):
+        INDICES["effort"](LimitLap(status="failed", reason="no solve"))
+
+
+def test_effort_index_is_refused_for_a_propeller_airframe():
+    """The effort sums T^1.5 of the rotor states, thrusts only under the paper propulsion model:
+    a problem using it on a propeller airframe is refused naming the airframe (oracle: the
+    same problem with the paper-model airframe has no such finding)."""
+    from casadrone.config.problem import ProblemConfig
+    from casadrone.optimise.checks import problem_problems
+
+    def problem(airframe: str):
+        return ProblemConfig.model_validate({
+            "name": "p", "airframe": f"configs/airframes/{airframe}.yaml",
+            "variables": [{"name": "alpha_deg", "lower": 70.0, "upper": 90.0}],
+            "objectives": [{"index": "J3_limit"}, {"index": "effort"}]})
+
+    found = problem_problems(problem("SY250-propeller"))
+    assert [k for k, m in found if "effort" in m] == ["airframe"], found
+    assert not [m for _, m in problem_problems(problem("SY250")) if "effort" in m]

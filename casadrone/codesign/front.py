@@ -89,12 +89,12 @@ LAPS_FILE = "codesign-laps.npz"
 def point_laps(prep: Prepared, point: CodesignPoint) -> dict[str, dict[str, np.ndarray]]:
     """Each track's limit lap of a co-design point: node times (s), node states with Euler
     angles (16 columns), commands held on each interval, and the split times (s)."""
-    from casadrone.limit.lap import _trajectory
+    from casadrone.limit.starts import trajectory
 
     ws, _ = prep.nlp.split(point.z)
     out = {}
     for label, part, w in zip(prep.labels, prep.nlp.parts, ws, strict=True):
-        lap = _trajectory(part.nlp, w, part.nlp.layout)
+        lap = trajectory(part.nlp, w, part.nlp.layout)
         T, _, _ = part.nlp.unpack(w)
         out[label] = {"t": lap.t, "x": lap.x_euler, "u": lap.u,
                       "splits": np.cumsum(T)[part.first_timed:]}

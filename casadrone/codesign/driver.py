@@ -211,9 +211,7 @@ def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Pr
     lower = np.array([v.lower for v in problem.variables])
     upper = np.array([v.upper for v in problem.variables])
     labels, tracks, weights = _tracks(problem)
-    # no point-mass reference: co-design reads no bound from it (it costs a second NLP per lap)
     options = LimitLapOptions(intervals=problem.codesign.intervals, sensitivities=False,
-                              point_mass_reference=False,
                               gate_clearance_m=gate_clearance(template, lower, upper, keys))
     parts = tuple(_part(template, t, options, w) for t, w in zip(tracks, weights, strict=True))
     frame = SymbolicFrame(template, keys, lower, upper)
@@ -270,13 +268,8 @@ def initial_vector(prep: Prepared, theta: dict[str, float]) -> np.ndarray | None
     """The co-design decision vector of a frame: its own limit lap on every track (warm-started
     from the template's) and its θ; None when a lap fails."""
     cfg = prep.config(theta)
-    own = cfg.model_dump() == prep.template.model_dump()  # the template's geometry: its own lap
     ws, laps = [], []
     for track, ref in zip(prep.tracks, prep.template_laps, strict=True):
-        if own and ref.completed and ref.solution is not None:
-            ws.append(ref.solution.w)
-            laps.append(ref.lap_time_s)
-            continue
         opts = replace(prep.options, warm_starts=(ref,) if ref.solution is not None else (),
                        starts=() if ref.solution is not None else prep.options.starts,
                        point_mass_reference=False)

@@ -227,7 +227,7 @@ def test_cli_bad_track_and_heavy_frame_exit_2(cli_runner, tmp_path):
 def test_j3_limit_is_a_limit_index_outside_closed_loop_indices():
     from casadrone.indices import BUILTIN_LIMIT_NAMES, INDICES, limit_index_names
 
-    assert BUILTIN_LIMIT_NAMES == ("J3_limit",)
+    assert BUILTIN_LIMIT_NAMES == ("J3_limit", "effort")
     assert INDICES["J3_limit"].source == "limit" and INDICES["J3_limit"].sense == "min"
     assert limit_index_names(["J1", "J3_limit", "J5"]) == ("J3_limit",)
 

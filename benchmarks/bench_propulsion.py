@@ -42,7 +42,11 @@ from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK, default_setup, evaluate, theta_of  # noqa: E402
 from casadrone.limit.check import lap_propulsion  # noqa: E402
 from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
-from casadrone.propulsion import max_static_thrust, rotor_thrust_bound  # noqa: E402
+from casadrone.propulsion import (  # noqa: E402
+    FIT_MAX_J,
+    max_static_thrust,
+    rotor_thrust_bound,
+)
 
 REFERENCES = ("SY250", "HS210", "HS200", "NSY200", "SY220")
 MODELS = ("paper", "propeller")
@@ -106,10 +110,16 @@ def lap_row(name: str, model: str, track_name: str, options: LimitLapOptions):
     if not lap.completed:
         return f"{head} failed: {lap.reason[:160]} | | | | | | | | | | {t:.0f} |", lap
     prop = lap_propulsion(frame, lap.x_euler, lap.u)
-    J = prop["advance_ratio"]
-    jr = (f"{np.nanmin(J):.2f}–{np.nanmax(J):.2f}" if np.isfinite(J).any() else "—")
+    J, T = prop["advance_ratio"], prop["thrust_n"]
+    # J at full command (where CT(J) sets the thrust the lap can have; a rotor near standstill
+    # has J → ±∞), and the share of rotor-nodes beyond the fitted data (J > FIT_MAX_J) or with
+    # negative thrust (the quadratic CT(J) extrapolated: a windmilling or stopped rotor brakes)
+    full = lap.u >= 0.99
+    jr = (f"{np.median(J[full]):.2f} / {np.max(J[full]):.2f}; beyond data "
+          f"{100 * np.mean(J > FIT_MAX_J):.1f} %, T < 0 {100 * np.mean(T < 0):.1f} %"
+          if np.isfinite(J).any() and full.any() else "—")
     bound = 4 * rotor_thrust_bound(frame)
-    peak = float(np.max(np.sum(prop["thrust_n"], axis=1)))
+    peak = float(np.max(np.sum(T, axis=1)))
     starts = ", ".join(f"{s.start} {s.lap_time_s:.3f}" if s.success else f"{s.start} "
                        f"{s.return_status}" for s in lap.starts)
     return (f"{head} {lap.lap_time_s:.3f} | {lap.point_mass_reference_s:.3f} | "
@@ -119,17 +129,18 @@ def lap_row(name: str, model: str, track_name: str, options: LimitLapOptions):
             f"{peak / bound:.3f} | {starts} | {t:.0f} |"), lap
 
 
-def laps(rep: Report, frames, tracks, options: LimitLapOptions) -> dict:
+def laps(rep: Report, frames, tracks, models, options: LimitLapOptions) -> dict:
     grid = options.intervals or "the default number of (40 paper, 80 propeller)"
     rep.add(f"## Limit lap ({grid} intervals per leg, starts: {', '.join(options.starts)})", "",
             "| frame | track | model | lap (s) | point-mass reference (s) | re-simulation miss "
             "(cm) | top speed (m/s) | thrust at top speed (N, 4 rotors) | static full thrust "
-            "(N) | J range | min full-command thrust ratio | max ΣT / 4 T_b | starts (lap s) | "
+            "(N) | J at full command: median / max; rotor-nodes beyond the data, with T < 0 | min "
+            "full-command thrust ratio | max ΣT / 4 T_b | starts (lap s) | "
             "CPU (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     out = {}
     for track_name in tracks:
         for name in frames:
-            for model in MODELS:
+            for model in models:
                 row, lap = lap_row(name, model, track_name, options)
                 out[(name, model, track_name)] = lap
                 rep.add(row)
@@ -182,6 +193,7 @@ def main() -> None:
     ap.add_argument("--laps", action="store_true")
     ap.add_argument("--frames", default=",".join(REFERENCES))
     ap.add_argument("--tracks", default="paper,gates")
+    ap.add_argument("--models", default=",".join(MODELS))
     ap.add_argument("--intervals", type=int, default=LimitLapOptions.intervals)
     ap.add_argument("--starts", default=",".join(LimitLapOptions.starts),
                     help="cold starts of the limit lap, comma-separated (default: the library's)")
@@ -197,7 +209,8 @@ def main() -> None:
                               starts=tuple(a.starts.split(",")))  # type: ignore[arg-type]
     if a.closed_loop:
         closed_loop(rep, a.evals)
-    solved = laps(rep, a.frames.split(","), a.tracks.split(","), options) if a.laps else {}
+    solved = laps(rep, a.frames.split(","), a.tracks.split(","), a.models.split(","),
+                  options) if a.laps else {}
     if a.warm:
         warm_solves(rep, a.warm, a.seed, options, solved)
 

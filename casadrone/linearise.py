@@ -68,6 +68,12 @@ def linearise(airframe: Airframe, trim_point, method: Method = "exact") -> Linea
     """Linearise about ``trim_point`` (anything with ``x0`` and ``u0``)."""
     if method not in ("exact", "fd"):
         raise ValueError(f"unknown linearisation method {method!r}; use 'exact' or 'fd'")
+    if airframe.propulsion == "paper" and airframe.thrust_time_constant == 0:
+        from casadrone.config.io import ConfigError
+
+        raise ConfigError([f"{airframe.name}: thrust.time_constant_s: 0 (no thrust lag) is an "
+                           "idealisation of the limit lap only; the closed loop (linearisation, "
+                           "LQR, simulation) needs a lag > 0"])
     p = airframe.p
     x0 = np.asarray(trim_point.x0, float)
     u0 = np.asarray(trim_point.u0, float)

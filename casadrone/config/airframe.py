@@ -52,7 +52,10 @@ class ThrustModelConfig(Schema):
     """Identified first-order thrust model G(s) = K / (1 + tau s) per rotor (paper Table 6)."""
 
     gain_n: float = Field(9.0519, gt=0, le=1e4, description="K, thrust per unit ESC command (N)")
-    time_constant_s: float = Field(0.060538, gt=0, le=10, description="tau (s)")
+    time_constant_s: float = Field(
+        0.060538, ge=0, le=10,
+        description="tau (s); 0: no lag, the idealisation of comparison studies (thrust = K x "
+        "command at once; modelled by the limit lap only, casadrone.limit.lagless)")
 
 
 ROTOR_LABELS = ("FR", "FL", "RL", "RR")
@@ -184,6 +187,12 @@ class AirframeConfig(Schema):
             found += [("components", f"computed {m}") for _, m in inertia_problems(mp.inertia_kgm2)]
         elif v.get("mass_model") == "free" and has_keys(v, *MASS_KEYS[1:]) and not mass_problems:
             found += inertia_problems(inertia_tensor(v))
+        prop = v.get("propulsion")
+        thrust = v.get("thrust")
+        if (thrust is not None and thrust.time_constant_s == 0 and prop is not None
+                and prop.model != "paper"):
+            found.append(("thrust.time_constant_s", "0 (no thrust lag) is an idealisation of "
+                          "the paper's thrust model; the propeller model's lag is its motor's"))
         if mass is not None and has_keys(v, "gravity_mps2", "thrust"):
             weight, full = mass * v["gravity_mps2"], 4 * v["thrust"].gain_n
             what = "4 × thrust.gain_n"

@@ -27,30 +27,38 @@ def bang_bang_fraction(u: np.ndarray, tol: float) -> float:
 
 @lru_cache(maxsize=4)
 def scaled_cvodes(rtol: float = 1e-10, atol: float = 1e-10, attitude: str = "euler",
-                  propulsion: str = "paper") -> ca.Function:
+                  propulsion: str = "paper", lagless: bool = False) -> ca.Function:
     """CVODES on ẋ = h f(x, u, p) over [0, 1]: one interval of length h with a held command
     (the same explicit f and SUNDIALS integrator as the closed loop's reference, time-scaled so
     that one Function serves every interval length); ``attitude`` picks the Euler model or the
-    quaternion model (:mod:`casadrone.limit.attitude`)."""
+    quaternion model (:mod:`casadrone.limit.attitude`); ``lagless`` the thrust-lag-off model
+    (:mod:`casadrone.limit.lagless`)."""
     if attitude == "quaternion":
         from casadrone.limit.attitude import quaternion_f
 
-        f = quaternion_f(propulsion)
+        f, rotor = quaternion_f(propulsion), slice(13, 17)
     else:
-        f = quadrotor_model(propulsion).f
+        f, rotor = quadrotor_model(propulsion).f, slice(12, 16)
+    if lagless:
+        from casadrone.limit.lagless import lagless_f
+
+        f = lagless_f(f, rotor)
     x = ca.SX.sym("x", f.size1_in(0))
     NP = n_params(propulsion)
     uph = ca.SX.sym("uph", NU + NP + 1)
     u, p, h = uph[:NU], uph[NU:NU + NP], uph[NU + NP]
     dae = {"x": x, "p": uph, "ode": h * f(x, u, p)}
-    return ca.integrator(f"limit_resim_{attitude}_{propulsion}", "cvodes", dae, 0.0, 1.0,
+    tag = "_lagless" if lagless else ""
+    return ca.integrator(f"limit_resim_{attitude}_{propulsion}{tag}", "cvodes", dae, 0.0, 1.0,
                          {"abstol": atol, "reltol": rtol})
 
 
 def resimulate(airframe: Airframe, lap) -> np.ndarray:
     """Node states of the lap's commands integrated by CVODES from its start state."""
+    from casadrone.limit.lagless import is_lagless
+
     step = scaled_cvodes(attitude=getattr(lap, "attitude", "euler"),
-                         propulsion=airframe.propulsion)
+                         propulsion=airframe.propulsion, lagless=is_lagless(airframe))
     h = np.diff(lap.t)
     X = np.zeros_like(lap.x)
     X[0] = lap.x[0]

@@ -69,6 +69,7 @@ from casadrone.limit.guesses import (
     point_mass_guess,
     straight_guess,
 )
+from casadrone.limit.lagless import is_lagless, lagless_thrust_states
 from casadrone.limit.nlp import NlpPoint
 from casadrone.limit.pointmass import (
     POINT_MASS_PARAMS,
@@ -225,6 +226,8 @@ def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],
 
     name, chosen = best(good)
     T, X, U = pb.full.unpack(chosen.point.w)
+    if is_lagless(pb.frame):  # the rotor states the lag-free model flies: T = K δ
+        X = lagless_thrust_states(X, U, pb.full.model.rotor, pb.frame.thrust_gain)
     ends = np.cumsum(T)
     lap_ends = ends[list(pb.targets.lap_ends)]
     agreement, spread = certainty(good)

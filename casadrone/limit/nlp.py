@@ -469,7 +469,7 @@ def _shooting_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np
     jr, jc = (np.array(a, dtype=int) for a in Jt.sparsity().get_triplet())
     tr.append(n_dyn + n_same + nx + jr)
     tc.append(jc)
-    vals.append(Jt.nz[:] if Jt.nnz() else ca.MX(0, 1))
+    vals.append(ca.vec(Jt.nz[:]) if Jt.nnz() else ca.MX(0, 1))  # a column even for one row
     Jg = _assemble(ng, nw, np.concatenate(tr), np.concatenate(tc), ca.vertcat(*vals))
     jac_g = ca.Function("nlp_jac_g", [W, P], [g, Jg], ["x", "p"], ["g", "jac_g_x"])
 

@@ -26,6 +26,7 @@ from casadrone.limit.guesses import (
     lifted_guess,
     straight_guess,
 )
+from casadrone.limit.lagless import is_lagless, with_guess_lag, without_lag
 from casadrone.limit.nlp import (
     ATTITUDE_MODELS,
     Layout,
@@ -101,8 +102,10 @@ def prepare(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
     layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
                     options.substeps, end_at_rest=track.end != "free",
                     tilt_cone=options.tilt_limit == "cone")
-    full = build_nlp(ATTITUDE_MODELS[options.attitude](frame.propulsion), layout, options.tol,
-                     options.max_iter)
+    model = ATTITUDE_MODELS[options.attitude](frame.propulsion)
+    if is_lagless(frame):  # thrust.time_constant_s: 0, the lag-off idealisation
+        model = without_lag(model)
+    full = build_nlp(model, layout, options.tol, options.max_iter)
     x0_euler = start_state(frame, track, options)
     x0 = model_states(options.attitude, x0_euler)[0]
     return Problem(frame, track, options, targets, layout, full, x0_euler, x0,
@@ -128,7 +131,8 @@ def closed_loop_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
     fly the track)."""
     options, full, x0 = pb.options, pb.full, pb.x0
     guess = None
-    traj = options.guess_trajectory or closed_loop_lap(pb.frame, pb.track, options.controller)
+    traj = options.guess_trajectory or closed_loop_lap(with_guess_lag(pb.frame), pb.track,
+                                                       options.controller)
     if traj is not None:
         guess = guess_from_trajectory(full, traj, x0)
     if guess is None:

@@ -50,6 +50,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.limit.attitude",
     "casadrone.limit.gates",
     "casadrone.limit.nlp",
+    "casadrone.limit.lagless",
     "casadrone.limit.check",
     "casadrone.limit.result",
     "casadrone.limit.problem",

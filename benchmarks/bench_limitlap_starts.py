@@ -27,7 +27,7 @@ from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-STARTS = ("closed-loop", "point-mass", "coarse-grid")
+STARTS = LimitLapOptions().starts
 
 
 def one(frame: str, track: str, options: LimitLapOptions) -> dict:

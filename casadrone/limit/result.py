@@ -15,7 +15,7 @@ from casadrone.limit.nlp import Layout, NlpPoint
 from casadrone.model import NX
 from casadrone.results import AsDict, Status
 
-Start = Literal["closed-loop", "point-mass", "coarse-grid", "relaxed-tolerance"]
+Start = Literal["closed-loop", "point-mass", "coarse-grid", "fine-grid", "relaxed-tolerance"]
 #: The attitude models of the limit lap, and the ways it limits the tilt.
 Attitude = Literal["euler", "quaternion"]
 TiltLimit = Literal["axes", "cone", "none"]
@@ -73,9 +73,13 @@ class LimitLapOptions:
     # intervals and its optimum resampled onto this grid (a coarse grid smooths the problem);
     # "relaxed-tolerance": tolerance homotopy from the point-mass start (balls of at least
     # RELAXED_RADIUS_M first, then the track's tolerances from that point).
+    # "fine-grid": the point-mass start solved on FINE_SHARE of the intervals, resampled.
     # Measured (benchmarks/RESULTS-limitlap-issue19.md): on the gate track the coarse-grid start
-    # is 0.34 % faster than the other two; on the paper track it adds nothing (+0.03 %).
-    starts: tuple[Start, ...] = ("closed-loop", "point-mass", "coarse-grid")
+    # is 0.34 % faster than the other two; on the paper track it adds nothing (+0.03 %). The
+    # fine-grid start reaches the best optimum known on the paper track for SY250 (3.8800 s
+    # against 3.9097 s from the other starts) and HS210 (3.8405 s against 3.8954 s), for about
+    # 20-30 s of CPU; the relaxed-tolerance start lands where the point-mass start does.
+    starts: tuple[Start, ...] = ("closed-loop", "point-mass", "coarse-grid", "fine-grid")
     warm_starts: tuple[LimitLap, ...] = ()  # neighbouring solutions (same legs; any grid)
     guess_trajectory: object | None = None  # the frame's closed-loop lap, if already flown
     ball_radius_m: float | None = None  # None: the track's acceptance radius

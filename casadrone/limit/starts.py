@@ -39,11 +39,20 @@ from casadrone.limit.nlp import (
 )
 from casadrone.limit.pointmass import point_mass_reference
 from casadrone.limit.problem import Targets, bounds, row_bounds, start_state, track_targets
-from casadrone.limit.result import LimitLap, LimitLapOptions, Start, model_states, node_times
+from casadrone.limit.result import (
+    MAX_INTERVALS,
+    LimitLap,
+    LimitLapOptions,
+    Start,
+    model_states,
+    node_times,
+)
 from casadrone.propulsion import hover_rotors
 
 #: Share of the intervals of the coarse grid of the "coarse-grid" start (40 -> 30).
 COARSE_SHARE = 0.75
+#: Share of the intervals of the fine grid of the "fine-grid" start (40 -> 60).
+FINE_SHARE = 1.5
 #: Smallest ball radius (m) of the first solve of the "relaxed-tolerance" start.
 RELAXED_RADIUS_M = 1.0
 
@@ -155,6 +164,23 @@ def coarse_grid_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
     return pb.solve(guess_from_lap(pb.full, coarse, pb.x0))
 
 
+def fine_grid_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
+    """Grid continuation from a finer grid: the point-mass start solved on FINE_SHARE of the
+    intervals (at most MAX_INTERVALS), its optimum resampled onto this grid (None when the fine
+    lap fails). The point-mass start lands in different local optima on different grids (SY250,
+    paper track: 3.942 s on 40 intervals, 3.889 s on 60), and the fine grid's, resampled, led
+    to the best optimum known on the 40-interval grid for SY250 and HS210
+    (benchmarks/RESULTS-limitlap-issue19.md)."""
+    options = pb.options
+    fine = lap_of(pb.frame, pb.track, replace(
+        options, intervals=min(MAX_INTERVALS, round(FINE_SHARE * options.intervals)),
+        starts=("point-mass",), warm_starts=(), point_mass_reference=False,
+        sensitivities=False, fallback_reference=None))
+    if not fine.completed:
+        return None
+    return pb.solve(guess_from_lap(pb.full, fine, pb.x0))
+
+
 def point_mass_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
     """From the point-mass reference lifted to the full model (None without a reference)."""
     return None if pb.lifted is None else pb.solve(pb.lifted)
@@ -170,6 +196,7 @@ def relaxed_tolerance_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
 COLD_STARTS: dict[Start, Callable[[Problem, LapOf], NlpSolution | None]] = {
     "closed-loop": closed_loop_start,
     "coarse-grid": coarse_grid_start,
+    "fine-grid": fine_grid_start,
     "point-mass": point_mass_start,
     "relaxed-tolerance": relaxed_tolerance_start,
 }

@@ -27,6 +27,19 @@ def laps():
     return {name: limit_lap(load_airframe(name), TRACK, FAST) for name in REFERENCES}
 
 
+#: Laps an independent re-implementation of the same problem found on this grid (issue 19):
+#: casadrone's own NLP started there converges to them and passes its re-simulation check.
+INDEPENDENT_BEST_S = {"SY250": 3.8951, "HS210": 3.8497}
+
+
+@pytest.mark.parametrize("name", sorted(INDEPENDENT_BEST_S))
+def test_default_starts_reach_the_independent_solvers_optimum(laps, name):
+    """The default starts (with the fine-grid continuation) reach, within 0.1 %, the best lap an
+    independent solver found (measured: SY250 3.8800 s, HS210 3.8405 s, both below it)."""
+    assert laps[name].completed, laps[name].reason
+    assert laps[name].lap_time_s <= INDEPENDENT_BEST_S[name] * (1 + 1e-3)
+
+
 @pytest.mark.parametrize("name", REFERENCES)
 def test_reference_lap_faster_than_the_closed_loop(laps, name):
     lap = laps[name]
@@ -282,22 +295,33 @@ def test_split_s_is_flown_and_resimulated_within_5_cm():
 
 
 def test_two_laps_from_a_flying_start_take_twice_one_lap():
-    """A closed circuit (the paper rectangle at 20 m, no climb) from a flying start whose
-    velocity is where one lap ends (one fixed-point step): two laps take twice one lap within
-    0.5 % (what remains is the start's level attitude and hover thrust against the lap end's)."""
+    """A closed circuit (the paper rectangle at 20 m, no climb) from a flying start: the full
+    state (position, velocity, attitude, rates, thrusts) where one lap from it ends, found by
+    fixed-point iteration (a lap from s ends at e(s); s <- e(s), each lap warm-started from the
+    previous one). From there two laps take twice one lap within 0.5 %. And, by the principle of
+    optimality, the second lap of the two-lap optimum is the optimal one lap from where its
+    first lap ends (one lap re-solved from that state, warm from nothing: within 0.1 %)."""
+    frame = load_airframe("SY250")
     base = ["climb_to_m=null", "start_position_m=[0, 0, 20]"]
     trk = load(TrackConfig, DEFAULT_TRACK, [*base, "start={velocity_mps: [10, 0, 0]}"])
-    first = limit_lap(load_airframe("SY250"), trk, FAST)
-    assert first.completed, first.reason
-    v_end = first.x_euler[-1]
-    from casadrone.limit.attitude import euler_rotation_np
-
-    vw = euler_rotation_np(*v_end[9:12]) @ v_end[3:6]
-    flying = [*base, f"start={{velocity_mps: [{vw[0]}, {vw[1]}, {vw[2]}]}}"]
-    one = limit_lap(load_airframe("SY250"), load(TrackConfig, DEFAULT_TRACK, flying), FAST)
-    two = limit_lap(load_airframe("SY250"), load(TrackConfig, DEFAULT_TRACK,
-                                                 [*flying, "laps=2"]), FAST)
-    assert one.completed and two.completed, (one.reason, two.reason)
+    one = limit_lap(frame, trk, FAST)
+    assert one.completed, one.reason
+    for _ in range(6):
+        s = tuple(float(v) for v in one.x_euler[-1])
+        nxt = limit_lap(frame, trk, replace(FAST, start_state=s, starts=(), warm_starts=(one,)))
+        assert nxt.completed, nxt.reason
+        settled = abs(nxt.lap_time_s - one.lap_time_s) <= 1e-4 * one.lap_time_s
+        one, start = nxt, s
+        if settled:
+            break
+    two = limit_lap(frame, load(TrackConfig, DEFAULT_TRACK, [*base, "laps=2"]),
+                    replace(FAST, start_state=start))
+    assert two.completed, two.reason
     assert len(two.lap_times_s) == 2
-    np.testing.assert_allclose(two.lap_time_s, 2 * one.lap_time_s, rtol=5e-3)
     np.testing.assert_allclose(two.lap_times_s.sum(), two.lap_time_s, rtol=1e-12)
+    np.testing.assert_allclose(two.lap_time_s, 2 * one.lap_time_s, rtol=5e-3)
+    n_first = 4 * two.layout.intervals  # the first lap's four legs
+    tail = limit_lap(frame, trk, replace(FAST, start_state=tuple(
+        float(v) for v in two.x_euler[n_first])))
+    assert tail.completed, tail.reason
+    np.testing.assert_allclose(tail.lap_time_s, two.lap_times_s[1], rtol=1e-3)

@@ -146,7 +146,16 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     if why:
         return _failed(why, start)
     pb = prepare(frame, track, options, clearance_m)
-    solves = run_starts(pb, limit_lap)
+    grid_laps: dict[int, float] = {}  # the laps the grid-continuation starts solved on theirs
+
+    def lap_on_grid(f, trk, opts):
+        lap = limit_lap(f, trk, opts)
+        if lap.completed:
+            grid_laps[opts.intervals] = min(grid_laps.get(opts.intervals, math.inf),
+                                            lap.lap_time_s)
+        return lap
+
+    solves = run_starts(pb, lap_on_grid)
     misses = resimulation_misses(pb, solves)
     good = verified(solves, misses, options)
     if solves and not good and (fallback := fallback_solve(pb, limit_lap)) is not None:
@@ -156,7 +165,7 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     if not good:
         reason, starts = failure(solves, misses, options)
         return _failed(reason, start, starts=starts, layout=pb.layout)
-    result = assemble_lap(pb, good, solves, misses)
+    result = assemble_lap(pb, good, solves, misses, grid_laps)
     if options.sensitivities and cfg is not None:
         result = with_theta_sensitivities(result, cfg, pb)
     return replace(result, wall_time_s=time.perf_counter() - start)
@@ -220,8 +229,10 @@ def with_theta_sensitivities(result: LimitLap, cfg: AirframeConfig, pb: Problem)
 
 
 def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],
-                 misses: dict[str, float]) -> LimitLap:
-    """The LimitLap of the best verified start."""
+                 misses: dict[str, float], grid_laps: dict[int, float] | None = None
+                 ) -> LimitLap:
+    """The LimitLap of the best verified start; ``grid_laps`` (intervals per leg → lap) are the
+    other grids' laps of the grid-continuation starts, part of its certainty."""
     from casadrone.limit.check import bang_bang_fraction
 
     name, chosen = best(good)
@@ -230,7 +241,7 @@ def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],
         X = lagless_thrust_states(X, U, pb.full.model.rotor, pb.frame.thrust_gain)
     ends = np.cumsum(T)
     lap_ends = ends[list(pb.targets.lap_ends)]
-    agreement, spread = certainty(good)
+    agreement, spread = certainty(good, tuple((grid_laps or {}).values()))
     ref = pb.reference if pb.options.point_mass_reference else None
     return LimitLap(
         status="completed", reason="", lap_time_s=float(np.sum(T)),
@@ -240,6 +251,7 @@ def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],
         point_mass_reference_s=ref.objective if ref is not None else math.nan,
         lap_times_s=np.diff(np.concatenate([[0.0], lap_ends])), spread_s=spread,
         certainty=agreement, attitude=pb.full.model.attitude,
+        grid_laps_s=dict(sorted((grid_laps or {}).items())),
         resimulation_miss_m=misses.get(name, math.nan),
         param_sensitivity=param_sensitivity(pb, chosen.point), start=name,
         starts=start_results(solves, misses), layout=pb.layout, solution=chosen.point,

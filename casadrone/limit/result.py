@@ -158,8 +158,12 @@ class LimitLap(AsDict):
     bang_bang_fraction: float = math.nan
     point_mass_reference_s: float = math.nan  # best local optimum found, not a bound
     lap_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))  # time of each lap
-    spread_s: float = math.nan  # slowest minus fastest verified start (NaN: only one)
+    # slowest minus fastest of the verified starts and the other grids' laps (NaN: only one)
+    spread_s: float = math.nan
     certainty: Certainty = "single"
+    # laps on other grids (intervals per leg -> s) solved by the grid-continuation starts; they
+    # count in certainty and spread_s
+    grid_laps_s: dict[int, float] = field(default_factory=dict)
     attitude: str = "euler"
     resimulation_miss_m: float = math.nan
     param_sensitivity: np.ndarray = field(default_factory=lambda: np.zeros(0))

@@ -465,3 +465,22 @@ def test_polygon_gate_equal_to_its_bounding_rectangle():
     T_circle, X_circle, _ = _gate_lap("circle", 0.5)
     assert X_circle[20, 1] >= 5.5 - 1e-6
     assert T_rect.sum() * (1 - 1e-8) <= T_circle.sum() <= T_rect.sum() * (1 + 1e-4)
+
+
+def test_certainty_counts_the_laps_on_other_grids():
+    """Starts that agree on this grid are not "agreed" when a grid-continuation start's own grid
+    found a lap more than 0.1 % away (another local optimum); within 0.1 % they still agree."""
+    from casadrone.limit.choose import certainty
+    from casadrone.limit.nlp import NlpPoint, NlpSolution
+
+    pt = NlpPoint(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1))
+
+    def sol(t):
+        return NlpSolution(True, "Solve_Succeeded", t, pt, 10, 0.1)
+
+    good = [("closed-loop", sol(3.900)), ("point-mass", sol(3.901))]
+    assert certainty(good) == ("agreed", pytest.approx(0.001))
+    assert certainty(good, (3.9025,))[0] == "agreed"
+    verdict, spread = certainty(good, (3.880,))
+    assert verdict == "spread" and spread == pytest.approx(0.021)
+    assert certainty(good[:1]) == ("single", pytest.approx(np.nan, nan_ok=True))

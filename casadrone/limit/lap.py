@@ -150,9 +150,9 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
 
     def lap_on_grid(f, trk, opts):
         lap = limit_lap(f, trk, opts)
-        if lap.completed:
-            grid_laps[opts.intervals] = min(grid_laps.get(opts.intervals, math.inf),
-                                            lap.lap_time_s)
+        if lap.completed and lap.layout is not None:
+            n = lap.layout.intervals
+            grid_laps[n] = min(grid_laps.get(n, math.inf), lap.lap_time_s)
         return lap
 
     solves = run_starts(pb, lap_on_grid)

@@ -173,7 +173,7 @@ def fine_grid_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
     (benchmarks/RESULTS-limitlap-issue19.md)."""
     options = pb.options
     fine = lap_of(pb.frame, pb.track, replace(
-        options, intervals=min(MAX_INTERVALS, round(FINE_SHARE * options.intervals)),
+        options, intervals=min(MAX_INTERVALS, round(FINE_SHARE * pb.layout.intervals)),
         starts=("point-mass",), warm_starts=(), point_mass_reference=False,
         sensitivities=False, fallback_reference=None))
     if not fine.completed:

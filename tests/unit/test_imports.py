@@ -49,6 +49,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.simulate",
     "casadrone.limit.attitude",
     "casadrone.limit.gates",
+    "casadrone.limit.stagewise",  # the stage-ordered NLP solve (fatrop) that nlp calls
     "casadrone.limit.nlp",
     "casadrone.limit.lagless",
     "casadrone.limit.check",

@@ -107,7 +107,7 @@ def profile(template_name: str) -> list[str]:
     the rest (the solver's own work: factorisation, line search, bookkeeping)."""
     template = load_airframe(template_name)
     track = load(TrackConfig, DEFAULT_TRACK)
-    options = limit.LimitLapOptions()
+    options = limit.LimitLapOptions(intervals=limit.DEFAULT_INTERVALS["paper"])
     frame = build_airframe(template)
     pb = prepare(frame, track, options,
                  limit.frame_clearance_m(frame, template.prop_diameter_mm / 1000))
@@ -174,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     SOLVERS = tuple(args.solvers.split(","))
     template = load_airframe(args.template)
     track = load(TrackConfig, DEFAULT_TRACK)
-    options = limit.LimitLapOptions()
+    options = limit.LimitLapOptions(intervals=limit.DEFAULT_INTERVALS["paper"])
     thetas, _ = random_thetas(template, args.n, args.seed)
     keys = list(thetas[0])
     lo = np.array([TABLE1_BOUNDS[k][0] for k in keys])

@@ -27,8 +27,9 @@ ORDER = [
      "casadrone limit-lap SY250 --json; pytest -m slow tests/integration/test_limitlap_slow.py"),
     ("limitlap-frames", "The limit lap over 50 random Table 1 frames: success, spread, ranks",
      "python benchmarks/bench_limitlap.py --n 50 --intervals 40"),
-    ("limitlap-solvers", "The limit-lap NLP: IPOPT and fatrop side by side on 50 random frames",
-     "python benchmarks/bench_limitlap_solvers.py --n 50"),
+    ("limitlap-solvers", "The limit-lap NLP: IPOPT and fatrop side by side on random frames",
+     "python benchmarks/bench_limitlap_solvers.py --n 10 (complete); --n 50 (stopped at 31 "
+     "frames); --profile SY250"),
     ("propulsion", "The paper and propeller propulsion models side by side (issue 17)",
      "python benchmarks/bench_propulsion.py; casadrone limit-lap SY250-propeller --json"),
     ("trimstudy", "Trim solvers from many starts across the envelope (issue 23)",

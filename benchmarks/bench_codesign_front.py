@@ -73,9 +73,20 @@ def run_front(problem: str, out: Path, overrides: list[str]) -> dict:
 
 
 def read_front(run: Path, names=("J3_limit", "effort")) -> np.ndarray:
-    with open(run / "pareto.csv", newline="") as fh:
-        header, *rows = list(csv.reader(fh))
-    return np.array([[float(r[header.index(n)]) for n in names] for r in rows])
+    """A run's front: ``pareto.csv``, or for a run stopped early the non-dominated set of its
+    completed evaluations in ``history.sqlite`` (as the report reads an unfinished run)."""
+    if (run / "pareto.csv").is_file():
+        with open(run / "pareto.csv", newline="") as fh:
+            header, *rows = list(csv.reader(fh))
+        return np.array([[float(r[header.index(n)]) for n in names] for r in rows])
+    import sqlite3
+
+    from casadrone.optimise.hypervolume import non_dominated
+
+    with sqlite3.connect(run / "history.sqlite") as db:
+        F = np.array(db.execute(f"SELECT {', '.join(names)} FROM evaluations WHERE status = "
+                                "'completed'").fetchall(), float)
+    return non_dominated(F)
 
 
 def compare(codesign: np.ndarray, ga: np.ndarray) -> dict:

@@ -190,7 +190,7 @@ def test_problem_yaml_limit_solver_is_validated_and_reaches_the_options(tmp_path
 
 @pytest.mark.slow
 def test_fatrop_and_ipopt_give_the_same_short_quadrotor_lap():
-    """SY250 on the paper track, 10 intervals per leg, the closed-loop start only: fatrop's lap
+    """SY250 on the paper track, 40 intervals per leg, the closed-loop start only: fatrop's lap
     (no IPOPT fallback used) equals IPOPT's within 0.01 % and passes the same re-simulation
     check (CVODES, the independent oracle of a lap)."""
     from dataclasses import replace
@@ -202,7 +202,7 @@ def test_fatrop_and_ipopt_give_the_same_short_quadrotor_lap():
     from casadrone.limit.lap import LimitLapOptions, limit_lap
 
     track = load(TrackConfig, DEFAULT_TRACK)
-    opts = LimitLapOptions(intervals=10, starts=("closed-loop",), point_mass_reference=False,
+    opts = LimitLapOptions(intervals=40, starts=("closed-loop",), point_mass_reference=False,
                            sensitivities=False, fallback_reference=None)
     ip = limit_lap(load_airframe("SY250"), track, opts)
     fa = limit_lap(load_airframe("SY250"), track, replace(opts, solver="fatrop"))

@@ -189,7 +189,7 @@ def test_problem_yaml_limit_solver_is_validated_and_reaches_the_options(tmp_path
 
 
 @pytest.mark.slow
-def test_fatrop_and_ipopt_give_the_same_short_quadrotor_lap():
+def test_fatrop_and_ipopt_give_the_same_quadrotor_lap():
     """SY250 on the paper track, 40 intervals per leg, the closed-loop start only: fatrop's lap
     (no IPOPT fallback used) equals IPOPT's within 0.01 % and passes the same re-simulation
     check (CVODES, the independent oracle of a lap)."""

@@ -294,13 +294,24 @@ def test_split_s_is_flown_and_resimulated_within_5_cm():
     assert lap.x[:, 2].min() >= -1e-6  # the floor
 
 
-def test_two_laps_from_a_flying_start_take_twice_one_lap():
+def test_two_laps_from_a_flying_start_are_no_slower_than_twice_one_lap():
     """A closed circuit (the paper rectangle at 20 m, no climb) from a flying start: the full
     state (position, velocity, attitude, rates, thrusts) where one lap from it ends, found by
     fixed-point iteration (a lap from s ends at e(s); s <- e(s), each lap warm-started from the
-    previous one). From there two laps take twice one lap within 0.5 %. And, by the principle of
-    optimality, the second lap of the two-lap optimum is the optimal one lap from where its
-    first lap ends (one lap re-solved from that state, warm from nothing: within 0.1 %)."""
+    previous one). Two properties that must hold:
+
+    - two laps from s are never slower than twice one lap from s: one lap from the fixed point
+      ends at s again, so two optimal single laps flown back to back are a feasible two-lap
+      flight (tolerance 0.1 % for local optima);
+    - by the principle of optimality, the second lap of the two-lap optimum is the optimal one
+      lap from where its first lap ends (one lap re-solved from that state: within 0.1 %).
+
+    "Two laps take twice one lap" does not hold from this start, and is not asserted: the end of
+    a free-end lap is a poor start (it arrives at the last target at full speed, not set up for
+    the next leg), so the two-lap optimum gains on its first lap boundary. Measured: 6.1915 s
+    against 2 x 3.3417 s (7.4 % less). The equality needs the periodic start (the lap whose end
+    state equals its start state, optimised together), which the track's `end` keys cannot
+    state yet."""
     frame = load_airframe("SY250")
     base = ["climb_to_m=null", "start_position_m=[0, 0, 20]"]
     trk = load(TrackConfig, DEFAULT_TRACK, [*base, "start={velocity_mps: [10, 0, 0]}"])
@@ -319,7 +330,7 @@ def test_two_laps_from_a_flying_start_take_twice_one_lap():
     assert two.completed, two.reason
     assert len(two.lap_times_s) == 2
     np.testing.assert_allclose(two.lap_times_s.sum(), two.lap_time_s, rtol=1e-12)
-    np.testing.assert_allclose(two.lap_time_s, 2 * one.lap_time_s, rtol=5e-3)
+    assert two.lap_time_s <= 2 * one.lap_time_s * (1 + 1e-3)
     n_first = 4 * two.layout.intervals  # the first lap's four legs
     tail = limit_lap(frame, trk, replace(FAST, start_state=tuple(
         float(v) for v in two.x_euler[n_first])))

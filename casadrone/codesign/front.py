@@ -51,13 +51,18 @@ def measure_value(prep: Prepared, point: CodesignPoint, measure: str) -> float:
         return point.mass_kg
     if measure == "span_m":
         return point.span_m
+    return sum(track_efforts(prep, point).values())
+
+
+def track_efforts(prep: Prepared, point: CodesignPoint) -> dict[str, float]:
+    """Each track's limit-lap effort at a point (N^1.5·s), by track label."""
     import casadi as ca
 
     from casadrone.codesign.nlp import effort
 
     ws, _ = prep.nlp.split(point.z)
-    return float(sum(float(ca.evalf(effort(part, ca.DM(w))))
-                     for part, w in zip(prep.nlp.parts, ws, strict=True)))
+    return {label: float(ca.evalf(effort(part, ca.DM(w))))
+            for label, part, w in zip(prep.labels, prep.nlp.parts, ws, strict=True)}
 
 
 def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points: int = 15,
@@ -103,15 +108,10 @@ def point_laps(prep: Prepared, point: CodesignPoint) -> dict[str, dict[str, np.n
 
 def point_record(prep: Prepared, fp: FrontPoint, measure: str) -> dict:
     """One front point as plain data for :data:`POINTS_FILE`."""
-    import casadi as ca
-
     from casadrone.codesign.certificate import active_constraints
-    from casadrone.codesign.nlp import effort
 
-    ws, _ = prep.nlp.split(fp.point.z)
-    efforts = {label: float(ca.evalf(effort(part, ca.DM(w))))
-               for label, part, w in zip(prep.labels, prep.nlp.parts, ws, strict=True)}
     p = fp.point
+    efforts = track_efforts(prep, p)
     return {"theta": p.theta, "objective_s": p.objective, "laps_s": p.laps_s,
             "measure": measure, "value": fp.measure,
             "epsilon": None if math.isinf(fp.epsilon) else fp.epsilon, "status": fp.status,

@@ -154,14 +154,8 @@ def closed_loop_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
 def coarse_grid_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
     """Grid continuation: the closed-loop start on COARSE_SHARE of the intervals, its optimum
     resampled onto this grid (None when the coarse lap fails)."""
-    options = pb.options
-    coarse = lap_of(pb.frame, pb.track, replace(
-        options, intervals=max(2, round(COARSE_SHARE * pb.layout.intervals)),
-        starts=("closed-loop",), warm_starts=(), point_mass_reference=False,
-        sensitivities=False, fallback_reference=None))
-    if not coarse.completed:
-        return None
-    return pb.solve(guess_from_lap(pb.full, coarse, pb.x0))
+    return _grid_continuation(pb, lap_of, max(2, round(COARSE_SHARE * pb.layout.intervals)),
+                              "closed-loop")
 
 
 def fine_grid_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
@@ -171,14 +165,21 @@ def fine_grid_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
     paper track: 3.942 s on 40 intervals, 3.889 s on 60), and the fine grid's, resampled, led
     to the best optimum known on the 40-interval grid for SY250 and HS210
     (benchmarks/RESULTS-limitlap-issue19.md)."""
-    options = pb.options
-    fine = lap_of(pb.frame, pb.track, replace(
-        options, intervals=min(MAX_INTERVALS, round(FINE_SHARE * pb.layout.intervals)),
-        starts=("point-mass",), warm_starts=(), point_mass_reference=False,
-        sensitivities=False, fallback_reference=None))
-    if not fine.completed:
+    return _grid_continuation(pb, lap_of,
+                              min(MAX_INTERVALS, round(FINE_SHARE * pb.layout.intervals)),
+                              "point-mass")
+
+
+def _grid_continuation(pb: Problem, lap_of: LapOf, intervals: int, start: Start
+                       ) -> NlpSolution | None:
+    """The lap from cold start ``start`` on ``intervals`` per leg, its optimum resampled onto
+    this grid and solved here (None when that lap fails)."""
+    other = lap_of(pb.frame, pb.track, replace(
+        pb.options, intervals=intervals, starts=(start,), warm_starts=(),
+        point_mass_reference=False, sensitivities=False, fallback_reference=None))
+    if not other.completed:
         return None
-    return pb.solve(guess_from_lap(pb.full, fine, pb.x0))
+    return pb.solve(guess_from_lap(pb.full, other, pb.x0))
 
 
 def point_mass_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:

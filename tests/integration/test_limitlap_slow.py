@@ -294,24 +294,23 @@ def test_split_s_is_flown_and_resimulated_within_5_cm():
     assert lap.x[:, 2].min() >= -1e-6  # the floor
 
 
-def test_two_laps_from_a_flying_start_are_no_slower_than_twice_one_lap():
-    """A closed circuit (the paper rectangle at 20 m, no climb) from a flying start: the full
-    state (position, velocity, attitude, rates, thrusts) where one lap from it ends, found by
-    fixed-point iteration (a lap from s ends at e(s); s <- e(s), each lap warm-started from the
-    previous one). Two properties that must hold:
+def test_two_laps_from_a_flying_start_are_no_slower_than_two_single_laps():
+    """A closed circuit (the paper rectangle at 20 m, no climb) from a flying start s: the full
+    state (position, velocity, attitude, rates, thrusts) where one lap ends, iterated towards a
+    fixed point (a lap from s ends at e(s); s <- e(s), up to six laps, each warm-started from the
+    previous one; it does not settle to 1e-4 within six). Two properties that must hold:
 
-    - two laps from s are never slower than twice one lap from s: one lap from the fixed point
-      ends at s again, so two optimal single laps flown back to back are a feasible two-lap
-      flight (tolerance 0.1 % for local optima);
+    - two laps from s are never slower than the optimal lap from s followed by the optimal lap
+      from e(s): flown back to back they are a feasible two-lap flight (tolerance 0.1 % for local
+      optima);
     - by the principle of optimality, the second lap of the two-lap optimum is the optimal one
       lap from where its first lap ends (one lap re-solved from that state: within 0.1 %).
 
     "Two laps take twice one lap" does not hold from this start, and is not asserted: the end of
     a free-end lap is a poor start (it arrives at the last target at full speed, not set up for
-    the next leg), so the two-lap optimum gains on its first lap boundary. Measured: 6.1915 s
-    against 2 x 3.3417 s (7.4 % less). The equality needs the periodic start (the lap whose end
-    state equals its start state, optimised together), which the track's `end` keys cannot
-    state yet."""
+    the next leg), so the two-lap optimum gains at its lap boundary. Measured: 6.1915 s against
+    2 x 3.3417 s (7.4 % less). The equality needs the periodic start (the lap whose end state
+    equals its start state, optimised together), which the track's `end` keys cannot state yet."""
     frame = load_airframe("SY250")
     base = ["climb_to_m=null", "start_position_m=[0, 0, 20]"]
     trk = load(TrackConfig, DEFAULT_TRACK, [*base, "start={velocity_mps: [10, 0, 0]}"])
@@ -325,12 +324,15 @@ def test_two_laps_from_a_flying_start_are_no_slower_than_twice_one_lap():
         one, start = nxt, s
         if settled:
             break
+    then = limit_lap(frame, trk, replace(FAST, start_state=tuple(
+        float(v) for v in one.x_euler[-1]), starts=(), warm_starts=(one,)))
+    assert then.completed, then.reason
     two = limit_lap(frame, load(TrackConfig, DEFAULT_TRACK, [*base, "laps=2"]),
                     replace(FAST, start_state=start))
     assert two.completed, two.reason
     assert len(two.lap_times_s) == 2
     np.testing.assert_allclose(two.lap_times_s.sum(), two.lap_time_s, rtol=1e-12)
-    assert two.lap_time_s <= 2 * one.lap_time_s * (1 + 1e-3)
+    assert two.lap_time_s <= (one.lap_time_s + then.lap_time_s) * (1 + 1e-3)
     n_first = 4 * two.layout.intervals  # the first lap's four legs
     tail = limit_lap(frame, trk, replace(FAST, start_state=tuple(
         float(v) for v in two.x_euler[n_first])))

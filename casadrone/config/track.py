@@ -153,9 +153,10 @@ class TrackConfig(Schema):
     ceiling_m: float | None = Field(None, description="limit lap: highest altitude (m)")
     laps: int = Field(1, ge=1, le=20, description="limit lap: laps through the waypoints, the "
                       "time of each reported")
-    end: Literal["free", "rest", "velocity"] = Field(
-        "free", description="limit lap: state at the last waypoint (any speed, at rest, or "
-        "end_velocity_mps)")
+    end: Literal["free", "rest", "velocity", "periodic"] = Field(
+        "free", description="limit lap: state at the last waypoint (any speed, at rest, "
+        "end_velocity_mps, or periodic: the end state equals the start state, which is then "
+        "optimised; position too where the start is the last waypoint)")
     end_velocity_mps: Vec3 = Field((0.0, 0.0, 0.0), description="limit lap: world velocity "
                                    "(m/s) at the end with end: velocity")
     start: StartConfig = Field(default_factory=StartConfig, description="limit lap: start state")
@@ -197,6 +198,9 @@ class TrackConfig(Schema):
         if self.ceiling_m is not None and self.start_position_m[2] > self.ceiling_m:
             raise ValueError(f"ceiling_m: the start ({self.start_position_m[2]:g} m) is above "
                              f"the ceiling ({self.ceiling_m:g} m)")
+        if self.end == "periodic" and any(self.start.velocity_mps):
+            raise ValueError("start: a periodic lap (end: periodic) optimises its start state; "
+                             "give no start.velocity_mps")
         route = self.route
         legs = np.linalg.norm(np.diff(route, axis=0), axis=1)
         if np.any(legs < MIN_LEG_M):

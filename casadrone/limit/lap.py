@@ -7,7 +7,9 @@ Legs are the track's route segments (start → climb point → waypoints, or sta
 ends inside the waypoint's acceptance ball or through the gate's opening. Start: hover at the
 first route point (rotors at hover thrust, at rest, the track's start yaw), as the closed-loop
 lap starts, or ``options.start_state``. Attitude limit: |φ|, |θ| ≤ the track's ``max_tilt_deg``
-(the closed loop's failure test). The lap ends at the last waypoint, at any speed.
+(the closed loop's failure test). The lap ends at the last waypoint, at any speed (the track's
+``end``: or at rest, at a velocity, or periodic: in the state it started from, that start state
+optimised, :func:`casadrone.limit.nlp._periodic_rows`).
 
 Robustness:
 
@@ -251,6 +253,7 @@ def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],
         point_mass_reference_s=ref.objective if ref is not None else math.nan,
         lap_times_s=np.diff(np.concatenate([[0.0], lap_ends])), spread_s=spread,
         certainty=agreement, attitude=pb.full.model.attitude,
+        start_state=euler_states(pb.full.model.attitude, X[:1])[0],
         grid_laps_s=dict(sorted((grid_laps or {}).items())),
         resimulation_miss_m=misses.get(name, math.nan),
         param_sensitivity=param_sensitivity(pb, chosen.point), start=name,

@@ -175,6 +175,9 @@ class Layout:
         return self.degree if self.method == "collocation" else 0
     end_at_rest: bool = False  # world velocity fixed at the last target (at rest by default)
     tilt_cone: bool = False  # a row per node after the start: up_z(x) ≥ cos(largest tilt)
+    #: x(T) − x(0) rows (and |q(0)|² = 1 with a quaternion): the periodic lap
+    #: (:func:`_periodic_rows`); which of them bind, and the start state's freedom, are bounds
+    periodic: bool = False
 
     @property
     def n_legs(self) -> int:
@@ -206,18 +209,37 @@ class Nlp:
     max_iter: int = 1000
 
     def row_bounds(self, cos_tilt: float = -np.inf,
-                   end_velocity: np.ndarray | tuple[float, float, float] | None = None
-                   ) -> tuple[np.ndarray, np.ndarray]:
+                   end_velocity: np.ndarray | tuple[float, float, float] | None = None,
+                   periodic_position: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """(lbg, ubg) with the tilt cone's rows at ``cos_tilt`` (cos of the largest total tilt)
-        and the end rows at the world ``end_velocity`` (m/s; default at rest)."""
+        and the end rows at the world ``end_velocity`` (m/s; default at rest). A periodic layout
+        ties the end state to the start state and frees the start rows: with
+        ``periodic_position`` (a track whose start is its finish) all of them, so the lap starts
+        wherever it ends, inside the last target; otherwise all but position (the given start
+        position) and the end position is not tied."""
         lbg, ubg = self.lbg.copy(), self.ubg.copy()
         n_path = self.layout.n_intervals if self.layout.tilt_cone else 0
         if n_path:
             lbg[len(lbg) - n_path:] = cos_tilt
+        n_per = periodic_row_count(self.model) if self.layout.periodic else 0
         if self.layout.end_at_rest and end_velocity is not None:
-            at = slice(len(lbg) - n_path - 3, len(lbg) - n_path)
+            at = slice(len(lbg) - n_path - n_per - 3, len(lbg) - n_path - n_per)
             lbg[at] = ubg[at] = np.asarray(end_velocity, float)
+        if n_per:  # the start rows past position, or all of them
+            start, stop = self.start_row + (0 if periodic_position else 3), \
+                self.start_row + self.model.nx
+            lbg[start:stop], ubg[start:stop] = -np.inf, np.inf
+            if not periodic_position:
+                first = len(lbg) - n_path - n_per
+                lbg[first:first + 3], ubg[first:first + 3] = -np.inf, np.inf
         return lbg, ubg
+
+    @property
+    def start_row(self) -> int:
+        """Index of the first start-state row (X_0 − x_start): after the dynamics (and
+        collocation) rows and the tied durations, in both transcriptions."""
+        lay, nx = self.layout, self.model.nx
+        return nx * (lay.n_coll + 1) * lay.n_intervals + lay.n_intervals - lay.n_legs
 
     def pack(self, T: np.ndarray, X: np.ndarray, U: np.ndarray, Z: np.ndarray | None = None
              ) -> np.ndarray:
@@ -304,11 +326,40 @@ def _leg_end_rows(model: OcpModel, layout: Layout, X, targets) -> list:
                              targets[TARGET_SIZE * k:TARGET_SIZE * (k + 1)], kind)
     if layout.end_at_rest:
         rows.append((model.world_velocity(X[:, layout.n_intervals]), 0.0, 0.0))
+    if layout.periodic:
+        rows += _periodic_rows(model, X[:, 0], X[:, layout.n_intervals])
     if layout.tilt_cone:  # the bound (cos of the largest tilt) is set by Nlp.row_bounds
         if model.up_z is None:
             raise ValueError(f"model {model.name} has no attitude for a tilt cone")
         rows.append((ca.vertcat(*[model.up_z(X[:, i]) for i in range(1, layout.n_intervals + 1)]),
                      -np.inf, np.inf))
+    return rows
+
+
+def periodic_row_count(model: OcpModel) -> int:
+    """Rows of :func:`_periodic_rows`: one per state, one more with a quaternion."""
+    return model.nx + (model.attitude == "quaternion")
+
+
+def _periodic_rows(model: OcpModel, x_first, x_last) -> list:
+    """The periodic lap: x(T) − x(0) = 0, in the NLP's units (each state divided by its
+    ``scale``), position first (its three rows are freed by :meth:`Nlp.row_bounds` where the
+    track's start is not its finish; where it is, the start position is free as well, the lap
+    boundary anywhere in the last target, as every lap boundary inside a multi-lap flight).
+
+    Attitude: the Euler model's ψ(T) = ψ(0) exactly, so a lap whose yaw turns by 2π·k, k ≠ 0,
+    is not periodic here (φ and θ stay inside ±90° and cannot wind); with the quaternion model
+    q(T) = q(0), which excludes an odd number of full turns (q and −q are the same attitude).
+    Thrust does not depend on yaw, so no lap needs to turn its yaw; a lap that would gain by
+    winding is restricted. The quaternion's scale is free in the model (the rotation is that of
+    q / |q|), so with q(0) a decision variable |q(0)|² = 1 fixes it (otherwise the KKT system
+    is singular along q)."""
+    unit = ca.DM.ones(model.nx) if model.scale is None else ca.DM(model.scale)
+    rows = [((x_last - x_first) / unit, 0.0, 0.0)]
+    if model.attitude == "quaternion":
+        from casadrone.limit.attitude import QUAT
+
+        rows.append((ca.sumsqr(x_first[QUAT]), 1.0, 1.0))
     return rows
 
 

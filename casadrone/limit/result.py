@@ -165,6 +165,8 @@ class LimitLap(AsDict):
     # count in certainty and spread_s
     grid_laps_s: dict[int, float] = field(default_factory=dict)
     attitude: str = "euler"
+    # the start state flown, 16 Euler-model states (the optimised one with end: periodic)
+    start_state: np.ndarray = field(default_factory=lambda: np.zeros(0))
     resimulation_miss_m: float = math.nan
     param_sensitivity: np.ndarray = field(default_factory=lambda: np.zeros(0))
     sensitivities: dict[str, float] = field(default_factory=dict)

@@ -79,6 +79,8 @@ class Problem:
     rows: tuple[np.ndarray, np.ndarray]
 
     def solve(self, w0: np.ndarray, warm: NlpPoint | None = None) -> NlpSolution:
+        if warm is None:
+            w0 = periodic_guess(self.full, w0)
         return solve(self.full, w0, self.P, *self.box, warm=warm, lbg=self.rows[0],
                      ubg=self.rows[1], solver=self.options.solver)
 
@@ -102,6 +104,20 @@ class Problem:
                             self.x0)
 
 
+def periodic_guess(nlp: Nlp, w0: np.ndarray) -> np.ndarray:
+    """A guess for a periodic layout: its start node replaced by its own end node (the guesses
+    start from the track's given start state, at rest, while the periodic lap's start is its
+    end; where the start position is pinned, :meth:`Problem.solve`'s box clips it back);
+    unchanged for any other layout."""
+    if not nlp.layout.periodic:
+        return w0
+    nx, M = nlp.model.nx, nlp.layout.n_intervals
+    per = 1 + nlp.model.nu + nx * (nlp.layout.n_coll + 1)  # a block of w: S, u, z, x_i
+    w = np.array(w0, float)
+    w[per - nx:per] = w[M * per:]  # both in the NLP's units (Nlp.pack)
+    return w
+
+
 def prepare(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
             clearance_m: float) -> Problem:
     """The problem of ``frame`` on ``track``: the NLP of its layout (built once per process),
@@ -109,8 +125,8 @@ def prepare(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
     targets = track_targets(track, options, clearance_m)
     assert options.intervals is not None  # limit_lap resolved it (DEFAULT_INTERVALS)
     layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
-                    options.substeps, end_at_rest=track.end != "free",
-                    tilt_cone=options.tilt_limit == "cone")
+                    options.substeps, end_at_rest=track.end in ("rest", "velocity"),
+                    tilt_cone=options.tilt_limit == "cone", periodic=track.end == "periodic")
     model = ATTITUDE_MODELS[options.attitude](frame.propulsion)
     if is_lagless(frame):  # thrust.time_constant_s: 0, the lag-off idealisation
         model = without_lag(model)

@@ -10,6 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from casadrone.airframe import build_airframe
 from casadrone.config.airframe import load_airframe
 from casadrone.config.io import load
 from casadrone.config.track import TrackConfig
@@ -294,47 +295,40 @@ def test_split_s_is_flown_and_resimulated_within_5_cm():
     assert lap.x[:, 2].min() >= -1e-6  # the floor
 
 
-def test_two_laps_from_a_flying_start_are_no_slower_than_two_single_laps():
-    """A closed circuit (the paper rectangle at 20 m, no climb) from a flying start s: the full
-    state (position, velocity, attitude, rates, thrusts) where one lap ends, iterated towards a
-    fixed point (a lap from s ends at e(s); s <- e(s), up to six laps, each warm-started from the
-    previous one; it does not settle to 1e-4 within six). Two properties that must hold:
+def test_two_periodic_laps_take_twice_one_periodic_lap():
+    """The issue's acceptance: a closed circuit (the paper rectangle at 20 m, no climb, its
+    start on its finish) flown from a flying start. With ``end: periodic`` the flying start is
+    the lap's own optimal periodic state (x(T) = x(0), the start state optimised, the lap
+    boundary anywhere in the finish ball, as every lap boundary inside a multi-lap flight).
 
-    - two laps from s are never slower than the optimal lap from s followed by the optimal lap
-      from e(s): flown back to back they are a feasible two-lap flight (tolerance 0.1 % for local
-      optima);
-    - by the principle of optimality, the second lap of the two-lap optimum is the optimal one
-      lap from where its first lap ends (one lap re-solved from that state: within 0.1 %).
+    - two periodic laps are never slower than twice one (the one-lap orbit flown twice is a
+      feasible two-lap orbit on the same grid: tolerance 0.1 % for local optima);
+    - nor much faster: a two-lap orbit is two laps between lap-boundary states s and e, each at
+      least the optimal lap from its start to its end, and the best s → s lap is 1 T1; that
+      s → e → s beats it is not excluded by a theorem (a period-doubled orbit), so this is
+      the measured property the issue asks for, |T2 − 2 T1| ≤ 0.5 % of 2 T1;
+    - an independent integrator closes the orbit: the one-lap commands flown by CVODES from
+      the optimised start state end where they began (position within 10 cm, velocity within
+      0.2 m/s: the re-simulation drift over a lap of a 20-interval grid, observed 35 mm and
+      0.021 m/s).
 
-    "Two laps take twice one lap" does not hold from this start, and is not asserted: the end of
-    a free-end lap is a poor start (it arrives at the last target at full speed, not set up for
-    the next leg), so the two-lap optimum gains at its lap boundary. Measured: 6.1915 s against
-    2 x 3.3417 s (7.4 % less). The equality needs the periodic start (the lap whose end state
-    equals its start state, optimised together), which the track's `end` keys cannot state yet."""
+    20 intervals per leg and two starts keep it to a minute; the two-lap orbit repeats the
+    one-lap grid, so both are on the same discretisation."""
+    from casadrone.limit.check import resimulate
+
     frame = load_airframe("SY250")
-    base = ["climb_to_m=null", "start_position_m=[0, 0, 20]"]
-    trk = load(TrackConfig, DEFAULT_TRACK, [*base, "start={velocity_mps: [10, 0, 0]}"])
-    one = limit_lap(frame, trk, FAST)
+    base = ["climb_to_m=null", "start_position_m=[0, 0, 20]", "end=periodic"]
+    opts = replace(FAST, intervals=20, starts=("closed-loop", "point-mass"))
+    one = limit_lap(frame, load(TrackConfig, DEFAULT_TRACK, base), opts)
     assert one.completed, one.reason
-    for _ in range(6):
-        s = tuple(float(v) for v in one.x_euler[-1])
-        nxt = limit_lap(frame, trk, replace(FAST, start_state=s, starts=(), warm_starts=(one,)))
-        assert nxt.completed, nxt.reason
-        settled = abs(nxt.lap_time_s - one.lap_time_s) <= 1e-4 * one.lap_time_s
-        one, start = nxt, s
-        if settled:
-            break
-    then = limit_lap(frame, trk, replace(FAST, start_state=tuple(
-        float(v) for v in one.x_euler[-1]), starts=(), warm_starts=(one,)))
-    assert then.completed, then.reason
-    two = limit_lap(frame, load(TrackConfig, DEFAULT_TRACK, [*base, "laps=2"]),
-                    replace(FAST, start_state=start))
+    two = limit_lap(frame, load(TrackConfig, DEFAULT_TRACK, [*base, "laps=2"]), opts)
     assert two.completed, two.reason
     assert len(two.lap_times_s) == 2
     np.testing.assert_allclose(two.lap_times_s.sum(), two.lap_time_s, rtol=1e-12)
-    assert two.lap_time_s <= (one.lap_time_s + then.lap_time_s) * (1 + 1e-3)
-    n_first = 4 * two.layout.intervals  # the first lap's four legs
-    tail = limit_lap(frame, trk, replace(FAST, start_state=tuple(
-        float(v) for v in two.x_euler[n_first])))
-    assert tail.completed, tail.reason
-    np.testing.assert_allclose(tail.lap_time_s, two.lap_times_s[1], rtol=1e-3)
+    assert two.lap_time_s <= 2 * one.lap_time_s * (1 + 1e-3)
+    assert abs(two.lap_time_s - 2 * one.lap_time_s) <= 5e-3 * 2 * one.lap_time_s
+    np.testing.assert_allclose(one.x[-1], one.x[0], atol=1e-6)  # the periodic rows
+    np.testing.assert_allclose(one.start_state, one.x_euler[0])
+    flown = resimulate(build_airframe(frame), one)
+    assert np.linalg.norm(flown[-1, 0:3] - one.x[0, 0:3]) <= 0.1
+    assert np.linalg.norm(flown[-1, 3:6] - one.x[0, 3:6]) <= 0.2

@@ -83,10 +83,10 @@ def _nonlinear_toy(scale: tuple[float, ...] | None = None) -> OcpModel:
 TOY_SCALE = (1.0, 2.0, 1.0, 10.0, 1.0, 0.5, 1000.0)
 
 
-@pytest.mark.parametrize("kinds, cone, scale", [(("ball", "gate"), False, None),
-                                                (("circle", "polygon"), True, None),
-                                                (("ball", "gate"), True, TOY_SCALE)])
-def test_assembled_derivatives_equal_casadi_ad(kinds, cone, scale):
+@pytest.mark.parametrize("kinds, cone, scale, periodic", [
+    (("ball", "gate"), False, None, False), (("circle", "polygon"), True, None, False),
+    (("ball", "gate"), True, TOY_SCALE, False), (("ball", "gate"), True, TOY_SCALE, True)])
+def test_assembled_derivatives_equal_casadi_ad(kinds, cone, scale, periodic):
     """The constraint Jacobian and Lagrangian Hessian assembled from the compiled interval
     blocks equal CasADi's own AD of the same NLP, entry by entry (ball, gate, circle and
     polygon targets, a rest condition, the tilt cone's rows, 3 intervals per leg, random point
@@ -95,7 +95,7 @@ def test_assembled_derivatives_equal_casadi_ad(kinds, cone, scale):
     from casadrone.limit.nlp import _shooting_nlp
 
     model = _nonlinear_toy(scale)
-    layout = Layout(kinds, 3, substeps=2, end_at_rest=True, tilt_cone=cone)
+    layout = Layout(kinds, 3, substeps=2, end_at_rest=True, tilt_cone=cone, periodic=periodic)
     nlp, lbg, ubg, extra = _shooting_nlp(model, layout)
     W, P = nlp["x"], nlp["p"]
     lam_g = ca.MX.sym("lam_g", nlp["g"].numel())
@@ -484,3 +484,98 @@ def test_certainty_counts_the_laps_on_other_grids():
     verdict, spread = certainty(good, (3.880,))
     assert verdict == "spread" and spread == pytest.approx(0.021)
     assert certainty(good[:1]) == ("single", pytest.approx(np.nan, nan_ok=True))
+
+
+def _periodic_shuttle(points, a_max, intervals, method="shooting"):
+    """The double integrator from x = 0 through balls of radius 0 at ``points`` (on the x axis)
+    and back to 0, with ``end: periodic`` (x(T) = x(0), the start velocity free, the start
+    position fixed; y and z held at rest): (leg durations, node states)."""
+    model = _double_integrator()
+    kinds = ("ball",) * len(points)
+    nlp = build_nlp(model, Layout(kinds, intervals, method=method, periodic=True))
+    L, M = len(points), len(points) * intervals
+    P = np.concatenate([[0.0], np.zeros(6), target_vector(
+        np.asarray(points, float), kinds, np.zeros(L), np.zeros(L), np.zeros(L), 0.0)])
+    xl, xu = np.full((M + 1, 6), -np.inf), np.full((M + 1, 6), np.inf)
+    xl[:, [1, 2, 4, 5]] = xu[:, [1, 2, 4, 5]] = 0.0
+    xl[0, 0:3] = xu[0, 0:3] = 0.0  # the start position (the last target is that point)
+    ul, uu = np.full((M, 3), -a_max), np.full((M, 3), a_max)
+    ul[:, 1:] = uu[:, 1:] = 0.0
+    d = nlp.layout.n_coll
+    zl, zu = np.repeat(xl[1:, None, :], d, axis=1), np.repeat(xu[1:, None, :], d, axis=1)
+    lbx = nlp.pack(np.full(L, 1e-2), xl, ul, zl)
+    ubx = nlp.pack(np.full(L, 1e2), xu, uu, zu)
+    lbg, ubg = nlp.row_bounds(periodic_position=True)
+    X0 = np.zeros((M + 1, 6))
+    X0[:, 0] = np.interp(np.linspace(0, L, M + 1), np.arange(L + 1),
+                         np.r_[0.0, np.asarray(points, float)[:, 0]])
+    sol = solve(nlp, nlp.pack(np.ones(L), X0, np.zeros((M, 3))), P, lbx, ubx, lbg=lbg, ubg=ubg)
+    assert sol.success, sol.return_status
+    T, X, _ = nlp.unpack(sol.point.w)
+    return T, X
+
+
+@pytest.mark.parametrize("method", ["shooting", "collocation"])
+def test_periodic_shuttle_matches_the_bang_bang_oscillation(method):
+    """``end: periodic`` on a 1-D shuttle 0 → D1 → −D2 → 0 under |a| ≤ A (D1 < D2): the
+    periodic optimum is the bang-bang oscillation between D1 and −D2 (span S = D1 + D2), each
+    swing rest to rest in 2√(S/A): the period is 4√(S/A), wherever 0 lies; 0 is on the
+    braking half of the upward swing, passed at √(2 A D1). Legs: √(2 D1/A) (braking to D1),
+    2√(S/A), and the rest of the period, 2√(S/A) − √(2 D1/A). With A = 2, D1 = 1, D2 = 7: legs
+    1, 4, 3 s, start speed 2 m/s; every switch falls on a node with 12 intervals per leg, so
+    the grid's optimum is the analytic one. Bugs fail here: without the periodic rows the last
+    leg accelerates from −D2 all the way (√7 s, lap 7.65 s, and end speed √28 ≠ 2 m/s); with
+    the start state not freed the lap starts at rest (leg 1 alone 2 s). Two laps: two
+    oscillations, 16 s."""
+    A, D1, D2 = 2.0, 1.0, 7.0
+    route = [[D1, 0, 0], [-D2, 0, 0], [0, 0, 0]]
+    T, X = _periodic_shuttle(route, A, 12, method)
+    # observed 5e-5 (a ball of radius 0 is |p − c|² ≤ 0, met to IPOPT's 1e-8: ~1e-4 m)
+    np.testing.assert_allclose(T, [1.0, 4.0, 3.0], rtol=5e-4)
+    np.testing.assert_allclose(X[0, 3], math.sqrt(2 * A * D1), rtol=5e-4)
+    np.testing.assert_allclose(X[-1], X[0], atol=1e-8)
+    if method == "shooting":
+        T2, X2 = _periodic_shuttle(route * 2, A, 12)
+        np.testing.assert_allclose(T2.sum(), 16.0, rtol=5e-4)
+        np.testing.assert_allclose(X2[-1], X2[0], atol=1e-8)
+
+
+def test_periodic_track_key_is_validated_and_poses_the_periodic_lap():
+    """``end: periodic`` reaches the layout and the bounds. On a track that closes (start on
+    the last waypoint, no climb) the whole start state is free (box and start rows) and all
+    periodic rows bind; with a climb point the start position stays the given one and the
+    periodic rows of position are free. A flying start given with it is refused."""
+    from casadrone.airframe import build_airframe
+    from casadrone.limit.problem import bounds, closes, row_bounds
+    from casadrone.limit.starts import periodic_guess, prepare
+
+    frame = build_airframe(load_airframe("SY250"))
+    closed = load(TrackConfig, DEFAULT_TRACK, ["climb_to_m=null", "start_position_m=[0, 0, 20]",
+                                               "end=periodic"])
+    climb = load(TrackConfig, DEFAULT_TRACK, ["end=periodic"])
+    assert closes(closed) and not closes(climb)
+    opts = LimitLapOptions(intervals=4)
+    pb = prepare(frame, closed, opts, 0.0)
+    assert pb.layout.periodic and not pb.layout.end_at_rest
+    nx, s = pb.full.model.nx, pb.full.start_row
+    for trk, pinned in ((closed, False), (climb, True)):
+        lo, hi = bounds(pb.full, frame, trk, opts, point_mass=False)
+        X_lo, X_hi = pb.full.unpack(lo)[1], pb.full.unpack(hi)[1]
+        assert np.isinf(X_lo[0, 3:9]).all() and (X_lo[0, 3:] < X_hi[0, 3:]).all()
+        assert (X_lo[0, :3] == X_hi[0, :3]).all() == pinned
+        lbg, ubg = row_bounds(pb.full, trk, opts)
+        assert np.isinf(lbg[s + 3:s + nx]).all() and np.isinf(ubg[s + 3:s + nx]).all()
+        assert (lbg[s:s + 3] == 0).all() == pinned
+        # no tilt cone: the periodic rows are the last
+        assert (lbg[-nx + 3:] == 0).all() and (ubg[-nx + 3:] == 0).all()
+        assert (lbg[-nx:-nx + 3] == 0).all() != pinned
+    # the starts' guesses begin where they end (the guessed trajectory's own end state)
+    M = pb.layout.n_intervals
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(M + 1, nx))
+    T, X2, U = pb.full.unpack(periodic_guess(pb.full, pb.full.pack(
+        np.ones(pb.layout.n_legs), X, rng.uniform(size=(M, 4)))))
+    np.testing.assert_allclose(X2[0], X[-1])
+    np.testing.assert_allclose(X2[1:], X[1:])
+    with pytest.raises(ConfigError, match="start"):
+        load(TrackConfig, DEFAULT_TRACK, ["end=periodic", "start={velocity_mps: [5, 0, 0]}"])

@@ -309,8 +309,8 @@ def test_two_periodic_laps_take_twice_one_periodic_lap():
       the measured property the issue asks for, |T2 − 2 T1| ≤ 0.5 % of 2 T1;
     - an independent integrator closes the orbit: the one-lap commands flown by CVODES from
       the optimised start state end where they began (position within 10 cm, velocity within
-      0.2 m/s: the re-simulation drift over a lap of a 20-interval grid, observed 35 mm and
-      0.021 m/s).
+      0.2 m/s: the re-simulation drift over a lap of a 20-interval grid, observed 19 mm and
+      0.011 m/s; 35 mm and 0.021 m/s from another local optimum).
 
     20 intervals per leg and two starts keep it to a minute; the two-lap orbit repeats the
     one-lap grid, so both are on the same discretisation."""

@@ -42,13 +42,11 @@ from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK, default_setup, evaluate, theta_of  # noqa: E402
 from casadrone.limit.check import lap_propulsion  # noqa: E402
 from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
-from casadrone.propulsion import (  # noqa: E402
-    FIT_MAX_J,
-    max_static_thrust,
-    rotor_thrust_bound,
-)
+from casadrone.propulsion import max_static_thrust, rotor_thrust_bound  # noqa: E402
 
 REFERENCES = ("SY250", "HS210", "HS200", "NSY200", "SY220")
+#: A rotor-node within this of the data's largest advance ratio counts as at the bound.
+AT_BOUND = 1e-3
 MODELS = ("paper", "propeller")
 TRACKS = {"paper": DEFAULT_TRACK, "gates": "multigp-cdra-gates"}
 
@@ -111,13 +109,16 @@ def lap_row(name: str, model: str, track_name: str, options: LimitLapOptions):
         return f"{head} failed: {lap.reason[:160]} | | | | | | | | | | {t:.0f} |", lap
     prop = lap_propulsion(frame, lap.x_euler, lap.u)
     J, T = prop["advance_ratio"], prop["thrust_n"]
-    # J at full command (where CT(J) sets the thrust the lap can have; a rotor near standstill
-    # has J → ±∞), and the share of rotor-nodes beyond the fitted data (J > FIT_MAX_J) or with
-    # negative thrust (the quadratic CT(J) extrapolated: a windmilling or stopped rotor brakes)
+    # J at full command (where CT(J) sets the thrust the lap can have); over every rotor-node
+    # its range (finite J: a stopped rotor has none), the share of rotor-nodes at the data's
+    # bound (J within AT_BOUND of J_max), beyond it, and with negative thrust (the quadratic
+    # CT(J) extrapolated: a windmilling or stopped rotor brakes)
     full = lap.u >= 0.99
-    jr = (f"{np.median(J[full]):.2f} / {np.max(J[full]):.2f}; beyond data "
-          f"{100 * np.mean(J > FIT_MAX_J):.1f} %, T < 0 {100 * np.mean(T < 0):.1f} %"
-          if np.isfinite(J).any() and full.any() else "—")
+    j_max, fin = prop["data_advance_ratio"], np.isfinite(J)
+    jr = (f"{np.median(J[full]):.2f} / {np.max(J[full]):.2f}; all {np.min(J[fin]):.2f} … "
+          f"{np.max(J[fin]):.2f}; at bound {100 * np.mean(J >= j_max - AT_BOUND):.1f} %, beyond "
+          f"{100 * np.mean(J > j_max + AT_BOUND):.1f} %, T < 0 {100 * np.mean(T < 0):.1f} % "
+          f"(min {np.min(T):.2f} N)" if fin.any() and full.any() else "—")
     bound = 4 * rotor_thrust_bound(frame)
     peak = float(np.max(np.sum(T, axis=1)))
     starts = ", ".join(f"{s.start} {s.lap_time_s:.3f}" if s.success else f"{s.start} "
@@ -134,8 +135,9 @@ def laps(rep: Report, frames, tracks, models, options: LimitLapOptions) -> dict:
     rep.add(f"## Limit lap ({grid} intervals per leg, starts: {', '.join(options.starts)})", "",
             "| frame | track | model | lap (s) | point-mass reference (s) | re-simulation miss "
             "(cm) | top speed (m/s) | thrust at top speed (N, 4 rotors) | static full thrust "
-            "(N) | J at full command: median / max; rotor-nodes beyond the data, with T < 0 | min "
-            "full-command thrust ratio | max ΣT / 4 T_b | starts (lap s) | "
+            "(N) | J at full command: median / max; all rotor-nodes: range, at the data's bound "
+            "J_max, beyond it, with T < 0 (lowest T) | min thrust ratio CT(J)/CT(0) | "
+            "max ΣT / 4 T_b | starts (lap s) | "
             "CPU (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     out = {}
     for track_name in tracks:

@@ -81,6 +81,9 @@ class Airframe:
     #: propulsion kind (:mod:`casadrone.propulsion`) and its parameters appended to p
     propulsion: str = "paper"
     propulsion_params: tuple[float, ...] = ()
+    #: largest advance ratio of the propeller's data, which the limit lap keeps every rotor
+    #: within (:func:`casadrone.propulsion.advance_ratio_limit`); None: no bound (``paper``)
+    max_advance_ratio: float | None = None
 
     @cached_property
     def p(self) -> np.ndarray:
@@ -128,7 +131,7 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
     (r_i − c), which is where the model's moments are taken.
     """
     from casadrone.massprops import mass_properties
-    from casadrone.propulsion import propeller_params
+    from casadrone.propulsion import advance_ratio_limit, propeller_params
 
     mp = mass_properties(cfg)
     r = np.array(rotor_positions_mm(cfg.lambda_a_mm, cfg.lambda_b_mm, cfg.alpha_deg, cfg.beta_deg))
@@ -163,6 +166,7 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
         propulsion=cfg.propulsion.model,
         propulsion_params=(tuple(propeller_params(cfg.propulsion, cfg.air_density_kgm3))
                            if cfg.propulsion.model == "propeller" else ()),
+        max_advance_ratio=advance_ratio_limit(cfg.propulsion),
     )
 
 

@@ -189,6 +189,19 @@ def propeller_terms(vel, omega, w, w_dot, u, q: dict[str, Any], r, s):
     return force, torque, ca.vertcat(*residual), ca.vertcat(*thrusts), ca.vertcat(*inflows)
 
 
+def advance_margins(vel, omega, w, q: dict[str, Any], r, j_max: float):
+    """The four rows J_max n_i D − v_a,i (m/s) that keep each rotor inside its data,
+    J = v_a/(n D) ≤ J_max: ``vel``, ``omega`` the body velocity (m/s) and rates (rad/s), ``w``
+    the rotor speeds (rad/s), v_a the effective axial inflow of :func:`axial_inflow` (the one
+    CT and CP see). Linear in n and v_a, no division: at n = 0 it asks v_a ≤ 0 (no inflow
+    through a stopped rotor) instead of dividing by zero."""
+    import casadi as ca
+
+    rows = [j_max * w[i] / (2 * math.pi) * q["prop_D"]
+            - axial_inflow((vel + ca.cross(omega, r[i]))[2], q) for i in range(4)]
+    return ca.vertcat(*rows)
+
+
 # --------------------------------------------------------------------------------------------
 # Steady states at zero airspeed (closed form, numeric)
 # --------------------------------------------------------------------------------------------
@@ -420,6 +433,36 @@ def fit_points(data):
     J, rpm = data[:, 0], data[:, 1]
     return data[((J == 0) & (rpm >= FIT_MIN_STATIC_RPM))
                 | ((rpm == FIT_SWEEP_RPM) & (J > 0) & (J <= FIT_MAX_J))]
+
+
+def data_advance_ratio(name: str = SHIPPED_PROPELLER) -> float:
+    """The largest advance ratio of the points a shipped dataset's fit uses
+    (:func:`fit_points`): where its CT(J), CP(J) are measured, 0.618 for the shipped propeller."""
+    return float(fit_points(propeller_data(name))[:, 0].max())
+
+
+def shipped_datasets() -> tuple[str, ...]:
+    """Names of the propeller datasets shipped in the package data."""
+    from importlib import resources
+
+    folder = resources.files("casadrone") / "data" / "propulsion"
+    return tuple(sorted(f.name[:-4] for f in folder.iterdir()
+                        if f.name.endswith(".csv") and f.name != "parts.csv"))
+
+
+def advance_ratio_limit(cfg: PropulsionConfig) -> float | None:
+    """The largest advance ratio the limit lap may fly (dimensionless), None for none: the
+    section's ``propeller.max_advance_ratio``; else, when ``propeller.data`` names a shipped
+    dataset, its :func:`data_advance_ratio`; else None (coefficients given without data, the
+    linear-inflow form: no range is known, so none is imposed)."""
+    prop = cfg.propeller
+    if cfg.model != "propeller" or prop is None:
+        return None
+    if prop.max_advance_ratio is not None:
+        return float(prop.max_advance_ratio)
+    if prop.data is not None and prop.data in shipped_datasets():
+        return data_advance_ratio(prop.data)
+    return None
 
 
 def fit_coefficients(J, y, degree: int = 2) -> list[float]:

@@ -23,7 +23,7 @@ from casadrone.cli.common import (
 
 #: What the propulsion did (:func:`casadrone.limit.check.lap_propulsion`), added to ``--json``.
 PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio",
-                   "min_thrust_ratio")
+                   "data_advance_ratio", "beyond_data_share", "min_thrust_ratio")
 
 if TYPE_CHECKING:  # the limit lap is imported when the command runs (CasADi)
     from casadrone.limit.lap import Attitude, Solver, TiltLimit
@@ -134,8 +134,9 @@ def _text(name: str, track: str, r: dict) -> str:
         f"  lap times (s): {', '.join(f'{t:.3f}' for t in r['lap_times_s'])}",
         f"  bang-bang fraction: {r['bang_bang_fraction']:.2f}; re-simulation miss: "
         f"{r['resimulation_miss_m']:.4f} m",
-        f"  top speed {r['top_speed_m_s']:.1f} m/s; lowest full-command thrust / static "
-        f"{r['min_thrust_ratio']:.2f}; highest advance ratio {r['max_advance_ratio']:.2f}",
+        f"  top speed {r['top_speed_m_s']:.1f} m/s; lowest thrust / thrust without inflow "
+        f"{r['min_thrust_ratio']:.2f}; highest advance ratio {r['max_advance_ratio']:.2f} "
+        f"(propeller data to {r['data_advance_ratio']:.2f})",
         "  sensitivity dT/dθ (s per unit):",
     ]
     lines += [f"    {k:<14}{v:>+12.4g}" for k, v in r["sensitivities"].items()

@@ -45,6 +45,11 @@ class PropellerConfig(Schema):
     inflow_smoothing_m_s: float = Field(0.2, gt=0, le=10,
                                         description="width of the smoothed max(v_a, 0) (m/s)")
     data: str | None = Field(None, description="the dataset the coefficients were fitted to")
+    max_advance_ratio: float | None = Field(
+        None, gt=0, le=10,
+        description="largest advance ratio J = v_a/(n D) the CT/CP fit holds to; the limit lap "
+        "keeps every rotor at J ≤ it. Default: the largest J of the fitted points of the "
+        "shipped dataset named in data; none (no bound) without one")
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:

@@ -119,19 +119,22 @@ def theta_sensitivities(
     return out
 
 
-#: A command this close to 1 counts as full command in :func:`lap_propulsion`.
-FULL_COMMAND_TOL = 0.01
-
-
 def lap_propulsion(airframe, x, u) -> dict[str, Any]:
     """What the propulsion did over a flight with Euler states ``x`` (M+1, 16) and commands
     ``u`` (M, 4) held from each state: per node (the first M) the airspeed (m/s), each rotor's
     thrust (N) and advance ratio, and the summary ``top_speed_m_s``, ``thrust_at_top_speed_n``
-    (the four rotors), ``max_advance_ratio`` (NaN with ``paper``, which has no rotor speed) and
-    ``min_thrust_ratio``: the lowest ratio, over the nodes where a rotor is at full command
-    (δ ≥ 0.99), of its thrust to the static thrust at the same rotor state
-    (:func:`casadrone.propulsion.static_thrusts`: 1 with ``paper``, CT(J)/CT(0) with
-    ``propeller``), NaN if no rotor reached full command."""
+    (the four rotors), ``max_advance_ratio`` (NaN with ``paper``, which has no rotor speed),
+    ``data_advance_ratio`` (the largest J of the propeller's data, NaN without one),
+    ``beyond_data_share`` (the share of rotor-nodes with J above it) and ``min_thrust_ratio``.
+
+    ``min_thrust_ratio`` is the lowest, over every node and every turning rotor, of its thrust
+    to the thrust it would give at the same rotor speed without inflow, T(ω, v_a)/T(ω, 0) =
+    CT(J)/CT(0) (:func:`casadrone.propulsion.static_thrusts`; 1 with ``paper``; NaN if no rotor
+    turns). It measures what the inflow costs, whatever the command: the issue's first
+    definition, the thrust at full command over the static thrust, looked only at full-command
+    nodes and, at the same rotor state, is this ratio restricted to them; over the whole lap it
+    is bounded below by CT(J_max)/CT(0) where the rotors stay inside the data (a stopped rotor,
+    ω = 0, is left out: its ratio is 0/0)."""
     x, u = np.asarray(x, float).reshape(-1, 16), np.asarray(u, float).reshape(-1, 4)
     n = min(len(u), len(x))
     x, u = x[:n], u[:n]
@@ -143,13 +146,17 @@ def lap_propulsion(airframe, x, u) -> dict[str, Any]:
     else:
         out = propeller_outputs().map(n)(x.T, u.T, np.repeat(airframe.p[:, None], n, axis=1))
         thrust, J = np.asarray(out[0]).T, np.asarray(out[2]).T
-    full = (u >= 1 - FULL_COMMAND_TOL) & (x[:, 12:16] > 0)
-    ratio = thrust[full] / static_thrusts(airframe, x[:, 12:16][full])
+    turning = x[:, 12:16] > 0
+    ratio = thrust[turning] / static_thrusts(airframe, x[:, 12:16][turning])
     top = int(np.argmax(speed)) if n else 0
+    j_data = getattr(airframe, "max_advance_ratio", None)
     return {
         "speed_m_s": speed, "thrust_n": thrust, "advance_ratio": J,
         "top_speed_m_s": float(speed[top]) if n else math.nan,
         "thrust_at_top_speed_n": [float(t) for t in thrust[top]] if n else [],
         "max_advance_ratio": float(np.nanmax(J)) if n and np.isfinite(J).any() else math.nan,
+        "data_advance_ratio": math.nan if j_data is None else float(j_data),
+        "beyond_data_share": float(np.mean(J > j_data)) if n and j_data is not None
+        else math.nan,
         "min_thrust_ratio": float(ratio.min()) if ratio.size else math.nan,
     }

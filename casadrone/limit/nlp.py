@@ -62,6 +62,7 @@ class OcpModel:
     up_z: Callable | None = None
     attitude: str = "none"
     scale: tuple[float, ...] | None = None
+    velocity: slice | None = None  # the body-frame velocity (m/s), for the rotors' inflow
 
     @property
     def nx(self) -> int:
@@ -106,7 +107,8 @@ def quadrotor_ocp_model(propulsion: str = "paper") -> OcpModel:
     name = "quadrotor" if propulsion == "paper" else f"quadrotor-{propulsion}"
     return OcpModel(name, quadrotor_model(propulsion).f, vw, rates=slice(6, 9),
                     rotor=slice(12, 16), up_z=lambda x: ca.cos(x[9]) * ca.cos(x[10]),
-                    attitude="euler", scale=state_scale(16, slice(12, 16), propulsion))
+                    attitude="euler", scale=state_scale(16, slice(12, 16), propulsion),
+                    velocity=slice(3, 6))
 
 
 def quaternion_ocp_model(propulsion: str = "paper") -> OcpModel:
@@ -120,7 +122,7 @@ def quaternion_ocp_model(propulsion: str = "paper") -> OcpModel:
     name = "quadrotor-quat" if propulsion == "paper" else f"quadrotor-quat-{propulsion}"
     return OcpModel(name, quaternion_f(propulsion), lambda x: quat_rotation(x[QUAT]) @ x[3:6],
                     rates=slice(6, 9), rotor=slice(13, 17), up_z=up_z, attitude="quaternion",
-                    scale=state_scale(17, slice(13, 17), propulsion))
+                    scale=state_scale(17, slice(13, 17), propulsion), velocity=slice(3, 6))
 
 
 #: Full-state models of the limit lap, by attitude representation.
@@ -178,6 +180,9 @@ class Layout:
     #: x(T) − x(0) rows (and |q(0)|² = 1 with a quaternion): the periodic lap
     #: (:func:`_periodic_rows`); which of them bind, and the start state's freedom, are bounds
     periodic: bool = False
+    #: propeller kind: four rows per node after the start, J_max n_i D − v_a,i ≥ 0, that keep
+    #: every rotor inside its propeller data (:func:`advance_rows`); None: none
+    max_advance_ratio: float | None = None
 
     @property
     def n_legs(self) -> int:
@@ -316,10 +321,43 @@ def collocation_interval(model: OcpModel, degree: int) -> ca.Function:
                        ["x", "z", "u", "p", "h"], ["res", "x_end"])
 
 
-def _leg_end_rows(model: OcpModel, layout: Layout, X, targets) -> list:
-    """Constraint rows of every leg's end node (its target) and, if asked, rest at the end."""
+def advance_rows(model: OcpModel, j_max: float, M: int) -> ca.Function:
+    """``rows(X, p) -> g`` (4 M): J_max n_i D − v_a,i of each rotor at each of the M nodes
+    (columns of X, model units) of a ``propeller`` model
+    (:func:`casadrone.propulsion.advance_margins`); g ≥ 0 keeps every rotor at J ≤ J_max.
+
+    Why at the NLP's assembly, not in the model: the wind-tunnel data of the shipped propeller
+    end at J = 0.62, and a limit lap without the rows flew 4–6 % of its rotor-nodes beyond them,
+    some nearly stopped in 27 m/s of inflow with the extrapolated quadratic giving negative
+    thrust (braking the data do not support). The rows are linear in the rotor speed and the
+    inflow (no division by n), and, like the tilt cone, they are differentiated by CasADi beside
+    the compiled interval blocks, which stay as they are (no recompile)."""
+    from casadrone.model import named, unpack_params
+    from casadrone.propulsion import advance_margins
+
+    if model.velocity is None or model.rates is None or model.rotor is None:
+        raise ValueError(f"model {model.name} has no rotors for an advance-ratio bound")
+    x = ca.SX.sym("x", model.nx)
+    p = ca.SX.sym("p", model.np)
+    _, _, r, _, _ = unpack_params(p)
+    g = advance_margins(x[model.velocity], x[model.rates], x[model.rotor], named(p), r, j_max)
+    node = ca.Function("advance_rows", [x, p], [g], ["x", "p"], ["g"])
+    X = ca.MX.sym("X", model.nx, M)
+    P = ca.MX.sym("p", model.np)
+    return ca.Function("advance_rows_map", [X, P], [ca.vec(node.map(M)(X, P))], ["X", "p"],
+                       ["g"])
+
+
+def _leg_end_rows(model: OcpModel, layout: Layout, X, targets, p) -> list:
+    """Constraint rows of every leg's end node (its target) and, if asked, rest at the end;
+    first, if asked, the advance-ratio rows of every node after the start (the rows whose
+    bounds :meth:`Nlp.row_bounds` sets stay last)."""
     N = layout.intervals
     rows = []
+    if layout.max_advance_ratio is not None:
+        M = layout.n_intervals
+        rows.append((advance_rows(model, layout.max_advance_ratio, M)(X[:, 1:M + 1], p),
+                     0.0, np.inf))
     for k, kind in enumerate(layout.kinds):
         xe = X[:, (k + 1) * N]
         rows += target_rows(xe, model.world_velocity(xe),
@@ -486,7 +524,7 @@ def _shooting_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np
         x_next = x_next / ca.DM(np.tile(d[:, None], (1, M)))
         x_start = x_start / ca.DM(d)
     same_i = np.array([i for i in range(1, M) if i % N], dtype=int)
-    trows = _leg_end_rows(model, layout, X, targets)
+    trows = _leg_end_rows(model, layout, X, targets, p)
     gt = ca.vertcat(*[r[0] for r in trows])
     rows = [(ca.vec(Xs[:, 1:] - x_next), 0.0, 0.0),
             ((S[same_i] - S[same_i - 1]).T, 0.0, 0.0), (Xs[:, 0] - x_start, 0.0, 0.0), *trows]
@@ -582,7 +620,7 @@ def _collocation_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray,
     x0 = x_start if model.scale is None else x_start / unit
     rows = [(ca.vertcat(*res), 0.0, 0.0), (ca.vertcat(*x_end), 0.0, 0.0),
             (ca.vertcat(*same), 0.0, 0.0), (X[:, 0] - x0, 0.0, 0.0),
-            *_leg_end_rows(model, layout, Xp, targets)]
+            *_leg_end_rows(model, layout, Xp, targets, p)]
     lbg, ubg = _bounds_of(rows)
     w = ca.vertcat(ca.vec(ca.vertcat(S, U, Z, X[:, :M])), X[:, M])
     nlp = {"x": w, "p": ca.vertcat(p, x_start, targets), "f": ca.sum2(S[::N]),

@@ -87,7 +87,7 @@ class Problem:
     @cached_property
     def point_mass(self) -> Nlp:  # only when a point-mass start or the reference needs it
         return build_nlp(point_mass_ocp_model(self.frame.propulsion),
-                         replace(self.layout, tilt_cone=False),
+                         replace(self.layout, tilt_cone=False, max_advance_ratio=None),
                          self.options.tol, self.options.max_iter)
 
     @cached_property
@@ -126,7 +126,9 @@ def prepare(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
     assert options.intervals is not None  # limit_lap resolved it (DEFAULT_INTERVALS)
     layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
                     options.substeps, end_at_rest=track.end in ("rest", "velocity"),
-                    tilt_cone=options.tilt_limit == "cone", periodic=track.end == "periodic")
+                    tilt_cone=options.tilt_limit == "cone", periodic=track.end == "periodic",
+                    max_advance_ratio=frame.max_advance_ratio
+                    if frame.propulsion == "propeller" else None)
     model = ATTITUDE_MODELS[options.attitude](frame.propulsion)
     if is_lagless(frame):  # thrust.time_constant_s: 0, the lag-off idealisation
         model = without_lag(model)

@@ -110,15 +110,15 @@ def lap_row(name: str, model: str, track_name: str, options: LimitLapOptions):
     prop = lap_propulsion(frame, lap.x_euler, lap.u)
     J, T = prop["advance_ratio"], prop["thrust_n"]
     # J at full command (where CT(J) sets the thrust the lap can have); over every rotor-node
-    # its range (finite J: a stopped rotor has none), the share of rotor-nodes at the data's
+    # its largest value (a stopped rotor has none), the share of rotor-nodes at the data's
     # bound (J within AT_BOUND of J_max), beyond it, and with negative thrust (the quadratic
-    # CT(J) extrapolated: a windmilling or stopped rotor brakes)
+    # CT(J) extrapolated: a windmilling or stopped rotor brakes), with the lowest thrust
     full = lap.u >= 0.99
     j_max, fin = prop["data_advance_ratio"], np.isfinite(J)
-    jr = (f"{np.median(J[full]):.2f} / {np.max(J[full]):.2f}; all {np.min(J[fin]):.2f} … "
-          f"{np.max(J[fin]):.2f}; at bound {100 * np.mean(J >= j_max - AT_BOUND):.1f} %, beyond "
+    jr = (f"{np.median(J[full]):.2f} / {np.max(J[full]):.2f}; all ≤ {np.max(J[fin]):.3f}; at "
+          f"bound {100 * np.mean(J >= j_max - AT_BOUND):.1f} %, beyond "
           f"{100 * np.mean(J > j_max + AT_BOUND):.1f} %, T < 0 {100 * np.mean(T < 0):.1f} % "
-          f"(min {np.min(T):.2f} N)" if fin.any() and full.any() else "—")
+          f"(lowest {np.min(T):.2g} N)" if fin.any() and full.any() else "—")
     bound = 4 * rotor_thrust_bound(frame)
     peak = float(np.max(np.sum(T, axis=1)))
     starts = ", ".join(f"{s.start} {s.lap_time_s:.3f}" if s.success else f"{s.start} "
@@ -135,8 +135,8 @@ def laps(rep: Report, frames, tracks, models, options: LimitLapOptions) -> dict:
     rep.add(f"## Limit lap ({grid} intervals per leg, starts: {', '.join(options.starts)})", "",
             "| frame | track | model | lap (s) | point-mass reference (s) | re-simulation miss "
             "(cm) | top speed (m/s) | thrust at top speed (N, 4 rotors) | static full thrust "
-            "(N) | J at full command: median / max; all rotor-nodes: range, at the data's bound "
-            "J_max, beyond it, with T < 0 (lowest T) | min thrust ratio CT(J)/CT(0) | "
+            "(N) | J at full command: median / max; all rotor-nodes: largest J, share at the "
+            "data's bound J_max, beyond it, with T < 0 (lowest T) | min thrust ratio CT(J)/CT(0) | "
             "max ΣT / 4 T_b | starts (lap s) | "
             "CPU (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     out = {}

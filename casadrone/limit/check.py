@@ -16,7 +16,7 @@ from casadrone.config.airframe import AirframeConfig
 from casadrone.config.io import ConfigError
 from casadrone.limit.gates import TARGET_SIZE, target_miss  # noqa: F401 (re-exported)
 from casadrone.model import NU, n_params, propeller_outputs, quadrotor_model
-from casadrone.propulsion import static_thrusts
+from casadrone.propulsion import airframe_values
 
 
 def bang_bang_fraction(u: np.ndarray, tol: float) -> float:
@@ -119,6 +119,18 @@ def theta_sensitivities(
     return out
 
 
+def thrust_ratios(airframe, J):
+    """CT(J)/CT(0) of advance ratios ``J`` (array): 1 with ``paper``; with ``propeller`` the
+    shipped quadratic at J, or at max(J, 0) with positive inflow (:func:`lap_propulsion`)."""
+    J = np.asarray(J, float)
+    if airframe.propulsion == "paper":
+        return np.ones_like(J)
+    q = airframe_values(airframe)
+    if q["inflow_positive"] > 0.5:
+        J = np.maximum(J, 0.0)
+    return (q["ct0"] + q["ct1"] * J + q["ct2"] * J**2) / q["ct0"]
+
+
 def lap_propulsion(airframe, x, u) -> dict[str, Any]:
     """What the propulsion did over a flight with Euler states ``x`` (M+1, 16) and commands
     ``u`` (M, 4) held from each state: per node (the first M) the airspeed (m/s), each rotor's
@@ -129,12 +141,15 @@ def lap_propulsion(airframe, x, u) -> dict[str, Any]:
 
     ``min_thrust_ratio`` is the lowest, over every node and every turning rotor, of its thrust
     to the thrust it would give at the same rotor speed without inflow, T(ω, v_a)/T(ω, 0) =
-    CT(J)/CT(0) (:func:`casadrone.propulsion.static_thrusts`; 1 with ``paper``; NaN if no rotor
-    turns). It measures what the inflow costs, whatever the command: the issue's first
-    definition, the thrust at full command over the static thrust, looked only at full-command
-    nodes and, at the same rotor state, is this ratio restricted to them; over the whole lap it
-    is bounded below by CT(J_max)/CT(0) where the rotors stay inside the data (a stopped rotor,
-    ω = 0, is left out: its ratio is 0/0)."""
+    CT(J)/CT(0) (1 with ``paper``; NaN if no rotor turns). It measures what the inflow costs,
+    whatever the command: the issue's first definition, the thrust at full command over the
+    static thrust at the same rotor state, is this ratio on the full-command nodes only, and
+    near a stopped rotor it had no meaning (J → ∞, the extrapolated CT negative). Inside the
+    data (the limit lap's rows) it is bounded below by CT(J_max)/CT(0), 0.34 for the shipped
+    propeller. With ``inflow: positive`` J is taken as max(J, 0): the smoothed max(v_a, 0) dips
+    to −ε/2 (−0.1 m/s) at zero inflow, which at a nearly stopped rotor would give J → −∞ and a
+    ratio without meaning; the model's choice there is the static coefficient, a ratio of 1. A
+    stopped rotor (ω = 0, ratio 0/0) is left out."""
     x, u = np.asarray(x, float).reshape(-1, 16), np.asarray(u, float).reshape(-1, 4)
     n = min(len(u), len(x))
     x, u = x[:n], u[:n]
@@ -147,7 +162,7 @@ def lap_propulsion(airframe, x, u) -> dict[str, Any]:
         out = propeller_outputs().map(n)(x.T, u.T, np.repeat(airframe.p[:, None], n, axis=1))
         thrust, J = np.asarray(out[0]).T, np.asarray(out[2]).T
     turning = x[:, 12:16] > 0
-    ratio = thrust[turning] / static_thrusts(airframe, x[:, 12:16][turning])
+    ratio = thrust_ratios(airframe, J[turning])
     top = int(np.argmax(speed)) if n else 0
     j_data = getattr(airframe, "max_advance_ratio", None)
     return {

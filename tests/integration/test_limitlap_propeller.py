@@ -10,7 +10,10 @@ Checked by oracles that share no code with the solver:
 - the point-mass reference, whose thrust bound is the largest steady full-command thrust
   (propulsion.thrust_bound), is below the lap (it is the relaxation's best local optimum);
 - on the straight the rotors run at full command (bang-bang) and their thrust stays below the
-  static full thrust at every node (the inflow only takes thrust away at steady state).
+  static full thrust at every node (the inflow only takes thrust away at steady state);
+- recomputed with numpy from the returned nodes, every rotor stays inside the propeller data
+  (J ≤ J_max) and no thrust is negative, with the shipped range and with a tighter one that
+  binds.
 """
 
 from __future__ import annotations
@@ -78,3 +81,53 @@ def test_straight_is_flown_at_full_command_below_the_static_thrust(lap, frame):
     thrust = prop["thrust_n"][straight]
     assert thrust.max() <= max_static_thrust(frame) * 1.01
     assert thrust.sum(axis=1).max() <= 4 * rotor_thrust_bound(frame) * 1.01
+
+
+#: A data range below the 0.607 the default lap flies on this track (its bound at 0.618 stays
+#: inactive here), so that the rows bind.
+TIGHT_J = 0.45
+
+
+@pytest.fixture(scope="module")
+def tight_lap():
+    cfg = load_airframe("SY250-propeller", [f"propulsion.propeller.max_advance_ratio={TIGHT_J}"])
+    return build_airframe(cfg), limit_lap(cfg, TRACK, LimitLapOptions(sensitivities=False))
+
+
+def _recomputed(frame, lap):
+    """(v_a − J_max n D, J, T) of every rotor at every node after the start, with numpy from
+    the returned nodes (rotor positions, the positive-inflow smoothing, CT(J) written out)."""
+    from casadrone.propulsion import airframe_values
+
+    q = airframe_values(frame)
+    D, eps = q["prop_D"], q["inflow_eps"]
+    excess, J, T = [], [], []
+    for x in lap.x_euler[1:]:
+        for i in range(4):
+            v = (x[3:6] + np.cross(x[6:9], frame.rotor_positions[i]))[2]
+            v_a = 0.5 * (v + np.sqrt(v * v + eps**2)) - eps / 2
+            nD = x[12 + i] / (2 * np.pi) * D
+            excess.append(v_a - frame.max_advance_ratio * nD)
+            J.append(v_a / nD if nD > 0 else 0.0)
+            T.append(q["rho"] * D**2 * (q["ct0"] * nD**2 + q["ct1"] * nD * v_a
+                                        + q["ct2"] * v_a**2))
+    return np.array(excess), np.array(J), np.array(T)
+
+
+def test_every_rotor_stays_inside_the_propeller_data(lap, frame, tight_lap):
+    """At every node after the start and every rotor, J ≤ J_max within the solver's tolerance
+    and no thrust is negative: with the shipped range (0.618; the lap flies to 0.607 here, the
+    rows inactive) and with a range of 0.45 that binds (some rotor-nodes at it), the lap then
+    slower (observed 1.1917 s against 1.1711 s)."""
+    excess, J, T = _recomputed(frame, lap)
+    assert excess.max() <= 0 and J.max() <= frame.max_advance_ratio
+    assert T.min() > 0  # observed 0.15 N
+    tight, tlap = tight_lap
+    assert tlap.completed and tlap.resimulation_miss_m <= RESIM_M, tlap.reason
+    excess, J, T = _recomputed(tight, tlap)
+    assert tight.max_advance_ratio == TIGHT_J
+    # observed: v_a − J_max n D ≤ 3.5e-9 m/s, J ≤ J_max + 7e-11 (IPOPT's feasibility)
+    assert excess.max() <= 4e-8 and J.max() <= TIGHT_J + 1e-9
+    assert np.mean(J >= TIGHT_J - 1e-3) > 0.01  # the rows bind (observed 8.9 % of rotor-nodes)
+    assert T.min() > 0  # observed 0.19 N
+    assert tlap.lap_time_s > lap.lap_time_s

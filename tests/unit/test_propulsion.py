@@ -322,27 +322,44 @@ def test_components_variant_hovers_at_sy250_mass():
 
 
 def test_lap_propulsion_summary(frame):
-    """limit-lap's propulsion figures on hand-made nodes: climbing at 20 m/s at 2000 rad/s
-    gives J = v/(nD) and a full-command thrust ratio CT(J)/CT(0) of the shipped quadratic;
-    the paper model has no advance ratio and a ratio of 1."""
+    """limit-lap's propulsion figures on hand-made nodes: climbing at 20 then 35 m/s at
+    2000 rad/s gives J = v/(nD) and a thrust ratio CT(J)/CT(0) of the shipped quadratic at any
+    command (here 0.5), the lowest at 35 m/s, where J is beyond the data's 0.618 (half the
+    rotor-nodes); a stopped rotor has no ratio (0/0) and is left out; the paper model has no
+    advance ratio and a ratio of 1."""
     from casadrone.limit.check import lap_propulsion
 
     x = np.zeros((3, 16))
-    x[:, 12:16], x[:, 5] = 2000.0, 20.0
-    u = np.ones((2, 4))
-    r = lap_propulsion(frame, x, u)
+    x[:, 12:16], x[:, 5] = 2000.0, [20.0, 35.0, 35.0]
+    u = np.full((2, 4), 0.5)
     q = airframe_values(frame)
     eps = q["inflow_eps"]
-    v = 0.5 * (20 + math.sqrt(400 + eps**2)) - eps / 2
-    J = v / (2000 / (2 * math.pi) * D)
-    assert r["max_advance_ratio"] == pytest.approx(J, rel=1e-12)
-    ct = q["ct0"] + q["ct1"] * J + q["ct2"] * J**2
-    assert r["min_thrust_ratio"] == pytest.approx(ct / q["ct0"], rel=1e-12)
-    assert r["top_speed_m_s"] == pytest.approx(20.0)
+
+    def j_of(v):
+        return (0.5 * (v + math.sqrt(v * v + eps**2)) - eps / 2) / (2000 / (2 * math.pi) * D)
+
+    def ct(J):
+        return q["ct0"] + q["ct1"] * J + q["ct2"] * J**2
+
+    r = lap_propulsion(frame, x, u)
+    assert j_of(20.0) < 0.618 < j_of(35.0)
+    assert r["max_advance_ratio"] == pytest.approx(j_of(35.0), rel=1e-12)
+    assert r["min_thrust_ratio"] == pytest.approx(ct(j_of(35.0)) / q["ct0"], rel=1e-12)
+    assert r["data_advance_ratio"] == frame.max_advance_ratio and r["beyond_data_share"] == 0.5
+    assert r["top_speed_m_s"] == pytest.approx(35.0)
+    x[1, 12:16] = 0.0  # stopped rotors at the 35 m/s node
+    assert lap_propulsion(frame, x, u)["min_thrust_ratio"] == pytest.approx(
+        ct(j_of(20.0)) / q["ct0"], rel=1e-12)
+    # a nearly stopped rotor without inflow: the smoothed max(v_a, 0) is −ε/2 there, J → −∞;
+    # the ratio is the static coefficient's, 1 (the thrust itself ~ −1e-5 N)
+    x[:2, 5], x[:2, 12:16] = -5.0, 1e-3
+    near = lap_propulsion(frame, x, u)
+    assert near["advance_ratio"].min() < -1e3 and near["min_thrust_ratio"] == 1.0
     paper = build_airframe(load_airframe("SY250"))
     x[:, 12:16] = 5.0
     rp = lap_propulsion(paper, x, u)
     assert math.isnan(rp["max_advance_ratio"]) and rp["min_thrust_ratio"] == 1.0
+    assert math.isnan(rp["data_advance_ratio"]) and math.isnan(rp["beyond_data_share"])
     empty = lap_propulsion(frame, np.zeros((0, 16)), np.zeros((0, 4)))  # a failed lap
     assert math.isnan(empty["top_speed_m_s"]) and math.isnan(empty["min_thrust_ratio"])
 

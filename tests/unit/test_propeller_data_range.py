@@ -1,0 +1,163 @@
+"""The limit lap keeps every propeller rotor inside its wind-tunnel data (J ≤ J_max): the data's
+range, the NLP rows J_max n D − v_a against numpy, their place beside the compiled blocks, and
+the schema's refusal of a range that is no range.
+
+Oracles: the dataset's CSV read with the csv module; the rows recomputed with numpy from the
+states (rotor positions from the airframe, the positive-inflow smoothing written out); CasADi's
+own AD of the same NLP; the same NLP built without the rows."""
+
+from __future__ import annotations
+
+import csv
+import math
+from importlib import resources
+
+import casadi as ca
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from casadrone.airframe import build_airframe
+from casadrone.cli import app
+from casadrone.config import load_airframe
+from casadrone.config.io import resolve_config
+from casadrone.limit.nlp import (
+    ROTOR_SPEED_UNIT_RAD_S,
+    Layout,
+    OcpModel,
+    advance_rows,
+    quadrotor_ocp_model,
+    state_scale,
+)
+from casadrone.model import n_params
+
+
+@pytest.fixture(scope="module")
+def frame():
+    return build_airframe(load_airframe("SY250-propeller"))
+
+
+def _csv_rows():
+    path = (resources.files("casadrone") / "data" / "propulsion"
+            / "uiuc-da4022-5x3.75-3blade.csv")
+    with path.open() as fh:
+        lines = [ln for ln in fh if not ln.startswith("#")]
+    return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(lines)]
+
+
+def test_the_range_is_the_largest_fitted_advance_ratio_of_the_data(frame):
+    """The shipped frames' J_max is read from the package data: the largest J of the 6034 rpm
+    wind-tunnel sweep up to 0.62 that the YAML's comment says the fit uses (csv module, not the
+    fitting code); a paper frame has none; an explicit value wins."""
+    sweep = [r["J"] for r in _csv_rows() if r["rpm"] == 6034.0 and 0 < r["J"] <= 0.62]
+    assert len(sweep) >= 5 and frame.max_advance_ratio == max(sweep)
+    assert 0.6 < frame.max_advance_ratio <= 0.62
+    assert build_airframe(load_airframe("SY250")).max_advance_ratio is None
+    given = load_airframe("SY250-propeller", ["propulsion.propeller.max_advance_ratio=0.5"])
+    assert build_airframe(given).max_advance_ratio == 0.5
+
+
+def _numpy_rows(frame, X, j_max):
+    """J_max n D − v_a per rotor and node (columns of X), from the equations."""
+    q = dict(zip(("D", "eps"), (0.127, 0.2), strict=True))  # the YAML's diameter, the default ε
+    out = []
+    for x in X.T:
+        vel, om, w = x[3:6], x[6:9], x[12:16]
+        for i in range(4):
+            v = (vel + np.cross(om, frame.rotor_positions[i]))[2]
+            v_a = 0.5 * (v + math.sqrt(v * v + q["eps"] ** 2)) - q["eps"] / 2
+            out.append(j_max * w[i] / (2 * math.pi) * q["D"] - v_a)
+    return np.array(out)
+
+
+def _random_states(rng, M):
+    X = np.zeros((16, M))
+    X[3:6] = rng.uniform(-30, 30, (3, M))
+    X[6:9] = rng.uniform(-10, 10, (3, M))
+    X[12:16] = rng.uniform(0, 2500, (4, M))
+    X[12:16, 0] = 0.0  # a stopped rotor: the row is −v_a, no division
+    return X
+
+
+def test_rows_equal_numpy(frame):
+    """On random states (both signs of inflow, spinning body, one node with stopped rotors)."""
+    rng = np.random.default_rng(7)
+    M = 30
+    X = _random_states(rng, M)
+    g = np.array(advance_rows(quadrotor_ocp_model("propeller"), 0.6, M)(X, frame.p)).ravel()
+    expected = _numpy_rows(frame, X, 0.6)
+    assert (expected < 0).any() and (expected > 0).any()  # both sides of the bound are tested
+    np.testing.assert_allclose(g, expected, rtol=1e-12, atol=1e-12)
+
+
+def _toy_propeller_model() -> OcpModel:
+    """The propeller model's state layout and parameter vector with cheap dynamics (so its
+    interval blocks compile in seconds), rotor speeds in krad/s in the NLP like the real one."""
+    x = ca.SX.sym("x", 16)
+    u = ca.SX.sym("u", 4)
+    p = ca.SX.sym("p", n_params("propeller"))
+    xdot = ca.vertcat(x[3:6], 0.1 * x[6:9] * x[3:6] + u[:3] - 0.01 * x[3:6] ** 2,
+                      0.2 * u[3] - 0.1 * x[6:9], 0.5 * x[6:9], 100.0 * u - 0.05 * x[12:16])
+    f = ca.Function("f_toy_prop", [x, u, p], [xdot], ["x", "u", "p"], ["xdot"])
+    return OcpModel("toy-propeller-layout", f, lambda s: s[3:6], rates=slice(6, 9),
+                    rotor=slice(12, 16), scale=state_scale(16, slice(12, 16), "propeller"),
+                    velocity=slice(3, 6))
+
+
+def test_nlp_rows_sit_beside_the_blocks_and_their_derivatives_equal_casadi_ad(frame):
+    """Shooting NLP with and without the rows: the rows with them are the rows without plus
+    4 M rows, bounded below by 0, after the start rows; at a point packed from random states they
+    equal numpy's J_max n D − v_a of nodes 1…M (in physical units although the NLP holds rotor
+    speeds in krad/s); and the Jacobian and Hessian assembled around the compiled blocks equal
+    CasADi's own AD of the whole NLP."""
+    from casadrone.limit.nlp import _shooting_nlp
+
+    model, j_max = _toy_propeller_model(), 0.6
+    plain = Layout(("ball", "ball"), 3, substeps=2, end_at_rest=True)
+    rows = Layout(("ball", "ball"), 3, substeps=2, end_at_rest=True, max_advance_ratio=j_max)
+    (n0, lb0, ub0, _), (n1, lb1, ub1, extra) = (_shooting_nlp(model, lay) for lay in (plain, rows))
+    M, nx, nu = rows.n_intervals, 16, 4
+    assert n1["g"].numel() == n0["g"].numel() + 4 * M
+    at = nx * M + (M - rows.n_legs) + nx  # after dynamics, tied durations and the start
+    assert (lb1[at:at + 4 * M] == 0).all() and np.isinf(ub1[at:at + 4 * M]).all()
+
+    rng = np.random.default_rng(11)
+    X = _random_states(rng, M + 1).T
+    w = np.concatenate([np.concatenate([[rng.uniform(0.5, 2)], rng.uniform(0, 1, nu),
+                                        X[i] / np.asarray(model.scale)]) for i in range(M)]
+                       + [X[M] / np.asarray(model.scale)])
+    prm = np.concatenate([frame.p, rng.uniform(-1, 1, nx),
+                          rng.uniform(0.1, 1, n1["p"].numel() - len(frame.p) - nx)])
+    g0 = np.array(ca.Function("g", [n0["x"], n0["p"]], [n0["g"]])(w, prm)).ravel()
+    g1 = np.array(ca.Function("g", [n1["x"], n1["p"]], [n1["g"]])(w, prm)).ravel()
+    block = g1[at:at + 4 * M]
+    np.testing.assert_array_equal(np.delete(g1, np.s_[at:at + 4 * M]), g0)
+    np.testing.assert_allclose(block, _numpy_rows(frame, X[1:].T, j_max), rtol=1e-12, atol=1e-9)
+    assert ROTOR_SPEED_UNIT_RAD_S > 1 and np.abs(w).max() < 100  # the NLP's units differ
+
+    W, P = n1["x"], n1["p"]
+    lam_g = ca.MX.sym("lam_g", n1["g"].numel())
+    lam = rng.normal(size=lam_g.numel())
+    _, J = extra["jac_g"](w, prm)
+    H = extra["hess_lag"](w, prm, 1.0, lam)
+    ref_J = ca.Function("J", [W, P], [ca.jacobian(n1["g"], W)])(w, prm)
+    ref_H = ca.Function("H", [W, P, lam_g], [ca.triu(ca.hessian(
+        n1["f"] + ca.dot(lam_g, n1["g"]), W)[0])])(w, prm, lam)
+    np.testing.assert_allclose(np.array(J), np.array(ref_J), rtol=1e-10, atol=1e-11)
+    np.testing.assert_allclose(np.array(H), np.array(ref_H), rtol=1e-10, atol=1e-11)
+    assert np.abs(np.array(J)[at:at + 4 * M]).max() > 0.1  # the rows have a Jacobian
+
+
+@pytest.mark.parametrize("value", ["0", "-0.3"])
+def test_a_range_that_is_no_range_exits_2_naming_file_and_key(tmp_path, value):
+    text = resolve_config("SY250-propeller", "airframes").read_text()
+    path = tmp_path / "bad.yaml"
+    path.write_text(text.replace("    data: uiuc-da4022-5x3.75-3blade\n",
+                                 "    data: uiuc-da4022-5x3.75-3blade\n"
+                                 f"    max_advance_ratio: {value}\n"))
+    result = CliRunner().invoke(app, ["massprops", str(path)])
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(path) in lines[0]
+    assert "max_advance_ratio" in lines[0]

@@ -10,6 +10,8 @@ keeps what it measured):
   track and the gate track (``--tracks``): lap, point-mass reference, re-simulation miss, top
   speed, thrust at top speed, advance-ratio range, lowest full-command thrust ratio, the largest
   total thrust over the lap against the point mass's bound 4 T_b, CPU time;
+- ``--data-range``: where the closed-loop lap of the five frames and SY250's level trim at
+  10–40 m/s fly against the propeller data's largest advance ratio (they extrapolate beyond it);
 - ``--warm N``: N frames near SY250 (θ within ±5 % of the Table 1 range) each solved from a
   primal-dual warm start of the model's own SY250 lap on the paper track: CPU per solve, both
   models side by side.
@@ -42,7 +44,9 @@ from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK, default_setup, evaluate, theta_of  # noqa: E402
 from casadrone.limit.check import lap_propulsion  # noqa: E402
 from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
+from casadrone.model import propeller_outputs  # noqa: E402
 from casadrone.propulsion import max_static_thrust, rotor_thrust_bound  # noqa: E402
+from casadrone.trim import trim  # noqa: E402
 
 REFERENCES = ("SY250", "HS210", "HS200", "NSY200", "SY220")
 #: A rotor-node within this of the data's largest advance ratio counts as at the bound.
@@ -97,6 +101,37 @@ def closed_loop(rep: Report, n_evals: int) -> None:
     rep.add("", f"CPU per evaluation of SY250 (median of {n_evals}, interleaved): paper "
             f"{med['paper']:.2f} ms, propeller {med['propeller']:.2f} ms: propeller / paper "
             f"**{med['propeller'] / med['paper']:.2f}×**.", "")
+
+
+def data_range(rep: Report) -> None:
+    """Where the stages other than the limit lap fly against the propeller data (they use the
+    model as it is, the quadratic CT(J), CP(J) extrapolated beyond J_max)."""
+    rep.add("## Outside the limit lap: the propeller data's range (J_max) in the closed-loop lap "
+            "and the level trim", "", "| frame | closed-loop lap: status | J_max of the data | "
+            "largest J | share of rotor-samples beyond J_max | min thrust ratio CT(J)/CT(0) | "
+            "lowest rotor thrust (N) |", "|---|---|---|---|---|---|---|")
+    for name in REFERENCES:
+        s = default_setup(frame_name(name, "propeller"))
+        r = evaluate(theta_of(s.template), s, keep_trajectory=True)
+        frame = build_airframe(load_airframe(frame_name(name, "propeller")))
+        tr = r.trajectory
+        if tr is None or not len(tr.u):
+            rep.add(f"| {name} | {r.status} | | | | | |")
+            continue
+        prop = lap_propulsion(frame, tr.x, tr.u)
+        rep.add(f"| {name} | {r.status} | {prop['data_advance_ratio']:.3f} | "
+                f"{prop['max_advance_ratio']:.3f} | {100 * prop['beyond_data_share']:.1f} % | "
+                f"{prop['min_thrust_ratio']:.2f} | {np.min(prop['thrust_n']):.2f} |")
+    frame = build_airframe(load_airframe("SY250-propeller"))
+    rep.add("", "| SY250-propeller level trim (m/s) | solved | commands δ | J per rotor | "
+            "beyond J_max? | message |", "|---|---|---|---|---|---|")
+    for v in (10.0, 20.0, 30.0, 40.0):
+        tp = trim(frame, "forward", v)
+        J = np.asarray(propeller_outputs()(tp.x0, tp.u0, frame.p)[2]).ravel()
+        rep.add(f"| {v:.0f} | {tp.success} | {', '.join(f'{d:.2f}' for d in tp.u0)} | "
+                f"{', '.join(f'{j:.3f}' for j in J)} | "
+                f"{'yes' if J.max() > frame.max_advance_ratio else 'no'} | {tp.message} |")
+    rep.add("")
 
 
 def lap_row(name: str, model: str, track_name: str, options: LimitLapOptions):
@@ -191,6 +226,7 @@ def warm_solves(rep: Report, n: int, seed: int, options: LimitLapOptions, solved
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--closed-loop", action="store_true")
+    ap.add_argument("--data-range", action="store_true")
     ap.add_argument("--evals", type=int, default=20)
     ap.add_argument("--laps", action="store_true")
     ap.add_argument("--frames", default=",".join(REFERENCES))
@@ -211,6 +247,8 @@ def main() -> None:
                               starts=tuple(a.starts.split(",")))  # type: ignore[arg-type]
     if a.closed_loop:
         closed_loop(rep, a.evals)
+    if a.data_range:
+        data_range(rep)
     solved = laps(rep, a.frames.split(","), a.tracks.split(","), a.models.split(","),
                   options) if a.laps else {}
     if a.warm:

@@ -38,6 +38,31 @@ Two kinds, chosen per airframe (``propulsion.model``), one registry (:data:`KIND
   ESC losses, the battery's state of charge. Each term can be switched off: ``axial_inflow:
   false``, ``rotor_drag_n_s2_per_m: 0``, ``internal_resistance_ohm: 0`` (no sag).
 
+  **The data's range.** CT(J), CP(J) are fits to wind-tunnel points that end at a largest
+  advance ratio J_max (``propeller.max_advance_ratio``; default, for a shipped dataset named in
+  ``propeller.data``, the largest J of the points its fit uses: 0.618 for the shipped
+  propeller, :func:`data_advance_ratio`). Beyond it the quadratics are extrapolated, and near a
+  stopped rotor in axial inflow (J → ∞) the extrapolated CT is negative: T = ρ c₂ D² v_a², an
+  air brake of −3 N at 27 m/s that no data support. The model itself stays the polynomial in
+  (n, v_a) everywhere (a clamp of CT at J_max would divide by n and lose smoothness at n = 0,
+  and every stage shares this one model and its compiled blocks). Instead:
+
+  - the **limit lap**, the one stage that optimises into the extrapolation (without a bound its
+    optimum flew 4–6 % of the paper track's rotor-nodes beyond the data, braking with negative
+    thrust), keeps every rotor inside it: one row per rotor and node,
+    J_max n_i D − v_a,i ≥ 0 (:func:`advance_margins`), linear in n and v_a, at n = 0 no inflow
+    through the stopped rotor (:func:`casadrone.limit.nlp.advance_rows`). Inside the range
+    CT(J) ≥ CT(J_max) > 0, so no thrust is negative (but for the smoothing's −ε/2 at a stopped
+    rotor: ρ |c₂| D² ε²/4 ≈ 2e-5 N). The point mass's thrust bound is unchanged: it bounds a
+    superset of these flights;
+  - the **closed-loop lap and the trim** use the model as it is: they simulate or solve a given
+    flight, they do not seek the extrapolation. Measured (benchmarks/RESULTS-propulsion.md),
+    the five reference frames' closed-loop laps stay inside the data but for momentary idle
+    rotors (≤ 0.1 % of rotor-samples, |T| ≤ 0.01 N), and level trims to 30 m/s reach J = 0.59;
+    the trim's message says when a rotor is beyond the range
+    (:func:`casadrone.trim.beyond_data_note`), and ``limit-lap --json`` reports
+    ``max_advance_ratio``, ``data_advance_ratio`` and ``beyond_data_share``.
+
   The linear-inflow form of the quadrotor literature, T = k_η ω² − k_z ω v_a, Q = k_m ω²,
   H = −k_d ω v_∥, is the special case c₀ = 4π² k_η/(ρ D⁴), c₁ = −2π k_z/(ρ D³), c₂ = 0,
   CP = 8π³ k_m/(ρ D⁵) with signed inflow (``propeller.linear_inflow``).

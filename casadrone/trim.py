@@ -439,6 +439,8 @@ def trim(
     x0, u0, residual = x.ravel().copy(), u.ravel().copy(), float(norm[0, 0])
     wall = time.perf_counter() - start
     success, message = _verdict(solver, o, z, u0, residual, status, error)
+    if success:
+        message += beyond_data_note(airframe, x0, u0)
     return TrimPoint(
         solver=solver,
         condition=condition,
@@ -455,6 +457,23 @@ def trim(
         climb_angle_deg=float(climb_angle_deg),
         turn_rate_dps=float(turn_rate_dps),
     )
+
+
+def beyond_data_note(airframe: Airframe, x0: np.ndarray, u0: np.ndarray) -> str:
+    """A note for the trim's message when a rotor's advance ratio is beyond the propeller
+    data's largest (``Airframe.max_advance_ratio``): the trim then rests on CT(J), CP(J)
+    extrapolated. Empty with ``paper``, without a range, or inside it. The trim solves the
+    model as it is (docs/concepts/propulsion.md, "Beyond the data"): it says so, it does not
+    refuse."""
+    if airframe.propulsion != "propeller" or airframe.max_advance_ratio is None:
+        return ""
+    from casadrone.model import propeller_outputs
+
+    J = float(np.max(np.asarray(propeller_outputs()(x0, u0, airframe.p)[2])))
+    if not J > airframe.max_advance_ratio:
+        return ""
+    return (f"; advance ratio {J:.3g} beyond the propeller data's {airframe.max_advance_ratio:.3g}"
+            " (CT, CP extrapolated)")
 
 
 def _wrap_angles(z: np.ndarray) -> np.ndarray:

@@ -161,3 +161,23 @@ def test_a_range_that_is_no_range_exits_2_naming_file_and_key(tmp_path, value):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and str(path) in lines[0]
     assert "max_advance_ratio" in lines[0]
+
+
+def test_a_trim_beyond_the_data_says_so():
+    """The trim solves the model as it is and says when a rotor flies beyond the data: at 30 m/s
+    level SY250-propeller's rotors meet J = v_a/(nD) ≈ 0.59 (numpy from the trimmed state), beyond
+    a range set to 0.5 and inside the shipped 0.618; at 10 m/s (J ≈ 0.19) nothing is said."""
+    from casadrone.trim import trim
+
+    tight = build_airframe(load_airframe("SY250-propeller",
+                                         ["propulsion.propeller.max_advance_ratio=0.5"]))
+    shipped = build_airframe(load_airframe("SY250-propeller"))
+    for frame, speed, beyond in ((tight, 30.0, True), (tight, 10.0, False),
+                                 (shipped, 30.0, False)):
+        tp = trim(frame, "forward", speed)
+        x = tp.x0
+        v = np.array([(x[3:6] + np.cross(x[6:9], r))[2] for r in frame.rotor_positions])
+        v_a = 0.5 * (v + np.sqrt(v * v + 0.04)) - 0.1
+        J = v_a / (x[12:16] / (2 * math.pi) * 0.127)
+        assert tp.success and (J.max() > frame.max_advance_ratio) == beyond
+        assert ("beyond the propeller data" in tp.message) == beyond, tp.message

@@ -121,6 +121,17 @@ def _figures(cfg, trk, lap, folder, frame, prop, options) -> list[str]:
     return save_figures(figures, folder)
 
 
+def _rotor_text(r: dict) -> str:
+    """The propeller figures of the text summary (none with ``paper``: no rotor speed)."""
+    if not math.isfinite(r["max_advance_ratio"]):
+        return ""
+    data = (f" (propeller data to {r['data_advance_ratio']:.2f}, "
+            f"{100 * r['beyond_data_share']:.1f} % of rotor-nodes beyond)"
+            if math.isfinite(r["data_advance_ratio"]) else "")
+    return (f"; lowest thrust / thrust without inflow {r['min_thrust_ratio']:.2f}; highest "
+            f"advance ratio {r['max_advance_ratio']:.2f}{data}")
+
+
 def _text(name: str, track: str, r: dict) -> str:
     if r["status"] != "completed":
         return f"{name} on {track}: limit lap FAILED: {r['reason']} ({r['wall_time_s']:.1f} s)"
@@ -134,9 +145,7 @@ def _text(name: str, track: str, r: dict) -> str:
         f"  lap times (s): {', '.join(f'{t:.3f}' for t in r['lap_times_s'])}",
         f"  bang-bang fraction: {r['bang_bang_fraction']:.2f}; re-simulation miss: "
         f"{r['resimulation_miss_m']:.4f} m",
-        f"  top speed {r['top_speed_m_s']:.1f} m/s; lowest thrust / thrust without inflow "
-        f"{r['min_thrust_ratio']:.2f}; highest advance ratio {r['max_advance_ratio']:.2f} "
-        f"(propeller data to {r['data_advance_ratio']:.2f})",
+        f"  top speed {r['top_speed_m_s']:.1f} m/s" + _rotor_text(r),
         "  sensitivity dT/dθ (s per unit):",
     ]
     lines += [f"    {k:<14}{v:>+12.4g}" for k, v in r["sensitivities"].items()

@@ -181,3 +181,19 @@ def test_a_trim_beyond_the_data_says_so():
         J = v_a / (x[12:16] / (2 * math.pi) * 0.127)
         assert tp.success and (J.max() > frame.max_advance_ratio) == beyond
         assert ("beyond the propeller data" in tp.message) == beyond, tp.message
+
+
+def test_limit_lap_text_names_the_data_range_only_for_rotor_speeds():
+    """The text summary gives the advance ratio against the data's range with ``propeller``
+    and says nothing of rotors with ``paper`` (whose figures are NaN: no rotor speed)."""
+    from casadrone.cli.limit import _rotor_text
+
+    prop = {"max_advance_ratio": 0.618, "data_advance_ratio": 0.618247, "beyond_data_share": 0.0,
+            "min_thrust_ratio": 0.34}
+    assert _rotor_text(prop) == ("; lowest thrust / thrust without inflow 0.34; highest advance "
+                                 "ratio 0.62 (propeller data to 0.62, 0.0 % of rotor-nodes "
+                                 "beyond)")
+    paper = dict.fromkeys(prop, math.nan) | {"min_thrust_ratio": 1.0}
+    assert _rotor_text(paper) == ""
+    unbounded = prop | {"data_advance_ratio": math.nan}  # e.g. the linear-inflow form
+    assert "propeller data" not in _rotor_text(unbounded)

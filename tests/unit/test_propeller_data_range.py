@@ -26,6 +26,7 @@ from casadrone.limit.nlp import (
     Layout,
     OcpModel,
     advance_rows,
+    build_nlp,
     quadrotor_ocp_model,
     state_scale,
 )
@@ -197,3 +198,26 @@ def test_limit_lap_text_names_the_data_range_only_for_rotor_speeds():
     assert _rotor_text(paper) == ""
     unbounded = prop | {"data_advance_ratio": math.nan}  # e.g. the linear-inflow form
     assert "propeller data" not in _rotor_text(unbounded)
+
+
+def test_rows_take_their_node_s_stage_in_fatrop_s_order():
+    """fatrop's stage order accepts the rows (no StageError), and on the NLP's own Jacobian
+    pattern each of node i's four rows depends on node i's states alone (so it is a path row of
+    stage i, which fatrop takes: no coupling between stages)."""
+    from casadrone.limit.stagewise import stage_order
+
+    model = _toy_propeller_model()
+    nlp = build_nlp(model, Layout(("ball", "ball"), 3, substeps=2, max_advance_ratio=0.6))
+    pr = nlp.problem
+    sp = ca.jacobian_sparsity(pr["g"], pr["x"])
+    order = stage_order(sp, 3, 6, 16, 4)
+    M, nx, nu = 6, 16, 4
+    per = 1 + nu + nx
+    at = nx * M + (M - 2) + nx
+    dense = np.array(ca.DM(sp, 1)) != 0
+    for k in range(4 * M):
+        node = k // 4 + 1
+        cols = np.flatnonzero(dense[at + k])
+        first = node * per + 1 + nu if node < M else M * per
+        assert len(cols) and ((cols >= first) & (cols < first + nx)).all()  # node's states
+    assert sum(order.ng) >= 4 * M

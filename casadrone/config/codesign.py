@@ -48,6 +48,16 @@ class FrontConfig(Schema):
                           "the fastest frame's measure (geometric steps)")
 
 
+class PolishSettings(Schema):
+    """ev-MOGA's polish (``algorithm.settings.polish``): after the last generation, front members
+    improved by the co-design NLP with their other objectives as ε-constraints
+    (:mod:`casadrone.codesign.polish`)."""
+
+    members: int = Field(5, ge=1, le=1000, description="front members polished, spread evenly "
+                         "along the lap (both ends included; all when the front is smaller); "
+                         "each is one co-design solve (~1-2 min of CPU on the paper track)")
+
+
 class CodesignSettings(Schema):
     """How the co-design NLP is posed and started."""
 

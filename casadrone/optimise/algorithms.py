@@ -77,6 +77,26 @@ def _bool(v: Any) -> str | None:
     return None if isinstance(v, bool) else f"expected true or false, got {v!r}"
 
 
+def _polish(v: Any) -> str | None:
+    """The polish settings (:class:`casadrone.config.codesign.PolishSettings`), as one line."""
+    from pydantic import ValidationError
+
+    from casadrone.config.codesign import PolishSettings
+
+    if not isinstance(v, dict):
+        return f"expected a mapping such as {{members: 5}}, got {v!r}"
+    try:
+        PolishSettings.model_validate(v)
+    except ValidationError as exc:
+        e = exc.errors()[0]
+        return f"{'.'.join(map(str, e['loc']))}: {e['msg']}"
+    return None
+
+
+#: Settings the runner acts on, never passed to the algorithm's constructor.
+RUNNER_SETTINGS = ("polish",)
+
+
 def _n_div(v: Any) -> str | None:
     if isinstance(v, list):
         bad = [_int(1)(x) for x in v]
@@ -92,7 +112,7 @@ SETTINGS: dict[str, dict[str, Any]] = {
     "evmoga": {"n_ind_ga": _int(2, even=True), "n_div": _n_div, "p_m": _float(0.0, 1.0),
                "dd_ini": _float(0.0), "dd_fin": _float(0.0, lo_open=True),
                "sigma_ini": _float(0.0, lo_open=True), "sigma_fin": _float(0.0, lo_open=True),
-               "n_ind_p": _int(1)},
+               "n_ind_p": _int(1), "polish": _polish},
     "nsga2": dict(_COMMON), "nsga3": dict(_COMMON), "unsga3": dict(_COMMON),
     "smsemoa": {**_COMMON, "normalize": _bool}, "spea2": dict(_COMMON),
     "moead": {"n_neighbors": _int(1), "prob_neighbor_mating": _float(0.0, 1.0)},
@@ -146,13 +166,18 @@ def settings_problems(
     if key == "ctaea" and len(reference_directions(n_obj, population)) < 2:
         return [("(population)", "too small for ctaea's reference directions")]
     try:
-        kw = dict(settings)
+        kw = algorithm_settings(settings)
         if key == "evmoga":
             kw["generations"] = 1
         make_algorithm(key, kw, pop_size=population, n_obj=n_obj)
     except (ValueError, TypeError) as exc:
         found.append(("(algorithm)", f"{key} refuses these settings: {exc}"))
     return found
+
+
+def algorithm_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
+    """The settings the algorithm's constructor takes (:data:`RUNNER_SETTINGS` left out)."""
+    return {k: v for k, v in settings.items() if k not in RUNNER_SETTINGS}
 
 
 def reference_directions(n_obj: int, n_points: int) -> np.ndarray:

@@ -17,6 +17,7 @@ import importlib.util
 from collections.abc import Iterable
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 from pydantic import BaseModel
 
@@ -176,8 +177,54 @@ def _algorithm_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
         n_obj = len(problem.objectives)
     else:
         return []
-    return [(f"algorithm.settings.{k}" if not k.startswith("(") else "algorithm.settings", m)
-            for k, m in settings_problems(key, a.settings, a.population, n_obj)]
+    found = [(f"algorithm.settings.{k}" if not k.startswith("(") else "algorithm.settings", m)
+             for k, m in settings_problems(key, a.settings, a.population, n_obj)]
+    if "polish" in a.settings and not found:
+        found += polish_problems(problem)
+    return found
+
+
+def polish_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
+    """Why the co-design NLP cannot polish ``problem``'s front members
+    (``algorithm.settings.polish``, :mod:`casadrone.codesign.polish`): an objective or constraint
+    on an index it cannot hold (a closed-loop J1–J5, Jp), no limit lap to minimise, a variable
+    it does not vary, or a propulsion model it does not pose. Each under the polish key."""
+    from casadrone.airframe import THETA_KEYS as CODESIGN_KEYS  # co-design's variables
+    from casadrone.codesign.polish import POLISH_INDICES
+
+    key = "algorithm.settings.polish"
+    if problem.test_problem is not None:
+        return [(key, "polish needs an airframe problem with the limit lap, not a test problem")]
+    found = []
+    groups: tuple[tuple[str, list[Any]], ...] = (("objectives", list(problem.objectives)),
+                                                 ("constraints", list(problem.constraints)))
+    for group, items in groups:
+        for i, o in enumerate(items):
+            if o.index not in POLISH_INDICES:
+                kind = ("a closed-loop index (it needs a simulated lap with the controller)"
+                        if o.index in INDICES and INDICES[o.index].source == "lap" else
+                        "not an index the co-design NLP can hold")
+                found.append((key, f"{group}.{i}.index '{o.index}' is {kind}; the co-design "
+                              f"NLP polishes {' and '.join(POLISH_INDICES)} only"))
+            elif group == "objectives" and (o.sense or "min") != "min":
+                found.append((key, f"{group}.{i}: polish minimises {o.index}, not its maximum"))
+    if "J3_limit" not in [o.index for o in problem.objectives]:
+        found.append((key, "polish minimises the limit lap: J3_limit must be an objective"))
+    bad = [v.name for v in problem.variables if v.name not in CODESIGN_KEYS]
+    if bad:
+        found.append((key, f"the co-design NLP varies {', '.join(CODESIGN_KEYS)}; not "
+                      f"{', '.join(bad)}"))
+    if problem.airframe is not None:
+        from casadrone.config.airframe import load_airframe
+
+        try:
+            model = load_airframe(problem.airframe).propulsion.model
+        except (ConfigError, OSError):
+            model = "paper"  # the airframe's own check reports it
+        if model != "paper":
+            found.append((key, f"the co-design NLP poses the paper propulsion model only; the "
+                          f"airframe uses '{model}'"))
+    return found
 
 
 def check_problem(problem: ProblemConfig, source: str | Path,

@@ -502,6 +502,21 @@ class EvMOGA(Algorithm):
             for key in ROW_KEYS:
                 self.pop_rows[key][j] = rows[key][i]
 
+    def offer_solutions(self, X: np.ndarray, F: np.ndarray, G: np.ndarray) -> None:
+        """Offer solutions evaluated outside the generations (a polish, :mod:`casadrone.optimise.
+        hybrid`) to the archive A by its rules (P is left as it is): ``F`` minimised, ``G`` the
+        inequality constraints (≤ 0 feasible); infeasible ones are dropped, as for children."""
+        n = len(X)
+        rows = {"X": np.asarray(X, float).reshape(n, -1), "F": np.asarray(F, float).reshape(n, -1),
+                "G": np.asarray(G, float).reshape(n, -1), "H": np.zeros((n, 0))}
+        rows["CV"] = _default_cv(rows["G"], rows["H"])
+        rows["id"] = (self._n_seen + np.arange(n, dtype=float))[:, None]
+        self._n_seen += n
+        _, cv = _violation_of_rows(rows)
+        feasible = np.flatnonzero(cv <= 0.0)
+        self._box.offer_many({k: v[feasible] for k, v in rows.items()})
+        self._set_optimum()
+
     def _set_optimum(self) -> None:
         if len(self._box):  # a snapshot: A is edited in place later
             self._opt, self._opt_rows = None, {k: v.copy()

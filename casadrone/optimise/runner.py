@@ -26,7 +26,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +35,7 @@ from casadrone.config.problem import BackendConfig, ProblemConfig
 from casadrone.optimise.algorithms import front_rows, front_size, seeded_defaults
 from casadrone.optimise.backends import make_backend
 from casadrone.optimise.checkpoint import dumps
+from casadrone.optimise.hybrid import needs_polish, polish_stage
 from casadrone.optimise.hypervolume import HypervolumeState, advance
 from casadrone.optimise.mainguard import unguarded_main_call, unguarded_message
 from casadrone.optimise.problem import CandidateProblem, Study, objectives_and_constraints
@@ -140,10 +141,11 @@ class RunResult:
 
 def build_algorithm(problem: ProblemConfig, n_obj: int):
     """The problem's algorithm and its pymoo termination (G generations after initialisation)."""
-    from casadrone.optimise.algorithms import make_algorithm
+    from casadrone.optimise.algorithms import algorithm_settings, make_algorithm
 
     a = problem.algorithm
-    algorithm = make_algorithm(a.name, a.settings, pop_size=a.population, n_obj=n_obj,
+    algorithm = make_algorithm(a.name, algorithm_settings(a.settings), pop_size=a.population,
+                               n_obj=n_obj,
                                generations=a.generations)
     return algorithm, ("n_gen", a.generations + 1)
 
@@ -287,6 +289,11 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
         raise
     writer.close()
     if not algorithm.has_next():  # every generation is stored: the run is complete
+        if needs_polish(algorithm, study):  # algorithm.settings.polish: the hybrid's last step
+            quiet = getattr(progress, "quiet", progress is None)
+            polish_stage(store, algorithm, study, front, quiet=quiet)
+            X, F = front(algorithm, study)
+            result = replace(result, X=X, F=F)
         store.write_pareto(study.variable_names, study.objective_names, result.X, result.F)
         store.update_manifest(finished=now(), status="completed",
                               n_evaluations=int(algorithm.evaluator.n_eval))

@@ -29,6 +29,7 @@ import numpy as np
 from casadrone.optimise.checkpoint import dumps
 from casadrone.optimise.problem import Study, objectives_and_constraints
 from casadrone.optimise.store import RunStore, atomic_write
+from casadrone.results import Record
 
 #: Beside ``history.sqlite`` in a polished run: every member's polish (JSON).
 POLISH_FILE = "polish.json"
@@ -49,11 +50,12 @@ def needs_polish(algorithm, study: Study) -> bool:
     return polish_settings(study) is not None and not getattr(algorithm, "polished", False)
 
 
-def polish_stage(store: RunStore, algorithm, study: Study, front_of, quiet: bool = False,
-                 stream=None) -> list:
-    """Polish the archive's members (see the module docstring); ``front_of(algorithm, study)``
-    gives the front (X, F in the objectives' own sense). Returns the :class:`casadrone.codesign.
-    polish.Polished` of each member."""
+def polish_front(algorithm, study: Study, evaluate, front_of, quiet: bool = False,
+                 stream=None) -> tuple[list[Record], list[dict]]:
+    """Polish the archive's members and offer the evaluated proposals to it (see the module
+    docstring): ``evaluate(study, X)`` evaluates the proposals (the run's backend),
+    ``front_of(algorithm, study)`` gives the front (X, F in the objectives' own sense). Returns
+    the evaluations (the polish's generation) and one report per member."""
     from casadrone.codesign.polish import (
         improves,
         polish_member,
@@ -65,7 +67,6 @@ def polish_stage(store: RunStore, algorithm, study: Study, front_of, quiet: bool
     settings = polish_settings(study)
     assert settings is not None
     stream = stream or sys.stderr
-    t0, c0 = time.perf_counter(), time.process_time()
     X, F = front_of(algorithm, study)
     names, keys = study.objective_names, study.variable_names
     prep = prepared(polish_problem(study.problem))
@@ -78,16 +79,15 @@ def polish_stage(store: RunStore, algorithm, study: Study, front_of, quiet: bool
         if not quiet:
             got = ", ".join(f"{n} {p.values[n]:.6g}" for n in names) if p.values else "-"
             print(f"polish {len(outcomes)}: {', '.join(f'{n} {member[n]:.6g}' for n in names)}"
-                  f" -> {got}  {'kept' if p.accepted else p.reason}  {p.cpu_s:.1f} s CPU",
+                  f" -> {got}  {'converged' if p.accepted else p.reason}  {p.cpu_s:.1f} s CPU",
                   file=stream, flush=True)
     done = [p for p in outcomes if p.accepted]
     Xp = np.array([[p.theta[k] for k in keys] for p in done], float).reshape(len(done), len(keys))
-    records = algorithm.problem.backend.evaluate(study, Xp) if done else []
+    records = list(evaluate(study, Xp)) if done else []
     algorithm.evaluator.n_eval += len(records)
     Fm, G = objectives_and_constraints(study, records)
-    if len(records):
+    if records:
         algorithm.offer_solutions(Xp, Fm, G)
-    kept = np.array([r.status == "completed" for r in records], bool)
     evaluated = iter(records)
     report = []
     for p in outcomes:
@@ -99,20 +99,32 @@ def polish_stage(store: RunStore, algorithm, study: Study, front_of, quiet: bool
                        (r.status if r.status == "completed" else f"{r.stage}: {r.reason}"),
                        "improves": improves(p.member, values)})
         if not quiet:
-            print(f"polish: {report[-1]['evaluation_status']}, improves on the member: "
-                  f"{report[-1]['improves']} ({values or '-'})", file=stream, flush=True)
+            print(f"polish {len(report)}: evaluated {report[-1]['evaluation_status']}, "
+                  f"improves on the member: {report[-1]['improves']} ({values or '-'})",
+                  file=stream, flush=True)
     algorithm.polished = True
+    return records, report
+
+
+def polish_stage(store: RunStore, algorithm, study: Study, front_of, quiet: bool = False,
+                 stream=None) -> list[dict]:
+    """:func:`polish_front` on the run's backend, stored as one more generation of the run
+    (history, ``polish.json``, checkpoint). Returns the reports."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    records, report = polish_front(algorithm, study, algorithm.problem.backend.evaluate,
+                                   front_of, quiet, stream)
     generation = int(algorithm.n_gen) - 1  # one after the last stored generation
     previous = store.generations()
     elapsed = (previous[-1]["elapsed_s"] if previous else 0.0) + time.perf_counter() - t0
+    kept = [r.status == "completed" for r in records]
     stats = {"n_evaluations": int(algorithm.evaluator.n_eval),
              "archive_size": int(algorithm.front_size()),
-             "feasible_fraction": float(kept.mean()) if len(kept) else 0.0,
+             "feasible_fraction": float(np.mean(kept)) if kept else 0.0,
              "hypervolume": None, "elapsed_s": elapsed}
     store.write_generation(generation, records, stats)
     atomic_write(store.path / POLISH_FILE, json.dumps(
-        {"generation": generation, "cpu_s": time.process_time() - c0,
+        {"generation": generation, "coordinator_cpu_s": time.process_time() - c0,
          "members": report}, indent=1, default=float))
     store.write_checkpoint(dumps({"algorithm": algorithm, "elapsed_s": elapsed,
                                   "generation": generation, "hypervolume_state": None}))
-    return outcomes
+    return report

@@ -15,6 +15,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from casadrone.airframe import with_theta
@@ -68,7 +69,8 @@ def polished():
 def test_polished_frame_is_not_dominated_by_its_member(polished):
     """The polished frame, evaluated as the optimiser evaluates any frame, is not dominated by
     the member (observed: lap 0.8090 -> 0.7918 s, effort 51.90 -> 54.31 N^1.5 s: faster for
-    more effort, a trade-off), and the co-design point meets the member's effort (its ε row, IPOPT's tolerance 1e-6)."""
+    more effort, a trade-off), and the co-design point meets the member's effort (its ε row,
+    IPOPT's tolerance 1e-6)."""
     from casadrone.codesign.polish import improves
 
     prep, member, p = polished
@@ -87,8 +89,8 @@ def test_polished_frames_limit_lap_is_reached_from_the_polish(polished):
     """θ_p's minimum-time lap re-solved with θ fixed from the polished point equals the one the
     optimiser's evaluation chain finds (within the certificate's 0.05 %; observed 0.79179 and
     0.79177 s, 3e-5 apart; the limit lap's cold starts alone land in a slower local optimum here,
-    0.8162 s), is flown by CVODES within the limit lap's miss, and is no slower than the co-design point's
-    lap, which also holds the effort (a more constrained problem)."""
+    0.8162 s), is flown by CVODES within the limit lap's miss, and is no slower than the
+    co-design point's lap, which also holds the effort (a more constrained problem)."""
     prep, _, p = polished
     own = _own_lap(prep, p.theta)
     assert p.fixed_lap_s == pytest.approx(own["J3_limit"], rel=5e-4)
@@ -110,3 +112,120 @@ def test_polish_of_a_closed_loop_objective_is_refused(tmp_path):
     assert "bad.yaml" in out.stderr and "algorithm.settings.polish" in out.stderr
     assert "'J5'" in out.stderr and "Traceback" not in out.stderr
     assert not (tmp_path / "run").exists()
+
+
+def _hybrid_problem(tmp_path):
+    """A tiny ev-MOGA run of lap against effort on the short track, two members polished."""
+    from casadrone.optimise.checks import load_problem
+
+    text = (ROOT / "problems" / "limit-effort.yaml").read_text()
+    for old, new in [("configs/tracks/paper-rectangle.yaml", str(SHORT)),
+                     ("configs/airframes/SY250-components.yaml",
+                      str(ROOT / "configs/airframes/SY250-components.yaml")),
+                     ("configs/controllers/frozen-wrench-sy250-components.yaml",
+                      str(ROOT / "configs/controllers/frozen-wrench-sy250-components.yaml"))]:
+        text = text.replace(old, new)
+    path = tmp_path / "hybrid.yaml"
+    path.write_text(text)
+    return load_problem(path, ["algorithm.population=4", "algorithm.generations=1",
+                               "algorithm.settings.n_ind_ga=2", "algorithm.settings.n_div=4",
+                               "algorithm.settings.polish={members: 2}"])
+
+
+@pytest.mark.slow
+def test_hybrid_run_polishes_and_resumes_as_uninterrupted(tmp_path, monkeypatch):
+    """A run killed during its polish resumes and ends as the uninterrupted run (the same
+    pareto.csv and history); every polish the run says improves on its member is not dominated
+    by it (the member's and the evaluation's objectives, compared by hand); the front is the
+    non-dominated set of the stored evaluations' ε-box archive, so no member of pareto.csv is
+    dominated by a stored completed evaluation's objectives."""
+    import json
+
+    import casadrone.codesign.polish as polish
+    from casadrone.config.problem import BackendConfig
+    from casadrone.optimise.runner import resume, run
+    from casadrone.optimise.store import RunStore
+
+    problem = _hybrid_problem(tmp_path)
+    full = tmp_path / "full"
+    run(problem, full, BackendConfig(name="serial"), quiet=True)
+    report = json.loads((full / "polish.json").read_text())
+    assert len(report["members"]) == 2
+    for m in report["members"]:
+        if m["improves"]:
+            a, b = m["member"], m["evaluation"]
+            assert not (a["J3_limit"] <= b["J3_limit"] and a["effort"] <= b["effort"]
+                        and (a["J3_limit"] < b["J3_limit"] or a["effort"] < b["effort"]))
+    history = RunStore(full).history()
+    assert max(r["generation"] for r in history) == report["generation"] == 2
+    _, rows = RunStore(full).read_pareto()
+    done = [(r["J3_limit"], r["effort"]) for r in history if r["status"] == "completed"]
+    for *_, lap, effort in rows:
+        assert not any(t <= lap and e <= effort and (t < lap or e < effort) for t, e in done)
+
+    calls = []
+    real = polish.polish_member
+
+    def killed_on_second(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise RuntimeError("killed during the polish")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(polish, "polish_member", killed_on_second)
+    part = tmp_path / "part"
+    with pytest.raises(RuntimeError, match="killed during the polish"):
+        run(problem, part, BackendConfig(name="serial"), quiet=True)
+    assert not (part / "pareto.csv").exists()
+    monkeypatch.setattr(polish, "polish_member", real)
+    resume(part, quiet=True)
+    assert (part / "pareto.csv").read_bytes() == (full / "pareto.csv").read_bytes()
+    strip = lambda h: [{k: v for k, v in r.items() if k != "wall_time_s"} for r in h]  # noqa: E731
+    assert strip(RunStore(part).history()) == strip(history)
+
+
+@pytest.mark.slow
+def test_polish_stage_stores_evaluates_and_resumes(tmp_path, monkeypatch):
+    """The runner's side of the polish with a stand-in for the co-design solve (it proposes the
+    box's centre for every member; ~3 min instead of the real solve's ~30): the proposals are
+    evaluated as one more generation, every evaluation in the history is the problem's own (the
+    centre's indices equal a fresh evaluation of it), and a run killed during the polish resumes
+    to the same pareto.csv and history."""
+    import json
+
+    import casadrone.codesign.polish as polish
+    from casadrone.config.problem import BackendConfig
+    from casadrone.optimise.problem import Study, evaluate_rows
+    from casadrone.optimise.runner import resume, run
+    from casadrone.optimise.store import RunStore
+
+    problem = _hybrid_problem(tmp_path)
+    centre = {v.name: (v.lower + v.upper) / 2 for v in problem.variables}
+    calls = []
+
+    def stand_in(prep, theta, member, check=False):
+        calls.append(1)
+        if calls == [1] * 4:  # the second member of the second run: killed
+            raise RuntimeError("killed during the polish")
+        return polish.Polished(theta, member, centre, {}, True, "stand-in", "", 0, 0.0)
+
+    monkeypatch.setattr(polish, "polish_member", stand_in)
+    monkeypatch.setattr(polish, "prepared", lambda problem: None)
+    full = tmp_path / "full"
+    run(problem, full, BackendConfig(name="serial"), quiet=True)
+    report = json.loads((full / "polish.json").read_text())
+    history = RunStore(full).history()
+    last = [r for r in history if r["generation"] == report["generation"]]
+    assert len(report["members"]) == len(last) == 2
+    (fresh,) = evaluate_rows(Study(problem), np.array([[centre[k] for k in centre]]))
+    for r in last:
+        assert [r[k] for k in centre] == list(centre.values())
+        assert r["J3_limit"] == pytest.approx(fresh.indices["J3_limit"], rel=1e-9)
+    part = tmp_path / "part"
+    with pytest.raises(RuntimeError, match="killed during the polish"):
+        run(problem, part, BackendConfig(name="serial"), quiet=True)
+    assert not (part / "pareto.csv").exists()
+    resume(part, quiet=True)
+    assert (part / "pareto.csv").read_bytes() == (full / "pareto.csv").read_bytes()
+    strip = lambda h: [{k: v for k, v in r.items() if k != "wall_time_s"} for r in h]  # noqa: E731
+    assert strip(RunStore(part).history()) == strip(history)

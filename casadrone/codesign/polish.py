@@ -28,10 +28,6 @@ import numpy as np
 
 from casadrone.config.codesign import FRONT_MEASURES, LAP_INDEX
 
-#: The optimiser's objectives a polish can hold: the limit lap, and the front measures that are
-#: registered indices of the evaluation chain (mass and span are co-design measures only).
-POLISH_INDICES = (LAP_INDEX, "effort")
-
 
 @dataclass(frozen=True)
 class Polished:

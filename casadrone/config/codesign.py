@@ -31,6 +31,10 @@ FRONT_MEASURES = {
 }
 #: The limit lap's own index (the co-design objective).
 LAP_INDEX = "J3_limit"
+#: The optimiser's objectives a polish (``algorithm.settings.polish``) can hold: the limit lap,
+#: and the front measures that are registered indices of the evaluation chain (mass and span are
+#: co-design measures only).
+POLISH_INDICES = (LAP_INDEX, "effort")
 
 
 class TrackWeight(Schema):

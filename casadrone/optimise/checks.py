@@ -190,7 +190,7 @@ def polish_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
     on an index it cannot hold (a closed-loop J1–J5, Jp), no limit lap to minimise, a variable
     it does not vary, or a propulsion model it does not pose. Each under the polish key."""
     from casadrone.airframe import THETA_KEYS as CODESIGN_KEYS  # co-design's variables
-    from casadrone.codesign.polish import POLISH_INDICES
+    from casadrone.config.codesign import POLISH_INDICES
 
     key = "algorithm.settings.polish"
     if problem.test_problem is not None:

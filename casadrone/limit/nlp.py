@@ -375,30 +375,47 @@ def _leg_end_rows(model: OcpModel, layout: Layout, X, targets, p) -> list:
 
 
 def periodic_row_count(model: OcpModel) -> int:
-    """Rows of :func:`_periodic_rows`: one per state, one more with a quaternion."""
-    return model.nx + (model.attitude == "quaternion")
+    """Rows of :func:`_periodic_rows`: one per state (a quaternion's four are three rows of
+    its relative rotation and one of its norm)."""
+    return model.nx
+
+
+#: State slices of the attitude, by representation (the models of :data:`ATTITUDE_MODELS`).
+EULER_ANGLES = slice(9, 12)
 
 
 def _periodic_rows(model: OcpModel, x_first, x_last) -> list:
-    """The periodic lap: x(T) − x(0) = 0, in the NLP's units (each state divided by its
-    ``scale``), position first (its three rows are freed by :meth:`Nlp.row_bounds` where the
-    track's start is not its finish; where it is, the start position is free as well, the lap
-    boundary anywhere in the last target, as every lap boundary inside a multi-lap flight).
+    """The periodic lap: the end state equals the start state, row by row in the NLP's units
+    (each state divided by its ``scale``), position first (its three rows are freed by
+    :meth:`Nlp.row_bounds` where the track's start is not its finish; where it is, the start
+    position is free as well, the lap boundary anywhere in the last target, as every lap
+    boundary inside a multi-lap flight).
 
-    Attitude: the Euler model's ψ(T) = ψ(0) exactly, so a lap whose yaw turns by 2π·k, k ≠ 0,
-    is not periodic here (φ and θ stay inside ±90° and cannot wind); with the quaternion model
-    q(T) = q(0), which excludes an odd number of full turns (q and −q are the same attitude).
-    Thrust does not depend on yaw, so no lap needs to turn its yaw; a lap that would gain by
-    winding is restricted. The quaternion's scale is free in the model (the rotation is that of
-    q / |q|), so with q(0) a decision variable |q(0)|² = 1 fixes it (otherwise the KKT system
-    is singular along q)."""
+    Attitude is periodic as a rotation, any number of full turns allowed:
+
+    - Euler angles: sin((a(T) − a(0))/2) = 0 for φ, θ, ψ, so a(T) = a(0) + 2πk (one smooth
+      row per angle whose gradient ±½ never vanishes there, unlike sin(Δ) that also admits π);
+    - quaternion: the vector part of q(0)* ⊗ q(T) is zero, so q(T) is parallel to q(0), with
+      either sign (q and −q are the same attitude: an odd number of full turns), plus
+      |q(0)|² = 1. q(T) − q(0) = 0 instead would also pin |q(T)| = |q(0)|, which RK4 keeps only
+      to its discretisation error: a spurious row on the trajectory. The norm row fixes the
+      quaternion's free scale (the rotation is that of q / |q|); without it the KKT system is
+      singular along q(0).
+    """
     unit = ca.DM.ones(model.nx) if model.scale is None else ca.DM(model.scale)
-    rows = [((x_last - x_first) / unit, 0.0, 0.0)]
+    diff = (x_last - x_first) / unit
+    if model.attitude == "euler":
+        at = EULER_ANGLES
+        return [(ca.vertcat(diff[:at.start], ca.sin(diff[at] / 2), diff[at.stop:]), 0.0, 0.0)]
     if model.attitude == "quaternion":
         from casadrone.limit.attitude import QUAT
 
-        rows.append((ca.sumsqr(x_first[QUAT]), 1.0, 1.0))
-    return rows
+        q0, q1 = x_first[QUAT], x_last[QUAT]
+        w0, v0, w1, v1 = q0[0], q0[1:4], q1[0], q1[1:4]
+        relative = w0 * v1 - w1 * v0 - ca.cross(v0, v1)  # vector part of q0* ⊗ q1
+        return [(ca.vertcat(diff[:QUAT.start], relative, diff[QUAT.stop:]), 0.0, 0.0),
+                (ca.sumsqr(q0), 1.0, 1.0)]
+    return [(diff, 0.0, 0.0)]
 
 
 def _bounds_of(rows) -> tuple[np.ndarray, np.ndarray]:

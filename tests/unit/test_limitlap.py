@@ -579,3 +579,38 @@ def test_periodic_track_key_is_validated_and_poses_the_periodic_lap():
     np.testing.assert_allclose(X2[1:], X[1:])
     with pytest.raises(ConfigError, match="start"):
         load(TrackConfig, DEFAULT_TRACK, ["end=periodic", "start={velocity_mps: [5, 0, 0]}"])
+
+
+def test_periodic_attitude_rows_admit_full_turns_and_nothing_else():
+    """The periodic rows hold where the end attitude is the start attitude after full turns
+    (Euler: each angle + 2π k; quaternion: q(T) = ±q(0), any positive scale of q(T)) and not
+    after a half turn (Euler ψ + π; quaternion a rotation by π about z), checked numerically;
+    the quaternion's start must be a unit quaternion (its norm row)."""
+    from casadrone.limit.attitude import QUAT, euler_to_quat
+    from casadrone.limit.nlp import _periodic_rows, quadrotor_ocp_model, quaternion_ocp_model
+
+    rng = np.random.default_rng(5)
+    for model in (quadrotor_ocp_model(), quaternion_ocp_model()):
+        a, b = ca.SX.sym("a", model.nx), ca.SX.sym("b", model.nx)
+        rows = _periodic_rows(model, a, b)
+        g = ca.Function("g", [a, b], [ca.vertcat(*[r[0] for r in rows])])
+        target = np.concatenate([np.full(r[0].numel(), r[1]) for r in rows])
+        assert len(target) == model.nx
+        x0 = rng.normal(size=model.nx)
+        if model.attitude == "euler":
+            turned = [x0 + np.r_[np.zeros(9), 2 * np.pi * np.array(k), np.zeros(4)]
+                      for k in ([1, 0, 0], [0, -1, 2])]
+            half = x0 + np.r_[np.zeros(11), np.pi, np.zeros(4)]
+        else:
+            x0[QUAT] = euler_to_quat(0.3, -0.2, 1.0)
+            turned = [x0 * np.r_[np.ones(9), [s] * 4, np.ones(4)] for s in (-1.0, 1.7)]
+            half = x0.copy()
+            w, v = 0.0, np.array([0.0, 0.0, 1.0])  # q ⊗ (0, ẑ): a half turn about body z
+            q = x0[QUAT]
+            half[QUAT] = np.r_[q[0] * w - q[1:] @ v, q[0] * v + w * q[1:] + np.cross(q[1:], v)]
+        for x1 in turned:
+            np.testing.assert_allclose(np.array(g(x0, x1)).ravel(), target, atol=1e-12)
+        assert np.abs(np.array(g(x0, half)).ravel() - target).max() > 0.5
+        if model.attitude == "quaternion":
+            scaled = x0 * np.r_[np.ones(9), [2.0] * 4, np.ones(4)]
+            assert abs(float(g(scaled, scaled)[-1]) - 1.0) > 1.0  # |q(0)|² = 4, not 1

@@ -6,7 +6,8 @@ frame's down to half of it) from the template's geometry alone (``codesign.start
 template start reaches the best of six starts on this track, RESULTS-codesign.md), timed by
 phase in CPU seconds of this one process (one core): the template's limit lap and the NLP's
 build, the fastest frame, the ε-continuation. Writes the run directory to DIR and the timings
-to DIR/timings.json.
+to DIR/timings.json at the end, and each point as it converges (lap, measure, ε, iterations,
+CPU) to DIR.points.jsonl beside it, so a sweep stopped early keeps what it reached.
 
 Phase 2 (``--ga RUN --ga-cpu S``): the comparison with a finished ``casadrone run`` of
 ``problems/limit-effort.yaml`` (ev-MOGA, the same airframe, track, box and objectives; its CPU
@@ -36,6 +37,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import csv  # noqa: E402
 import json  # noqa: E402
+import math  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -62,8 +64,21 @@ def run_front(problem: str, out: Path, overrides: list[str]) -> dict:
     ok, status, best = solve_from(prep, z0)
     assert ok, status
     t["fastest"] = time.process_time()
+    # each point as it converges, beside DIR (the run directory must start empty): a sweep
+    # stopped early keeps its points
+    progress = out.parent / f"{out.name}.points.jsonl"
+
+    def keep(point, measure: float, epsilon: float) -> None:
+        with open(progress, "a") as fh:
+            fh.write(json.dumps({"lap_s": point.objective, "measure": measure,
+                                 "epsilon": epsilon, "iterations": point.iterations,
+                                 "solve_cpu_s": point.cpu_s, "theta": point.theta,
+                                 "cpu_s": time.process_time() - t["start"]}) + "\n")
+
+    keep(best, math.nan, math.inf)
     front = design_front(prep, best, cfg.objectives[1].index, cfg.codesign.front.points,
-                         cfg.codesign.front.lowest)
+                         cfg.codesign.front.lowest,
+                         on_point=lambda fp: keep(fp.point, fp.measure, fp.epsilon))
     t["front"] = time.process_time()
     write_run(out, prep, front, len(front.points))
     timings = {"prepare_cpu_s": t["prepared"] - t["start"],

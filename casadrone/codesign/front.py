@@ -66,8 +66,10 @@ def track_efforts(prep: Prepared, point: CodesignPoint) -> dict[str, float]:
 
 
 def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points: int = 15,
-                 lowest: float = 0.5) -> Front:
-    """The front from ``best`` (the unconstrained optimum) down to ``lowest`` × its measure."""
+                 lowest: float = 0.5, on_point=None) -> Front:
+    """The front from ``best`` (the unconstrained optimum) down to ``lowest`` × its measure;
+    ``on_point(FrontPoint)``, if given, is called as each point converges (a long sweep's
+    progress, kept by the caller)."""
     prep = constrained(prep_free, (measure,))
     c0 = time.process_time()
     top = measure_value(prep, best, measure)
@@ -81,6 +83,8 @@ def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points:
             stopped = f"ε = {eps:.6g}: {status}"
             break
         out.append(FrontPoint(pt, measure_value(prep, pt, measure), float(eps), status, ok))
+        if on_point is not None:
+            on_point(out[-1])
         prev = pt
     return Front(measure, tuple(out), time.process_time() - c0, stopped, prep)
 

@@ -36,7 +36,11 @@ Solvers (all built once per process and option set, with p and (V, γ, Ω) as pa
   ‖Q‖ reaches the tolerance or the iteration cap.
 
 Commands outside [0, 1] are not a failure of the equations: the trim is reported (success) and
-the message says the command saturates. A pitch or roll beyond ``max_tilt_deg`` is a failure.
+the message says the command saturates. A pitch or roll beyond ``max_tilt_deg`` is a failure,
+and so, with ``propeller``, is a root with a negative rotor speed: the propeller would turn
+backwards, which a racing ESC (no 3-D mode) cannot command and CT(J), CP(J) do not describe.
+SY250-propeller at 40 m/s level has both roots: δ = 1.43 (saturating, reported) and δ = −0.44
+with ω = −1945 rad/s, the one IPOPT's feasibility solve lands on (refused).
 """
 
 from __future__ import annotations
@@ -439,6 +443,10 @@ def trim(
     x0, u0, residual = x.ravel().copy(), u.ravel().copy(), float(norm[0, 0])
     wall = time.perf_counter() - start
     success, message = _verdict(solver, o, z, u0, residual, status, error)
+    if success and airframe.propulsion == "propeller" and np.any(x0[THR] < 0):
+        success, message = False, (f"rotor speed {float(np.min(x0[THR])):.4g} rad/s below 0: a root "
+                                   "with the propellers turning backwards is no physical trim "
+                                   f"({status})")
     if success:
         message += beyond_data_note(airframe, x0, u0)
     return TrimPoint(

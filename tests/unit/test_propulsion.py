@@ -143,6 +143,7 @@ def test_forward_flight_trims_below_static_thrust(frame, speed):
     at the same rotor speed (the inflow unloads the propeller), increasingly with speed."""
     tp = trim(frame, "forward", speed, "newton")
     assert tp.success, tp.message
+    assert np.all(tp.x0[THR] > 0)  # the physical root (a backward one is refused, below)
     q = airframe_values(frame)
     static = RHO * q["ct0"] * D**4 * (tp.x0[THR] / (2 * math.pi)) ** 2
     assert np.all(tp.thrusts < static)
@@ -418,3 +419,16 @@ def test_point_mass_thrust_bound_holds_over_steady_flight(frame):
     assert max(singles[2:3]) > Tb  # one rotor alone does exceed it (the sag argument matters)
     assert totals[1] < totals[0]  # 20 m/s of axial inflow: less thrust at full command
     assert Tb < box_thrust_bound(airframe_values(frame)) / 2  # far tighter than the box bound
+
+
+@pytest.mark.parametrize("solver", ["ipopt", "newton"])
+def test_forward_trim_never_reports_backward_rotors(frame, solver):
+    """At 40 m/s level SY250-propeller's trim equations have a root with the rotors turning
+    backwards (ω ≈ −1945 rad/s, δ ≈ −0.44, found by IPOPT from the default guess) beside the
+    saturating one (δ ≈ 1.43). A reported trim must have every rotor speed ≥ 0: a propeller
+    turning backwards is no physical trim, and a refusal says why."""
+    tp = trim(frame, "forward", 40.0, solver)
+    if tp.success:
+        assert np.all(tp.x0[THR] >= 0), tp.message
+    else:
+        assert "below 0" in tp.message or "residual" in tp.message, tp.message

@@ -444,9 +444,9 @@ def trim(
     wall = time.perf_counter() - start
     success, message = _verdict(solver, o, z, u0, residual, status, error)
     if success and airframe.propulsion == "propeller" and np.any(x0[THR] < 0):
-        success, message = False, (f"rotor speed {float(np.min(x0[THR])):.4g} rad/s below 0: a root "
-                                   "with the propellers turning backwards is no physical trim "
-                                   f"({status})")
+        w_min = float(np.min(x0[THR]))
+        success, message = False, (f"rotor speed {w_min:.4g} rad/s below 0: a root with the "
+                                   f"propellers turning backwards is no physical trim ({status})")
     if success:
         message += beyond_data_note(airframe, x0, u0)
     return TrimPoint(

@@ -3,10 +3,10 @@
 For ``--n`` random frames inside paper Table 1 (SY250 template, paper track, overlapping-rotor
 draws resampled), on one core:
 
-- **cold**: ``limit_lap`` with its default starts (closed-loop guess, point-mass guess, best of
-  both) plus the point-mass reference and the CVODES re-simulation: success rate, CPU time
-  (process time, single-threaded), iterations of the winning start, lap / point-mass
-  reference, re-simulation miss;
+- **cold**: ``limit_lap`` with its default starts (``LimitLapOptions().starts``: closed-loop,
+  point-mass, coarse-grid and fine-grid; the best verified one) plus the point-mass reference
+  and the CVODES re-simulation: success rate, CPU time (process time, single-threaded),
+  iterations of the winning start, lap / point-mass reference, re-simulation miss;
 - **warm**: the same frame solved again from a primal-dual warm start of its nearest
   neighbour (normalised θ distance) among the other frames: CPU time, iterations, and the
   difference to the cold lap (negative: the warm start found a better local optimum);
@@ -113,8 +113,8 @@ def main(argv: list[str] | None = None) -> int:
              "| quantity | value |", "|---|---|",
              f"| frames | {args.n} |",
              f"| cold success | {len(ok)}/{args.n} |",
-             f"| cold CPU per frame (median, max; 2 starts + point-mass reference + "
-             f"re-simulation) | "
+             f"| cold CPU per frame (median, max; {len(options.starts)} starts "
+             f"({', '.join(options.starts)}) + point-mass reference + re-simulation) | "
              f"{med([c[2] for c in cold]):.1f} s, {max(c[2] for c in cold):.1f} s |",
              f"| cold iterations of the winning start (median) | "
              f"{med([cold[i][1].iterations for i in ok]) if ok else float('nan'):.0f} |"]

@@ -63,7 +63,7 @@ def colourings(prep, measure: str, z) -> None:
         eps = np.full(jac.size1_in(1), 1e3)
         c = time.process_time()
         for _ in range(5):
-            jac(z, eps)
+            jac(p.nlp.full(z), eps)
         print(f"{label}: Jacobian {sp.size1()}x{sp.size2()}, {sp.nnz()} nonzeros, "
               f"{sp.uni_coloring().size2()} forward colours, "
               f"{sp.T.uni_coloring().size2()} adjoint colours, "

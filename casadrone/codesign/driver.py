@@ -300,11 +300,13 @@ def solve_from(prep: Prepared, z0: np.ndarray, epsilon: dict[str, float] | None 
     cd = prep.nlp
     lbx, ubx = cd.bounds()
     eps = np.array([(epsilon or {})[m] for m in cd.epsilon], float)
-    args = dict(x0=np.clip(z0, lbx, ubx), lbx=lbx, ubx=ubx, lbg=cd.lbg, ubg=cd.ubg, p=eps)
+    args = dict(x0=np.clip(cd.full(z0), lbx, ubx), lbx=lbx, ubx=ubx, lbg=cd.lbg, ubg=cd.ubg,
+                p=eps)
     solver = cd.cold
-    if warm is not None:
+    if warm is not None:  # a point of the NLP without some rows or variables: zeros for them
         solver = cd.warm
-        args.update(x0=np.clip(warm.z, lbx, ubx), lam_x0=warm.lam_x, lam_g0=warm.lam_g)
+        args.update(x0=np.clip(cd.full(warm.z), lbx, ubx),
+                    lam_x0=_padded(warm.lam_x, len(lbx)), lam_g0=_padded(warm.lam_g, len(cd.lbg)))
     c0 = time.process_time()
     try:
         out = solver(**args)
@@ -318,6 +320,13 @@ def solve_from(prep: Prepared, z0: np.ndarray, epsilon: dict[str, float] | None 
         z, lam_x, lam_g = np.asarray(z0, float), np.zeros(len(lbx)), np.zeros(len(cd.lbg))
     cpu = time.process_time() - c0
     return ok, status, point_of(prep, z, lam_x, lam_g, iters, cpu, epsilon or {})
+
+
+def _padded(v: np.ndarray, n: int) -> np.ndarray:
+    """``v`` with zeros appended up to length ``n`` (multipliers of rows or variables that a
+    warm start's NLP did not have)."""
+    v = np.asarray(v, float).ravel()
+    return np.concatenate([v, np.zeros(n - len(v))]) if len(v) < n else v
 
 
 def point_of(prep: Prepared, z, lam_x, lam_g, iterations: int, cpu_s: float,

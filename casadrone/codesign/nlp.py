@@ -31,9 +31,9 @@ Combine = Literal["sum", "worst"]
 MEASURES = ("mass_kg", "span_m", "effort")
 
 
-def effort(part: TrackPart, w):
-    """The limit lap's effort ∫ Σ_i T_i^{3/2} dt (N^1.5·s) over the lap, from w: each
-    interval's length times its start node's rotor thrusts (a left rectangle rule).
+def effort_terms(part: TrackPart, w):
+    """The limit lap's effort ∫ Σ_i T_i^{3/2} dt (N^1.5·s) over the lap, interval by interval,
+    from w: each interval's length times its start node's rotor thrusts (a left rectangle rule).
 
     Why this measure: by momentum theory a rotor making thrust T in still air needs at least the
     ideal induced power T^{3/2} / sqrt(2 ρ A) (Leishman, Principles of Helicopter Aerodynamics,
@@ -52,7 +52,12 @@ def effort(part: TrackPart, w):
     h = w[at_s.tolist()] / N
     T = ca.reshape(w[at_t.tolist()], -1, M)  # rotors × intervals
     power = ca.sum1((T ** 2 + EFFORT_SMOOTHING_N ** 2) ** 0.75)
-    return ca.dot(power.T, h)
+    return power.T * h  # one term per interval
+
+
+def effort(part: TrackPart, w):
+    """The limit lap's effort ∫ Σ_i T_i^{3/2} dt (N^1.5·s): the sum of :func:`effort_terms`."""
+    return ca.sum1(effort_terms(part, w))
 
 
 @dataclass(frozen=True)
@@ -87,6 +92,8 @@ class CodesignNlp:
     offsets: tuple[int, ...]  # start of each w_k; the last entry is where s starts
     n_feas: int
     row_offsets: tuple[int, ...] = field(default=())  # start of each track's rows; then feas
+    n_lift: int = 0  # accumulated-effort variables at the end of z (ε on effort; see build)
+    lift: ca.Function | None = None  # z without them → their values (a warm start's)
 
     @property
     def n_theta(self) -> int:
@@ -94,7 +101,15 @@ class CodesignNlp:
 
     @property
     def nw(self) -> int:
-        return self.offsets[-1] + self.n_theta + (self.combine == "worst")
+        return self.offsets[-1] + self.n_theta + (self.combine == "worst") + self.n_lift
+
+    def full(self, z: np.ndarray) -> np.ndarray:
+        """``z`` with the accumulated-effort variables appended when it lacks them (a point of
+        the NLP without the ε row on effort); any other z as it is."""
+        z = np.asarray(z, float).ravel()
+        if self.lift is None or len(z) == self.nw:
+            return z
+        return np.concatenate([z, np.asarray(self.lift(z), float).ravel()])
 
     def split(self, z: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
         """(w_k of each track, s) of a decision vector."""
@@ -119,6 +134,8 @@ class CodesignNlp:
         if self.combine == "worst":
             lo.append([0.0])
             hi.append([np.inf])
+        lo.append(np.zeros(self.n_lift))
+        hi.append(np.full(self.n_lift, np.inf))
         return np.concatenate(lo), np.concatenate(hi)
 
 
@@ -173,13 +190,29 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
         objective = cast(ca.MX, sum(fs))
     eps = ca.MX.sym("eps", len(epsilon))
     measures = {"mass_kg": mass, "span_m": diagonals}
+    lift_rows, lift, n_lift = None, None, 0
     if "effort" in epsilon:
-        measures["effort"] = sum(effort(part, w) for part, w in zip(parts, ws, strict=True))
+        # The effort sums every interval's thrusts and duration: as one row it is a dense row
+        # of the constraint Jacobian, which needs a forward colour per nonzero (~1000 on the
+        # paper track; benchmarks/bench_codesign_profile.py). Lifted into its running sum
+        # E_k = E_{k-1} + q_k (one sparse row per interval, the usual lifting of an integral
+        # cost into a state), the ε row holds the last E alone.
+        q = ca.vertcat(*(effort_terms(part, w) for part, w in zip(parts, ws, strict=True)))
+        n_lift = q.numel()
+        E = ca.MX.sym("E", n_lift)
+        lift_rows = E - ca.vertcat(0, E[:-1]) - q
+        lift = ca.Function("effort_lift", [z], [ca.cumsum(q)])
+        measures["effort"] = E[-1]
+        z = ca.vertcat(z, E)
     for i, name in enumerate(epsilon):
         m = measures[name]
         gs.append(m - eps[i])
         lbg.append(np.full(m.numel(), -np.inf))
         ubg.append(np.zeros(m.numel()))
+    if lift_rows is not None:  # after the ε rows: the certificate reads those by position
+        gs.append(lift_rows)
+        lbg.append(np.zeros(n_lift))
+        ubg.append(np.zeros(n_lift))
     problem = {"x": z, "p": eps, "f": objective, "g": ca.vertcat(*gs)}
     tag = f"codesign_{len(parts)}x{combine}_{'_'.join(epsilon) or 'free'}"
     # the limit lap's compiled interval derivatives do not cover θ: CasADi differentiates the
@@ -188,4 +221,5 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
     cold = ca.nlpsol(tag, "ipopt", problem, ipopt_options(tol, max_iter, False) | extra)
     warm = ca.nlpsol(tag + "_warm", "ipopt", problem, ipopt_options(tol, max_iter, True) | extra)
     return CodesignNlp(parts, frame, combine, tuple(epsilon), cold, warm, np.concatenate(lbg),
-                       np.concatenate(ubg), tuple(offsets), n_feas, tuple(row_offsets))
+                       np.concatenate(ubg), tuple(offsets), n_feas, tuple(row_offsets), n_lift,
+                       lift)

@@ -442,11 +442,8 @@ def trim(
     x, u, norm = fn.point(z, p, op)
     x0, u0, residual = x.ravel().copy(), u.ravel().copy(), float(norm[0, 0])
     wall = time.perf_counter() - start
-    success, message = _verdict(solver, o, z, u0, residual, status, error)
-    if success and airframe.propulsion == "propeller" and np.any(x0[THR] < 0):
-        w_min = float(np.min(x0[THR]))
-        success, message = False, (f"rotor speed {w_min:.4g} rad/s below 0: a root with the "
-                                   f"propellers turning backwards is no physical trim ({status})")
+    rotor_speeds = x0[THR] if airframe.propulsion == "propeller" else None
+    success, message = _verdict(solver, o, z, u0, residual, status, error, rotor_speeds)
     if success:
         message += beyond_data_note(airframe, x0, u0)
     return TrimPoint(
@@ -495,8 +492,9 @@ def _wrap_angles(z: np.ndarray) -> np.ndarray:
 
 
 def _verdict(solver: str, o: TrimOptions, z, u0, residual: float, status: str,
-             error: str | None) -> tuple[bool, str]:
-    """Whether a solve is a usable trim, and the message saying why (not)."""
+             error: str | None, rotor_speeds: np.ndarray | None = None) -> tuple[bool, str]:
+    """Whether a solve is a usable trim, and the message saying why (not); ``rotor_speeds``
+    (rad/s) of a ``propeller`` frame, none of which may be negative."""
     tol = o.nelder_mead_tolerance if solver == "nelder-mead" else o.tolerance
     finite = bool(np.all(np.isfinite(z))) and math.isfinite(residual)
     if error is not None:
@@ -508,6 +506,9 @@ def _verdict(solver: str, o: TrimOptions, z, u0, residual: float, status: str,
     tilt = math.degrees(max(abs(z[0]), abs(z[1])))
     if tilt > o.max_tilt_deg:
         return False, f"tilt {tilt:.1f} deg beyond max_tilt_deg {o.max_tilt_deg:g}"
+    if rotor_speeds is not None and np.any(rotor_speeds < 0):
+        return False, (f"rotor speed {float(np.min(rotor_speeds)):.4g} rad/s below 0: a root "
+                       f"with the propellers turning backwards is no physical trim ({status})")
     message = f"converged ({status})"
     if np.any(u0 < 0) or np.any(u0 > 1):
         message += f"; commands outside [0, 1] (max {u0.max():.3f}): they saturate in flight"

@@ -38,7 +38,7 @@ from casadrone.limit.gates import (  # noqa: F401 (re-exported: the NLP's target
     target_rows,
     target_vector,
 )
-from casadrone.model import n_params, quadrotor_model, rotation_matrix, unpack_params
+from casadrone.model import EUL, n_params, quadrotor_model, rotation_matrix, unpack_params
 
 
 @dataclass(frozen=True)
@@ -380,10 +380,6 @@ def periodic_row_count(model: OcpModel) -> int:
     return model.nx
 
 
-#: State slices of the attitude, by representation (the models of :data:`ATTITUDE_MODELS`).
-EULER_ANGLES = slice(9, 12)
-
-
 def _periodic_rows(model: OcpModel, x_first, x_last) -> list:
     """The periodic lap: the end state equals the start state, row by row in the NLP's units
     (each state divided by its ``scale``), position first (its three rows are freed by
@@ -405,7 +401,7 @@ def _periodic_rows(model: OcpModel, x_first, x_last) -> list:
     unit = ca.DM.ones(model.nx) if model.scale is None else ca.DM(model.scale)
     diff = (x_last - x_first) / unit
     if model.attitude == "euler":
-        at = EULER_ANGLES
+        at = EUL  # the Euler angles of the 16-state model
         return [(ca.vertcat(diff[:at.start], ca.sin(diff[at] / 2), diff[at.stop:]), 0.0, 0.0)]
     if model.attitude == "quaternion":
         from casadrone.limit.attitude import QUAT

@@ -78,6 +78,7 @@ symbolic functions; its airframe-level helpers take any object with the
 from __future__ import annotations
 
 import math
+from functools import cache, lru_cache
 from typing import Any
 
 from casadrone.config.propulsion import PropulsionConfig
@@ -460,12 +461,15 @@ def fit_points(data):
                 | ((rpm == FIT_SWEEP_RPM) & (J > 0) & (J <= FIT_MAX_J))]
 
 
+@cache
 def data_advance_ratio(name: str = SHIPPED_PROPELLER) -> float:
     """The largest advance ratio of the points a shipped dataset's fit uses
-    (:func:`fit_points`): where its CT(J), CP(J) are measured, 0.618 for the shipped propeller."""
+    (:func:`fit_points`): where its CT(J), CP(J) are measured, 0.618 for the shipped propeller.
+    Read once per process (package data; every propeller airframe build asks for it)."""
     return float(fit_points(propeller_data(name))[:, 0].max())
 
 
+@lru_cache(maxsize=1)
 def shipped_datasets() -> tuple[str, ...]:
     """Names of the propeller datasets shipped in the package data."""
     from importlib import resources

@@ -132,6 +132,21 @@ def _rotor_text(r: dict) -> str:
             f"advance ratio {r['max_advance_ratio']:.2f}{data}")
 
 
+def _start_text(r: dict) -> list[str]:
+    """The start state flown (the optimised one with ``end: periodic``), Euler-model layout."""
+    x = r.get("start_state")
+    if x is None or len(x) != 16:
+        return []
+    x = [float(v) for v in x]
+    def vec(v: list[float], fmt: str) -> str:
+        return "(" + ", ".join(format(c, fmt) for c in v) + ")"
+
+    eul = [math.degrees(a) for a in x[9:12]]
+    return [f"  start state: position {vec(x[0:3], '.3f')} m, velocity {vec(x[3:6], '.3f')} m/s, "
+            f"body rates {vec(x[6:9], '.3f')} rad/s, roll/pitch/yaw {vec(eul, '.2f')} deg, "
+            f"rotor states {vec(x[12:16], '.4g')}"]
+
+
 def _text(name: str, track: str, r: dict) -> str:
     if r["status"] != "completed":
         return f"{name} on {track}: limit lap FAILED: {r['reason']} ({r['wall_time_s']:.1f} s)"
@@ -146,6 +161,7 @@ def _text(name: str, track: str, r: dict) -> str:
         f"  bang-bang fraction: {r['bang_bang_fraction']:.2f}; re-simulation miss: "
         f"{r['resimulation_miss_m']:.4f} m",
         f"  top speed {r['top_speed_m_s']:.1f} m/s" + _rotor_text(r),
+        *_start_text(r),
         "  sensitivity dT/dθ (s per unit):",
     ]
     lines += [f"    {k:<14}{v:>+12.4g}" for k, v in r["sensitivities"].items()

@@ -614,3 +614,21 @@ def test_periodic_attitude_rows_admit_full_turns_and_nothing_else():
         if model.attitude == "quaternion":
             scaled = x0 * np.r_[np.ones(9), [2.0] * 4, np.ones(4)]
             assert abs(float(g(scaled, scaled)[-1]) - 1.0) > 1.0  # |q(0)|² = 4, not 1
+
+
+def test_limit_lap_text_gives_the_start_state_it_flew():
+    """The plain-text summary states the start state (the optimised one with ``end: periodic``):
+    the numbers read back from the line are the result's, with the Euler angles in degrees
+    (yaw π/2 must read 90.00), and a result without a start state prints no such line."""
+    import re
+
+    from casadrone.cli.limit import _start_text
+
+    x = [1.0, -2.5, 3.25, 12.0, -0.5, 0.125, 0.1, -0.2, 0.3, 0.0, -math.pi / 6, math.pi / 2,
+         2.2, 2.3, 2.4, 2.5]
+    (line,) = _start_text({"start_state": x})
+    groups = re.findall(r"\(([^)]*)\)", line)
+    read = [float(v) for g in groups for v in g.split(",")]
+    expected = x[:9] + [0.0, -30.0, 90.0] + x[12:]
+    np.testing.assert_allclose(read, expected, atol=5e-3)
+    assert _start_text({"start_state": None}) == [] and _start_text({}) == []

@@ -32,7 +32,7 @@ from casadrone.limit.check import resimulation_miss, theta_sensitivities
 from casadrone.limit.lap import limit_lap, model_states, start_state
 from casadrone.limit.nlp import NlpPoint
 from casadrone.limit.starts import prepare, trajectory
-from casadrone.model import NP
+from casadrone.model import n_params
 
 #: Largest relative gap between the co-design lap and the fixed-frame lap (issue: 0.05 %).
 LAP_RTOL = 5e-4
@@ -174,7 +174,8 @@ def _gradient(prep, cfg, warm, track, keys) -> np.ndarray:
     lam_p = warm.point.lam_p
     nx = prep.nlp.parts[0].nlp.model.nx
     attitude = prep.options.attitude
-    sens = theta_sensitivities(cfg, -lam_p[:NP], -lam_p[NP:NP + nx],
+    n_p = n_params(cfg.propulsion.model)  # P = [p, x_start, targets] in its propulsion's layout
+    sens = theta_sensitivities(cfg, -lam_p[:n_p], -lam_p[n_p:n_p + nx],
                                lambda f: model_states(attitude, start_state(
                                    f, track, prep.options))[0], keys=keys)
     return np.array([sens[k] for k in keys])

@@ -42,7 +42,10 @@ def load_codesign_problem(path: str | Path, overrides: list[str] | None = None
     """Load a co-design problem (a path, or a shipped problem's name), with overrides."""
     source = resolve_config(path, "problems")
     problem = load(CodesignProblemConfig, source, overrides)
+    from casadrone.optimise.checks import _effort_problems
+
     found = codesign_index_problems(problem.objectives, problem.constraints)
+    found += _effort_problems(problem, [o.index for o in problem.objectives])
     if found:
         raise ConfigError(problem_lines(found, str(source), overrides))
     return problem

@@ -33,6 +33,7 @@ from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
 from casadrone.limit.lap import LimitLap, LimitLapOptions, limit_lap
 from casadrone.limit.starts import prepare as prepare_lap
+from casadrone.propulsion import rotor_state_bounds
 from casadrone.results import Status
 
 #: Two optima agree when their objectives differ by at most this fraction (acceptance: 0.1 %).
@@ -167,7 +168,8 @@ def _part(template: AirframeConfig, track: TrackConfig, options: LimitLapOptions
     frame = build_airframe(template)
     pb = prepare_lap(frame, track, options, options.gate_clearance_m or 0.0)
     return TrackPart(pb.full, *pb.box, *pb.rows, pb.x0, pb.targets.vector, weight,
-                     hover_start=options.start_state is None, thrust_max=frame.thrust_gain,
+                     hover_start=options.start_state is None,
+                     thrust_max=rotor_state_bounds(frame)[1],
                      first_timed=pb.targets.first_timed)
 
 
@@ -199,10 +201,10 @@ _BUILT: dict[tuple, CodesignNlp] = {}
 def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Prepared:
     """The template, the variables, the tracks and the co-design NLP (cached per shape)."""
     template = _template(problem)
-    if template.propulsion.model != "paper":
-        raise ConfigError([f"{problem.name}: airframe: co-design poses the paper propulsion model "
-                           f"only (its start state and effort are rotor thrusts); the template "
-                           f"uses '{template.propulsion.model}'"])
+    if "effort" in epsilon and template.propulsion.model != "paper":
+        raise ConfigError([f"{problem.name}: airframe: 'effort' sums T^1.5 of the rotor thrusts, "
+                           f"the rotor states of the paper propulsion model; the template uses "
+                           f"'{template.propulsion.model}'"])
     keys = tuple(v.name for v in problem.variables)
     bad = [k for k in keys if k not in CODESIGN_KEYS]
     if bad:

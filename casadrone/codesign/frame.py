@@ -112,6 +112,20 @@ def hover_thrusts(p):
     return ca.solve(A, ca.vertcat(p[i["mass"]] * p[i["g"]], 0, 0, 0))
 
 
+def hover_rotor_states(p, propulsion: str = "paper"):
+    """The rotor states of hover from p: the thrusts of :func:`hover_thrusts` (``paper``), or
+    the rotor speeds (rad/s) giving them at zero inflow, ω = 2π √(T / (ρ c_T0 D⁴))
+    (``propeller``: :func:`casadrone.propulsion.speed_for_thrust`, the limit lap's own start,
+    :func:`casadrone.propulsion.hover_rotors`)."""
+    T = hover_thrusts(p)
+    if propulsion == "paper":
+        return T
+    from casadrone.model import named
+
+    q = named(p, propulsion)
+    return 2 * np.pi * ca.sqrt(T / (q["rho"] * q["ct0"] * q["prop_D"] ** 4))
+
+
 @dataclass(frozen=True)
 class FeasibilityRow:
     """One rule a frame must meet, as ``expression ≥ 0`` in θ (scaled to order one)."""
@@ -128,8 +142,12 @@ def feasibility_rows(cfg: AirframeConfig, theta: Mapping[str, Any]) -> list[Feas
     - a possible body (``free``): Ixx + Iyy ≥ Izz and its two companions, scaled by the trace
       (:func:`casadrone.config.inertia_problems`; a ``components`` body is a sum of physical parts
       and always possible);
-    - able to hover: the weight below the full thrust of four rotors, 1 − m g / (4 K) ≥ 0.
+    - able to hover: the weight below the full thrust of four rotors, 1 − m g / (4 T_max) ≥ 0,
+      T_max one rotor's full-command static thrust (:func:`casadrone.propulsion.
+      max_static_thrust`: K with ``paper``; it does not depend on θ).
     """
+    from casadrone.propulsion import max_static_thrust
+
     mass, J, _, r_mm = mass_and_layout(cfg, theta)
     d2 = cfg.prop_diameter_mm ** 2
     rows = [FeasibilityRow(f"gap {ROTOR_LABELS[i]}-{ROTOR_LABELS[j]}",
@@ -140,14 +158,16 @@ def feasibility_rows(cfg: AirframeConfig, theta: Mapping[str, Any]) -> list[Feas
         for a, b, c in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
             rows.append(FeasibilityRow(f"rigid body I{'xyz'[a]}+I{'xyz'[b]}>=I{'xyz'[c]}",
                                        (J[a, a] + J[b, b] - J[c, c]) / tr))
-    rows.append(FeasibilityRow("hover", 1 - mass * cfg.gravity_mps2 / (4 * cfg.thrust.gain_n)))
+    t_max = max_static_thrust(build_airframe(cfg))
+    rows.append(FeasibilityRow("hover", 1 - mass * cfg.gravity_mps2 / (4 * t_max)))
     return rows
 
 
 @dataclass(frozen=True)
 class SymbolicFrame:
-    """θ (normalised to [0, 1] in its box) → p, hover thrusts, feasibility rows, mass, span; one
-    CasADi Function built once per problem."""
+    """θ (normalised to [0, 1] in its box) → p, the rotor states of hover
+    (:func:`hover_rotor_states`), feasibility rows, mass, span; one CasADi Function built once per
+    problem."""
 
     cfg: AirframeConfig
     keys: tuple[str, ...]
@@ -179,5 +199,6 @@ class SymbolicFrame:
         _, _, _, r_mm = mass_and_layout(self.cfg, th)
         diag = ca.vertcat(ca.norm_2(r_mm[0, :] - r_mm[2, :]), ca.norm_2(r_mm[1, :] - r_mm[3, :]))
         tips = (diag + self.cfg.prop_diameter_mm) / 1000
-        return ca.Function("codesign_frame", [s], [p, hover_thrusts(p), feas, mass, tips],
+        hover = hover_rotor_states(p, self.cfg.propulsion.model)
+        return ca.Function("codesign_frame", [s], [p, hover, feas, mass, tips],
                            ["s"], ["p", "hover", "feas", "mass", "diagonals"])

@@ -21,6 +21,7 @@ from typing import Any, Literal, cast
 import casadi as ca
 import numpy as np
 
+from casadrone.codesign.derivatives import codesign_derivatives, uses_blocks
 from casadrone.codesign.frame import SymbolicFrame
 from casadrone.indices import EFFORT_SMOOTHING_N  # one δ for the index and the NLP
 from casadrone.limit.nlp import Nlp, ipopt_options
@@ -73,7 +74,9 @@ class TrackPart:
     targets: np.ndarray
     weight: float = 1.0
     hover_start: bool = True  # the start state's thrusts follow the frame (hover at the start)
-    thrust_max: float = np.inf  # N, a rotor's thrust limit (the bound of the freed start thrusts)
+    #: the rotor states' upper bound (thrust N, or rotor speed rad/s with ``propeller``): the
+    #: bound of the freed start rotor states
+    thrust_max: float = np.inf
     first_timed: int = 0  # the leg that ends at the first timed target (split times from there)
 
 
@@ -94,6 +97,10 @@ class CodesignNlp:
     row_offsets: tuple[int, ...] = field(default=())  # start of each track's rows; then feas
     n_lift: int = 0  # accumulated-effort variables at the end of z (ε on effort; see build)
     lift: ca.Function | None = None  # z without them → their values (a warm start's)
+    #: the symbolic NLP given to ``nlpsol`` ({"x", "p", "f", "g"}) and the derivative functions
+    #: given with it (empty: CasADi's AD)
+    problem: dict = field(default_factory=dict, compare=False, repr=False)
+    derivatives: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def n_theta(self) -> int:
@@ -126,7 +133,9 @@ class CodesignNlp:
             lbx, ubx = part.lbx.copy(), part.ubx.copy()
             if part.hover_start:
                 first = start_thrust_index(part.nlp)
-                lbx[first], ubx[first] = 0.0, part.thrust_max
+                unit = 1.0 if part.nlp.model.scale is None else \
+                    np.asarray(part.nlp.model.scale)[part.nlp.model.rotor]  # the NLP's units
+                lbx[first], ubx[first] = 0.0, part.thrust_max / unit
             lo.append(lbx)
             hi.append(ubx)
         lo.append(np.zeros(self.n_theta))
@@ -151,22 +160,32 @@ def start_thrust_index(nlp: Nlp) -> np.ndarray:
 
 def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combine: Combine,
                        epsilon: tuple[str, ...] = (), tol: float = 1e-6,
-                       max_iter: int = 1000, expand: bool = False) -> CodesignNlp:
+                       max_iter: int = 1000, expand: bool = False, compiled: bool = True
+                       ) -> CodesignNlp:
     """The co-design NLP of ``parts`` (tracks) with the frame's θ as variables; ``epsilon``
-    names the measures bounded above by the parameter (``mass_kg``, ``span_m``)."""
+    names the measures bounded above by the parameter (``mass_kg``, ``span_m``, ``effort``);
+    ``compiled=False`` leaves the derivatives to CasADi's AD of the composed graph (the oracle of
+    tests/unit/test_codesign_derivatives.py, and the co-design before the compiled blocks)."""
     s = ca.MX.sym("s", len(frame.keys))
     p, hover, feas, mass, diagonals = frame.function(s)
     ws, fs, gs, lbg, ubg, offsets, row_offsets = [], [], [], [], [], [0], [0]
+    x0s, Ps = [], []
     for k, part in enumerate(parts):
         sym = part.nlp.problem
-        inner = ca.Function(f"limit_{k}", [sym["x"], sym["p"]], [sym["f"], sym["g"]])
+        # the objective (the leg durations' sum: linear in w) apart from the rows, so that its
+        # derivatives never go through the dynamics' graph
+        inner_f = ca.Function(f"limit_f_{k}", [sym["x"], sym["p"]], [sym["f"]])
+        inner = ca.Function(f"limit_{k}", [sym["x"], sym["p"]], [sym["g"]])
         w = ca.MX.sym(f"w{k}", sym["x"].numel())
         x0: Any = ca.DM(part.x_start)
         if part.hover_start:
             rotor = part.nlp.model.rotor
             assert rotor is not None  # a hover start has rotor states
             x0 = ca.vertcat(x0[:rotor.start], hover, x0[rotor.stop:])
-        f, g = inner(w, ca.vertcat(p, x0, ca.DM(part.targets)))
+        P = ca.vertcat(p, x0, ca.DM(part.targets))
+        f, g = inner_f(w, P), inner(w, P)
+        x0s.append(x0)
+        Ps.append(P)
         ws.append(w)
         fs.append(part.weight * f)
         gs.append(g)
@@ -215,11 +234,15 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
         ubg.append(np.zeros(n_lift))
     problem = {"x": z, "p": eps, "f": objective, "g": ca.vertcat(*gs)}
     tag = f"codesign_{len(parts)}x{combine}_{'_'.join(epsilon) or 'free'}"
-    # the limit lap's compiled interval derivatives do not cover θ: CasADi differentiates the
-    # composed graph (MX, or SX with expand: cheaper iterations after a longer build)
-    extra = {"expand": True} if expand else {}
+    # Exact derivatives from compiled blocks (casadrone.codesign.derivatives) where every track
+    # is a shooting NLP with compiled blocks; otherwise (collocation, or expand: true) CasADi
+    # differentiates the composed graph (MX, or SX with expand).
+    extra: dict[str, Any] = {"expand": True} if expand else {}
+    if not expand and compiled and uses_blocks(frame.cfg.propulsion.model, parts):
+        extra = codesign_derivatives(parts, ws, s, z, eps, frame.function, x0s, Ps, objective,
+                                     ca.vertcat(*gs[len(parts):]), tuple(offsets))
     cold = ca.nlpsol(tag, "ipopt", problem, ipopt_options(tol, max_iter, False) | extra)
     warm = ca.nlpsol(tag + "_warm", "ipopt", problem, ipopt_options(tol, max_iter, True) | extra)
     return CodesignNlp(parts, frame, combine, tuple(epsilon), cold, warm, np.concatenate(lbg),
                        np.concatenate(ubg), tuple(offsets), n_feas, tuple(row_offsets), n_lift,
-                       lift)
+                       lift, problem, {k: v for k, v in extra.items() if k != "expand"})

@@ -1,0 +1,81 @@
+"""Compiled θ-derivatives of one shooting interval, for the co-design NLP's exact derivatives.
+
+The limit lap's compiled interval blocks (:func:`casadrone.limit.nlp.interval_blocks`) give
+∂x_next/∂z and ∂²(λ·x_next)/∂z² for z = [S, u, x], with the airframe vector p a fixed input. In
+the co-design NLP p = p(θ) moves with the decision variables, and the derivatives with respect to
+θ follow by the chain rule,
+
+    ∂x_next/∂θ = (∂x_next/∂p) D,                       D = ∂p/∂θ (np × nθ),
+    ∂²L/∂z∂θ   = (∂²L/∂z∂p) D,
+    ∂²L/∂θ²    = Dᵀ (∂²L/∂p²) D + Σ_j (∂L/∂p_j) ∇²_θ p_j(θ),
+
+where L = λ·x_next. The blocks here compute the first three in one pass as derivatives along the
+nθ directions D (p + Dσ differentiated in σ at σ = 0, D an input), so the generated C grows with
+nθ (4 for the Table 1 geometry), not with the ~30 entries of p; ∂L/∂p is returned for the last
+term, which :mod:`casadrone.codesign.derivatives` adds with the (small, symbolic) p(θ). Without
+them CasADi's virtual machine differentiates the composed RK4 graph: 63 % of a co-design solve's
+CPU in its Hessian (benchmarks/RESULTS-codesign.md).
+
+The blocks do not depend on the airframe's numbers (p and D are inputs): compiled once per model,
+substeps and nθ into the disk cache (:mod:`casadrone.codegen`), like the limit lap's.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from casadrone.limit.nlp import BLOCK_FLAGS, OcpModel, rk4_step
+
+_THETA_BLOCKS: dict[tuple, tuple[ca.Function, ca.Function]] = {}
+
+
+def theta_block_functions(model: OcpModel, substeps: int, n_dir: int
+                          ) -> tuple[ca.Function, ca.Function]:
+    """The two interval functions, as SX (uncompiled):
+
+    - ``jac(z, p, inv_n, D) -> Js``: (∂x_next/∂p · D)ᵀ, nθ × nx;
+    - ``hess(z, p, inv_n, lam, D) -> (Hzs, Hss, gp)``: (∂²L/∂z∂p · D)ᵀ (nθ × (1+nu+nx)),
+      Dᵀ ∂²L/∂p² D (nθ × nθ, full) and ∂L/∂p (np), L = lam·x_next.
+
+    z = [S, u, x] in the model's units, h = S · inv_n (as :func:`casadrone.limit.nlp.
+    interval_blocks`). Transposed outputs: a map over intervals then stacks them by rows.
+    """
+    nx, nu = model.nx, model.nu
+    z = ca.SX.sym("z", 1 + nu + nx)
+    p = ca.SX.sym("p", model.np)
+    inv_n = ca.SX.sym("inv_n")
+    lam = ca.SX.sym("lam", nx)
+    D = ca.SX.sym("D", model.np, n_dir)
+    sig = ca.SX.sym("sig", n_dir)
+    step = rk4_step(model, substeps)
+    x_next = step(z[1 + nu:], z[1:1 + nu], p + ca.mtimes(D, sig), z[0] * inv_n)
+    L = ca.dot(lam, x_next)
+    zs = ca.vertcat(z, sig)
+    grad = ca.gradient(L, zs)
+    Hcols = ca.jacobian(grad, sig)  # ((1+nu+nx) + nθ) × nθ: only the σ columns
+    Js = ca.jacobian(x_next, sig)
+    zero = ca.DM.zeros(n_dir)
+    Hzs, Hss, Js = ca.substitute([Hcols[:z.numel(), :], Hcols[z.numel():, :], Js], [sig],
+                                 [zero])
+    x0_next = step(z[1 + nu:], z[1:1 + nu], p, z[0] * inv_n)
+    gp = ca.gradient(ca.dot(lam, x0_next), p)
+    tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+    jac = ca.Function(f"codesign_jac_{tag}", [z, p, inv_n, D], [ca.densify(Js.T)],
+                      ["z", "p", "inv_n", "D"], ["Js"])
+    hess = ca.Function(f"codesign_hess_{tag}", [z, p, inv_n, lam, D],
+                       [ca.densify(Hzs.T), ca.densify(Hss), ca.densify(gp)],
+                       ["z", "p", "inv_n", "lam", "D"], ["Hzs", "Hss", "gp"])
+    return jac, hess
+
+
+def theta_blocks(model: OcpModel, substeps: int, n_dir: int) -> tuple[ca.Function, ca.Function]:
+    """:func:`theta_block_functions` compiled (once per machine, disk-cached; once per process
+    in memory)."""
+    key = (model.name, model.scale, substeps, n_dir)
+    if key not in _THETA_BLOCKS:
+        from casadrone.codegen import compile_function
+
+        jac, hess = theta_block_functions(model, substeps, n_dir)
+        _THETA_BLOCKS[key] = (compile_function(jac, BLOCK_FLAGS),
+                              compile_function(hess, BLOCK_FLAGS))
+    return _THETA_BLOCKS[key]

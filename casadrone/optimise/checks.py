@@ -188,7 +188,7 @@ def polish_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
     """Why the co-design NLP cannot polish ``problem``'s front members
     (``algorithm.settings.polish``, :mod:`casadrone.codesign.polish`): an objective or constraint
     on an index it cannot hold (a closed-loop J1–J5, Jp), no limit lap to minimise, a variable
-    it does not vary, or a propulsion model it does not pose. Each under the polish key."""
+    it does not vary. Each under the polish key."""
     from casadrone.airframe import THETA_KEYS as CODESIGN_KEYS  # co-design's variables
     from casadrone.config.codesign import POLISH_INDICES
 
@@ -214,16 +214,8 @@ def polish_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
     if bad:
         found.append((key, f"the co-design NLP varies {', '.join(CODESIGN_KEYS)}; not "
                       f"{', '.join(bad)}"))
-    if problem.airframe is not None:
-        from casadrone.config.airframe import load_airframe
-
-        try:
-            model = load_airframe(problem.airframe).propulsion.model
-        except (ConfigError, OSError):
-            model = "paper"  # the airframe's own check reports it
-        if model != "paper":
-            found.append((key, f"the co-design NLP poses the paper propulsion model only; the "
-                          f"airframe uses '{model}'"))
+    # both propulsion models are posed; effort under ``propeller`` is refused with the problem
+    # itself (_effort_problems)
     return found
 
 

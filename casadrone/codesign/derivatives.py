@@ -29,12 +29,11 @@ import numpy as np
 
 from casadrone.codesign.blocks import theta_blocks
 
-#: Propulsion kinds whose co-design NLP takes its derivatives from the compiled θ-blocks. The
-#: ``propeller`` kind's θ-Hessian block is 6.7 MB of generated C (``paper``: 2.3 MB, compiled in
-#: minutes at -O1 on the shared machine; the propeller's own limit-lap Hessian, 4 MB, took
-#: 50 min at -O2): its compile was not afforded, so with ``propeller`` CasADi differentiates the
-#: composed graph (slower per iteration, the same derivatives).
-COMPILED_KINDS: tuple[str, ...] = ("paper",)
+#: Propulsion kinds whose co-design NLP takes its derivatives from the compiled θ-blocks: both.
+#: Generated C and compile at -O1 on the shared 2-core machine (load ~7): ``paper`` 2.3 MB
+#: (Hessian) + 0.7 MB (Jacobian), 100 s of CPU; ``propeller`` 6.7 MB + 1.7 MB, 105 s of CPU.
+#: A kind left out is differentiated by CasADi's AD of the composed graph (the same values).
+COMPILED_KINDS: tuple[str, ...] = ("paper", "propeller")
 
 
 def uses_blocks(propulsion: str, parts) -> bool:
@@ -100,19 +99,24 @@ def _track_terms(part, w: ca.MX, p: ca.MX, x0: ca.MX, P: ca.MX, D: ca.MX, dx0: c
     gt = sym["g"][n_fixed:]
     # the target rows read the targets (fixed); only p and x_start move with θ
     p_sym, x0_sym, _ = sym["p"].primitives()
-    moving = ca.vertcat(p_sym, x0_sym)
     dPds = ca.vertcat(D, dx0)
+    n_mov = dPds.size1()
     blocks_s = [-Js_dyn, ca.MX(n_same, nd), Js_start]
     cross = ca.vertcat(Hzs, ca.MX(nx, nd))
     Hss_t: Any = Hss
-    gP_t: Any = ca.MX(dPds.size1(), 1)
-    if gt.numel() and ca.depends_on(gt, moving):
-        lam_t = ca.MX.sym("lam_t", gt.numel())
-        gPsym = ca.gradient(ca.dot(lam_t, gt), moving)
-        jt = ca.Function("codesign_target_jac", [sym["x"], sym["p"]],
-                         [ca.jacobian(gt, moving)])
-        ht = ca.Function("codesign_target_hess", [sym["x"], sym["p"], lam_t],
-                         [ca.jacobian(gPsym, sym["x"]).T, ca.jacobian(gPsym, moving), gPsym])
+    gP_t: Any = ca.MX(n_mov, 1)
+    if gt.numel() and ca.depends_on(gt, ca.vertcat(p_sym, x0_sym)):
+        # their own graph expanded to SX (the slice prunes the dynamics: ~2·10³ nodes on the
+        # short track) and differentiated there; MX AD of the slice went through the mapped
+        # rows' derivative functions at ~0.4 s per Hessian
+        gfun = ca.Function("codesign_target_rows", [sym["x"], sym["p"]], [gt]).expand()
+        xs, Ps = ca.SX.sym("w", sym["x"].numel()), ca.SX.sym("P", sym["p"].numel())
+        lam_t = ca.SX.sym("lam_t", gt.numel())
+        gts, mov = gfun(xs, Ps), Ps[:n_mov]
+        gPs = ca.gradient(ca.dot(lam_t, gts), mov)
+        jt = ca.Function("codesign_target_jac", [xs, Ps], [ca.jacobian(gts, mov)])
+        ht = ca.Function("codesign_target_hess", [xs, Ps, lam_t],
+                         [ca.jacobian(gPs, xs).T, ca.jacobian(gPs, mov), gPs])
         HwP, HPP, gP = ht(w, P, lam[n_fixed:])
         blocks_s.append(ca.mtimes(jt(w, P), dPds))
         cross = cross + ca.mtimes(HwP, dPds)

@@ -112,22 +112,9 @@ def _limit_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
     why = check_inputs(track, LimitLapOptions(), smallest_frame_clearance(problem))
     found = [("track", f"{why}: no limit lap can pass it, so {', '.join(used)} cannot be "
               "computed for any candidate")] if why else []
-    return found + _effort_problems(problem, used)
+    from casadrone.codesign.checks import effort_problems
 
-
-def _effort_problems(problem: ProblemConfig, used) -> list[tuple[str, str]]:
-    """The limit lap's effort reads its rotor states as thrusts: the paper propulsion model's
-    (rotor speeds under ``propeller``, where the sum would mean something else)."""
-    if "effort" not in used or problem.airframe is None:
-        return []
-    from casadrone.config.airframe import load_airframe
-
-    try:
-        kind = load_airframe(problem.airframe).propulsion.model
-    except ConfigError:
-        return []  # the airframe's own problems are reported with it
-    return [("airframe", f"'effort' sums T^1.5 of the rotor thrusts, the rotor states of the "
-             f"paper propulsion model; this airframe uses '{kind}'")] if kind != "paper" else []
+    return found + effort_problems(problem, used)
 
 
 def smallest_frame_clearance(problem: ProblemConfig) -> float | None:
@@ -215,7 +202,7 @@ def polish_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
         found.append((key, f"the co-design NLP varies {', '.join(CODESIGN_KEYS)}; not "
                       f"{', '.join(bad)}"))
     # both propulsion models are posed; effort under ``propeller`` is refused with the problem
-    # itself (_effort_problems)
+    # itself (casadrone.codesign.checks.effort_problems)
     return found
 
 

@@ -80,6 +80,8 @@ STAGES: tuple[str, ...] = (
     "casadrone.optimise.timings",
     "casadrone.optimise.writer",
     "casadrone.codesign.frame",
+    "casadrone.codesign.blocks",
+    "casadrone.codesign.derivatives",
     "casadrone.codesign.nlp",
     "casadrone.codesign.certificate",
     "casadrone.codesign.driver",

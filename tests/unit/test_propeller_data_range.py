@@ -221,3 +221,77 @@ def test_rows_take_their_node_s_stage_in_fatrop_s_order():
         first = node * per + 1 + nu if node < M else M * per
         assert len(cols) and ((cols >= first) & (cols < first + nx)).all()  # node's states
     assert sum(order.ng) >= 4 * M
+
+
+def _capped_shuttle_model() -> OcpModel:
+    """A point that accelerates along the rotor axis (body z) at A u₀ (|u₀| ≤ 1) with four
+    first-order rotors, ω̇ = (ω_max u_i − ω)/τ: the propeller kind's state layout (rotor speeds
+    in krad/s in the NLP), dynamics cheap enough to compile in seconds."""
+    x = ca.SX.sym("x", 16)
+    u = ca.SX.sym("u", 5)
+    p = ca.SX.sym("p", n_params("propeller"))
+    xdot = ca.vertcat(x[3:6], 0, 0, SHUTTLE["A"] * u[0], ca.SX.zeros(6),
+                      (SHUTTLE["w_max"] * u[1:5] - x[12:16]) / SHUTTLE["tau"])
+    f = ca.Function("f_capped_shuttle", [x, u, p], [xdot], ["x", "u", "p"], ["xdot"])
+    return OcpModel("capped-shuttle-propeller-layout", f, lambda s: s[3:6], rates=slice(6, 9),
+                    rotor=slice(12, 16), scale=state_scale(16, slice(12, 16), "propeller"),
+                    velocity=slice(3, 6))
+
+
+SHUTTLE = {"A": 10.0, "w_max": 1000.0, "tau": 0.05, "L": 30.0, "j_max": 0.6, "N": 30}
+
+
+def _capped_shuttle_lap(frame, method: str):
+    """Rest to rest over L along z with the rotors at ω_max from the start; the data-range rows
+    cap the axial speed at v_a(v) = J_max ω_max D / 2π. (T, X, U) of the solved lap."""
+    from casadrone.limit.nlp import solve, target_vector
+
+    s = SHUTTLE
+    nlp = build_nlp(_capped_shuttle_model(), Layout(("ball",), s["N"], method=method,
+                                                    substeps=2, end_at_rest=True,
+                                                    max_advance_ratio=s["j_max"]))
+    M, nx = s["N"], 16
+    x0 = np.zeros(nx)
+    x0[12:16] = s["w_max"]
+    P = np.concatenate([frame.p, x0, target_vector(np.array([[0.0, 0.0, s["L"]]]), ("ball",),
+                                                   np.zeros(1), np.zeros(1), np.zeros(1), 0.0)])
+    zl, zu = np.full((M, 3, nx), -np.inf), np.full((M, 3, nx), np.inf)
+    lo_u, hi_u = np.tile([-1.0, 0, 0, 0, 0], (M, 1)), np.ones((M, 5))
+    lbx = nlp.pack(np.full(1, 1e-2), np.full((M + 1, nx), -np.inf), lo_u, zl)
+    ubx = nlp.pack(np.full(1, 1e2), np.full((M + 1, nx), np.inf), hi_u, zu)
+    X0 = np.tile(x0, (M + 1, 1))
+    X0[:, 2] = np.linspace(0, s["L"], M + 1)
+    U0 = np.tile([0.0, 1, 1, 1, 1], (M, 1))
+    sol = solve(nlp, nlp.pack(np.array([4.0]), X0, U0), P, lbx, ubx)
+    assert sol.success, sol.return_status
+    return nlp.unpack(sol.point.w)
+
+
+def test_collocation_with_the_data_range_rows_flies_the_shooting_lap(frame):
+    """A solve of the collocation transcription with the data-range rows, on a problem where
+    they bind: rest to rest over 30 m along the rotor axis at |a| ≤ 10 m/s² with the rotors at
+    1000 rad/s, J_max = 0.6. Oracles: (1) the shooting transcription's lap of the same problem;
+    (2) the analytic optimum: accelerate to the cruise speed v_c where the row binds
+    (v_a(v_c) = J_max ω_max D / 2π, with v_a's smoothing ½(v + √(v² + ε²)) − ε/2 solved for v),
+    cruise, brake: T = L/v_c + v_c/A, against T = 2√(L/A) = 3.46 s without the rows; (3) the
+    rows recomputed with numpy (:func:`_numpy_rows`) hold at every node of the returned lap and
+    bind on the cruise."""
+    s = SHUTTLE
+    cap = s["j_max"] * s["w_max"] / (2 * math.pi) * 0.127
+    eps = 0.2
+    # ½(v + √(v² + ε²)) − ε/2 = c  ⇔  √(v² + ε²) = 2c + ε − v  ⇔  v = ((2c + ε)² − ε²)/(2(2c + ε))
+    v_c = ((2 * cap + eps) ** 2 - eps**2) / (2 * (2 * cap + eps))
+    analytic = s["L"] / v_c + v_c / s["A"]
+    assert analytic > 2 * math.sqrt(s["L"] / s["A"]) + 0.2  # the rows cost 0.2 s: they bind
+
+    laps = {m: _capped_shuttle_lap(frame, m) for m in ("shooting", "collocation")}
+    T_s, T_c = (float(laps[m][0].sum()) for m in ("shooting", "collocation"))
+    # observed: shooting and collocation agree to 9e-10 s (the z dynamics are linear: both
+    # integrate them exactly), both 2.7e-4 s above the analytic time (the first switch falls
+    # between nodes: one interval at u₀ = 0.98)
+    assert abs(T_c - T_s) <= 1e-8, (T_c, T_s)
+    assert analytic - 1e-8 <= T_c <= analytic + 3e-3, (T_c, analytic)
+    _, X, _ = laps["collocation"]
+    rows = _numpy_rows(frame, X.T, s["j_max"])
+    assert rows.min() >= -6e-8, rows.min()  # observed −6e-9 (IPOPT's tolerance)
+    assert np.abs(rows).min() < 1e-4 and abs(X[:, 5].max() - v_c) < 1e-6  # observed 1.2e-7

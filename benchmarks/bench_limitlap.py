@@ -69,11 +69,14 @@ def main(argv: list[str] | None = None) -> int:
                     help="airframe whose decision variables are drawn (SY250: Table 1's seven "
                          "keys, free mass model; SY250-components: the four geometry keys, mass "
                          "and inertia from the parts)")
+    ap.add_argument("--starts", default=",".join(LimitLapOptions().starts),
+                    help="cold starts, comma-separated (default: the library's)")
     ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap-frames.md")
     args = ap.parse_args(argv)
     template = load_airframe(args.template)
     track = load(TrackConfig, DEFAULT_TRACK)
-    options = LimitLapOptions(intervals=args.intervals)
+    options = LimitLapOptions(intervals=args.intervals,
+                              starts=tuple(args.starts.split(",")))  # type: ignore[arg-type]
     thetas, _ = random_thetas(template, args.n, args.seed)
     keys = list(thetas[0])
     lo = np.array([TABLE1_BOUNDS[k][0] for k in keys])
@@ -88,7 +91,9 @@ def main(argv: list[str] | None = None) -> int:
         cold.append((cfg, lap, time.process_time() - c0))
         print(f"{i}: {lap.status} {lap.lap_time_s:.4f} s "
               f"(reference {lap.point_mass_reference_s:.4f}) "
-              f"{cold[-1][2]:.1f} s CPU {lap.reason}", flush=True)
+              f"{cold[-1][2]:.1f} s CPU {lap.reason} starts: "
+              + ", ".join(f"{s.start} {s.lap_time_s:.4f}" if s.success else
+                          f"{s.start} {s.return_status}" for s in lap.starts), flush=True)
     ok = [i for i, (_, lap, _) in enumerate(cold) if lap.completed]
     warm = []
     for i in ok:
@@ -108,7 +113,8 @@ def main(argv: list[str] | None = None) -> int:
     med = np.median
     lines = ["# Limit lap over random Table 1 frames", "", markdown(), "",
              f"Command: `python benchmarks/bench_limitlap.py --n {args.n} --seed {args.seed} "
-             f"--intervals {args.intervals} --template {args.template}` (paper track, one "
+             f"--intervals {args.intervals} --template {args.template} --starts "
+             f"{args.starts}` (paper track, one "
              f"core; decision variables {', '.join(keys)}).", "",
              "| quantity | value |", "|---|---|",
              f"| frames | {args.n} |",
@@ -118,6 +124,10 @@ def main(argv: list[str] | None = None) -> int:
              f"{med([c[2] for c in cold]):.1f} s, {max(c[2] for c in cold):.1f} s |",
              f"| cold iterations of the winning start (median) | "
              f"{med([cold[i][1].iterations for i in ok]) if ok else float('nan'):.0f} |"]
+    for name in options.starts:  # how each cold start fared, and how often it won
+        conv = sum(any(s.start == name and s.success for s in c[1].starts) for c in cold)
+        won = sum(cold[i][1].start == name for i in ok)
+        lines.append(f"| start {name}: converged, won | {conv}/{args.n}, {won} |")
     if warm:
         wok = [w for w in warm if w[1].completed]
         diff = [w[1].lap_time_s - cold[w[0]][1].lap_time_s for w in wok]

@@ -6,7 +6,12 @@ intervals per leg) from the same starts:
 
 - **cold**: from the frame's closed-loop guess (the ``closed-loop`` start of ``limit_lap``);
 - **warm**: from the nearest neighbour's (normalised θ distance) cold solution by the same
-  solver (IPOPT: primal-dual; fatrop: primal, its CasADi interface takes no multipliers).
+  solver (IPOPT: primal-dual; fatrop: primal, its CasADi interface takes no multipliers);
+- **near** (``--near FRAC``, default 0.01): each frame moved by ± FRAC of the Table 1 range in
+  every key, solved from the frame's own cold solution by the same solver. IPOPT chooses its
+  warm setting by the start's constraint violation (``casadrone.limit.nlp.warm_solver``); the
+  row "ipopt-far" forces the far setting (the one of every warm start before) on the same
+  starts, for comparison.
 
 fatrop is measured alone (no IPOPT fallback): success, iterations, CPU time (process time) and
 CPU time per iteration, and the lap against IPOPT's from the same start. ``--solvers`` may add
@@ -72,8 +77,16 @@ def _ipopt_stage(pb, w0) -> tuple[bool, float, int, str, NlpPoint]:
 
 
 def _timed(pb, w0, solver: str, warm: NlpPoint | None = None) -> dict:
-    """One solve by ``solver`` alone (fatrop's own result, not its IPOPT fallback)."""
+    """One solve by ``solver`` alone (fatrop's own result, not its IPOPT fallback);
+    ``ipopt-far``: IPOPT with the far warm setting whatever the start."""
     c0 = time.process_time()
+    if solver == "ipopt-far":
+        from dataclasses import replace
+
+        s = solve(replace(pb.full, near=None), w0, pb.P, *pb.box, warm=warm, lbg=pb.rows[0],
+                  ubg=pb.rows[1])
+        return {"ok": s.success, "f": s.objective, "it": s.iterations,
+                "cpu": time.process_time() - c0, "status": s.return_status, "point": s.point}
     if solver == "ipopt-stage":
         ok, f, it, status, point = _ipopt_stage(pb, w0)
         return {"ok": ok, "f": f, "it": it, "cpu": time.process_time() - c0, "status": status,
@@ -157,6 +170,44 @@ def _row(label: str, runs: list[dict]) -> list[str]:
             f"{med(cpu):.2f} | {max(cpu):.2f} | {1e3 * med(per):.1f} |"]
 
 
+def near_solves(template, thetas, cold, args, track, options) -> dict[str, list]:
+    """Each frame moved by ± ``args.near`` of the Table 1 range in every key (seeded), solved
+    from its own cold solution: IPOPT (its warm setting chosen by the start), IPOPT with the far
+    setting forced, fatrop (primal start)."""
+    rng = np.random.default_rng(args.seed + 1)
+    runs: dict[str, list] = {"ipopt": [], "ipopt-far": [], "fatrop": []}
+    for i, theta in enumerate(thetas):
+        moved = {k: float(np.clip(v + args.near * (TABLE1_BOUNDS[k][1] - TABLE1_BOUNDS[k][0])
+                                  * rng.choice([-1, 1]), *TABLE1_BOUNDS[k]))
+                 for k, v in theta.items()}
+        cfg = with_theta(template, moved, name=f"near{i}")
+        frame = build_airframe(cfg)
+        pb = prepare(frame, track, options,
+                     limit.frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
+        for s in runs:
+            own = cold["fatrop" if s == "fatrop" else "ipopt"][i]
+            if own["ok"]:
+                runs[s].append(_timed(pb, own["point"].w, s, warm=own["point"]) | {"frame": i})
+        print("near", i, *(f"{s}: {runs[s][-1]['f']:.5f} {runs[s][-1]['it']} it "
+                           f"{runs[s][-1]['cpu']:.2f} s" for s in runs if runs[s]), flush=True)
+    return runs
+
+
+def _agreement(runs: dict[str, list], label: str) -> list[str]:
+    """How far fatrop's and the far setting's laps are from IPOPT's on the same starts."""
+    ref = {r["frame"]: r for r in runs.get("ipopt", []) if r["ok"]}
+    out = []
+    for s in ("ipopt-far", "fatrop"):
+        rel = np.array([abs(r["f"] - ref[r["frame"]]["f"]) / ref[r["frame"]]["f"]
+                        for r in runs.get(s, []) if r["ok"] and r["frame"] in ref])
+        if len(rel):
+            out.append(f"{label.capitalize()} starts, both converged ({len(rel)} frames): "
+                       f"|{s} − IPOPT| / IPOPT lap median {100 * np.median(rel):.4f} %, max "
+                       f"{100 * rel.max():.4f} %; within 0.01 %: "
+                       f"{int(np.sum(rel <= 1e-4))}/{len(rel)}.")
+    return ["", *out] if out else []
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=50)
@@ -165,6 +216,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--solvers", default="ipopt,fatrop",
                     help="comma-separated: ipopt, fatrop, ipopt-stage (the first two required)")
     ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap-solvers.md")
+    ap.add_argument("--near", type=float, default=0.01,
+                    help="near warm starts: each frame moved by this fraction of the range")
     ap.add_argument("--profile", metavar="AIRFRAME",
                     help="only print the per-iteration split of one cold solve of AIRFRAME")
     args = ap.parse_args(argv)
@@ -209,6 +262,7 @@ def main(argv: list[str] | None = None) -> int:
                 break
             ws = cold[s][j]["point"]
             warm[s].append(_timed(problems[i], ws.w, s, warm=ws) | {"frame": i})
+    near = near_solves(template, thetas, cold, args, track, options)
     both = [i for i in range(args.n) if cold["ipopt"][i]["ok"] and cold["fatrop"][i]["ok"]]
     rel = np.array([abs(cold["fatrop"][i]["f"] - cold["ipopt"][i]["f"]) / cold["ipopt"][i]["f"]
                     for i in both])
@@ -224,10 +278,15 @@ def main(argv: list[str] | None = None) -> int:
     for s in SOLVERS:
         if warm.get(s):
             lines += _row(f"{s}, warm (nearest neighbour's solution)", warm[s])
+    for s, runs in near.items():
+        if runs:
+            lines += _row(f"{s}, near (own solution, θ moved by {100 * args.near:g} % of the "
+                          "range)", runs)
     if len(rel):
         lines += ["", f"Same start, both converged ({len(both)} frames): |fatrop − IPOPT| / "
                   f"IPOPT lap median {100 * np.median(rel):.4f} %, max {100 * rel.max():.4f} %; "
                   f"within 0.01 %: {int(np.sum(rel <= 1e-4))}/{len(both)}."]
+    lines += _agreement(near, "near")
     fails = [f"frame {i}: {cold['fatrop'][i]['status']}" for i in range(args.n)
              if not cold["fatrop"][i]["ok"]]
     if fails:

@@ -212,6 +212,9 @@ class Nlp:
     derivatives: dict = field(default_factory=dict, compare=False, repr=False)
     tol: float = 1e-8  # the solvers' convergence tolerance and iteration limit
     max_iter: int = 1000
+    #: IPOPT with the warm start of a start near the optimum (:data:`NEAR_VIOLATION`); None:
+    #: ``warm`` serves every warm start
+    near: ca.Function | None = field(default=None, compare=False, repr=False)
 
     def row_bounds(self, cos_tilt: float = -np.inf,
                    end_velocity: np.ndarray | tuple[float, float, float] | None = None,
@@ -420,16 +423,31 @@ def _bounds_of(rows) -> tuple[np.ndarray, np.ndarray]:
             np.concatenate([np.full(r[0].numel(), r[2]) for r in rows]))
 
 
-def ipopt_options(tol: float, max_iter: int, warm: bool) -> dict:
-    """IPOPT settings (MUMPS, exact Hessian, quiet); ``warm`` adds primal-dual warm start."""
+def ipopt_options(tol: float, max_iter: int, warm: bool, near: bool = False) -> dict:
+    """IPOPT settings (MUMPS, exact Hessian, quiet); ``warm`` adds primal-dual warm start, for a
+    start far from the optimum (a neighbouring frame's lap); ``near`` one for a start close to
+    it (:data:`NEAR_VIOLATION`)."""
     ipopt = {"tol": tol, "acceptable_tol": 1e3 * tol, "max_iter": max_iter, "print_level": 0,
              "linear_solver": "mumps", "sb": "yes", "mu_strategy": "adaptive"}
-    if warm:
+    if warm and near:
+        # Measured (benchmarks/RESULTS-limitlap-solvers.md, "Warm starts"): from a frame's own
+        # lap moved by 1 % of the Table 1 range in every key, μ₀ = 1e-4 with pushes 1e-6 halves
+        # the iterations of the far setting below, the same laps; from the exact optimum it
+        # returns it at once where the far setting takes ~10 iterations to bring μ down again.
+        push = 1e-6
+        ipopt.update({"warm_start_init_point": "yes", "mu_init": 1e-4,
+                      **{f"warm_start_{k}": push for k in (
+                          "bound_push", "bound_frac", "slack_bound_push", "slack_bound_frac",
+                          "mult_bound_push")}})
+    elif warm:
         # Measured on SY250-components → six neighbours (one key moved by 3–20 mm or deg), tol
         # 1e-6: μ₀ = 1e-2 with pushes 1e-4 took 37–55 iterations (one neighbour ended on a
         # 0.2 % slower local optimum); μ₀ = 1e-3 with pushes 1e-5, 53–80; μ₀ = 1e-6 with
         # pushes 1e-9, 87–955, and twice "converged" to a lap that exploits the integrator
-        # (rejected by the re-simulation check); a primal-only start 54–108.
+        # (rejected by the re-simulation check); a primal-only start 54–108. Re-measured from
+        # the nearest of 10 random Table 1 frames (RESULTS-limitlap-solvers.md): this setting
+        # 43 iterations (median), μ₀ 1e-4 or 1e-6 with pushes 1e-6 or 1e-8 50–51, any of
+        # them with the monotone μ strategy 52–109.
         ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-4,
                       "warm_start_mult_bound_push": 1e-4, "warm_start_slack_bound_push": 1e-4,
                       "mu_init": 1e-2})
@@ -437,6 +455,14 @@ def ipopt_options(tol: float, max_iter: int, warm: bool) -> dict:
     # to handle (it shortens the step); CasADi would print a warning line for each.
     return {"ipopt": ipopt, "print_time": False, "error_on_fail": False,
             "show_eval_warnings": False}
+
+
+#: A warm start whose largest constraint violation (the NLP's units: m, m/s, rad, rad/s, N)
+#: is at most this is solved with the ``near`` setting of :func:`ipopt_options`, any other with
+#: the far one. A neighbouring Table 1 frame's lap starts 4–5 away (body rates: the inertias
+#: differ); a frame's own lap moved by 1 % of the Table 1 range, 0.05–0.5; by 3 %, 0.16–1.3,
+#: where neither setting wins (measured: RESULTS-limitlap-solvers.md, "Warm starts").
+NEAR_VIOLATION = 0.5
 
 
 _NLPS: dict[tuple, Nlp] = {}
@@ -654,6 +680,8 @@ def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int 
                 cold=ca.nlpsol(name, "ipopt", nlp, ipopt_options(tol, max_iter, False) | extra),
                 warm=ca.nlpsol(name + "_warm", "ipopt", nlp,
                                ipopt_options(tol, max_iter, True) | extra),
+                near=ca.nlpsol(name + "_near", "ipopt", nlp,
+                               ipopt_options(tol, max_iter, True, near=True) | extra),
                 lbg=lbg, ubg=ubg, problem=dict(nlp), derivatives=dict(extra), tol=tol,
                 max_iter=max_iter)
     _NLPS[key] = built
@@ -742,10 +770,10 @@ def _solve_ipopt(nlp: Nlp, w0, P, lbx, ubx, warm, lbg, ubg) -> NlpSolution:
     start = time.perf_counter()
     args = dict(x0=np.clip(w0, lbx, ubx), p=P, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
     solver = nlp.cold
-    if warm is not None:
-        solver = nlp.warm
-        args.update(x0=np.clip(warm.w, lbx, ubx), lam_x0=warm.lam_x, lam_g0=warm.lam_g)
     try:
+        if warm is not None:
+            args.update(x0=np.clip(warm.w, lbx, ubx), lam_x0=warm.lam_x, lam_g0=warm.lam_g)
+            solver = warm_solver(nlp, args["x0"], P, lbg, ubg)
         out = solver(**args)
         stats = solver.stats()
         status = str(stats.get("return_status", "unknown"))
@@ -757,3 +785,21 @@ def _solve_ipopt(nlp: Nlp, w0, P, lbx, ubx, warm, lbg, ubg) -> NlpSolution:
         status, success, iters, f = f"error: {str(exc).splitlines()[-1][:100]}", False, 0, np.nan
         point = _failed_point(nlp, w0, P)
     return NlpSolution(success, status, f, point, iters, time.perf_counter() - start)
+
+
+def start_violation(nlp: Nlp, w: np.ndarray, P: np.ndarray, lbg: np.ndarray, ubg: np.ndarray
+                    ) -> float:
+    """Largest constraint violation of ``w`` (inside its box) in the NLP's units: how far a
+    warm start is from the optimum it comes from. One evaluation of g (IPOPT's own function)."""
+    g = np.asarray(nlp.cold.get_function("nlp_g")(w, P), float).ravel()
+    worst = float(np.max(np.maximum(lbg - g, 0.0) + np.maximum(g - ubg, 0.0), initial=0.0))
+    return worst if np.isfinite(worst) else np.inf  # NaN (the model overflowed there): far
+
+
+def warm_solver(nlp: Nlp, w: np.ndarray, P: np.ndarray, lbg: np.ndarray, ubg: np.ndarray
+                ) -> ca.Function:
+    """The IPOPT instance for a warm start at ``w``: ``near`` when its constraint violation is
+    at most :data:`NEAR_VIOLATION`, else ``warm``."""
+    if nlp.near is None or start_violation(nlp, w, P, lbg, ubg) > NEAR_VIOLATION:
+        return nlp.warm
+    return nlp.near

@@ -9,9 +9,9 @@ intervals per leg) from the same starts:
   solver (IPOPT: primal-dual; fatrop: primal, its CasADi interface takes no multipliers);
 - **near** (``--near FRAC``, default 0.01): each frame moved by ± FRAC of the Table 1 range in
   every key, solved from the frame's own cold solution by the same solver. IPOPT chooses its
-  warm setting by the start's constraint violation (``casadrone.limit.nlp.warm_solver``); the
-  row "ipopt-far" forces the far setting (the one of every warm start before) on the same
-  starts, for comparison.
+  warm setting by the start's constraint violation (``solve(..., near=True)``,
+  ``casadrone.limit.nlp.warm_solver``; also in the "warm" rows, where every start is far); the
+  row "ipopt-far" has the far setting (``solve``'s default) on the same starts.
 
 fatrop is measured alone (no IPOPT fallback): success, iterations, CPU time (process time) and
 CPU time per iteration, and the lap against IPOPT's from the same start. ``--solvers`` may add
@@ -80,11 +80,8 @@ def _timed(pb, w0, solver: str, warm: NlpPoint | None = None) -> dict:
     """One solve by ``solver`` alone (fatrop's own result, not its IPOPT fallback);
     ``ipopt-far``: IPOPT with the far warm setting whatever the start."""
     c0 = time.process_time()
-    if solver == "ipopt-far":
-        from dataclasses import replace
-
-        s = solve(replace(pb.full, near=None), w0, pb.P, *pb.box, warm=warm, lbg=pb.rows[0],
-                  ubg=pb.rows[1])
+    if solver == "ipopt-far":  # solve()'s default
+        s = solve(pb.full, w0, pb.P, *pb.box, warm=warm, lbg=pb.rows[0], ubg=pb.rows[1])
         return {"ok": s.success, "f": s.objective, "it": s.iterations,
                 "cpu": time.process_time() - c0, "status": s.return_status, "point": s.point}
     if solver == "ipopt-stage":
@@ -96,7 +93,8 @@ def _timed(pb, w0, solver: str, warm: NlpPoint | None = None) -> dict:
 
         s = _solve_fatrop(pb.full, w0, pb.P, *pb.box, warm, *pb.rows)
     else:
-        s = solve(pb.full, w0, pb.P, *pb.box, warm=warm, lbg=pb.rows[0], ubg=pb.rows[1])
+        s = solve(pb.full, w0, pb.P, *pb.box, warm=warm, lbg=pb.rows[0], ubg=pb.rows[1],
+                  near=True)
     cpu = time.process_time() - c0
     return {"ok": s.success, "f": s.objective, "it": s.iterations, "cpu": cpu,
             "status": s.return_status, "point": s.point}

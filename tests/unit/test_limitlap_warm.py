@@ -55,7 +55,7 @@ def test_warm_solve_from_the_optimum_returns_it_at_once():
     w = np.clip(cold.point.w, lbx, ubx)
     assert start_violation(nlp, w, P, nlp.lbg, nlp.ubg) <= 1e-6
     assert warm_solver(nlp, w, P, nlp.lbg, nlp.ubg) is nlp.near
-    again = solve(nlp, w0, P, lbx, ubx, warm=cold.point)
+    again = solve(nlp, w0, P, lbx, ubx, warm=cold.point, near=True)
     assert again.success and again.iterations <= 3, (again.return_status, again.iterations)
     np.testing.assert_allclose(again.objective, cold.objective, rtol=1e-9)
     np.testing.assert_allclose(again.point.lam_p, cold.point.lam_p, rtol=1e-6, atol=1e-9)
@@ -82,7 +82,7 @@ def test_warm_solve_after_a_parameter_change_reaches_the_analytic_time():
         np.testing.assert_allclose(moved, (distance_m - 10.0) ** 2, rtol=1e-2)  # observed 2e-3
         assert warm_solver(nlp, w, P2, nlp.lbg, nlp.ubg) is getattr(nlp, which)
         assert (moved <= NEAR_VIOLATION) == (which == "near")
-        warm = solve(nlp, w0, P2, lbx, ubx, warm=base.point)
+        warm = solve(nlp, w0, P2, lbx, ubx, warm=base.point, near=True)
         assert cold.success and warm.success, (cold.return_status, warm.return_status)
         np.testing.assert_allclose(warm.objective, _exact(distance_m), rtol=1e-3)
         np.testing.assert_allclose(warm.objective, cold.objective, rtol=1e-7)

@@ -115,7 +115,8 @@ def point_record(prep: Prepared, fp: FrontPoint, measure: str) -> dict:
     from casadrone.codesign.certificate import active_constraints
 
     p = fp.point
-    efforts = track_efforts(prep, p)
+    # the effort reads the rotor states as thrusts: the paper propulsion model's only
+    efforts = track_efforts(prep, p) if prep.template.propulsion.model == "paper" else None
     return {"theta": p.theta, "objective_s": p.objective, "laps_s": p.laps_s,
             "measure": measure, "value": fp.measure,
             "epsilon": None if math.isinf(fp.epsilon) else fp.epsilon, "status": fp.status,

@@ -20,7 +20,7 @@ At a returned point (θ*, laps):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import casadi as ca
@@ -59,6 +59,8 @@ class TrackCheck:
     gap_pct: float
     resimulation_miss_m: float
     passed: bool
+    #: the cold fixed-frame solve's decision vector (a restart of the co-design from it)
+    cold_w: np.ndarray | None = field(default=None, repr=False, compare=False)
 
 
 @dataclass(frozen=True)
@@ -81,7 +83,8 @@ class Certificate:
     reason: str
 
     def as_dict(self) -> dict[str, Any]:
-        return {"tracks": [asdict(t) for t in self.tracks],
+        return {"tracks": [{k: v for k, v in asdict(t).items() if k != "cold_w"}
+                           for t in self.tracks],
                 "variables": [asdict(v) for v in self.variables],
                 "active_constraints": dict(self.active), "passed": self.passed,
                 "reason": self.reason}
@@ -198,7 +201,8 @@ def certify(prep, point) -> Certificate:
         gap = 100 * (fixed - ref) / ref
         miss = _miss(pb, warm)
         ok = abs(gap) <= 100 * LAP_RTOL and miss <= prep.options.max_miss_m
-        checks.append(TrackCheck(label, ref, laps[0], laps[1], fixed, gap, miss, ok))
+        cold_w = cold.solution.w if cold.completed and cold.solution is not None else None
+        checks.append(TrackCheck(label, ref, laps[0], laps[1], fixed, gap, miss, ok, cold_w))
         grads.append(_gradient(prep, cfg, warm, prep.tracks[k], prep.keys)
                      if warm.success else np.full(len(prep.keys), np.nan))
     lam_feas, mu, lam_eps = _row_multipliers(cd, point.lam_g)

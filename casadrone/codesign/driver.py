@@ -285,8 +285,16 @@ def initial_vector(prep: Prepared, theta: dict[str, float]) -> np.ndarray | None
             return None
         ws.append(lap.solution.w)
         laps.append(lap.lap_time_s)
+    return vector_of(prep, theta, ws)
+
+
+def vector_of(prep: Prepared, theta: dict[str, float], ws: list[np.ndarray]) -> np.ndarray:
+    """The co-design decision vector of frame ``theta`` flying the limit-lap solutions ``ws``
+    (one per track)."""
     z: list[Any] = [*ws, prep.nlp.frame.normalise(theta)]
     if prep.nlp.combine == "worst":
+        laps = [float(np.sum(part.nlp.unpack(w)[0])) for part, w in zip(prep.nlp.parts, ws,
+                                                                         strict=True)]
         z.append([max(w * t for w, t in zip(prep.weights, laps, strict=True))])
     return np.concatenate(z)
 

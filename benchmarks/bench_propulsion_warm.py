@@ -64,11 +64,14 @@ def log_counts(path: Path) -> dict:
     its = [m.groups() for m in map(LINE.match, path.read_text().splitlines()) if m]
     its = [g for g in its if g[0] != "0" or g[1]]  # iteration 0 is the start, not a step
     alpha = [float(re.sub(r"[a-zA-Z]+$", "", g[9])) for g in its]
+    full = next((k + 1 for k, a in enumerate(alpha) if a >= 0.99), len(alpha))
     return {"iterations": len(its), "restoration": sum(g[1] == "r" for g in its),
+            "first_full": full,
             "inertia": sum(g[7] != "-" for g in its),
             "short": sum(a < 1.0 for a in alpha),
             "ls_trials": sum(int(g[10]) for g in its),
-            "mu_end": float(its[-1][5]) if its else np.nan}
+            "mu_end": float(its[-1][5]) if its else np.nan,
+            "mu_first": float(its[0][5]) if its else np.nan}
 
 
 def neighbours(cfg, n: int, seed: int) -> list:
@@ -111,8 +114,69 @@ def logged_solve(pb, warm, log: Path, overrides: dict):
     return solver.stats(), t, float(out["f"])
 
 
+class _Iterates(ca.Callback):
+    """IPOPT's iterates x, kept (nlpsol's ``iteration_callback``)."""
+
+    def __init__(self, sizes: dict[str, int]):
+        ca.Callback.__init__(self)
+        self.sizes = sizes
+        self.xs: list[np.ndarray] = []
+        self.construct("iterates", {})
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        return ca.Sparsity.dense(self.sizes[ca.nlpsol_out(i)], 1)
+
+    def eval(self, arg):
+        self.xs.append(np.array(arg[0]).ravel())
+        return [0]
+
+
+def blocking_bounds(pb, warm, until: int) -> str:
+    """Which box bounds cut IPOPT's steps short (fraction to the boundary) in the first
+    ``until`` iterations: the components that moved ≥ 94 % of the way to a bound they were
+    within 1e-2 of, counted by kind (commands, rotor states, Euler roll/pitch: the tilt bounds,
+    other states, leg durations). Bounds of rows (their slacks) are not seen."""
+    pr = pb.full.problem
+    nw, ng, n_p = pr["x"].numel(), pr["g"].numel(), pr["p"].numel()
+    rec = _Iterates({"x": nw, "f": 1, "g": ng, "lam_x": nw, "lam_g": ng, "lam_p": n_p})
+    opts = ipopt_options(pb.full.tol, pb.full.max_iter, True) | pb.full.derivatives
+    ca.nlpsol("iterates", "ipopt", pr, opts | {"iteration_callback": rec})(
+        x0=np.clip(warm.w, *pb.box), lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=pb.P,
+        lbx=pb.box[0], ubx=pb.box[1], lbg=pb.rows[0], ubg=pb.rows[1])
+    nx, nu, M = pb.full.model.nx, pb.full.model.nu, pb.layout.n_intervals
+    per, idx = 1 + nu + nx, np.arange(nw)
+    state = np.where(idx >= M * per, idx - M * per, idx % per - 1 - nu)  # < 0: not a state
+    rotor = pb.full.model.rotor
+    kinds = np.select([idx % per == 0, state < 0, (state >= rotor.start) & (state < rotor.stop),
+                       (state == 9) | (state == 10)],
+                      ["duration", "command", "rotor", "roll/pitch"], "other state")
+    kinds[idx >= M * per] = np.where((state[idx >= M * per] == 9) | (state[idx >= M * per] == 10),
+                                     "roll/pitch", "other state")
+    count: dict[str, int] = {}
+    for a, b in zip(rec.xs[:until], rec.xs[1:until + 1], strict=False):
+        for bound, sign in ((pb.box[0], 1), (pb.box[1], -1)):
+            d0, d1 = sign * (a - bound), sign * (b - bound)
+            hit = np.isfinite(bound) & (d0 > 0) & (d0 < 1e-2) & (d1 < 0.06 * d0)
+            for k in kinds[hit]:
+                count[k] = count.get(k, 0) + 1
+    return ", ".join(f"{k} {v}" for k, v in sorted(count.items(), key=lambda kv: -kv[1])) or "—"
+
+
 def variant(rep: Report, model: str, intervals: int, n: int, seed: int, logs: Path,
-            overrides: dict, itself: bool) -> None:
+            overrides: dict, itself: bool, blockers: bool = False,
+            nlp_only: bool = False) -> None:
     """``model``: paper, propeller, or propeller-norows (the propeller frames without the
     data-range rows: ``max_advance_ratio`` None)."""
     track = load(TrackConfig, DEFAULT_TRACK)
@@ -142,7 +206,7 @@ def variant(rep: Report, model: str, intervals: int, n: int, seed: int, logs: Pa
                                point_mass_reference=False, sensitivities=False,
                                fallback_reference=None)
         frame = frame_of(near)
-        if overrides:  # a diagnosis of the NLP solve only: the library's solve is not repeated
+        if overrides or nlp_only:  # a diagnosis of the NLP solve only: limit_lap not repeated
             lap, t_lap = None, np.nan
         else:
             lap, t_lap = cpu(lambda f=frame, o=opts: limit_lap(f, track, o))
@@ -154,6 +218,7 @@ def variant(rep: Report, model: str, intervals: int, n: int, seed: int, logs: Pa
         stats, t_nlp, f = logged_solve(pb, lap0.solution, log, overrides)
         c = log_counts(log)
         its = int(stats["iter_count"])
+        blocked = blocking_bounds(pb, lap0.solution, c["first_full"]) if blockers else ""
         hess, jac = stats["t_proc_nlp_hess_l"], stats["t_proc_nlp_jac_g"]
         status = "—" if lap is None else f"{lap.lap_time_s:.4f}" if lap.completed \
             else lap.reason[:40]
@@ -161,7 +226,8 @@ def variant(rep: Report, model: str, intervals: int, n: int, seed: int, logs: Pa
                 f"({stats['return_status']}, {f:.4f}) | {t_lap:.2f} | {t_nlp:.2f} | {its} | "
                 f"{1000 * t_nlp / max(its, 1):.0f} | {100 * hess / t_nlp:.0f} % / "
                 f"{100 * jac / t_nlp:.0f} % | {c['restoration']} | {c['inertia']} | "
-                f"{c['short']} ({c['ls_trials']}) | {c['mu_end']:.1f} | {fit} |")
+                f"{c['short']} ({c['ls_trials']}) | {c['mu_end']:.1f} | {fit} | "
+                f"{c['first_full']}; {c['mu_first']:.1f} | {blocked} |")
 
 
 def main() -> None:
@@ -174,6 +240,10 @@ def main() -> None:
     ap.add_argument("--logs", default="/tmp/casadrone-warm-logs")
     ap.add_argument("--self", action="store_true",
                     help="also warm-start SY250 from its own lap (the same problem)")
+    ap.add_argument("--blockers", action="store_true",
+                    help="a third solve per neighbour recording IPOPT's iterates: which box "
+                         "bounds cut the steps short")
+    ap.add_argument("--nlp-only", action="store_true", help="skip the limit_lap call")
     ap.add_argument("--ipopt", default="",
                     help="IPOPT options for the logged solve only (diagnosis), e.g. "
                          "mu_strategy=monotone,mu_init=1e-3")
@@ -189,14 +259,16 @@ def main() -> None:
                          "iterations | ms per iteration | Hessian / Jacobian share | "
                          "restoration iterations | inertia corrections | α_pr < 1 (line-search "
                          "trials) | lg(μ) at the end | warm point on the neighbour: violation "
-                         "and multipliers |", "|" + "---|" * 14])
+                         "and multipliers | first full step; lg(μ) at iteration 1 | box bounds "
+                         "that cut the steps before it (`--blockers`) |", "|" + "---|" * 16])
     overrides = {k: _value(v) for k, v in (kv.split("=") for kv in a.ipopt.split(",") if kv)}
     if overrides:
         rep.add("", f"IPOPT overrides of the logged solve (CPU NLP and the columns after it): "
                 f"{overrides}; the CPU of limit_lap is the library's own solve.", "")
     for v in a.variants.split(","):
         model, intervals = v.split(":")
-        variant(rep, model, int(intervals), a.n, a.seed, logs, overrides, a.self)
+        variant(rep, model, int(intervals), a.n, a.seed, logs, overrides, a.self,
+                a.blockers, a.nlp_only)
 
 
 def _value(text: str):

@@ -27,6 +27,11 @@ from casadrone.indices import EFFORT_SMOOTHING_N  # one δ for the index and the
 from casadrone.limit.nlp import Nlp, ipopt_options
 
 Combine = Literal["sum", "worst"]
+#: Lower bound of the frame's feasibility rows (each scaled to order one): IPOPT meets a row to
+#: its tolerance, and a frame on the no-overlap boundary then failed the airframe schema's exact
+#: check by 10⁻⁷ deg (SY250-components-propeller on the paper track, β = 78.8399689° where
+#: 78.84° is needed). 10⁻⁶ of the row keeps the frame inside, ~10⁻⁵ deg from the boundary.
+FEASIBILITY_MARGIN = 1e-6
 #: The ε-constrained measures a co-design NLP can hold: the frame's mass and span, and the
 #: limit lap's effort (:func:`effort`).
 MEASURES = ("mass_kg", "span_m", "effort")
@@ -194,7 +199,7 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
         offsets.append(offsets[-1] + w.numel())
         row_offsets.append(row_offsets[-1] + g.numel())
     gs.append(feas)
-    lbg.append(np.zeros(feas.numel()))
+    lbg.append(np.full(feas.numel(), FEASIBILITY_MARGIN))
     ubg.append(np.full(feas.numel(), np.inf))
     n_feas = feas.numel()
     z = ca.vertcat(*ws, s)

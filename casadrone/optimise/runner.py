@@ -53,6 +53,19 @@ class Interrupted(KeyboardInterrupt):
         self.run_dir: Path | None = None  # the run to resume, once it has a directory
 
 
+#: Signals taken while a :func:`_signals_interrupt` block runs. CasADi calls Python's signal
+#: handlers from inside a solve and turns the exception they raise into a warning
+#: ("KeyboardInterruptException") and a normal return, so an :class:`Interrupted` raised during
+#: an evaluation's solve never reaches the run; :func:`raise_swallowed_signal` raises it after.
+_TAKEN: list[int] = []
+
+
+def raise_swallowed_signal() -> None:
+    """Raise :class:`Interrupted` for a signal whose exception a C extension swallowed."""
+    if _TAKEN:
+        raise Interrupted(_TAKEN[-1])
+
+
 @contextlib.contextmanager
 def _signals_interrupt():
     """SIGTERM and SIGINT raise :class:`Interrupted` in the coordinator while the block runs
@@ -62,7 +75,10 @@ def _signals_interrupt():
         return
 
     def handler(signum, frame):
+        _TAKEN.append(signum)
         raise Interrupted(signum)
+
+    _TAKEN.clear()
 
     old = {s: signal.signal(s, handler) for s in (signal.SIGTERM, signal.SIGINT)}
     try:
@@ -312,6 +328,7 @@ def _generation_loop(store, writer, algorithm, study, problem, elapsed0, progres
             mark()
             if infills is not None:
                 algorithm.evaluator.eval(algorithm.problem, infills, algorithm=algorithm)
+                raise_swallowed_signal()  # before the generation is stored: resume redoes it
             mark()
             algorithm.advance(infills=infills)
             mark()

@@ -58,6 +58,7 @@ class Interrupted(KeyboardInterrupt):
 #: ("KeyboardInterruptException") and a normal return, so an :class:`Interrupted` raised during
 #: an evaluation's solve never reaches the run; :func:`raise_swallowed_signal` raises it after.
 _TAKEN: list[int] = []
+_DEPTH = [0]  # nested blocks (a run inside its setup's block): only the outermost resets _TAKEN
 
 
 def raise_swallowed_signal() -> None:
@@ -78,12 +79,14 @@ def _signals_interrupt():
         _TAKEN.append(signum)
         raise Interrupted(signum)
 
-    _TAKEN.clear()
-
+    if _DEPTH[0] == 0:  # a signal swallowed in the setup's solves still counts in the loop
+        _TAKEN.clear()
+    _DEPTH[0] += 1
     old = {s: signal.signal(s, handler) for s in (signal.SIGTERM, signal.SIGINT)}
     try:
         yield
     finally:
+        _DEPTH[0] -= 1
         for s, h in old.items():
             signal.signal(s, h)
 

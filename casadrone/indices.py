@@ -227,6 +227,24 @@ def limit_lap_time(lap) -> float:
 EFFORT_SMOOTHING_N = 0.01
 
 
+def limit_lap_thrusts(lap) -> np.ndarray:
+    """Each rotor's thrust (N) at the limit lap's nodes, (M + 1, 4): the rotor states with the
+    paper propulsion model; with ``propeller`` T = CT(J) ρ n² D⁴ of each rotor's speed and own
+    axial inflow at the node, by the model's thrust (:func:`casadrone.model.rotor_thrusts`) on
+    the airframe vector the lap was flown with (:attr:`LimitLap.params`)."""
+    x = np.asarray(lap.x_euler, float)
+    kind = getattr(lap, "propulsion", "paper")
+    if kind == "paper":
+        return x[:, 12:16]
+    p = np.asarray(getattr(lap, "params", np.zeros(0)), float)
+    if p.size == 0:
+        raise ValueError(f"the limit lap's thrusts need its airframe vector ({kind} propulsion)")
+    from casadrone.model import rotor_thrust_function
+
+    f = rotor_thrust_function(kind).map(len(x))
+    return np.asarray(f(x[:, 3:6].T, x[:, 6:9].T, x[:, 12:16].T, p), float).T
+
+
 def limit_lap_effort(lap) -> float:
     """effort: the limit lap's ∫ Σ_i T_i^{3/2} dt (N^1.5·s), each interval's length times the
     rotor thrusts at its start node (the left rectangle rule the limit lap's commands are held
@@ -235,10 +253,11 @@ def limit_lap_effort(lap) -> float:
     Why: by momentum theory a rotor making thrust T in still air needs at least the ideal
     induced power T^{3/2} / sqrt(2 ρ A) (Leishman, Principles of Helicopter Aerodynamics, 2nd
     ed., eq. 2.17), so this is the rotors' ideal energy over the lap times sqrt(2 ρ A), a
-    constant of the propellers. The rotor states are thrusts under the paper's propulsion model
-    (rotor speeds under ``propeller``: this index is refused there,
-    :mod:`casadrone.optimise.checks`)."""
-    thrust = np.asarray(lap.x_euler, float)[:-1, 12:16]
+    constant of the propellers. The thrusts are :func:`limit_lap_thrusts`: the rotor states
+    under the paper's propulsion model, CT(J) ρ n² D⁴ of the rotor speeds under ``propeller``
+    (the inflow changes the thrust a rotor speed gives; the measure of a thrust's cost stays
+    the still-air ideal power, under both models)."""
+    thrust = limit_lap_thrusts(lap)[:-1]
     h = np.diff(np.asarray(lap.t, float))
     return float(np.sum(h * np.sum((thrust**2 + EFFORT_SMOOTHING_N**2) ** 0.75, axis=1)))
 

@@ -160,6 +160,30 @@ def airframe_terms(vel, omega, rotor, rotor_dot, u, p, propulsion: str = "paper"
     )
 
 
+def rotor_thrusts(vel, omega, rotor, p, propulsion: str = "paper"):
+    """Each rotor's thrust (N, 4) along its axis at body velocity ``vel`` (m/s), body rates
+    ``omega`` (rad/s) and rotor states ``rotor``: the states themselves with ``paper`` (they are
+    the thrusts); with ``propeller`` T_i = CT(J_i) ρ n_i² D⁴ at the rotor's own axial inflow, the
+    thrust :func:`casadrone.propulsion.propeller_terms` gives the model (the same expression, not
+    a second copy; commands and rotor accelerations do not enter it)."""
+    if propulsion == "paper":
+        return rotor
+    _, _, r, s, _ = unpack_params(p)
+    zero = ca.DM.zeros(4)
+    return propeller_terms(vel, omega, rotor, zero, zero, named(p), r, s)[3]
+
+
+@lru_cache(maxsize=2)
+def rotor_thrust_function(propulsion: str = "paper") -> ca.Function:
+    """``rotor_thrusts(vel, omega, rotor, p) -> thrust`` (:func:`rotor_thrusts`) as a Function,
+    built once per process and propulsion kind."""
+    vel, omega, rotor = ca.SX.sym("vel", 3), ca.SX.sym("omega", 3), ca.SX.sym("rotor", 4)
+    p = ca.SX.sym("p", n_params(propulsion))
+    return ca.Function("rotor_thrusts", [vel, omega, rotor, p],
+                       [rotor_thrusts(vel, omega, rotor, p, propulsion)],
+                       ["vel", "omega", "rotor", "p"], ["thrust"])
+
+
 def implicit_residual(xdot, x, u, p, propulsion: str = "paper"):
     """F(ẋ, x, u, p) of docs/concepts/chain.md#model as an SX/MX expression (16 rows)."""
     g, J, _, _, _ = unpack_params(p)

@@ -37,28 +37,12 @@ def codesign_index_problems(objectives, constraints) -> list[tuple[str, str]]:
     return found
 
 
-def effort_problems(problem, used) -> list[tuple[str, str]]:
-    """The limit lap's effort reads its rotor states as thrusts: the paper propulsion model's
-    (rotor speeds under ``propeller``, where the sum would mean something else)."""
-    if "effort" not in used or problem.airframe is None:
-        return []
-    from casadrone.config.airframe import load_airframe
-
-    try:
-        kind = load_airframe(problem.airframe).propulsion.model
-    except ConfigError:
-        return []  # the airframe's own problems are reported with it
-    return [("airframe", f"'effort' sums T^1.5 of the rotor thrusts, the rotor states of the "
-             f"paper propulsion model; this airframe uses '{kind}'")] if kind != "paper" else []
-
-
 def load_codesign_problem(path: str | Path, overrides: list[str] | None = None
                           ) -> CodesignProblemConfig:
     """Load a co-design problem (a path, or a shipped problem's name), with overrides."""
     source = resolve_config(path, "problems")
     problem = load(CodesignProblemConfig, source, overrides)
     found = codesign_index_problems(problem.objectives, problem.constraints)
-    found += effort_problems(problem, [o.index for o in problem.objectives])
     if found:
         raise ConfigError(problem_lines(found, str(source), overrides))
     return problem

@@ -60,8 +60,9 @@ def track_efforts(prep: Prepared, point: CodesignPoint) -> dict[str, float]:
 
     from casadrone.codesign.nlp import effort
 
-    ws, _ = prep.nlp.split(point.z)
-    return {label: float(ca.evalf(effort(part, ca.DM(w))))
+    ws, s = prep.nlp.split(point.z)
+    p = ca.DM(prep.nlp.frame.function(np.clip(s, 0.0, 1.0))[0])  # the airframe vector p(θ)
+    return {label: float(ca.evalf(effort(part, ca.DM(w), p)))
             for label, part, w in zip(prep.labels, prep.nlp.parts, ws, strict=True)}
 
 
@@ -115,8 +116,7 @@ def point_record(prep: Prepared, fp: FrontPoint, measure: str) -> dict:
     from casadrone.codesign.certificate import active_constraints
 
     p = fp.point
-    # the effort reads the rotor states as thrusts: the paper propulsion model's only
-    efforts = track_efforts(prep, p) if prep.template.propulsion.model == "paper" else None
+    efforts = track_efforts(prep, p)
     return {"theta": p.theta, "objective_s": p.objective, "laps_s": p.laps_s,
             "measure": measure, "value": fp.measure,
             "epsilon": None if math.isinf(fp.epsilon) else fp.epsilon, "status": fp.status,

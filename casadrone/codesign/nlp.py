@@ -37,7 +37,7 @@ FEASIBILITY_MARGIN = 1e-6
 MEASURES = ("mass_kg", "span_m", "effort")
 
 
-def effort_terms(part: TrackPart, w):
+def effort_terms(part: TrackPart, w, p=None):
     """The limit lap's effort ∫ Σ_i T_i^{3/2} dt (N^1.5·s) over the lap, interval by interval,
     from w: each interval's length times its start node's rotor thrusts (a left rectangle rule).
 
@@ -46,24 +46,51 @@ def effort_terms(part: TrackPart, w):
     2nd ed., eq. 2.17), so the effort is the rotors' ideal energy over the lap times sqrt(2 ρ A),
     a constant of the frame's propellers (not a decision variable). It is what the limit lap
     spends (bang-bang thrust) and what a battery pays for, it is smooth in the NLP's variables,
-    and unlike the closed-loop J5 it needs no controller. Rotor states are thrusts (the paper's
-    propulsion model)."""
+    and unlike the closed-loop J5 it needs no controller. The thrusts are the rotor states with
+    the paper propulsion model; with ``propeller`` (``part.propulsion``) each node's
+    T_i = CT(J_i) ρ n_i² D⁴ of its rotor speeds and own axial inflows, the model's thrust
+    (:func:`casadrone.model.rotor_thrusts`) on the airframe vector ``p`` (symbolic p(θ) in the
+    co-design NLP), as :func:`casadrone.indices.limit_lap_effort` reads a lap."""
     nlp = part.nlp
     L, M, N = nlp.layout.n_legs, nlp.layout.n_intervals, nlp.layout.intervals
     zero_u = np.zeros((M, nlp.model.nu))
     X = np.zeros((M + 1, nlp.model.nx))
     at_s = np.flatnonzero(nlp.pack(np.ones(L), X, zero_u))
-    X[:M, nlp.model.rotor] = 1.0
-    at_t = np.flatnonzero(nlp.pack(np.zeros(L), X, zero_u))
-    h = w[at_s.tolist()] / N
-    T = ca.reshape(w[at_t.tolist()], -1, M)  # rotors × intervals
+    if part.propulsion == "paper":
+        X[:M, nlp.model.rotor] = 1.0
+        at_t = np.flatnonzero(nlp.pack(np.zeros(L), X, zero_u))
+        h = w[at_s.tolist()] / N
+        T = ca.reshape(w[at_t.tolist()], -1, M)  # rotors × intervals
+    else:
+        h = w[at_s.tolist()] / N
+        T = _node_thrusts(part, w, p)
     power = ca.sum1((T ** 2 + EFFORT_SMOOTHING_N ** 2) ** 0.75)
     return power.T * h  # one term per interval
 
 
-def effort(part: TrackPart, w):
+def _node_thrusts(part: TrackPart, w, p):
+    """The rotor thrusts (N, rotors × intervals) at the start node of every interval, from the
+    node states in w (the NLP's units, :attr:`casadrone.limit.nlp.OcpModel.scale`) and p."""
+    from casadrone.model import rotor_thrust_function
+
+    nlp, model = part.nlp, part.nlp.model
+    if p is None or model.velocity is None or model.rates is None or model.rotor is None:
+        raise ValueError(f"the effort of {model.name} needs p and the velocity, rates and "
+                         "rotor states of its model")
+    L, M = nlp.layout.n_legs, nlp.layout.n_intervals
+    X = np.zeros((M + 1, model.nx))
+    X[:M, :] = 1.0
+    at_x = np.flatnonzero(nlp.pack(np.zeros(L), X, np.zeros((M, model.nu))))
+    Xs = ca.reshape(w[at_x.tolist()], model.nx, M)  # states × nodes, node-major in w
+    if model.scale is not None:  # back to the model's units
+        Xs = Xs * ca.repmat(ca.DM(model.scale), 1, M)
+    f = rotor_thrust_function(part.propulsion).map(M)
+    return f(Xs[model.velocity, :], Xs[model.rates, :], Xs[model.rotor, :], p)
+
+
+def effort(part: TrackPart, w, p=None):
     """The limit lap's effort ∫ Σ_i T_i^{3/2} dt (N^1.5·s): the sum of :func:`effort_terms`."""
-    return ca.sum1(effort_terms(part, w))
+    return ca.sum1(effort_terms(part, w, p))
 
 
 @dataclass(frozen=True)
@@ -83,6 +110,7 @@ class TrackPart:
     #: bound of the freed start rotor states
     thrust_max: float = np.inf
     first_timed: int = 0  # the leg that ends at the first timed target (split times from there)
+    propulsion: str = "paper"  # the frame's propulsion kind: what the rotor states are
 
 
 @dataclass(frozen=True)
@@ -221,7 +249,7 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
         # paper track; benchmarks/bench_codesign_profile.py). Lifted into its running sum
         # E_k = E_{k-1} + q_k (one sparse row per interval, the usual lifting of an integral
         # cost into a state), the ε row holds the last E alone.
-        q = ca.vertcat(*(effort_terms(part, w) for part, w in zip(parts, ws, strict=True)))
+        q = ca.vertcat(*(effort_terms(part, w, p) for part, w in zip(parts, ws, strict=True)))
         n_lift = q.numel()
         E = ca.MX.sym("E", n_lift)
         lift_rows = E - ca.vertcat(0, E[:-1]) - q

@@ -72,7 +72,9 @@ class CodesignSettings(Schema):
         "sum", description="sum: Σ weight·lap; worst: the largest weight·lap")
     starts: int = Field(5, ge=0, le=100, description="random feasible frames started from, "
                         "beside the template's own geometry")
-    intervals: int = Field(40, ge=2, le=400, description="shooting intervals per leg")
+    intervals: int | None = Field(None, ge=2, le=400, description="shooting intervals per "
+                                  "leg; default: the limit lap's for the airframe's propulsion "
+                                  "kind (40 paper, 80 propeller)")
     expand: bool = Field(False, description="expand the co-design NLP to CasADi SX before "
                          "solving: a one-off build cost per process for cheaper iterations "
                          "(short test track, 8 intervals: build 12.6 s, solve 1.6 s instead of "

@@ -258,4 +258,5 @@ def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],
         resimulation_miss_m=misses.get(name, math.nan),
         param_sensitivity=param_sensitivity(pb, chosen.point), start=name,
         starts=start_results(solves, misses), layout=pb.layout, solution=chosen.point,
+        propulsion=pb.frame.propulsion, params=np.asarray(pb.frame.p, float),
     )

@@ -174,8 +174,13 @@ class LimitLap(AsDict):
     starts: tuple[StartResult, ...] = ()
     layout: Layout | None = None
     solution: NlpPoint | None = None  # primal-dual point, for warm starts
+    #: the airframe's propulsion kind and vector p the lap was flown with (what turns rotor
+    #: states into thrusts: casadrone.model.rotor_thrusts); empty p: not recorded
+    propulsion: str = "paper"
+    params: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
-    _omit = ("t", "x", "u", "layout", "solution")  # the trajectory and the solver's internals
+    # the trajectory, the solver's internals and the airframe's numbers
+    _omit = ("t", "x", "u", "layout", "solution", "propulsion", "params")
 
     @property
     def completed(self) -> bool:

@@ -112,9 +112,7 @@ def _limit_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
     why = check_inputs(track, LimitLapOptions(), smallest_frame_clearance(problem))
     found = [("track", f"{why}: no limit lap can pass it, so {', '.join(used)} cannot be "
               "computed for any candidate")] if why else []
-    from casadrone.codesign.checks import effort_problems
-
-    return found + effort_problems(problem, used)
+    return found
 
 
 def smallest_frame_clearance(problem: ProblemConfig) -> float | None:
@@ -201,8 +199,7 @@ def polish_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
     if bad:
         found.append((key, f"the co-design NLP varies {', '.join(CODESIGN_KEYS)}; not "
                       f"{', '.join(bad)}"))
-    # both propulsion models are posed; effort under ``propeller`` is refused with the problem
-    # itself (casadrone.codesign.checks.effort_problems)
+    # both propulsion models are posed, effort included (casadrone.model.rotor_thrusts)
     return found
 
 

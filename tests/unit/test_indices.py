@@ -226,21 +226,3 @@ def test_limit_lap_effort_by_hand():
     assert INDICES["effort"].source == "limit" and INDICES["effort"].sense == "min"
     with pytest.raises(ValueError, match="failed limit lap"):
         INDICES["effort"](LimitLap(status="failed", reason="no solve"))
-
-
-def test_effort_index_is_refused_for_a_propeller_airframe():
-    """The effort sums T^1.5 of the rotor states, thrusts only under the paper propulsion model:
-    a problem using it on a propeller airframe is refused naming the airframe (oracle: the
-    same problem with the paper-model airframe has no such finding)."""
-    from casadrone.config.problem import ProblemConfig
-    from casadrone.optimise.checks import problem_problems
-
-    def problem(airframe: str):
-        return ProblemConfig.model_validate({
-            "name": "p", "airframe": f"configs/airframes/{airframe}.yaml",
-            "variables": [{"name": "alpha_deg", "lower": 70.0, "upper": 90.0}],
-            "objectives": [{"index": "J3_limit"}, {"index": "effort"}]})
-
-    found = problem_problems(problem("SY250-propeller"))
-    assert [k for k, m in found if "effort" in m] == ["airframe"], found
-    assert not [m for _, m in problem_problems(problem("SY250")) if "effort" in m]

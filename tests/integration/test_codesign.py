@@ -226,3 +226,42 @@ def test_propeller_codesign_lap_equals_its_fixed_frame_limit_lap():
     for v in r.certificate.variables:
         if v.state != "interior":
             assert v.reduced_gradient == pytest.approx(-v.bound_multiplier, rel=0.2, abs=2e-4)
+
+
+@pytest.mark.slow
+def test_propeller_effort_front_meets_its_bounds(tmp_path):
+    """A propeller effort front (short track, 16 intervals, 3 points, ~1 min): each point
+    meets its bound, a tighter bound never gives a faster lap, and the measure equals the effort
+    recomputed with numpy from the point's nodes (thrusts CT(J) ρ n² D⁴ of the rotor speeds and
+    inflows, tests/unit/test_effort_propeller.py's oracle) and the effort index of the same lap."""
+    from dataclasses import replace
+
+    from casadrone.indices import EFFORT_SMOOTHING_N, INDICES
+    from casadrone.limit.starts import trajectory
+    from tests.unit.test_effort_propeller import numpy_thrusts
+
+    data = _problem(SHORT, starts=0, intervals=16).model_dump()
+    data["airframe"] = str(ROOT / "configs/airframes/SY250-components-propeller.yaml")
+    data["objectives"] = [{"index": "J3_limit"}, {"index": "effort"}]
+    data["codesign"] = {"starts": 0, "intervals": 16, "front": {"points": 3, "lowest": 0.8}}
+    result = codesign(CodesignProblemConfig.model_validate(data), certify=False,
+                      run_dir=tmp_path / "run")
+    front = result.front
+    assert len(front.points) == 3, front.stopped
+    laps = [p.point.objective for p in front.points]
+    assert all(b >= a - 1e-6 for a, b in zip(laps, laps[1:], strict=False))
+    assert front.points[-1].measure < 0.85 * front.points[0].measure
+    prep = front.prepared
+    part = prep.nlp.parts[0]
+    for p in front.points[1:]:
+        assert p.measure <= p.epsilon * (1 + 1e-6)
+        frame = build_airframe(prep.config(p.point.theta))
+        w = p.point.z[:prep.nlp.offsets[1]]
+        T, X, _ = part.nlp.unpack(w)
+        h = np.repeat(T, part.nlp.layout.intervals) / part.nlp.layout.intervals
+        thrust = np.array([numpy_thrusts(frame, x[3:6], x[6:9], x[12:16]) for x in X[:-1]])
+        numpy_effort = float(h @ np.sum((thrust ** 2 + EFFORT_SMOOTHING_N ** 2) ** 0.75, 1))
+        assert numpy_effort == pytest.approx(p.measure, rel=1e-6)  # p(θ) against the build
+        lap = replace(trajectory(part.nlp, w, part.nlp.layout), propulsion="propeller",
+                      params=np.asarray(frame.p, float))
+        assert INDICES["effort"](lap) == pytest.approx(p.measure, rel=1e-6)

@@ -213,7 +213,10 @@ def certify(prep, point) -> Certificate:
     rows = _frame_jacobians(cd, s)
     reduced = g_theta * width + rows["feas"].T @ lam_feas
     for m, lam in lam_eps.items():
-        if m in rows:  # the effort row has no direct θ term: it reaches θ through the lap
+        # the effort row is left out: it reaches θ through the lap (and, with ``propeller``,
+        # through the rotor positions in the inflow; the certificate is issued at the
+        # unconstrained point, where no ε row is posed)
+        if m in rows:
             reduced = reduced + rows[m].T @ lam
     active = {k: v for k, v in active_constraints(prep, point).items() if "bound" not in k}
     lam_s = point.lam_x[cd.offsets[-1]:cd.offsets[-1] + len(prep.keys)]

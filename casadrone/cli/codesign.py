@@ -58,7 +58,8 @@ def text(result) -> str:
     laps = ", ".join(f"{k} {v:.4f} s" for k, v in b.laps_s.items())
     theta = ", ".join(f"{k} {v:.2f}" for k, v in b.theta.items())
     lines = [f"{head}: objective {b.objective:.4f} s ({result.combine}; {laps})",
-             f"  frame: {theta}; mass {b.mass_kg:.4f} kg, span {b.span_m:.4f} m",
+             f"  frame: {theta}; mass {b.mass_kg:.4f} kg, span {b.span_m:.4f} m; "
+             f"{result.intervals} intervals per leg",
              f"  CPU {result.cpu_s:.1f} s in all (build {result.build_cpu_s:.1f} s), wall "
              f"{result.wall_time_s:.1f} s", "  starts:"]
     for s in result.starts:

@@ -19,12 +19,15 @@ from casadrone.codesign.driver import (
     distinct_optima,
     initial_vector,
     prepare,
+    refined,
+    resampled,
     solve_from,
     start_points,
     vector_of,
 )
 from casadrone.codesign.front import design_front, write_run
 from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
+from casadrone.limit.lap import MAX_INTERVALS
 
 #: Co-design restarts from the certificate's faster fixed-frame lap (at most this many): where
 #: the limit lap's own cold starts find a faster lap of the returned frame than the co-design's
@@ -32,6 +35,14 @@ from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
 #: co-design NLP stopped in a slower local optimum of the trajectory, and started from that lap
 #: it can improve the frame as well.
 RESTARTS = 2
+#: Co-design re-poses a point whose certificate fails on the re-simulation on a grid this many
+#: times finer (at most REFINEMENTS times, up to the limit lap's MAX_INTERVALS), from the point
+#: resampled onto it. Why: the legs share one number of intervals, so a long leg gets long
+#: steps, and a frame whose optimum switches rotors faster than RK4's steps follow the rotor
+#: speed's ~20 ms time constant (``propeller``) drifts open loop. Measured
+#: (benchmarks/RESULTS-codesign.md): SY250-components-propeller's paper-track optimum on 80
+#: intervals per leg flies its 1.5 s straights on 19 ms intervals and misses CVODES by 0.17 m.
+REFINE_FACTOR, REFINEMENTS = 1.5, 2
 
 
 def _faster_fixed_lap(cert) -> bool:
@@ -41,6 +52,46 @@ def _faster_fixed_lap(cert) -> bool:
 
     return not cert.passed and any(
         t.fixed_cold_lap_s < t.codesign_lap_s * (1 - LAP_RTOL) for t in cert.tracks)
+
+
+def _missed(cert, max_miss_m: float) -> bool:
+    """Whether a certificate failed on some track's re-simulation miss."""
+    return cert is not None and not cert.passed and any(
+        t.resimulation_miss_m > max_miss_m for t in cert.tracks)
+
+
+def _restart(prep, best, cert, reports: list):
+    """The co-design solved from the certificate's cold fixed-frame laps (reported as a start);
+    the new point when it converged faster than ``best``, else None."""
+    c0 = time.process_time()
+    cold_ws = [t.cold_w for t in cert.tracks if t.cold_w is not None]
+    if len(cold_ws) < len(cert.tracks):
+        return None
+    ok, status, pt = solve_from(prep, vector_of(prep, best.theta, cold_ws))
+    reports.append(StartReport("restart-from-certificate", best.theta, status, ok,
+                               pt.objective, pt.theta, pt.iterations, time.process_time() - c0))
+    return pt if ok and pt.objective < best.objective else None
+
+
+def _refine(prep, best, reports: list):
+    """(the problem on a grid REFINE_FACTOR finer, the co-design point solved there from
+    ``best``'s frame and laps) (reported as a start); None when the grid cannot be refined or
+    the solve fails."""
+    finer = min(MAX_INTERVALS, round(REFINE_FACTOR * (prep.options.intervals or 0)))
+    if finer <= (prep.options.intervals or 0):
+        return None
+    c0 = time.process_time()
+    fine = refined(prep, finer)
+    z0 = resampled(prep, best, fine)
+    if z0 is None:
+        reports.append(StartReport(f"refined-{finer}", best.theta, "the frame's limit lap on "
+                                   "the finer grid failed", False, math.nan, best.theta, 0,
+                                   time.process_time() - c0))
+        return None
+    ok, status, pt = solve_from(fine, z0)
+    reports.append(StartReport(f"refined-{finer}", best.theta, status, ok, pt.objective,
+                               pt.theta, pt.iterations, time.process_time() - c0))
+    return (fine, pt) if ok else None
 
 
 def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
@@ -77,23 +128,31 @@ def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
     distinct = distinct_optima(points)
     best = distinct[0]
     cert = make_certificate(prep, best) if certify else None
-    for _ in range(RESTARTS):
-        if cert is None or not _faster_fixed_lap(cert):
+    others: list = []  # optima of a coarser grid, after a refinement
+    restarts = refinements = 0
+    while cert is not None and not cert.passed:
+        if _faster_fixed_lap(cert) and restarts < RESTARTS:
+            # the certificate's cold fixed-frame solve found a faster lap of the same frame:
+            # the co-design stopped in a slower local optimum of the trajectory; start again
+            # from it
+            restarts += 1
+            pt = _restart(prep, best, cert, reports)
+            if pt is None:
+                break
+            points.append(pt)
+        elif _missed(cert, prep.options.max_miss_m) and refinements < REFINEMENTS:
+            # the point's trajectory is too coarse to be flown: the same frame and lap on a
+            # finer grid, solved there and certified again
+            refinements += 1
+            fine = _refine(prep, best, reports)
+            if fine is None:
+                break
+            prep, pt = fine
+            others += [p for p in distinct if p is not best]
+            points = [pt]
+        else:
             break
-        # the certificate's cold fixed-frame solve found a faster lap of the same frame: the
-        # co-design stopped in a slower local optimum of the trajectory; start again from it
-        c0 = time.process_time()
-        cold_ws = [t.cold_w for t in cert.tracks if t.cold_w is not None]
-        if len(cold_ws) < len(cert.tracks):
-            break
-        ok, status, pt = solve_from(prep, vector_of(prep, best.theta, cold_ws))
-        reports.append(StartReport("restart-from-certificate", best.theta, status, ok,
-                                   pt.objective, pt.theta, pt.iterations,
-                                   time.process_time() - c0))
-        if not ok or pt.objective >= best.objective:
-            break
-        points.append(pt)
-        distinct = distinct_optima(points)
+        distinct = distinct_optima(points) + others
         best = distinct[0]
         cert = make_certificate(prep, best)
     common["starts"] = tuple(reports)
@@ -105,5 +164,6 @@ def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
         if run_dir is not None:
             write_run(run_dir, prep, front, len(front.points))
     return CodesignResult("completed", "", best=best, distinct=tuple(distinct), certificate=cert,
-                          front=front, cpu_s=time.process_time() - cpu0,
+                          front=front, intervals=prep.options.intervals or 0,
+                          cpu_s=time.process_time() - cpu0,
                           wall_time_s=time.perf_counter() - wall0, **common)

@@ -107,6 +107,9 @@ class CodesignResult:
     distinct: tuple[CodesignPoint, ...]
     certificate: Any = None  # casadrone.codesign.certificate.Certificate
     front: Any = None  # casadrone.codesign.front.Front, when the problem names a measure
+    #: intervals per leg of the returned point (finer than the problem's after a refinement,
+    #: casadrone.codesign.design.REFINE_FACTOR; 0 when no point was returned)
+    intervals: int = 0
     cpu_s: float = math.nan
     wall_time_s: float = math.nan
     build_cpu_s: float = math.nan
@@ -133,8 +136,8 @@ class CodesignResult:
                                 "epsilon": p.epsilon, "theta": p.point.theta,
                                 "iterations": p.point.iterations, "cpu_s": p.point.cpu_s}
                                for p in self.front.points]},
-                "cpu_s": self.cpu_s, "wall_time_s": self.wall_time_s,
-                "build_cpu_s": self.build_cpu_s}
+                "intervals": self.intervals, "cpu_s": self.cpu_s,
+                "wall_time_s": self.wall_time_s, "build_cpu_s": self.build_cpu_s}
 
 
 # --------------------------------------------------------------------------------------------
@@ -237,6 +240,44 @@ def _built(problem, template, keys, lower, upper, tracks, weights, parts, frame,
         _BUILT[key] = build_codesign_nlp(parts, frame, problem.codesign.combine, epsilon,
                                          expand=problem.codesign.expand)
     return _BUILT[key]
+
+
+def refined(prep: Prepared, intervals: int) -> Prepared:
+    """``prep`` posed on ``intervals`` per leg: each track's limit-lap NLP on that grid and the
+    co-design NLP around them (built once per process); the template's limit laps are kept
+    (they warm-start a frame's limit lap on any grid of the same legs)."""
+    options = replace(prep.options, intervals=intervals)
+    settings = prep.problem.codesign.model_copy(update={"intervals": intervals})
+    problem = prep.problem.model_copy(update={"codesign": settings})
+    parts = tuple(_part(prep.template, t, options, w)
+                  for t, w in zip(prep.tracks, prep.weights, strict=True))
+    nlp = _built(problem, prep.template, prep.keys, prep.lower, prep.upper, prep.tracks,
+                 prep.weights, parts, prep.nlp.frame, prep.nlp.epsilon)
+    return replace(prep, problem=problem, options=options, nlp=nlp)
+
+
+def resampled(prep: Prepared, point: CodesignPoint, to: Prepared) -> np.ndarray | None:
+    """A start of ``to`` (another grid of the same tracks) at ``point`` of ``prep``: the
+    frame's limit lap on every track on the new grid, started from the point's own lap
+    resampled onto it (the limit lap's ``resampled`` warm start: same leg durations, states
+    interpolated, commands held) and verified as the limit lap verifies any lap; with its θ,
+    a consistent start as :func:`initial_vector`'s. None when a lap fails."""
+    from casadrone.limit.nlp import NlpPoint
+    from casadrone.limit.starts import trajectory
+
+    cfg = to.config(point.theta)
+    ws, _ = prep.nlp.split(point.z)
+    out = []
+    for part, track, w in zip(prep.nlp.parts, to.tracks, ws, strict=True):
+        T, _, _ = part.nlp.unpack(w)
+        own = replace(trajectory(part.nlp, w, part.nlp.layout), leg_times_s=T,
+                      solution=NlpPoint(w, np.zeros(0), np.zeros(0), np.zeros(0)))
+        lap = limit_lap(cfg, track, replace(to.options, warm_starts=(own,), starts=(),
+                                            point_mass_reference=False))
+        if not lap.completed or lap.solution is None:
+            return None
+        out.append(lap.solution.w)
+    return vector_of(to, point.theta, out)
 
 
 def constrained(prep: Prepared, epsilon: tuple[str, ...]) -> Prepared:

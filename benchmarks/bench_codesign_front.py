@@ -47,10 +47,23 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 
-def run_front(problem: str, out: Path, overrides: list[str]) -> dict:
-    """The co-design front, timed by phase (CPU s of this process)."""
+def run_front(problem: str, out: Path, overrides: list[str], certify: bool = False) -> dict:
+    """The co-design front, timed by phase (CPU s of this process). ``certify``: the fastest
+    frame is certified first as ``casadrone codesign`` certifies it (restarted, or re-posed on
+    a finer grid, while its certificate fails: :func:`casadrone.codesign.design.certified`),
+    its certificate written to DIR.certificate.txt beside DIR, and the front follows from the
+    certified point on its grid."""
+    from casadrone.cli.codesign import text
     from casadrone.codesign.checks import load_codesign_problem
-    from casadrone.codesign.driver import initial_vector, prepare, solve_from, start_points
+    from casadrone.codesign.design import certified
+    from casadrone.codesign.driver import (
+        CodesignResult,
+        StartReport,
+        initial_vector,
+        prepare,
+        solve_from,
+        start_points,
+    )
     from casadrone.codesign.front import design_front, write_run
 
     cfg = load_codesign_problem(problem, ["codesign.starts=0", *overrides])
@@ -63,6 +76,17 @@ def run_front(problem: str, out: Path, overrides: list[str]) -> dict:
     assert z0 is not None, "the template has no limit lap"
     ok, status, best = solve_from(prep, z0)
     assert ok, status
+    if certify:
+        reports = [StartReport("template", theta, status, ok, best.objective, best.theta,
+                               best.iterations, time.process_time() - t["prepared"])]
+        prep, best, distinct, cert = certified(prep, [best], reports)
+        result = CodesignResult("completed", "", cfg.name, prep.keys, prep.labels,
+                                cfg.codesign.combine, best, tuple(reports), tuple(distinct),
+                                cert, intervals=prep.options.intervals or 0,
+                                cpu_s=time.process_time() - t["start"],
+                                wall_time_s=time.perf_counter() - wall0,
+                                build_cpu_s=t["prepared"] - t["start"])
+        (out.parent / f"{out.name}.certificate.txt").write_text(text(result) + "\n")
     t["fastest"] = time.process_time()
     # each point as it converges, beside DIR (the run directory must start empty): a sweep
     # stopped early keeps its points
@@ -84,6 +108,7 @@ def run_front(problem: str, out: Path, overrides: list[str]) -> dict:
     timings = {"prepare_cpu_s": t["prepared"] - t["start"],
                "fastest_cpu_s": t["fastest"] - t["prepared"],
                "fastest_iterations": best.iterations,
+               "intervals": prep.options.intervals,
                "continuation_cpu_s": t["front"] - t["fastest"],
                "total_cpu_s": t["front"] - t["start"], "wall_s": time.perf_counter() - wall0,
                "points": len(front.points), "stopped": front.stopped,
@@ -161,10 +186,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ga-cpu", type=float, help="the GA run's CPU seconds (/usr/bin/time)")
     ap.add_argument("--reevaluate", action="store_true", help="also evaluate the co-design "
                     "frames as the GA does (their minimum-time limit lap and its effort)")
+    ap.add_argument("--certify", action="store_true", help="certify the fastest frame first "
+                    "(and re-pose it as casadrone codesign does while the certificate fails)")
     ap.add_argument("overrides", nargs="*", help="co-design problem overrides (key=value)")
     args = ap.parse_args(argv)
     if args.front:
-        print(json.dumps(run_front(args.problem, args.front, args.overrides), indent=1))
+        print(json.dumps(run_front(args.problem, args.front, args.overrides, args.certify),
+                         indent=1))
     if args.compare and args.ga:
         result = compare(read_front(args.compare), read_front(args.ga))
         timings = json.loads((args.compare / "timings.json").read_text())

@@ -94,6 +94,45 @@ def _refine(prep, best, reports: list):
     return (fine, pt) if ok else None
 
 
+def certified(prep, points: list, reports: list, certify: bool = True):
+    """(the problem as finally posed, the best point, the distinct optima, its certificate or
+    None) from the converged ``points``: the best is certified and, while its certificate fails,
+    restarted from a faster fixed-frame lap (:data:`RESTARTS`) or re-posed on a finer grid when
+    it misses the re-simulation (:data:`REFINEMENTS`); each such solve is appended to
+    ``reports``. Optima of a coarser grid are kept among the distinct ones, after the best."""
+    distinct = distinct_optima(points)
+    best = distinct[0]
+    cert = make_certificate(prep, best) if certify else None
+    others: list = []  # optima of a coarser grid, after a refinement
+    restarts = refinements = 0
+    while cert is not None and not cert.passed:
+        if _faster_fixed_lap(cert) and restarts < RESTARTS:
+            # the certificate's cold fixed-frame solve found a faster lap of the same frame:
+            # the co-design stopped in a slower local optimum of the trajectory; start again
+            # from it
+            restarts += 1
+            pt = _restart(prep, best, cert, reports)
+            if pt is None:
+                break
+            points = [*points, pt]
+        elif _missed(cert, prep.options.max_miss_m) and refinements < REFINEMENTS:
+            # the point's trajectory is too coarse to be flown: the same frame and lap on a
+            # finer grid, solved there and certified again
+            refinements += 1
+            fine = _refine(prep, best, reports)
+            if fine is None:
+                break
+            prep, pt = fine
+            others += [p for p in distinct if p is not best]
+            points = [pt]
+        else:
+            break
+        distinct = distinct_optima(points) + others
+        best = distinct[0]
+        cert = make_certificate(prep, best)
+    return prep, best, distinct, cert
+
+
 def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
              run_dir: Path | None = None) -> CodesignResult:
     """The fastest frame of ``problem`` (see the module docstring) and, when the problem names
@@ -125,36 +164,7 @@ def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
         return CodesignResult("failed", "no start converged: " + "; ".join(
             f"{r.label}: {r.status}" for r in reports), best=None, distinct=(), **common,
             cpu_s=time.process_time() - cpu0, wall_time_s=time.perf_counter() - wall0)
-    distinct = distinct_optima(points)
-    best = distinct[0]
-    cert = make_certificate(prep, best) if certify else None
-    others: list = []  # optima of a coarser grid, after a refinement
-    restarts = refinements = 0
-    while cert is not None and not cert.passed:
-        if _faster_fixed_lap(cert) and restarts < RESTARTS:
-            # the certificate's cold fixed-frame solve found a faster lap of the same frame:
-            # the co-design stopped in a slower local optimum of the trajectory; start again
-            # from it
-            restarts += 1
-            pt = _restart(prep, best, cert, reports)
-            if pt is None:
-                break
-            points.append(pt)
-        elif _missed(cert, prep.options.max_miss_m) and refinements < REFINEMENTS:
-            # the point's trajectory is too coarse to be flown: the same frame and lap on a
-            # finer grid, solved there and certified again
-            refinements += 1
-            fine = _refine(prep, best, reports)
-            if fine is None:
-                break
-            prep, pt = fine
-            others += [p for p in distinct if p is not best]
-            points = [pt]
-        else:
-            break
-        distinct = distinct_optima(points) + others
-        best = distinct[0]
-        cert = make_certificate(prep, best)
+    prep, best, distinct, cert = certified(prep, points, reports, certify)
     common["starts"] = tuple(reports)
     front = None
     measures = [o.index for o in problem.objectives if o.index in FRONT_MEASURES]

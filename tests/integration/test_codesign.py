@@ -265,3 +265,20 @@ def test_propeller_effort_front_meets_its_bounds(tmp_path):
         lap = replace(trajectory(part.nlp, w, part.nlp.layout), propulsion="propeller",
                       params=np.asarray(frame.p, float))
         assert INDICES["effort"](lap) == pytest.approx(p.measure, rel=1e-6)
+
+
+@pytest.mark.slow
+def test_grid_refined_when_the_resimulation_misses():
+    """Propeller co-design on the short track at 8 intervals per leg (~3 min): that point misses
+    the CVODES re-simulation by metres (2.3 m measured), so co-design re-poses it on 12
+    intervals (``refined-12``) and certifies the point there; the certificate's re-simulation
+    (CVODES, a second integrator) and its fixed-frame limit lap are the oracles."""
+    from casadrone.codesign.checks import load_codesign_problem
+
+    r = codesign(load_codesign_problem(str(ROOT / "tests/data/codesign/short-propeller.yaml"),
+                                       ["codesign.intervals=8"]))
+    assert r.status == "completed", r.reason
+    assert r.intervals == 12 and "refined-12" in [s.label for s in r.starts]
+    assert r.certificate.passed, r.certificate.text()
+    (track,) = r.certificate.tracks
+    assert track.resimulation_miss_m <= 0.15 and abs(track.gap_pct) <= 0.05

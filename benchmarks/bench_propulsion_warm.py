@@ -105,7 +105,8 @@ def warm_fit(pb, point) -> str:
 def logged_solve(pb, warm, log: Path, overrides: dict):
     """The warm solve of ``pb`` once more with IPOPT's iteration log in ``log`` (the library's
     warm options, plus the log and ``overrides``: a diagnosis, not the library's solve)."""
-    opts = ipopt_options(pb.full.tol, pb.full.max_iter, True) | pb.full.derivatives
+    opts = ipopt_options(pb.full.tol, pb.full.max_iter, True,
+                         propulsion=pb.full.model.propulsion) | pb.full.derivatives
     opts["ipopt"] = dict(opts["ipopt"], output_file=str(log), file_print_level=5) | overrides
     solver = ca.nlpsol("logged", "ipopt", pb.full.problem, opts)
     out, t = cpu(lambda: solver(x0=np.clip(warm.w, *pb.box), lam_x0=warm.lam_x,
@@ -151,7 +152,8 @@ def blocking_bounds(pb, warm, until: int) -> str:
     pr = pb.full.problem
     nw, ng, n_p = pr["x"].numel(), pr["g"].numel(), pr["p"].numel()
     rec = _Iterates({"x": nw, "f": 1, "g": ng, "lam_x": nw, "lam_g": ng, "lam_p": n_p})
-    opts = ipopt_options(pb.full.tol, pb.full.max_iter, True) | pb.full.derivatives
+    opts = ipopt_options(pb.full.tol, pb.full.max_iter, True,
+                         propulsion=pb.full.model.propulsion) | pb.full.derivatives
     ca.nlpsol("iterates", "ipopt", pr, opts | {"iteration_callback": rec})(
         x0=np.clip(warm.w, *pb.box), lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=pb.P,
         lbx=pb.box[0], ubx=pb.box[1], lbg=pb.rows[0], ubg=pb.rows[1])

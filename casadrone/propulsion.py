@@ -215,6 +215,21 @@ def propeller_terms(vel, omega, w, w_dot, u, q: dict[str, Any], r, s):
     return force, torque, ca.vertcat(*residual), ca.vertcat(*thrusts), ca.vertcat(*inflows)
 
 
+def rotor_decay_rate(q: dict[str, Any], kind: str = "propeller"):
+    """The rotor states' linear decay rate λ (1/s) that depends on the parameters only, the
+    linear part −λ ω of ω̇ that the exponential step integrates exactly
+    (:func:`casadrone.limit.nlp.etdrk4_step`): with the DC motor the back-EMF damping
+    1/(J_r R K_V²) (the current's −ω/(K_V R) term through the torque (I − I₀)/K_V over the rotor
+    inertia; the propeller's load and the pack's sag are left to the step's nonlinear part), with
+    the first-order motor 1/τ_m; with ``paper`` (``q`` the paper's named parameters) 1/τ of the
+    thrust lag. SY250-propeller: 35.9 1/s (27.8 ms), against 46 1/s (median; 55.5 largest) of the
+    full linearisation along its limit lap (benchmarks/RESULTS-propulsion.md)."""
+    if kind == "paper":
+        return 1 / q["tau"]
+    dc = q["motor_dc"]
+    return dc / (q["rotor_J"] * q["motor_R"] * q["motor_kv"] ** 2) + (1 - dc) / q["motor_tau"]
+
+
 def advance_margins(vel, omega, w, q: dict[str, Any], r, j_max: float):
     """The four rows J_max n_i D − v_a,i (m/s) that keep each rotor inside its data,
     J = v_a/(n D) ≤ J_max: ``vel``, ``omega`` the body velocity (m/s) and rates (rad/s), ``w``

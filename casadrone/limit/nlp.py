@@ -63,6 +63,10 @@ class OcpModel:
     attitude: str = "none"
     scale: tuple[float, ...] | None = None
     velocity: slice | None = None  # the body-frame velocity (m/s), for the rotors' inflow
+    #: ``rate(p) -> λ`` (1/s): the rotor states' linear decay rate, integrated exactly by the
+    #: exponential step (:func:`exponential_rotor`, :func:`etdrk4_step`); None: classical RK4
+    rotor_rate: Callable | None = None
+    propulsion: str = "paper"  # the propulsion kind (per-kind solver settings: ipopt_options)
 
     @property
     def nx(self) -> int:
@@ -108,7 +112,7 @@ def quadrotor_ocp_model(propulsion: str = "paper") -> OcpModel:
     return OcpModel(name, quadrotor_model(propulsion).f, vw, rates=slice(6, 9),
                     rotor=slice(12, 16), up_z=lambda x: ca.cos(x[9]) * ca.cos(x[10]),
                     attitude="euler", scale=state_scale(16, slice(12, 16), propulsion),
-                    velocity=slice(3, 6))
+                    velocity=slice(3, 6), propulsion=propulsion)
 
 
 def quaternion_ocp_model(propulsion: str = "paper") -> OcpModel:
@@ -122,7 +126,8 @@ def quaternion_ocp_model(propulsion: str = "paper") -> OcpModel:
     name = "quadrotor-quat" if propulsion == "paper" else f"quadrotor-quat-{propulsion}"
     return OcpModel(name, quaternion_f(propulsion), lambda x: quat_rotation(x[QUAT]) @ x[3:6],
                     rates=slice(6, 9), rotor=slice(13, 17), up_z=up_z, attitude="quaternion",
-                    scale=state_scale(17, slice(13, 17), propulsion), velocity=slice(3, 6))
+                    scale=state_scale(17, slice(13, 17), propulsion), velocity=slice(3, 6),
+                    propulsion=propulsion)
 
 
 #: Full-state models of the limit lap, by attitude representation.
@@ -284,7 +289,10 @@ class Nlp:
 
 
 def rk4_step(model: OcpModel, substeps: int) -> ca.Function:
-    """``step(x, u, p, h) -> x_next``: ``substeps`` RK4 steps of total length h."""
+    """``step(x, u, p, h) -> x_next``: ``substeps`` RK4 steps of total length h (classical RK4,
+    or ETDRK4 for a model with a rotor decay rate: :func:`etdrk4_step`)."""
+    if model.rotor_rate is not None:
+        return etdrk4_step(model, substeps)
     x = ca.SX.sym("x", model.nx)
     u = ca.SX.sym("u", model.nu)
     p = ca.SX.sym("p", model.np)
@@ -298,6 +306,96 @@ def rk4_step(model: OcpModel, substeps: int) -> ca.Function:
         k4 = model.f(xk + dt * k3, u, p)
         xk = xk + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     return ca.Function("step", [x, u, p, h], [xk], ["x", "u", "p", "h"], ["x_next"])
+
+
+#: Below this |z| = λ·dt the φ functions of :func:`phi_functions` are summed as their Taylor
+#: series (degree :data:`PHI_TERMS` − 1: truncation below 1e-15 there), above it taken in closed
+#: form (cancellation below 1e-12 there): both stay accurate, and so do their derivatives.
+PHI_SERIES_BELOW = 0.2
+PHI_TERMS = 12
+
+
+def phi_functions(z) -> tuple:
+    """(e^z, φ₁(z), φ₂(z), φ₃(z)) with φ_j(z) = Σ_k z^k / (k + j)!, the functions of exponential
+    integrators (φ₁ = (e^z − 1)/z, φ₂ = (e^z − 1 − z)/z², φ₃ = (e^z − 1 − z − z²/2)/z³),
+    symbolic (SX) or numeric; exact limits 1, 1/2, 1/6 at z = 0."""
+    from math import factorial
+
+    small = ca.fabs(z) < PHI_SERIES_BELOW
+    zs = ca.if_else(small, 0.5, z)  # the closed form is taken at a safe z where it is unused
+    es = ca.exp(zs)
+    closed = ((es - 1) / zs, (es - 1 - zs) / zs**2, (es - 1 - zs - zs**2 / 2) / zs**3)
+    out = [ca.exp(z)]
+    for j in (1, 2, 3):
+        series = sum(z**k / factorial(k + j) for k in range(PHI_TERMS))
+        out.append(ca.if_else(small, series, closed[j - 1]))
+    return tuple(out)
+
+
+def etdrk4_step(model: OcpModel, substeps: int) -> ca.Function:
+    """``step(x, u, p, h) -> x_next``: ``substeps`` steps of ETDRK4 (Cox & Matthews 2002,
+    J. Comput. Phys. 176, 430, eq. 26–29; coefficients in φ functions as in Hochbruck &
+    Ostermann 2010, Acta Numerica 19, 209) with the linear part L = −λ(p) on the rotor states
+    (``model.rotor_rate``) and L = 0 on every other state, where the scheme is classical RK4.
+
+    Why: with the ``propeller`` kind's DC motor the rotor speeds relax with a time constant of
+    ~20–28 ms (back-EMF damping 1/(J_r R K_V²) plus the propeller's load), and classical RK4's
+    local error grows as (λ dt)⁵: 40 intervals of 3 steps re-simulated 0.30 m off on the paper
+    track. ETDRK4 integrates u' = L u + N(u) exactly for constant N and is fourth order in N's
+    variation, so only the rotors' slower nonlinear part (the propeller's load, the pack's sag)
+    is left to the step (benchmarks/RESULTS-propulsion.md, "Exponential rotor step")."""
+    assert model.rotor_rate is not None and model.rotor is not None
+    x = ca.SX.sym("x", model.nx)
+    u = ca.SX.sym("u", model.nu)
+    p = ca.SX.sym("p", model.np)
+    h = ca.SX.sym("h")
+    dt = h / substeps
+    rot = np.zeros(model.nx, dtype=bool)
+    rot[model.rotor] = True
+    lam = model.rotor_rate(p)
+    z = -lam * dt
+    e, phi1, phi2, phi3 = phi_functions(z)
+    e2, phi1_2, _, _ = phi_functions(z / 2)
+
+    def per_state(rotor_value, other_value):
+        return ca.vertcat(*[rotor_value if r else other_value for r in rot])
+
+    L = per_state(-lam, 0.0)
+    E, E2 = per_state(e, 1.0), per_state(e2, 1.0)
+    half = per_state(dt / 2 * phi1_2, dt / 2)  # L⁻¹(e^{L dt/2} − 1)
+    # weights of N(x), N(a) + N(b), N(c) (Cox & Matthews' f₁, 2f₂, f₃ as φ functions)
+    w1 = per_state(dt * (phi1 - 3 * phi2 + 4 * phi3), dt / 6)
+    w2 = per_state(dt * 2 * (phi2 - 2 * phi3), dt / 3)
+    w3 = per_state(dt * (4 * phi3 - phi2), dt / 6)
+
+    def nonlinear(xs):
+        return model.f(xs, u, p) - L * xs
+
+    xk = x
+    for _ in range(substeps):
+        n0 = nonlinear(xk)
+        a = E2 * xk + half * n0
+        na = nonlinear(a)
+        b = E2 * xk + half * na
+        nb = nonlinear(b)
+        c = E2 * a + half * (2 * nb - n0)
+        nc = nonlinear(c)
+        xk = E * xk + w1 * n0 + w2 * (na + nb) + w3 * nc
+    return ca.Function("step", [x, u, p, h], [xk], ["x", "u", "p", "h"], ["x_next"])
+
+
+def exponential_rotor(model: OcpModel, propulsion: str) -> OcpModel:
+    """``model`` with its rotor states stepped by ETDRK4 (:func:`etdrk4_step`) at the rotor
+    decay rate of ``propulsion`` (:func:`casadrone.propulsion.rotor_decay_rate`), under its own
+    name (its own NLP and compiled blocks)."""
+    from casadrone.model import named, unpack_params
+    from casadrone.propulsion import rotor_decay_rate
+
+    def rate(p):
+        g = unpack_params(p)[0] if propulsion == "paper" else named(p)
+        return rotor_decay_rate(g, propulsion)
+
+    return replace(model, name=f"{model.name}-etd", rotor_rate=rate)
 
 
 def collocation_interval(model: OcpModel, degree: int) -> ca.Function:
@@ -423,10 +521,12 @@ def _bounds_of(rows) -> tuple[np.ndarray, np.ndarray]:
             np.concatenate([np.full(r[0].numel(), r[2]) for r in rows]))
 
 
-def ipopt_options(tol: float, max_iter: int, warm: bool, near: bool = False) -> dict:
+def ipopt_options(tol: float, max_iter: int, warm: bool, near: bool = False,
+                  propulsion: str = "paper") -> dict:
     """IPOPT settings (MUMPS, exact Hessian, quiet); ``warm`` adds primal-dual warm start, for a
-    start far from the optimum (a neighbouring frame's lap); ``near`` one for a start close to
-    it (:data:`NEAR_VIOLATION`)."""
+    start far from the optimum (a neighbouring frame's lap), with the settings of the
+    ``propulsion`` kind (:data:`WARM_SETTINGS`); ``near`` one for a start close to it
+    (:data:`NEAR_VIOLATION`)."""
     ipopt = {"tol": tol, "acceptable_tol": 1e3 * tol, "max_iter": max_iter, "print_level": 0,
              "linear_solver": "mumps", "sb": "yes", "mu_strategy": "adaptive"}
     if warm and near:
@@ -455,11 +555,26 @@ def ipopt_options(tol: float, max_iter: int, warm: bool, near: bool = False) -> 
         ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-4,
                       "warm_start_mult_bound_push": 1e-4, "warm_start_slack_bound_push": 1e-4,
                       "mu_init": 1e-2})
+        ipopt.update(WARM_SETTINGS.get(propulsion, {}))
     # show_eval_warnings off: a trial step that overflows the model (Inf/NaN in g) is IPOPT's
     # to handle (it shortens the step); CasADi would print a warning line for each.
     return {"ipopt": ipopt, "print_time": False, "error_on_fail": False,
             "show_eval_warnings": False}
 
+
+#: IPOPT settings of the far warm start by propulsion kind, on top of the common ones (absent:
+#: none). ``propeller``: ``sigma_min``, the smallest centring parameter of IPOPT's adaptive μ
+#: (μ = σ × the average complementarity; IPOPT's default 1e-6). Why: from a neighbouring frame's
+#: lap the adaptive μ fell at the first iteration to 10^-9.2 (``paper``: 10^-5.4), and with so
+#: small a barrier the Newton steps ran into the commands' and the tilt bounds (fraction to the
+#: boundary) for 40 iterations before the first full step. Measured on SY250-propeller's two
+#: neighbours of bench_propulsion_warm (80 intervals; benchmarks/RESULTS-propulsion.md, "Warm
+#: solves: the barrier's centring"): σ_min 1e-3 35 and 26 iterations instead of 66 and 67, the
+#: same laps to 8 digits (it changes the path, not the convergence test); 1e-4 42 and 33, 1e-2
+#: 32 and 49. A floor on μ instead (``mu_min`` 1e-7) took 25 and 15 but stops on the barrier's
+#: bias (laps 0.003 % slower; 3e-7: 0.009 %). ``paper`` keeps IPOPT's default: its results stay
+#: bit-identical.
+WARM_SETTINGS: dict[str, dict[str, float]] = {"propeller": {"sigma_min": 1e-3}}
 
 #: A warm start whose largest constraint violation (the NLP's units: m, m/s, rad, rad/s, N)
 #: is at most this is solved with the ``near`` setting of :func:`ipopt_options`, any other with
@@ -674,7 +789,7 @@ def _collocation_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray,
 def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int = 1000) -> Nlp:
     """The NLP of ``layout`` on ``model``, built once per process and cached (never per airframe).
     """
-    key = (model.name, model.scale, layout, tol, max_iter)
+    key = (model.name, model.scale, model.propulsion, layout, tol, max_iter)
     if key in _NLPS:
         return _NLPS[key]
     make = _shooting_nlp if layout.method == "shooting" else _collocation_nlp
@@ -683,7 +798,8 @@ def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int 
     built = Nlp(model=model, layout=layout,
                 cold=ca.nlpsol(name, "ipopt", nlp, ipopt_options(tol, max_iter, False) | extra),
                 warm=ca.nlpsol(name + "_warm", "ipopt", nlp,
-                               ipopt_options(tol, max_iter, True) | extra),
+                               ipopt_options(tol, max_iter, True,
+                                             propulsion=model.propulsion) | extra),
                 near=ca.nlpsol(name + "_near", "ipopt", nlp,
                                ipopt_options(tol, max_iter, True, near=True) | extra),
                 lbg=lbg, ubg=ubg, problem=dict(nlp), derivatives=dict(extra), tol=tol,

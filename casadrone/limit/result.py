@@ -68,6 +68,11 @@ class LimitLapOptions:
     intervals: int | None = None
     method: Literal["shooting", "collocation"] = "shooting"  # see casadrone.limit.nlp
     substeps: int = 3  # RK4 steps per interval (shooting)
+    # Step of the rotor states (shooting): "rk4" (classical RK4, every state) or "exponential"
+    # (ETDRK4: the rotors' linear decay integrated exactly, RK4 elsewhere;
+    # casadrone.limit.nlp.etdrk4_step), which follows the propeller kind's ~20 ms rotor lag on
+    # coarser grids (benchmarks/RESULTS-propulsion.md, "Exponential rotor step").
+    rotor_step: Literal["rk4", "exponential"] = "rk4"
     degree: int = 3  # Radau collocation points per interval (collocation)
     # "coarse-grid": grid continuation, the closed-loop start solved on COARSE_SHARE of the
     # intervals and its optimum resampled onto this grid (a coarse grid smooths the problem);

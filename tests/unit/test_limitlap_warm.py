@@ -8,13 +8,16 @@ a primal-dual start at an optimum is already one (a warm solve must return it at
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from casadrone.limit.nlp import (
     NEAR_VIOLATION,
+    WARM_SETTINGS,
     Layout,
     build_nlp,
+    ipopt_options,
     solve,
     start_violation,
     target_vector,
@@ -25,10 +28,10 @@ from tests.unit.test_limitlap import _double_integrator
 A_MAX = 2.0
 
 
-def _problem(distance_m: float, intervals: int = 20):
+def _problem(distance_m: float, intervals: int = 20, propulsion: str = "paper"):
     kinds, L = ("ball", "ball"), 2
     M = intervals * L
-    nlp = build_nlp(_double_integrator(), Layout(kinds, intervals))
+    nlp = build_nlp(replace(_double_integrator(), propulsion=propulsion), Layout(kinds, intervals))
     P = np.concatenate([[0.0], np.zeros(6), target_vector(
         np.array([[distance_m, 0, 0], [0, 0, 0]]), kinds, np.zeros(L), np.zeros(L),
         np.zeros(L), 0.0)])
@@ -88,3 +91,33 @@ def test_warm_solve_after_a_parameter_change_reaches_the_analytic_time():
         np.testing.assert_allclose(warm.objective, cold.objective, rtol=1e-7)
         if which == "near":
             assert warm.iterations < cold.iterations, (warm.iterations, cold.iterations)
+
+
+def test_per_kind_warm_settings_leave_paper_and_the_other_solvers_alone():
+    """Only the far warm setting of a kind listed in WARM_SETTINGS changes: ``paper``'s options
+    (and so its solves) are those without a kind, the cold and near ones the same for every
+    kind."""
+    base = ipopt_options(1e-6, 100, True)
+    assert ipopt_options(1e-6, 100, True, propulsion="paper") == base
+    for kind in ("paper", "propeller"):
+        assert ipopt_options(1e-6, 100, False, propulsion=kind) == ipopt_options(1e-6, 100, False)
+        assert ipopt_options(1e-6, 100, True, near=True, propulsion=kind) == \
+            ipopt_options(1e-6, 100, True, near=True)
+    prop = ipopt_options(1e-6, 100, True, propulsion="propeller")["ipopt"]
+    assert prop == base["ipopt"] | WARM_SETTINGS["propeller"] != base["ipopt"]
+
+
+def test_propeller_warm_setting_reaches_the_same_optimum():
+    """The ``propeller`` far warm setting (σ_min) changes IPOPT's path, not its convergence
+    test: from the optimum of 10 m, the 14 m problem reaches the analytic time to the grid's
+    error (observed 5e-6) and the cold solve's lap to 1e-7 (observed 4e-16), as the common setting
+    does."""
+    for kind in ("paper", "propeller"):
+        nlp, P, lbx, ubx, w0 = _problem(10.0, propulsion=kind)
+        base = solve(nlp, w0, P, lbx, ubx)
+        _, P2, *_ = _problem(14.0, propulsion=kind)
+        cold = solve(nlp, w0, P2, lbx, ubx)
+        warm = solve(nlp, w0, P2, lbx, ubx, warm=base.point)
+        assert cold.success and warm.success, (kind, cold.return_status, warm.return_status)
+        np.testing.assert_allclose(warm.objective, _exact(14.0), rtol=1e-3)
+        np.testing.assert_allclose(warm.objective, cold.objective, rtol=1e-7)

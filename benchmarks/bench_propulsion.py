@@ -14,7 +14,9 @@ keeps what it measured):
   10–40 m/s fly against the propeller data's largest advance ratio (they extrapolate beyond it);
 - ``--warm N``: N frames near SY250 (θ within ±5 % of the Table 1 range) each solved from a
   primal-dual warm start of the model's own SY250 lap on the paper track: CPU per solve, both
-  models side by side.
+  models side by side; ``--propeller-grid INTERVALS:SUBSTEPS:ROTOR_STEP`` (e.g.
+  ``40:4:exponential``) solves the ``propeller`` laps of this section on another grid and rotor
+  step (``LimitLapOptions.intervals``, ``substeps``, ``rotor_step``), ``paper`` on its default.
 
 Run: ``python benchmarks/bench_propulsion.py --closed-loop --laps --warm 5``. Writes
 ``benchmarks/RESULTS-propulsion-measured.md`` (``--out``).
@@ -30,6 +32,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
+from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -185,15 +188,25 @@ def laps(rep: Report, frames, tracks, models, options: LimitLapOptions) -> dict:
     return out
 
 
-def warm_solves(rep: Report, n: int, seed: int, options: LimitLapOptions, solved: dict) -> None:
+def warm_solves(rep: Report, n: int, seed: int, options: LimitLapOptions, solved: dict,
+                propeller_grid: str = "") -> None:
     track = load(TrackConfig, DEFAULT_TRACK)
+    per_model = {model: options for model in MODELS}
+    if propeller_grid:
+        intervals, substeps, rotor_step = propeller_grid.split(":")
+        per_model["propeller"] = replace(options, intervals=int(intervals),
+                                         substeps=int(substeps),
+                                         rotor_step=rotor_step)  # type: ignore[arg-type]
+        rep.add(f"`propeller` laps on {intervals} intervals per leg × {substeps} steps, rotor "
+                f"step {rotor_step}.", "")
     rep.add(f"## Warm limit-lap solves ({n} frames within ±5 % of the Table 1 range around "
             "SY250, paper track, each from a primal-dual warm start of the model's own SY250 "
             "lap)", "", "| model | solved | CPU median (s) | CPU max (s) | iterations median |",
             "|---|---|---|---|---|")
     med = {}
     for model in MODELS:
-        lap0 = solved.get(("SY250", model, "paper"))
+        options = per_model[model]
+        lap0 = solved.get(("SY250", model, "paper")) if options is per_model["paper"] else None
         if lap0 is None:
             lap0 = limit_lap(load_airframe(frame_name("SY250", model)), track, options)
         if not lap0.completed:
@@ -205,9 +218,9 @@ def warm_solves(rep: Report, n: int, seed: int, options: LimitLapOptions, solved
         for _ in range(n):
             theta = {k: float(np.clip(getattr(cfg, k) + 0.05 * (hi - lo) * rng.uniform(-1, 1),
                                       lo, hi)) for k, (lo, hi) in TABLE1_BOUNDS.items()}
-            opts = LimitLapOptions(intervals=options.intervals, starts=(), warm_starts=(lap0,),
-                                   point_mass_reference=False, sensitivities=False,
-                                   fallback_reference=None)
+            opts = replace(options, starts=(), warm_starts=(lap0,),
+                           point_mass_reference=False, sensitivities=False,
+                           fallback_reference=None)
             near = with_theta(cfg, theta)
             lap, t = cpu(lambda c=near, o=opts: limit_lap(c, track, o))
             times.append(t if lap.completed else np.nan)
@@ -236,6 +249,9 @@ def main() -> None:
     ap.add_argument("--starts", default=",".join(LimitLapOptions.starts),
                     help="cold starts of the limit lap, comma-separated (default: the library's)")
     ap.add_argument("--warm", type=int, default=0)
+    ap.add_argument("--propeller-grid", default="",
+                    help="INTERVALS:SUBSTEPS:ROTOR_STEP of the propeller laps of --warm, e.g. "
+                         "40:4:exponential (default: the library's)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=str(Path(__file__).with_name(
         "RESULTS-propulsion-measured.md")))
@@ -252,7 +268,7 @@ def main() -> None:
     solved = laps(rep, a.frames.split(","), a.tracks.split(","), a.models.split(","),
                   options) if a.laps else {}
     if a.warm:
-        warm_solves(rep, a.warm, a.seed, options, solved)
+        warm_solves(rep, a.warm, a.seed, options, solved, a.propeller_grid)
 
 
 if __name__ == "__main__":

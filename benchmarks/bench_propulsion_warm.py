@@ -1,6 +1,7 @@
 """Benchmark: where a warm limit-lap solve's time goes, ``paper`` against ``propeller`` (issue 17).
 
-For each variant (``--variants``, ``MODEL:INTERVALS`` per leg, e.g. ``paper:40,propeller:80``) it
+For each variant (``--variants``, ``MODEL:INTERVALS`` per leg, e.g. ``paper:40,propeller:80``, or
+``MODEL:INTERVALS:SUBSTEPS:ROTOR_STEP``, e.g. ``propeller:40:4:exponential``) it
 solves SY250's lap on the paper track from the point-mass start, then ``--n`` neighbours (θ
 within ±5 % of the Table 1 range, the same draws as ``bench_propulsion.py --warm``) each from
 the primal-dual warm start of that lap, as ``limit_lap`` does (``Problem.solve``, the library's
@@ -178,7 +179,7 @@ def blocking_bounds(pb, warm, until: int) -> str:
 
 def variant(rep: Report, model: str, intervals: int, n: int, seed: int, logs: Path,
             overrides: dict, itself: bool, blockers: bool = False,
-            nlp_only: bool = False) -> None:
+            nlp_only: bool = False, substeps: int = 3, rotor_step: str = "rk4") -> None:
     """``model``: paper, propeller, or propeller-norows (the propeller frames without the
     data-range rows: ``max_advance_ratio`` None)."""
     track = load(TrackConfig, DEFAULT_TRACK)
@@ -189,34 +190,38 @@ def variant(rep: Report, model: str, intervals: int, n: int, seed: int, logs: Pa
         f = build_airframe(c)
         return f if rows else replace(f, max_advance_ratio=None)
 
-    base_opts = LimitLapOptions(intervals=intervals, starts=("point-mass",), sensitivities=False)
-    cached = logs / f"base-{model}-{intervals}.pickle"  # the base lap of an earlier run
+    grid = dict(intervals=intervals, substeps=substeps, rotor_step=rotor_step)
+    base_opts = LimitLapOptions(starts=("point-mass",), sensitivities=False,
+                                **grid)  # type: ignore[arg-type]
+    label = f"{intervals}" if (substeps, rotor_step) == (3, "rk4") else \
+        f"{intervals}x{substeps}-{rotor_step}"
+    cached = logs / f"base-{model}-{label}.pickle"  # the base lap of an earlier run
     if cached.exists():
         (lap0, t0) = pickle.loads(cached.read_bytes())
     else:
         lap0, t0 = cpu(lambda: limit_lap(frame_of(cfg), track, base_opts))
         cached.write_bytes(pickle.dumps((lap0, t0)))
     if not lap0.completed:
-        rep.add(f"| {model} | {intervals} | base lap failed: {lap0.reason[:80]} | {t0:.0f} s |"
+        rep.add(f"| {model} | {label} | base lap failed: {lap0.reason[:80]} | {t0:.0f} s |"
                 + " |" * 9)
         return
     base = (f"{lap0.lap_time_s:.4f} s, miss {100 * lap0.resimulation_miss_m:.2f} cm, "
             f"{lap0.iterations} it, {t0:.0f} s")
     frames = ([cfg] if itself else []) + neighbours(cfg, n, seed)
     for i, near in enumerate(frames):
-        opts = LimitLapOptions(intervals=intervals, starts=(), warm_starts=(lap0,),
-                               point_mass_reference=False, sensitivities=False,
-                               fallback_reference=None)
+        opts = LimitLapOptions(starts=(), warm_starts=(lap0,), point_mass_reference=False,
+                               sensitivities=False, fallback_reference=None,
+                               **grid)  # type: ignore[arg-type]
         frame = frame_of(near)
         if overrides or nlp_only:  # a diagnosis of the NLP solve only: limit_lap not repeated
             lap, t_lap = None, np.nan
         else:
             lap, t_lap = cpu(lambda f=frame, o=opts: limit_lap(f, track, o))
-        pb = prepare(frame, track, replace(opts, intervals=intervals),
+        pb = prepare(frame, track, opts,
                      frame_clearance_m(frame, near.prop_diameter_mm / 1000))
         fit = warm_fit(pb, lap0.solution)
         tag = "-".join(f"{k}={v}" for k, v in overrides.items())
-        log = logs / f"warm-{model}-{intervals}-{i + 1 - itself}{'-' + tag if tag else ''}.log"
+        log = logs / f"warm-{model}-{label}-{i + 1 - itself}{'-' + tag if tag else ''}.log"
         stats, t_nlp, f = logged_solve(pb, lap0.solution, log, overrides)
         c = log_counts(log)
         its = int(stats["iter_count"])
@@ -224,7 +229,7 @@ def variant(rep: Report, model: str, intervals: int, n: int, seed: int, logs: Pa
         hess, jac = stats["t_proc_nlp_hess_l"], stats["t_proc_nlp_jac_g"]
         status = "—" if lap is None else f"{lap.lap_time_s:.4f}" if lap.completed \
             else lap.reason[:40]
-        rep.add(f"| {model} | {intervals} | {base} | {i + 1 - itself or 'itself'}: {status} "
+        rep.add(f"| {model} | {label} | {base} | {i + 1 - itself or 'itself'}: {status} "
                 f"({stats['return_status']}, {f:.4f}) | {t_lap:.2f} | {t_nlp:.2f} | {its} | "
                 f"{1000 * t_nlp / max(its, 1):.0f} | {100 * hess / t_nlp:.0f} % / "
                 f"{100 * jac / t_nlp:.0f} % | {c['restoration']} | {c['inertia']} | "
@@ -268,9 +273,10 @@ def main() -> None:
         rep.add("", f"IPOPT overrides of the logged solve (CPU NLP and the columns after it): "
                 f"{overrides}; the CPU of limit_lap is the library's own solve.", "")
     for v in a.variants.split(","):
-        model, intervals = v.split(":")
+        model, intervals, *rest = v.split(":")
         variant(rep, model, int(intervals), a.n, a.seed, logs, overrides, a.self,
-                a.blockers, a.nlp_only)
+                a.blockers, a.nlp_only, int(rest[0]) if rest else 3,
+                rest[1] if len(rest) > 1 else "rk4")
 
 
 def _value(text: str):

@@ -229,3 +229,32 @@ def test_polish_stage_stores_evaluates_and_resumes(tmp_path, monkeypatch):
     assert (part / "pareto.csv").read_bytes() == (full / "pareto.csv").read_bytes()
     strip = lambda h: [{k: v for k, v in r.items() if k != "wall_time_s"} for r in h]  # noqa: E731
     assert strip(RunStore(part).history()) == strip(history)
+
+
+@pytest.mark.slow
+def test_propeller_polish_holds_the_members_effort():
+    """The polish with the propeller propulsion model (short track, 16 intervals, ~3 min): the
+    member's effort is its own limit lap's (the index reads each rotor's thrust from its speed
+    and inflow: casadrone.indices.limit_lap_thrusts), the co-design point meets it, and the
+    polished frame evaluated as the optimiser evaluates any frame is not dominated by the
+    member."""
+    from casadrone.codesign.polish import improves, polish_member, prepared
+
+    data = _problem().model_dump()
+    data["airframe"] = str(ROOT / "configs/airframes/SY250-components-propeller.yaml")
+    data["codesign"] = {"starts": 0, "intervals": 16}
+    prep = prepared(CodesignProblemConfig.model_validate(data))
+
+    def own(theta):
+        lap = limit_lap(with_theta(prep.template, theta), load(TrackConfig, SHORT),
+                        LimitLapOptions(intervals=16, sensitivities=False, starts=(),
+                                        warm_starts=(prep.template_laps[0],),
+                                        gate_clearance_m=prep.options.gate_clearance_m))
+        assert lap.completed and lap.propulsion == "propeller", lap.reason
+        return {"J3_limit": lap.lap_time_s, "effort": limit_lap_effort(lap)}
+
+    member = own(MEMBER)
+    p = polish_member(prep, MEMBER, member)
+    assert p.accepted, p.reason
+    assert p.values["effort"] <= member["effort"] * (1 + 1e-6)
+    assert improves(member, own(p.theta))

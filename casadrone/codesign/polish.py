@@ -58,7 +58,8 @@ class Polished:
 def polish_problem(problem, intervals: int | None = None):
     """The co-design problem of an optimiser's ``problem``: the same airframe, track, box and
     objectives, posed on ``intervals`` per leg (None: the limit lap's default for the
-    template's propulsion, the grid the evaluation chain's limit lap uses), no random starts."""
+    template's propulsion, the grid the evaluation chain's limit lap uses), no random starts,
+    the template's lap from the closed-loop start."""
     from casadrone.config.airframe import load_airframe
     from casadrone.config.codesign import CodesignProblemConfig
     from casadrone.limit.result import DEFAULT_INTERVALS
@@ -68,7 +69,9 @@ def polish_problem(problem, intervals: int | None = None):
         intervals = DEFAULT_INTERVALS[load_airframe(problem.airframe).propulsion.model]
     data = problem.model_dump()
     data["algorithm"] = {"name": problem.algorithm.name}
-    data["codesign"] = {"starts": 0, "intervals": intervals}
+    # the template's lap from the closed-loop start alone: the evaluation chain's own cold
+    # start for J3_limit (casadrone.optimise.problem); the default three cost three times more
+    data["codesign"] = {"starts": 0, "intervals": intervals, "lap_starts": ["closed-loop"]}
     return CodesignProblemConfig.model_validate(data)
 
 

@@ -29,6 +29,13 @@ FRONT_MEASURES = {
               "(N^1.5 s): the rotors' ideal induced energy by momentum theory times "
               "sqrt(2 rho A) (casadrone.codesign.nlp.effort)",
 }
+#: The limit lap's cold starts (casadrone.limit.result.Start: the config stage comes before the
+#: limit lap's, so the names are repeated here; tests/unit/test_codesign_config.py keeps them
+#: equal).
+LapStart = Literal["closed-loop", "point-mass", "coarse-grid", "fine-grid", "relaxed-tolerance"]
+#: The template's lap from these cold starts unless a problem names others
+#: (``codesign.lap_starts``), and where those give no verified lap.
+DEFAULT_LAP_STARTS: tuple[LapStart, ...] = ("closed-loop", "point-mass", "coarse-grid")
 #: The limit lap's own index (the co-design objective).
 LAP_INDEX = "J3_limit"
 #: The optimiser's objectives a polish (``algorithm.settings.polish``) can hold: the limit lap,
@@ -75,6 +82,13 @@ class CodesignSettings(Schema):
     intervals: int | None = Field(None, ge=2, le=400, description="shooting intervals per "
                                   "leg; default: the limit lap's for the airframe's propulsion "
                                   "kind (40 paper, 80 propeller)")
+    lap_starts: tuple[LapStart, ...] = Field(
+        DEFAULT_LAP_STARTS, min_length=1, description="the limit "
+        "lap's cold starts for the template's lap (the co-design's first start and every other "
+        "frame's warm start; the default three where the given ones fail) and for the "
+        "certificate's cold fixed-frame re-solve. Which start leads to the best co-design "
+        "optimum depends on the track (benchmarks/RESULTS-codesign.md: the closed-loop start "
+        "on the paper track, the point-mass start on the short test track)")
     expand: bool = Field(False, description="expand the co-design NLP to CasADi SX before "
                          "solving: a one-off build cost per process for cheaper iterations "
                          "(short test track, 8 intervals: build 12.6 s, solve 1.6 s instead of "

@@ -282,3 +282,46 @@ def test_grid_refined_when_the_resimulation_misses():
     assert r.certificate.passed, r.certificate.text()
     (track,) = r.certificate.tracks
     assert track.resimulation_miss_m <= 0.15 and abs(track.gap_pct) <= 0.05
+
+
+def test_template_lap_falls_back_to_the_default_starts(monkeypatch):
+    """A template lap that the problem's own starts cannot fly is solved again from the default
+    three (the limit lap's own call is replaced by one that fails for any other start set)."""
+    from dataclasses import replace
+
+    from casadrone.codesign import driver
+    from casadrone.limit.lap import LimitLap
+
+    calls = []
+
+    def fake(cfg, track, options):
+        calls.append(options.starts)
+        ok = options.starts == driver.FULL_LAP_STARTS
+        return LimitLap(status="completed" if ok else "failed", reason="")
+
+    monkeypatch.setattr(driver, "limit_lap", fake)
+    opts = LimitLapOptions(intervals=8, starts=("coarse-grid",))
+    track = load(TrackConfig, SHORT)
+    assert driver.template_lap(r_template(), track, opts).completed
+    assert calls == [("coarse-grid",), driver.FULL_LAP_STARTS]
+    calls.clear()  # the default starts themselves are not tried twice
+    assert not driver.template_lap(r_template(), track, replace(
+        opts, starts=("point-mass", "closed-loop", "coarse-grid"))).completed
+    assert calls == [("point-mass", "closed-loop", "coarse-grid")]
+
+
+@pytest.mark.slow
+def test_paper_problem_lap_start_reaches_the_default_starts_optimum():
+    """codesign-paper's template lap from the closed-loop start alone (its lap_starts) leads the
+    template start to the same frame and lap as the default three starts (measured: the same
+    lap to 1e-16, benchmarks/RESULTS-codesign.md), and the certificate still passes."""
+    from casadrone.codesign.checks import load_codesign_problem
+
+    one = codesign(load_codesign_problem("codesign-paper", ["codesign.starts=0"]))
+    three = codesign(load_codesign_problem("codesign-paper", [
+        "codesign.starts=0", "codesign.lap_starts=[closed-loop,point-mass,coarse-grid]"]),
+        certify=False)
+    assert one.certificate.passed, one.certificate.text()
+    assert one.best.objective == pytest.approx(three.best.objective, rel=1e-9)
+    for k, v in three.best.theta.items():
+        assert one.best.theta[k] == pytest.approx(v, abs=1e-6)

@@ -32,11 +32,28 @@ def test_an_ordinary_problem_with_a_closed_loop_index_is_refused_by_name():
     ("codesign.combine=best", "codesign.combine"),
     ("codesign.starts=-1", "codesign.starts"),
     ("codesign.intervals=1", "codesign.intervals"),
+    ("codesign.lap_starts=[]", "codesign.lap_starts"),
+    ("codesign.lap_starts=[straight]", "codesign.lap_starts.0"),
 ])
 def test_bad_codesign_settings_name_their_key(override, key):
     with pytest.raises(ConfigError) as info:
         load_codesign_problem("codesign-paper", [override])
     assert any(f": {key}:" in line for line in info.value.lines), info.value.lines
+
+
+def test_lap_starts_are_the_limit_laps_cold_starts():
+    """The schema repeats the limit lap's start names (the config stage comes first): the same
+    names, and each one a registered cold start of the limit lap."""
+    from typing import get_args
+
+    from casadrone.config.codesign import LapStart
+    from casadrone.limit.result import Start
+    from casadrone.limit.starts import COLD_STARTS
+
+    assert get_args(LapStart) == get_args(Start)
+    assert set(get_args(LapStart)) == set(COLD_STARTS)
+    cfg = load_codesign_problem("codesign-paper", ["codesign.lap_starts=[closed-loop,point-mass]"])
+    assert cfg.codesign.lap_starts == ("closed-loop", "point-mass")
 
 
 def test_cli_refuses_a_closed_loop_index_with_exit_code_2(cli_runner):

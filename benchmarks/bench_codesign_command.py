@@ -13,6 +13,11 @@ certificate (passed, lap gap, re-simulation miss).
 Run: ``python benchmarks/bench_codesign_command.py codesign-paper --json out.json`` (the shipped
 problem with 5 random starts, and its template start alone), or with variants:
 ``--variant full codesign.lap_starts=[closed-loop,point-mass,coarse-grid]``.
+
+``--template-laps point-mass closed-loop coarse-grid`` instead times, in this process, the
+template's limit lap on the problem's (first) track from each start alone (``a+b``: several),
+posed as co-design poses it (its intervals and gate clearance, no point-mass reference): the lap,
+the start chosen, the iterations and the CPU. The first one also builds the NLP.
 """
 
 from __future__ import annotations
@@ -74,13 +79,46 @@ def run_variant(problem: str, overrides: list[str]) -> dict:
     return row
 
 
+def template_laps(problem: str, starts: list[str]) -> None:
+    """The template's limit lap from each start set (see the module docstring)."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from casadrone.codesign import driver
+    from casadrone.codesign.checks import load_codesign_problem
+    from casadrone.limit.lap import LimitLapOptions, limit_lap
+
+    cfg = load_codesign_problem(problem)
+    template = driver._template(cfg)
+    keys = tuple(v.name for v in cfg.variables)
+    lower = np.array([v.lower for v in cfg.variables])
+    upper = np.array([v.upper for v in cfg.variables])
+    _, tracks, _ = driver._tracks(cfg)
+    base = LimitLapOptions(intervals=cfg.codesign.intervals, sensitivities=False,
+                           point_mass_reference=False,
+                           gate_clearance_m=driver.gate_clearance(template, lower, upper, keys))
+    for names in starts:
+        c0 = time.process_time()
+        lap = limit_lap(template, tracks[0], replace(base, starts=tuple(names.split("+"))))
+        print(f"{names}: {lap.status}, lap {lap.lap_time_s:.5f} s from {lap.start}, "
+              f"{[(s.start, s.iterations) for s in lap.starts]}, "
+              f"{time.process_time() - c0:.2f} s CPU, load {os.getloadavg()[0]:.1f}", flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("problem", help="a co-design problem (path or shipped name)")
     ap.add_argument("--variant", nargs="+", action="append", metavar=("NAME", "OVERRIDE"),
                     help="a named variant and its overrides (repeatable)")
     ap.add_argument("--json", type=Path, help="write the rows here too")
+    ap.add_argument("--template-laps", nargs="+", metavar="START",
+                    help="time the template's limit lap from each start instead")
     args = ap.parse_args(argv)
+    if args.template_laps:
+        sys.path.insert(0, str(ROOT))
+        template_laps(args.problem, args.template_laps)
+        return 0
     variants = [(v[0], v[1:]) for v in args.variant] if args.variant else [
         ("shipped", []), ("template-start", ["codesign.starts=0"])]
     rows = {}

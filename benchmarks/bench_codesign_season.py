@@ -9,7 +9,10 @@ the certificate's variable states and reduced gradients and the active constrain
 multipliers.
 
 Run: ``python benchmarks/bench_codesign_season.py --dir /tmp/season`` (add ``--read`` to only
-print the tables of an earlier run).
+print the tables of an earlier run). ``--cross NAME.json`` instead flies the frame of one
+single-track result (``casadrone codesign codesign-gates ... --json`` written to a file) on the
+season's other tracks: its limit lap from the default three starts, posed as co-design poses it
+(the same gate clearance and intervals; ``--intervals``, default 40).
 """
 
 from __future__ import annotations
@@ -77,13 +80,56 @@ def tables(folder: Path) -> str:
     return "\n".join(lines)
 
 
+def cross(path: Path, intervals: int) -> None:
+    """The single-track optimum of ``path`` flown on the season's other tracks (its own limit
+    lap, the default starts), printed with its CPU."""
+    import time
+
+    import numpy as np
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+    from casadrone.airframe import with_theta
+    from casadrone.codesign import driver
+    from casadrone.codesign.checks import load_codesign_problem
+    from casadrone.limit.lap import LimitLapOptions, limit_lap
+
+    result = json.loads(path.read_text())
+    cfg = load_codesign_problem("codesign-season")
+    template = driver._template(cfg)
+    keys = tuple(v.name for v in cfg.variables)
+    lower = np.array([v.lower for v in cfg.variables])
+    upper = np.array([v.upper for v in cfg.variables])
+    labels, tracks, _ = driver._tracks(cfg)
+    options = LimitLapOptions(intervals=intervals, sensitivities=False,
+                              point_mass_reference=False, starts=driver.FULL_LAP_STARTS,
+                              gate_clearance_m=driver.gate_clearance(template, lower, upper,
+                                                                     keys))
+    frame = with_theta(template, result["best"]["theta"])
+    for label, track in zip(labels, tracks, strict=True):
+        if track.name in result["best"]["laps_s"]:
+            continue
+        c0 = time.process_time()
+        lap = limit_lap(frame, track, options)
+        print(f"{result['problem']} frame {result['best']['theta']} on {label}: {lap.status}, "
+              f"{lap.lap_time_s:.6f} s from {lap.start}, miss {lap.resimulation_miss_m:.4f} m, "
+              f"{time.process_time() - c0:.1f} s CPU", flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--dir", type=Path, required=True)
+    ap.add_argument("--dir", type=Path)
     ap.add_argument("--read", action="store_true", help="only print the tables")
+    ap.add_argument("--cross", type=Path, help="fly this single-track result's frame on the "
+                    "other tracks instead")
+    ap.add_argument("--intervals", type=int, default=40, help="intervals per leg of --cross")
     ap.add_argument("overrides", nargs="*",
                     default=["codesign.starts=0", "codesign.intervals=20"])
     args = ap.parse_args(argv)
+    if args.cross:
+        cross(args.cross, args.intervals)
+        return 0
+    if args.dir is None:
+        ap.error("give --dir (or --cross)")
     if not args.read:
         args.dir.mkdir(parents=True, exist_ok=True)
         run(args.dir, args.overrides)

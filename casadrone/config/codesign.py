@@ -66,7 +66,8 @@ class PolishSettings(Schema):
 
     members: int = Field(5, ge=1, le=1000, description="front members polished, spread evenly "
                          "along the lap (both ends included; all when the front is smaller); "
-                         "each is one co-design solve (~1-2 min of CPU on the paper track)")
+                         "each is one co-design solve (11-21 s of CPU on the paper track, "
+                         "benchmarks/RESULTS-codesign.md)")
 
 
 class CodesignSettings(Schema):

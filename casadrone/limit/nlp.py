@@ -568,8 +568,9 @@ def ipopt_options(tol: float, max_iter: int, warm: bool, near: bool = False,
 #: lap the adaptive μ fell at the first iteration to 10^-9.2 (``paper``: 10^-5.4), and with so
 #: small a barrier the Newton steps ran into the commands' and the tilt bounds (fraction to the
 #: boundary) for 40 iterations before the first full step. Measured on SY250-propeller's two
-#: neighbours of bench_propulsion_warm (80 intervals; benchmarks/RESULTS-propulsion.md, "Warm
-#: solves: the barrier's centring"): σ_min 1e-3 35 and 26 iterations instead of 66 and 67, the
+#: neighbours of bench_propulsion_warm (80 intervals; benchmarks/RESULTS-propulsion.md, "Closing
+#: the warm gap"): σ_min 1e-3 35 and 26 iterations instead of 66 and 67 (four neighbours: 26–35
+#: against 41–67), the
 #: same laps to 8 digits (it changes the path, not the convergence test); 1e-4 42 and 33, 1e-2
 #: 32 and 49. A floor on μ instead (``mu_min`` 1e-7) took 25 and 15 but stops on the barrier's
 #: bias (laps 0.003 % slower; 3e-7: 0.009 %). ``paper`` keeps IPOPT's default: its results stay

@@ -71,7 +71,9 @@ class LimitLapOptions:
     # Step of the rotor states (shooting): "rk4" (classical RK4, every state) or "exponential"
     # (ETDRK4: the rotors' linear decay integrated exactly, RK4 elsewhere;
     # casadrone.limit.nlp.etdrk4_step), which follows the propeller kind's ~20 ms rotor lag on
-    # coarser grids (benchmarks/RESULTS-propulsion.md, "Exponential rotor step").
+    # coarser grids: SY250-propeller on 40 intervals of 4 steps re-simulates within 2.1 cm (RK4
+    # on 40 x 3: 0.30 m), but its warm solves were not cheaper than 80 x 3 RK4's (more
+    # iterations), so it is opt-in (benchmarks/RESULTS-propulsion.md, "Exponential rotor step").
     rotor_step: Literal["rk4", "exponential"] = "rk4"
     degree: int = 3  # Radau collocation points per interval (collocation)
     # "coarse-grid": grid continuation, the closed-loop start solved on COARSE_SHARE of the

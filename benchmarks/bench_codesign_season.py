@@ -91,6 +91,7 @@ def cross(path: Path, intervals: int) -> None:
     from casadrone.airframe import with_theta
     from casadrone.codesign import driver
     from casadrone.codesign.checks import load_codesign_problem
+    from casadrone.config.codesign import DEFAULT_LAP_STARTS
     from casadrone.limit.lap import LimitLapOptions, limit_lap
 
     result = json.loads(path.read_text())
@@ -101,7 +102,7 @@ def cross(path: Path, intervals: int) -> None:
     upper = np.array([v.upper for v in cfg.variables])
     labels, tracks, _ = driver._tracks(cfg)
     options = LimitLapOptions(intervals=intervals, sensitivities=False,
-                              point_mass_reference=False, starts=driver.FULL_LAP_STARTS,
+                              point_mass_reference=False, starts=DEFAULT_LAP_STARTS,
                               gate_clearance_m=driver.gate_clearance(template, lower, upper,
                                                                      keys))
     frame = with_theta(template, result["best"]["theta"])

@@ -241,7 +241,7 @@ def limit_lap_thrusts(lap) -> np.ndarray:
         raise ValueError(f"the limit lap's thrusts need its airframe vector ({kind} propulsion)")
     from casadrone.model import rotor_thrust_function
 
-    f = rotor_thrust_function(kind).map(len(x))
+    f = rotor_thrust_function(kind)  # called with one column per node: CasADi maps it
     return np.asarray(f(x[:, 3:6].T, x[:, 6:9].T, x[:, 12:16].T, p), float).T
 
 

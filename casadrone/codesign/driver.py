@@ -199,24 +199,19 @@ def gate_clearance(template: AirframeConfig, lower: np.ndarray, upper: np.ndarra
                                                 template.prop_diameter_mm / 1000))
 
 
-#: The template's lap from these cold starts where ``codesign.lap_starts`` give none (the
-#: schema's default). With the limit lap's fine-grid start as well, the certificate's cold
-#: re-solve of the short-track frame (tests/integration/test_codesign.py) found a lap 0.86 %
-#: faster than the co-design point (0.7849 against 0.7918 s): co-design's NLP stops in a slower
-#: local optimum there.
-FULL_LAP_STARTS: tuple[Start, ...] = DEFAULT_LAP_STARTS
-
-
 def template_lap(template: AirframeConfig, track: TrackConfig,
                  options: LimitLapOptions) -> LimitLap:
     """The template's limit lap, the co-design's first start and every other frame's warm
-    start: from ``options.starts`` (``codesign.lap_starts``), from :data:`FULL_LAP_STARTS` where
-    those give no verified lap. No point-mass reference unless a start needs it: co-design does
-    not report it, and it is three point-mass solves (13 s of the paper track's 38)."""
+    start: from ``options.starts`` (``codesign.lap_starts``), and where those give no verified
+    lap from the schema's default starts (:data:`DEFAULT_LAP_STARTS`) not tried yet (each start
+    is its own solve, so the ones tried would fail again). No point-mass reference unless a
+    start needs it: co-design does not report it, and it is three point-mass solves (13 s of the
+    paper track's 38)."""
     lap = limit_lap(template, track, options)
-    if lap.completed or set(FULL_LAP_STARTS) <= set(options.starts):
+    rest: tuple[Start, ...] = tuple(s for s in DEFAULT_LAP_STARTS if s not in options.starts)
+    if lap.completed or not rest:
         return lap
-    return limit_lap(template, track, replace(options, starts=FULL_LAP_STARTS))
+    return limit_lap(template, track, replace(options, starts=rest))
 
 
 _BUILT: dict[tuple, CodesignNlp] = {}

@@ -55,14 +55,12 @@ def effort_terms(part: TrackPart, w, p=None):
     L, M, N = nlp.layout.n_legs, nlp.layout.n_intervals, nlp.layout.intervals
     zero_u = np.zeros((M, nlp.model.nu))
     X = np.zeros((M + 1, nlp.model.nx))
-    at_s = np.flatnonzero(nlp.pack(np.ones(L), X, zero_u))
+    h = w[np.flatnonzero(nlp.pack(np.ones(L), X, zero_u)).tolist()] / N
     if part.propulsion == "paper":
         X[:M, nlp.model.rotor] = 1.0
         at_t = np.flatnonzero(nlp.pack(np.zeros(L), X, zero_u))
-        h = w[at_s.tolist()] / N
         T = ca.reshape(w[at_t.tolist()], -1, M)  # rotors × intervals
     else:
-        h = w[at_s.tolist()] / N
         T = _node_thrusts(part, w, p)
     power = ca.sum1((T ** 2 + EFFORT_SMOOTHING_N ** 2) ** 0.75)
     return power.T * h  # one term per interval

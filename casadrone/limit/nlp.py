@@ -384,10 +384,11 @@ def etdrk4_step(model: OcpModel, substeps: int) -> ca.Function:
     return ca.Function("step", [x, u, p, h], [xk], ["x", "u", "p", "h"], ["x_next"])
 
 
-def exponential_rotor(model: OcpModel, propulsion: str) -> OcpModel:
+def exponential_rotor(model: OcpModel) -> OcpModel:
     """``model`` with its rotor states stepped by ETDRK4 (:func:`etdrk4_step`) at the rotor
-    decay rate of ``propulsion`` (:func:`casadrone.propulsion.rotor_decay_rate`), under its own
-    name (its own NLP and compiled blocks)."""
+    decay rate of its propulsion kind (:func:`casadrone.propulsion.rotor_decay_rate`), under its
+    own name (its own NLP and compiled blocks)."""
+    propulsion = model.propulsion
     from casadrone.model import named, unpack_params
     from casadrone.propulsion import rotor_decay_rate
 

@@ -134,7 +134,7 @@ def prepare(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
     if is_lagless(frame):  # thrust.time_constant_s: 0, the lag-off idealisation
         model = without_lag(model)
     elif options.rotor_step == "exponential":  # a lagless model has no rotor lag to integrate
-        model = exponential_rotor(model, frame.propulsion)
+        model = exponential_rotor(model)
     full = build_nlp(model, layout, options.tol, options.max_iter)
     x0_euler = start_state(frame, track, options)
     x0 = model_states(options.attitude, x0_euler)[0]

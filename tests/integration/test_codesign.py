@@ -286,7 +286,8 @@ def test_grid_refined_when_the_resimulation_misses():
 
 def test_template_lap_falls_back_to_the_default_starts(monkeypatch):
     """A template lap that the problem's own starts cannot fly is solved again from the default
-    three (the limit lap's own call is replaced by one that fails for any other start set)."""
+    starts not tried yet (the limit lap's own call is replaced by one that fails for any other
+    start set)."""
     from dataclasses import replace
 
     from casadrone.codesign import driver
@@ -296,14 +297,15 @@ def test_template_lap_falls_back_to_the_default_starts(monkeypatch):
 
     def fake(cfg, track, options):
         calls.append(options.starts)
-        ok = options.starts == driver.FULL_LAP_STARTS
+        ok = options.starts == ("closed-loop", "point-mass")
         return LimitLap(status="completed" if ok else "failed", reason="")
 
     monkeypatch.setattr(driver, "limit_lap", fake)
     opts = LimitLapOptions(intervals=8, starts=("coarse-grid",))
     track = load(TrackConfig, SHORT)
     assert driver.template_lap(r_template(), track, opts).completed
-    assert calls == [("coarse-grid",), driver.FULL_LAP_STARTS]
+    # the failed coarse-grid start is not flown again
+    assert calls == [("coarse-grid",), ("closed-loop", "point-mass")]
     calls.clear()  # the default starts themselves are not tried twice
     assert not driver.template_lap(r_template(), track, replace(
         opts, starts=("point-mass", "closed-loop", "coarse-grid"))).completed

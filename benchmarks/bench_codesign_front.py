@@ -7,7 +7,11 @@ template start reaches the best of six starts on this track, RESULTS-codesign.md
 phase in CPU seconds of this one process (one core): the template's limit lap and the NLP's
 build, the fastest frame, the ε-continuation. Writes the run directory to DIR and the timings
 to DIR/timings.json at the end, and each point as it converges (lap, measure, ε, iterations,
-CPU) to DIR.points.jsonl beside it, so a sweep stopped early keeps what it reached.
+CPU) to DIR.points.jsonl beside it, so a sweep stopped early keeps what it reached. Then every
+point is certified (:mod:`casadrone.codesign.frontcert`: the fastest frame with its cold
+fixed-frame check, each ε-point by its warm fixed-θ re-solve, reduced gradient and CVODES),
+each certificate written to DIR.certificates.jsonl as it is issued and timed apart
+(``certificates_cpu_s``; ``--no-point-certificates`` leaves them out).
 
 Phase 2 (``--ga RUN --ga-cpu S``): the comparison with a finished ``casadrone run`` of
 ``problems/limit-effort.yaml`` (ev-MOGA, the same airframe, track, box and objectives; its CPU
@@ -47,12 +51,16 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 
-def run_front(problem: str, out: Path, overrides: list[str], certify: bool = False) -> dict:
+def run_front(problem: str, out: Path, overrides: list[str], certify: bool = False,
+              point_certificates: bool = True) -> dict:
     """The co-design front, timed by phase (CPU s of this process). ``certify``: the fastest
     frame is certified first as ``casadrone codesign`` certifies it (restarted, or re-posed on
     a finer grid, while its certificate fails: :func:`casadrone.codesign.design.certified`),
     its certificate written to DIR.certificate.txt beside DIR, and the front follows from the
-    certified point on its grid."""
+    certified point on its grid. ``point_certificates``: every point of the front is certified
+    after the sweep (:func:`casadrone.codesign.frontcert.certify_front`; the fastest frame by
+    the certificate above, or by its own without ``certify``), each written to
+    DIR.certificates.jsonl as it is issued; timed apart."""
     from casadrone.cli.codesign import text
     from casadrone.codesign.checks import load_codesign_problem
     from casadrone.codesign.design import certified
@@ -65,6 +73,7 @@ def run_front(problem: str, out: Path, overrides: list[str], certify: bool = Fal
         start_points,
     )
     from casadrone.codesign.front import design_front, write_run
+    from casadrone.codesign.frontcert import certify_front
 
     cfg = load_codesign_problem(problem, ["codesign.starts=0", *overrides])
     t = {"start": time.process_time()}
@@ -76,6 +85,7 @@ def run_front(problem: str, out: Path, overrides: list[str], certify: bool = Fal
     assert z0 is not None, "the template has no limit lap"
     ok, status, best = solve_from(prep, z0)
     assert ok, status
+    cert = None
     if certify:
         reports = [StartReport("template", theta, status, ok, best.objective, best.theta,
                                best.iterations, time.process_time() - t["prepared"])]
@@ -104,13 +114,37 @@ def run_front(problem: str, out: Path, overrides: list[str], certify: bool = Fal
                          cfg.codesign.front.lowest,
                          on_point=lambda fp: keep(fp.point, fp.measure, fp.epsilon))
     t["front"] = time.process_time()
+    certificates: list[dict] = []
+    if point_certificates:
+        issued = out.parent / f"{out.name}.certificates.jsonl"
+        clock = [time.process_time()]
+
+        def record(i: int, fp) -> None:
+            c = fp.certificate
+            now = time.process_time()
+            row = {"point": i, "lap_s": fp.point.objective, "measure": fp.measure,
+                   "epsilon": fp.epsilon, "passed": c.passed, "reason": c.reason,
+                   "gap_pct": max((x.gap_pct for x in c.tracks), key=abs, default=math.nan),
+                   "miss_m": max((x.resimulation_miss_m for x in c.tracks), default=math.nan),
+                   "cpu_s": now - clock[0], "summary": c.summary()}
+            clock[0] = now
+            certificates.append(row)
+            with open(issued, "a") as fh:
+                fh.write(json.dumps(row) + "\n")
+
+        front = certify_front(front, cert, on_point=record)
+    t["certificates"] = time.process_time()
     write_run(out, prep, front, len(front.points))
     timings = {"prepare_cpu_s": t["prepared"] - t["start"],
                "fastest_cpu_s": t["fastest"] - t["prepared"],
                "fastest_iterations": best.iterations,
                "intervals": prep.options.intervals,
                "continuation_cpu_s": t["front"] - t["fastest"],
-               "total_cpu_s": t["front"] - t["start"], "wall_s": time.perf_counter() - wall0,
+               "certificates_cpu_s": t["certificates"] - t["front"],
+               "certificates_passed": sum(c["passed"] for c in certificates),
+               "certificates": certificates,
+               "total_cpu_s": t["certificates"] - t["start"],
+               "wall_s": time.perf_counter() - wall0,
                "points": len(front.points), "stopped": front.stopped,
                "iterations": [p.point.iterations for p in front.points],
                "load_average": os.getloadavg()}
@@ -188,11 +222,14 @@ def main(argv: list[str] | None = None) -> int:
                     "frames as the GA does (their minimum-time limit lap and its effort)")
     ap.add_argument("--certify", action="store_true", help="certify the fastest frame first "
                     "(and re-pose it as casadrone codesign does while the certificate fails)")
+    ap.add_argument("--no-point-certificates", dest="point_certificates",
+                    action="store_false", help="leave the front's points uncertified (the "
+                    "front alone, as measured before every point was certified)")
     ap.add_argument("overrides", nargs="*", help="co-design problem overrides (key=value)")
     args = ap.parse_args(argv)
     if args.front:
-        print(json.dumps(run_front(args.problem, args.front, args.overrides, args.certify),
-                         indent=1))
+        print(json.dumps(run_front(args.problem, args.front, args.overrides, args.certify,
+                                   args.point_certificates), indent=1))
     if args.compare and args.ga:
         result = compare(read_front(args.compare), read_front(args.ga))
         timings = json.loads((args.compare / "timings.json").read_text())

@@ -81,4 +81,10 @@ def text(result) -> str:
             th = ", ".join(f"{v:.2f}" for v in p.point.theta.values())
             lines.append(f"    lap {p.point.objective:.4f} s  {f.measure} {p.measure:.5g}  "
                          f"θ = ({th})  {p.point.iterations} it")
+            if p.certificate is not None:
+                lines.append(f"      certificate {p.certificate.summary()}")
+        certs = [p.certificate for p in f.points if p.certificate is not None]
+        if certs:
+            lines.append(f"  front certificates: {sum(c.passed for c in certs)} of "
+                         f"{len(f.points)} points passed")
     return "\n".join(lines)

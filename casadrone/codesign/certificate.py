@@ -83,20 +83,41 @@ class Certificate:
     reason: str
 
     def as_dict(self) -> dict[str, Any]:
-        return {"tracks": [{k: v for k, v in asdict(t).items() if k != "cold_w"}
-                           for t in self.tracks],
+        def track(t: TrackCheck) -> dict[str, Any]:
+            d = {k: v for k, v in asdict(t).items() if k != "cold_w"}
+            if math.isnan(t.fixed_cold_lap_s):  # not run (an ε-point's certificate)
+                d["fixed_cold_lap_s"] = None
+            return d
+
+        return {"tracks": [track(t) for t in self.tracks],
                 "variables": [asdict(v) for v in self.variables],
                 "active_constraints": dict(self.active), "passed": self.passed,
                 "reason": self.reason}
+
+    def summary(self) -> str:
+        """The certificate in one line: verdict, the worst track's gap and miss, and the why
+        (each variable's state and reduced gradient, s per box width; the active rows'
+        multipliers)."""
+        head = "PASSED" if self.passed else f"FAILED ({self.reason})"
+        if not self.tracks:
+            return head
+        gap = max((t.gap_pct for t in self.tracks), key=abs)
+        miss = max(t.resimulation_miss_m for t in self.tracks)
+        why = ", ".join(f"{v.key} {v.state} {v.reduced_gradient:+.3g}" for v in self.variables)
+        rows = ", ".join(f"{k} {v:+.3g}" for k, v in self.active.items())
+        return (f"{head}: gap {gap:+.4f} %, CVODES miss {miss:.3g} m; why: {why}"
+                + (f"; active: {rows}" if rows else ""))
 
     def text(self) -> str:
         """The certificate as lines for the terminal."""
         lines = [f"certificate: {'PASSED' if self.passed else 'FAILED'}"
                  + (f" ({self.reason})" if self.reason else "")]
         for t in self.tracks:
+            cold = ("not run" if math.isnan(t.fixed_cold_lap_s)
+                    else f"{t.fixed_cold_lap_s:.4f}")
             lines.append(f"  {t.label}: co-design lap {t.codesign_lap_s:.4f} s, θ fixed "
                          f"{t.fixed_lap_s:.4f} s (warm {t.fixed_warm_lap_s:.4f}, cold "
-                         f"{t.fixed_cold_lap_s:.4f}), gap {t.gap_pct:+.4f} %, re-simulation "
+                         f"{cold}), gap {t.gap_pct:+.4f} %, re-simulation "
                          f"miss {t.resimulation_miss_m:.4f} m")
         lines.append("  why (reduced gradient: s per box width; bound multiplier from IPOPT):")
         for v in self.variables:
@@ -172,16 +193,32 @@ def _fixed_laps(prep, point, k: int, cfg):
     return warm, cold, pb
 
 
-def _gradient(prep, cfg, warm, track, keys) -> np.ndarray:
-    """dT/dθ (s per unit of each key) of one track's fixed-frame optimum (envelope theorem)."""
-    lam_p = warm.point.lam_p
+def theta_gradient(prep, cfg, track, dT_dP: np.ndarray) -> np.ndarray:
+    """dT/dθ (s per unit of each key) from dT/dP of one track's fixed-frame optimum (P = [p,
+    x_start, targets] in the frame's propulsion layout), chained through the numeric airframe
+    build by :func:`casadrone.limit.check.theta_sensitivities` (envelope theorem)."""
     nx = prep.nlp.parts[0].nlp.model.nx
     attitude = prep.options.attitude
-    n_p = n_params(cfg.propulsion.model)  # P = [p, x_start, targets] in its propulsion's layout
-    sens = theta_sensitivities(cfg, -lam_p[:n_p], -lam_p[n_p:n_p + nx],
+    n_p = n_params(cfg.propulsion.model)
+    sens = theta_sensitivities(cfg, dT_dP[:n_p], dT_dP[n_p:n_p + nx],
                                lambda f: model_states(attitude, start_state(
-                                   f, track, prep.options))[0], keys=keys)
-    return np.array([sens[k] for k in keys])
+                                   f, track, prep.options))[0], keys=prep.keys)
+    return np.array([sens[k] for k in prep.keys])
+
+
+def frame_terms(prep, point) -> np.ndarray:
+    """The θ-only rows' part of the reduced gradient (s per box width): the feasibility rows'
+    and the mass and span ε rows' Jacobians in s times their multipliers at ``point``. The
+    effort row is not θ-only: it reaches θ through the lap (its multipliers are in dT/dP)."""
+    cd = prep.nlp
+    lam_feas, _, lam_eps = _row_multipliers(cd, point.lam_g)
+    _, s = cd.split(point.z)
+    rows = _frame_jacobians(cd, s)
+    out = rows["feas"].T @ lam_feas
+    for m, lam in lam_eps.items():
+        if m in rows:
+            out = out + rows[m].T @ lam
+    return out
 
 
 def certify(prep, point) -> Certificate:
@@ -203,23 +240,27 @@ def certify(prep, point) -> Certificate:
         ok = abs(gap) <= 100 * LAP_RTOL and miss <= prep.options.max_miss_m
         cold_w = cold.solution.w if cold.completed and cold.solution is not None else None
         checks.append(TrackCheck(label, ref, laps[0], laps[1], fixed, gap, miss, ok, cold_w))
-        grads.append(_gradient(prep, cfg, warm, prep.tracks[k], prep.keys)
+        grads.append(theta_gradient(prep, cfg, prep.tracks[k], -warm.point.lam_p)
                      if warm.success else np.full(len(prep.keys), np.nan))
-    lam_feas, mu, lam_eps = _row_multipliers(cd, point.lam_g)
+    _, mu, _ = _row_multipliers(cd, point.lam_g)
     weights = np.array(prep.weights) * mu
     g_theta = sum(w * g for w, g in zip(weights, grads, strict=True))
-    width = prep.upper - prep.lower
+    # the effort row's θ-terms are not here: the certificate is issued at the unconstrained
+    # point, where no ε row is posed (ε-points: casadrone.codesign.frontcert)
+    reduced = g_theta * (prep.upper - prep.lower) + frame_terms(prep, point)
+    return verdict(prep, point, tuple(checks), g_theta, reduced)
+
+
+def verdict(prep, point, checks: tuple[TrackCheck, ...], g_theta: np.ndarray,
+            reduced: np.ndarray) -> Certificate:
+    """The certificate from the track checks and the reduced gradient (s per box width, the
+    frame's and ε rows' terms included): each variable's state (interior, at a bound), its check
+    (zero inside the box, the bound's sign at a bound), the active rows, and what failed."""
+    cd = prep.nlp
     _, s = cd.split(point.z)
-    rows = _frame_jacobians(cd, s)
-    reduced = g_theta * width + rows["feas"].T @ lam_feas
-    for m, lam in lam_eps.items():
-        # the effort row is left out: it reaches θ through the lap (and, with ``propeller``,
-        # through the rotor positions in the inflow; the certificate is issued at the
-        # unconstrained point, where no ε row is posed)
-        if m in rows:
-            reduced = reduced + rows[m].T @ lam
     active = {k: v for k, v in active_constraints(prep, point).items() if "bound" not in k}
     lam_s = point.lam_x[cd.offsets[-1]:cd.offsets[-1] + len(prep.keys)]
+    width = prep.upper - prep.lower
     scale = max(float(np.max(np.abs(g_theta * width))), 1e-12)
     tol = max(GRAD_RTOL * scale, GRAD_ATOL)
     variables = []
@@ -234,7 +275,7 @@ def certify(prep, point) -> Certificate:
               for t in checks if not t.passed]
     failed += [f"{v.key}: reduced gradient {v.reduced_gradient:+.3g} s ({v.state})"
                for v in variables if not v.passed]
-    return Certificate(tuple(checks), tuple(variables), active, not failed, "; ".join(failed))
+    return Certificate(checks, tuple(variables), active, not failed, "; ".join(failed))
 
 
 def _row_multipliers(cd, lam_g: np.ndarray) -> tuple[np.ndarray, np.ndarray,

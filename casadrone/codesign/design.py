@@ -1,6 +1,7 @@
 """The co-design of a problem: the fastest frame from every start
 (:mod:`casadrone.codesign.driver`), its certificate (:mod:`casadrone.codesign.certificate`) and,
-when the problem names a front measure, the design front (:mod:`casadrone.codesign.front`).
+when the problem names a front measure, the design front (:mod:`casadrone.codesign.front`) with a
+certificate at every point (:mod:`casadrone.codesign.frontcert`).
 Above the three, so that the front builds on the driver without an import circle.
 """
 
@@ -26,6 +27,7 @@ from casadrone.codesign.driver import (
     vector_of,
 )
 from casadrone.codesign.front import design_front, write_run
+from casadrone.codesign.frontcert import certify_front
 from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
 from casadrone.limit.lap import MAX_INTERVALS
 
@@ -171,6 +173,8 @@ def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
     if measures:
         front = design_front(prep, best, measures[0], problem.codesign.front.points,
                              problem.codesign.front.lowest)
+        if certify:  # every point: the fastest frame's certificate above, each ε-point's own
+            front = certify_front(front, cert)
         if run_dir is not None:
             write_run(run_dir, prep, front, len(front.points))
     return CodesignResult("completed", "", best=best, distinct=tuple(distinct), certificate=cert,

@@ -135,7 +135,9 @@ class CodesignResult:
                     "stopped": self.front.stopped,
                     "points": [{"lap_s": p.point.objective, "measure": p.measure,
                                 "epsilon": p.epsilon, "theta": p.point.theta,
-                                "iterations": p.point.iterations, "cpu_s": p.point.cpu_s}
+                                "iterations": p.point.iterations, "cpu_s": p.point.cpu_s,
+                                "certificate": None if p.certificate is None
+                                else p.certificate.as_dict()}
                                for p in self.front.points]},
                 "intervals": self.intervals, "cpu_s": self.cpu_s,
                 "wall_time_s": self.wall_time_s, "build_cpu_s": self.build_cpu_s}
@@ -359,12 +361,15 @@ def vector_of(prep: Prepared, theta: dict[str, float], ws: list[np.ndarray]) -> 
 
 
 def solve_from(prep: Prepared, z0: np.ndarray, epsilon: dict[str, float] | None = None,
-               warm: CodesignPoint | None = None) -> tuple[bool, str, CodesignPoint]:
-    """IPOPT on the co-design NLP from ``z0`` (or ``warm``'s primal-dual point)."""
+               warm: CodesignPoint | None = None,
+               bounds: tuple[np.ndarray, ...] | None = None
+               ) -> tuple[bool, str, CodesignPoint]:
+    """IPOPT on the co-design NLP from ``z0`` (or ``warm``'s primal-dual point); ``bounds``
+    (lbx, ubx, lbg, ubg) replace the NLP's own (a certificate fixes θ with them)."""
     cd = prep.nlp
-    lbx, ubx = cd.bounds()
+    lbx, ubx, lbg, ubg = bounds if bounds is not None else (*cd.bounds(), cd.lbg, cd.ubg)
     eps = np.array([(epsilon or {})[m] for m in cd.epsilon], float)
-    args = dict(x0=np.clip(cd.full(z0), lbx, ubx), lbx=lbx, ubx=ubx, lbg=cd.lbg, ubg=cd.ubg,
+    args = dict(x0=np.clip(cd.full(z0), lbx, ubx), lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg,
                 p=eps)
     solver = cd.cold
     if warm is not None:  # a point of the NLP without some rows or variables: zeros for them

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -32,6 +33,9 @@ class FrontPoint:
     epsilon: float
     status: str
     success: bool
+    #: its certificate (casadrone.codesign.certificate.Certificate; casadrone.codesign.frontcert
+    #: issues it at every point), None where the front was not certified
+    certificate: Any = None
 
 
 @dataclass(frozen=True)
@@ -122,7 +126,8 @@ def point_record(prep: Prepared, fp: FrontPoint, measure: str) -> dict:
             "epsilon": None if math.isinf(fp.epsilon) else fp.epsilon, "status": fp.status,
             "mass_kg": p.mass_kg, "span_m": p.span_m, "effort": efforts,
             "iterations": p.iterations, "cpu_s": p.cpu_s,
-            "active_constraints": active_constraints(prep, p)}
+            "active_constraints": active_constraints(prep, p),
+            "certificate": None if fp.certificate is None else fp.certificate.as_dict()}
 
 
 def write_run(path, prep: Prepared, front: Front, n_solves: int):

@@ -103,7 +103,7 @@ def short_front(tmp_path_factory):
     data["codesign"] = {"starts": 0, "intervals": 8, "front": {"points": 3, "lowest": 0.7}}
     problem = CodesignProblemConfig.model_validate(data)
     out = tmp_path_factory.mktemp("front") / "run"
-    return codesign(problem, certify=False, run_dir=out), out
+    return codesign(problem, certify=True, run_dir=out), out
 
 
 def test_front_follows_the_effort_bound(short_front):
@@ -191,6 +191,8 @@ def test_front_run_directory_is_read_like_a_run(short_front, cli_runner, tmp_pat
     parsed.feed(html)
     assert parsed.rows["codesign"] >= len(rows) + 1  # the points' table (with its header row)
     assert "candidates" in parsed.rows and "ε effort" in html
+    # each point's stored certificate is shown with its verdict and lap gap
+    assert html.count("PASSED: lap gap") >= len(rows)
 
     compared = cli_runner.invoke(app, ["compare", str(out), "--json"])
     assert compared.exit_code == 0, compared.output
@@ -327,3 +329,130 @@ def test_paper_problem_lap_start_reaches_the_default_starts_optimum():
     assert one.best.objective == pytest.approx(three.best.objective, rel=1e-9)
     for k, v in three.best.theta.items():
         assert one.best.theta[k] == pytest.approx(v, abs=1e-6)
+
+
+# --------------------------------------------------------------------------------------------
+# Certificates at every front point (casadrone.codesign.frontcert)
+# --------------------------------------------------------------------------------------------
+
+
+def test_every_front_point_carries_a_passing_certificate(short_front):
+    """Each point's certificate passed, in the result's JSON and in the run directory's
+    codesign.json; an ε-point's names the ε row among its active rows and runs no cold
+    re-solve (only the fastest frame's does)."""
+    from casadrone.cli.codesign import text
+
+    result, out = short_front
+    points = result.front.points
+    assert all(p.certificate is not None and p.certificate.passed for p in points), \
+        [p.certificate.text() for p in points]
+    assert not np.isnan(points[0].certificate.tracks[0].fixed_cold_lap_s)
+    for p in points[1:]:
+        (track,) = p.certificate.tracks
+        assert np.isnan(track.fixed_cold_lap_s)
+        assert abs(track.gap_pct) <= 0.05 and track.resimulation_miss_m <= 0.15
+        assert any(k.startswith("ε effort") for k in p.certificate.active)
+    data = json.loads(json.dumps(result.as_dict(), default=float))
+    assert [p["certificate"]["passed"] for p in data["front"]["points"]] == [True] * len(points)
+    stored = json.loads((out / "codesign.json").read_text())["points"]
+    assert [p["certificate"]["passed"] for p in stored] == [True] * len(points)
+    assert f"front certificates: {len(points)} of {len(points)} points passed" in text(result)
+
+
+def _effort_limited_lap(prep, point, theta, eps):
+    """An oracle of an ε-point's fixed-frame problem posed apart from the co-design NLP: the
+    limit lap's own NLP (the frame a parameter P built by the numeric airframe model) with the
+    effort as one dense row ≤ ε (co-design lifts it into a running sum), CasADi's AD for its
+    derivatives, solved warm from the point. Returns (lap s, dT/dP = −CasADi's lam_p)."""
+    import casadi as ca
+
+    from casadrone.codesign.nlp import effort
+    from casadrone.limit.nlp import ipopt_options
+    from casadrone.limit.starts import prepare as prepare_lap
+
+    part, cd = prep.nlp.parts[0], prep.nlp
+    sym = part.nlp.problem
+    solver = ca.nlpsol("effort_oracle", "ipopt",
+                       {"x": sym["x"], "p": sym["p"], "f": sym["f"],
+                        "g": ca.vertcat(sym["g"], effort(part, sym["x"]))},
+                       ipopt_options(1e-10, 500, True))
+    pb = prepare_lap(build_airframe(prep.config(theta)), prep.tracks[0], prep.options,
+                     prep.options.gate_clearance_m)
+    n_rows = cd.row_offsets[1]
+    eps_row = cd.row_offsets[-1] + cd.n_feas  # the ε row follows the frame's rows
+    out = solver(x0=point.z[:cd.offsets[1]], p=pb.P, lbx=pb.box[0], ubx=pb.box[1],
+                 lbg=np.append(pb.rows[0], -np.inf), ubg=np.append(pb.rows[1], eps),
+                 lam_x0=point.lam_x[:cd.offsets[1]],
+                 lam_g0=np.append(point.lam_g[:n_rows], point.lam_g[eps_row]))
+    assert solver.stats()["success"], solver.stats()["return_status"]
+    return float(out["f"]), -np.array(out["lam_p"]).ravel()
+
+
+def test_epsilon_certificate_against_an_independent_fixed_frame_problem(short_front):
+    """The last ε-point's certificate against its fixed-frame problem posed apart (the limit
+    lap's own NLP with θ a parameter and one dense effort row, CasADi's AD): the same lap
+    (≤ 0.05 %), the same dT/dθ from CasADi's parameter multipliers (a second derivation of the
+    certificate's, which differentiates the limit lap's rows with the co-design re-solve's
+    multipliers), and dT/dθ against finite differences of that problem's lap in each key
+    (re-solved at θ moved into the box and the valid frames)."""
+    from casadrone.codesign.certificate import theta_gradient
+    from casadrone.config.io import ConfigError
+
+    result, _ = short_front
+    prep, fp = result.front.prepared, result.front.points[-1]
+    cert, eps = fp.certificate, fp.epsilon
+    lap, dT_dP = _effort_limited_lap(prep, fp.point, fp.point.theta, eps)
+    assert lap == pytest.approx(fp.point.objective, rel=5e-4)
+    cfg = prep.config(fp.point.theta)
+    grad = theta_gradient(prep, cfg, prep.tracks[0], dT_dP)
+    dT = np.array([v.dT_dtheta for v in cert.variables])
+    scale = np.max(np.abs(dT))
+    assert np.allclose(grad, dT, rtol=0.02, atol=1e-3 * scale), (grad, dT)
+    steps = {"lambda_a_mm": 0.2, "lambda_b_mm": 0.2, "alpha_deg": 0.1, "beta_deg": 0.1}
+    for v, key in zip(cert.variables, prep.keys, strict=True):
+        h = steps[key] * (-1 if v.state == "upper" else 1)
+        try:
+            prep.config({**fp.point.theta, key: fp.point.theta[key] + h})
+        except ConfigError:
+            h = -h  # the other side is the valid one (a feasibility row holds the frame)
+        moved, _ = _effort_limited_lap(prep, fp.point, {**fp.point.theta,
+                                                        key: fp.point.theta[key] + h}, eps)
+        fd = (moved - lap) / h
+        # observed: 0.1 % apart where dT/dθ is not ~0 (the step's second-order term)
+        assert fd == pytest.approx(v.dT_dtheta, rel=0.02, abs=1e-3 * scale), (key, fd, v)
+
+
+def test_planted_wrong_points_fail_their_certificates(short_front, tmp_path):
+    """A point recorded with a lap 1 % faster than its own, or with its frame moved (λa from
+    its lower bound 100 mm to 120 mm, the lap kept), fails its certificate: the fixed-frame
+    re-solve returns another lap. The front keeps the failed point and is still written."""
+    from dataclasses import replace
+
+    from casadrone.codesign.front import write_run
+    from casadrone.codesign.frontcert import certify_epsilon_point, certify_front
+
+    result, _ = short_front
+    front = result.front
+    prep, fp = front.prepared, front.points[-1]
+    p = fp.point
+    fast = replace(p, objective=0.99 * p.objective,
+                   laps_s={k: 0.99 * v for k, v in p.laps_s.items()})
+    cert = certify_epsilon_point(prep, fast)
+    assert not cert.passed and "lap gap" in cert.reason
+    assert cert.tracks[0].gap_pct == pytest.approx(100 / 0.99 - 100, rel=1e-2)
+
+    assert p.theta["lambda_a_mm"] == pytest.approx(100.0, abs=1e-3)  # at its lower bound
+    z = p.z.copy()
+    z[prep.nlp.offsets[-1] + prep.keys.index("lambda_a_mm")] = 0.4  # 100 + 0.4 × 50 mm
+    moved = replace(p, z=z, theta={**p.theta, "lambda_a_mm": 120.0})
+    cert = certify_epsilon_point(prep, moved)
+    assert not cert.passed and "lap gap" in cert.reason, cert.text()
+    assert cert.tracks[0].fixed_lap_s > p.objective  # longer arms: a slower lap
+
+    planted = replace(front, points=(*front.points[:-1], replace(fp, point=fast)))
+    certified = certify_front(planted, front.points[0].certificate)
+    assert [q.certificate.passed for q in certified.points] == \
+        [True] * (len(front.points) - 1) + [False]
+    write_run(tmp_path / "run", prep, certified, len(certified.points))
+    stored = json.loads((tmp_path / "run" / "codesign.json").read_text())["points"]
+    assert stored[-1]["certificate"]["passed"] is False

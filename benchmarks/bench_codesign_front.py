@@ -7,10 +7,10 @@ template start reaches the best of six starts on this track, RESULTS-codesign.md
 phase in CPU seconds of this one process (one core): the template's limit lap and the NLP's
 build, the fastest frame, the ε-continuation. Writes the run directory to DIR and the timings
 to DIR/timings.json at the end, and each point as it converges (lap, measure, ε, iterations,
-CPU) to DIR.points.jsonl beside it, so a sweep stopped early keeps what it reached. Then every
-point is certified (:mod:`casadrone.codesign.frontcert`: the fastest frame with its cold
-fixed-frame check, each ε-point by its warm fixed-θ re-solve, reduced gradient and CVODES),
-each certificate written to DIR.certificates.jsonl as it is issued and timed apart
+CPU) to DIR.points.jsonl beside it, so a sweep stopped early keeps what it reached. Every
+point is certified as it converges (:mod:`casadrone.codesign.frontcert`: the fastest frame
+with its cold fixed-frame check, each ε-point by its warm fixed-θ re-solve, reduced gradient
+and CVODES), each certificate written to DIR.certificates.jsonl as it is issued and timed apart
 (``certificates_cpu_s``; ``--no-point-certificates`` leaves them out).
 
 Phase 2 (``--ga RUN --ga-cpu S``): the comparison with a finished ``casadrone run`` of
@@ -58,7 +58,7 @@ def run_front(problem: str, out: Path, overrides: list[str], certify: bool = Fal
     a finer grid, while its certificate fails: :func:`casadrone.codesign.design.certified`),
     its certificate written to DIR.certificate.txt beside DIR, and the front follows from the
     certified point on its grid. ``point_certificates``: every point of the front is certified
-    after the sweep (:func:`casadrone.codesign.frontcert.certify_front`; the fastest frame by
+    as it converges (:func:`casadrone.codesign.frontcert.certified_point`; the fastest frame by
     the certificate above, or by its own without ``certify``), each written to
     DIR.certificates.jsonl as it is issued; timed apart."""
     from casadrone.cli.codesign import text
@@ -73,7 +73,6 @@ def run_front(problem: str, out: Path, overrides: list[str], certify: bool = Fal
         start_points,
     )
     from casadrone.codesign.front import design_front, write_run
-    from casadrone.codesign.frontcert import certify_front
 
     cfg = load_codesign_problem(problem, ["codesign.starts=0", *overrides])
     t = {"start": time.process_time()}
@@ -109,41 +108,37 @@ def run_front(problem: str, out: Path, overrides: list[str], certify: bool = Fal
                                  "solve_cpu_s": point.cpu_s, "theta": point.theta,
                                  "cpu_s": time.process_time() - t["start"]}) + "\n")
 
-    keep(best, math.nan, math.inf)
-    front = design_front(prep, best, cfg.objectives[1].index, cfg.codesign.front.points,
-                         cfg.codesign.front.lowest,
-                         on_point=lambda fp: keep(fp.point, fp.measure, fp.epsilon))
-    t["front"] = time.process_time()
+    issued = out.parent / f"{out.name}.certificates.jsonl"
     certificates: list[dict] = []
-    if point_certificates:
-        issued = out.parent / f"{out.name}.certificates.jsonl"
-        clock = [time.process_time()]
 
-        def record(i: int, fp) -> None:
-            c = fp.certificate
-            now = time.process_time()
-            row = {"point": i, "lap_s": fp.point.objective, "measure": fp.measure,
-                   "epsilon": fp.epsilon, "passed": c.passed, "reason": c.reason,
-                   "gap_pct": max((x.gap_pct for x in c.tracks), key=abs, default=math.nan),
-                   "miss_m": max((x.resimulation_miss_m for x in c.tracks), default=math.nan),
-                   "cpu_s": now - clock[0], "summary": c.summary()}
-            clock[0] = now
-            certificates.append(row)
-            with open(issued, "a") as fh:
-                fh.write(json.dumps(row) + "\n")
+    def on_point(fp) -> None:
+        keep(fp.point, math.nan if math.isinf(fp.epsilon) else fp.measure, fp.epsilon)
+        c = fp.certificate
+        if c is None:
+            return
+        row = {"point": len(certificates), "lap_s": fp.point.objective, "measure": fp.measure,
+               "epsilon": fp.epsilon, "passed": c.passed, "reason": c.reason,
+               "gap_pct": max((x.gap_pct for x in c.tracks), key=abs, default=math.nan),
+               "miss_m": max((x.resimulation_miss_m for x in c.tracks), default=math.nan),
+               "cpu_s": time.process_time() - t["start"], "summary": c.summary()}
+        certificates.append(row)
+        with open(issued, "a") as fh:
+            fh.write(json.dumps(row) + "\n")
 
-        front = certify_front(front, cert, on_point=record)
-    t["certificates"] = time.process_time()
+    front = design_front(prep, best, cfg.objectives[1].index, cfg.codesign.front.points,
+                         cfg.codesign.front.lowest, on_point=on_point,
+                         certify=point_certificates, first=cert)
+    t["front"] = time.process_time()
     write_run(out, prep, front, len(front.points))
     timings = {"prepare_cpu_s": t["prepared"] - t["start"],
                "fastest_cpu_s": t["fastest"] - t["prepared"],
                "fastest_iterations": best.iterations,
                "intervals": prep.options.intervals,
-               "continuation_cpu_s": t["front"] - t["fastest"],
-               "certificates_cpu_s": t["certificates"] - t["front"],
+               "continuation_cpu_s": t["front"] - t["fastest"] - front.certificates_cpu_s,
+               "certificates_cpu_s": front.certificates_cpu_s,
                "certificates_passed": sum(c["passed"] for c in certificates),
                "certificates": certificates,
-               "total_cpu_s": t["certificates"] - t["start"],
+               "total_cpu_s": t["front"] - t["start"],
                "wall_s": time.perf_counter() - wall0,
                "points": len(front.points), "stopped": front.stopped,
                "iterations": [p.point.iterations for p in front.points],

@@ -25,8 +25,9 @@ def codesign_command(
     """Co-design: the problem's decision variables become variables of the limit-lap NLP, so one
     solve gives the frame with the fastest limit lap (on one track, or the weighted sum or the
     worst of a season's tracks). Starts from the template's geometry and codesign.starts random
-    feasible frames (all reported), and certifies the result: the limit lap re-solved with the
-    frame fixed, the reduced gradient in θ with its multipliers, the CVODES re-simulation.
+    feasible frames (all reported), and certifies the result and every point of a front: the
+    limit lap re-solved with the frame fixed (under a front point's ε row), the reduced gradient
+    in θ with its multipliers, the CVODES re-simulation.
 
     A problem with a closed-loop index (J1-J5, Jp) is refused by name (exit code 2).
     """

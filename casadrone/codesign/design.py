@@ -27,7 +27,6 @@ from casadrone.codesign.driver import (
     vector_of,
 )
 from casadrone.codesign.front import design_front, write_run
-from casadrone.codesign.frontcert import certify_front
 from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
 from casadrone.limit.lap import MAX_INTERVALS
 
@@ -171,10 +170,10 @@ def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
     front = None
     measures = [o.index for o in problem.objectives if o.index in FRONT_MEASURES]
     if measures:
+        # every point certified: the fastest frame by its certificate above, each ε-point by
+        # its own (casadrone.codesign.frontcert)
         front = design_front(prep, best, measures[0], problem.codesign.front.points,
-                             problem.codesign.front.lowest)
-        if certify:  # every point: the fastest frame's certificate above, each ε-point's own
-            front = certify_front(front, cert)
+                             problem.codesign.front.lowest, certify=certify, first=cert)
         if run_dir is not None:
             write_run(run_dir, prep, front, len(front.points))
     return CodesignResult("completed", "", best=best, distinct=tuple(distinct), certificate=cert,

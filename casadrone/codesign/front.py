@@ -47,6 +47,7 @@ class Front:
     cpu_s: float
     stopped: str = ""  # why the sweep ended early ("" when every ε was met)
     prepared: Prepared | None = field(default=None, repr=False)  # the ε-constrained NLP's
+    certificates_cpu_s: float = 0.0  # of cpu_s, the points' certificates
 
 
 def measure_value(prep: Prepared, point: CodesignPoint, measure: str) -> float:
@@ -71,27 +72,46 @@ def track_efforts(prep: Prepared, point: CodesignPoint) -> dict[str, float]:
 
 
 def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points: int = 15,
-                 lowest: float = 0.5, on_point=None) -> Front:
+                 lowest: float = 0.5, on_point=None, certify: bool = False,
+                 first=None) -> Front:
     """The front from ``best`` (the unconstrained optimum) down to ``lowest`` × its measure;
     ``on_point(FrontPoint)``, if given, is called as each point converges (a long sweep's
-    progress, kept by the caller)."""
+    progress, kept by the caller). ``certify``: each point is certified as it converges, before
+    ``on_point`` sees it (:func:`casadrone.codesign.frontcert.certified_point`; ``first``, the
+    fastest frame's certificate where already issued)."""
+    from casadrone.codesign.frontcert import certified_point
+
     prep = constrained(prep_free, (measure,))
     c0 = time.process_time()
+    cert_cpu = 0.0
+
+    def certified(fp: FrontPoint) -> FrontPoint:
+        nonlocal cert_cpu
+        if not certify:
+            return fp
+        t0 = time.process_time()
+        fp = certified_point(prep, fp, first)
+        cert_cpu += time.process_time() - t0
+        return fp
+
     top = measure_value(prep, best, measure)
     n_rows = 2 if measure == "span_m" else 1
     prev = replace(best, lam_g=np.concatenate([best.lam_g, np.zeros(n_rows)]))
-    out = [FrontPoint(prev, top, math.inf, "fastest frame", True)]
+    out = [certified(FrontPoint(prev, top, math.inf, "fastest frame", True))]
+    if on_point is not None:
+        on_point(out[-1])
     stopped = ""
     for eps in top * lowest ** (np.arange(1, points) / (points - 1)):
         ok, status, pt = solve_from(prep, prev.z, {measure: float(eps)}, warm=prev)
         if not ok:
             stopped = f"ε = {eps:.6g}: {status}"
             break
-        out.append(FrontPoint(pt, measure_value(prep, pt, measure), float(eps), status, ok))
+        out.append(certified(FrontPoint(pt, measure_value(prep, pt, measure), float(eps),
+                                        status, ok)))
         if on_point is not None:
             on_point(out[-1])
         prev = pt
-    return Front(measure, tuple(out), time.process_time() - c0, stopped, prep)
+    return Front(measure, tuple(out), time.process_time() - c0, stopped, prep, cert_cpu)
 
 
 #: Beside ``pareto.csv`` in a front's run directory: per point, its laps, measures and active

@@ -177,27 +177,27 @@ def _certify(prep: Prepared, point: CodesignPoint) -> Certificate:
     return cert
 
 
-def certify_front(front, first: Certificate | None = None, on_point=None):
-    """``front`` (a :class:`casadrone.codesign.front.Front`) with a certificate on every point:
-    ``first`` for the fastest frame where given (:func:`casadrone.codesign.design.certified`'s),
-    else :func:`casadrone.codesign.certificate.certify`'s; each ε-point's from
-    :func:`certify_epsilon_point`. ``on_point(index, FrontPoint)``, if given, is called as each
-    point is certified. A failed certificate is kept on its point; nothing raises."""
+def certified_point(prep: Prepared, fp, first: Certificate | None = None):
+    """``fp`` (a :class:`casadrone.codesign.front.FrontPoint` of a front posed by ``prep``)
+    with its certificate: ``first`` for the fastest frame where given
+    (:func:`casadrone.codesign.design.certified`'s), else
+    :func:`casadrone.codesign.certificate.certify`'s; an ε-point's from
+    :func:`certify_epsilon_point`. A failed certificate is kept on its point; nothing raises."""
     from casadrone.codesign.certificate import certify
 
-    prep = front.prepared
-    points = []
-    for i, fp in enumerate(front.points):
-        if math.isinf(fp.epsilon):  # the fastest frame: no ε row posed
-            cert = first
-            if cert is None:
-                try:
-                    cert = certify(prep, fp.point)
-                except FAILURES as exc:
-                    cert = Certificate((), (), {}, False, f"the certificate failed: {exc}")
-        else:
-            cert = certify_epsilon_point(prep, fp.point)
-        points.append(replace(fp, certificate=cert))
-        if on_point is not None:
-            on_point(i, points[-1])
-    return replace(front, points=tuple(points))
+    if not math.isinf(fp.epsilon):
+        return replace(fp, certificate=certify_epsilon_point(prep, fp.point))
+    cert = first
+    if cert is None:  # the fastest frame: no ε row posed
+        try:
+            cert = certify(prep, fp.point)
+        except FAILURES as exc:
+            cert = Certificate((), (), {}, False, f"the certificate failed: {exc}")
+    return replace(fp, certificate=cert)
+
+
+def certify_front(front, first: Certificate | None = None):
+    """``front`` (a :class:`casadrone.codesign.front.Front`) with a certificate on every point
+    (:func:`certified_point`), e.g. a front read back or edited."""
+    points = tuple(certified_point(front.prepared, fp, first) for fp in front.points)
+    return replace(front, points=points)

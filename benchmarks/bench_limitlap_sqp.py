@@ -284,6 +284,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-iter", type=int, default=40)
     ap.add_argument("--qp-iter", type=int, default=100, help="HPIPM's iter_max")
     ap.add_argument("--qp-tol", type=float, default=1e-6, help="HPIPM's residual tolerances")
+    ap.add_argument("--trace", action="store_true",
+                    help="print every SQP iteration (lap, violation, stationarity, step)")
     ap.add_argument("--spectrum", action="store_true",
                     help="only the exact Hessian's stage-block eigenvalues at the first "
                     "frame's cold optimum")
@@ -332,6 +334,12 @@ def main(argv: list[str] | None = None) -> int:
                 f"{ref.iterations} it {rows['ipopt'][-1]['cpu']:.2f} s"]
         for v, sq in solvers.items():
             r = solve_sqp(sq, start, pb.P, *pb.box, *pb.rows, args.max_iter)
+            if args.trace:
+                print(f"frame {i}, {v.label}: iteration lap violation stationarity step "
+                      "alpha HPIPM-iterations")
+                for k, h in enumerate(r["hist"]):
+                    print(f"  {k} {h['f']:.6f} {h['pr']:.2e} {h['du']:.2e} "
+                          f"{h.get('step', 0):.3g} {h.get('alpha', 0):.3g} {h.get('qp_it', 0)}")
             k, ck = _first_same(r["hist"], ref.objective)
             rows[v.label].append(r | {"frame": i, "ok": r["status"] == "converged",
                                       "rel": abs(r["f"] - ref.objective) / ref.objective,

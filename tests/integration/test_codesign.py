@@ -246,10 +246,26 @@ def test_propeller_effort_front_meets_its_bounds(tmp_path):
     data["airframe"] = str(ROOT / "configs/airframes/SY250-components-propeller.yaml")
     data["objectives"] = [{"index": "J3_limit"}, {"index": "effort"}]
     data["codesign"] = {"starts": 0, "intervals": 16, "front": {"points": 3, "lowest": 0.8}}
-    result = codesign(CodesignProblemConfig.model_validate(data), certify=False,
+    result = codesign(CodesignProblemConfig.model_validate(data), certify=True,
                       run_dir=tmp_path / "run")
     front = result.front
     assert len(front.points) == 3, front.stopped
+    # every point certified; the last ε-point's dT/dθ, whose effort row reaches θ through p
+    # (the rotor positions in the inflow), against its fixed-frame problem posed apart (CasADi's
+    # parameter multipliers of the limit lap's NLP with one dense effort row)
+    assert all(p.certificate.passed for p in front.points), \
+        [p.certificate.text() for p in front.points]
+    from casadrone.codesign.certificate import theta_gradient
+
+    last = front.points[-1]
+    lap, dT_dP = _effort_limited_lap(front.prepared, last.point, last.point.theta, last.epsilon)
+    assert lap == pytest.approx(last.point.objective, rel=5e-4)
+    grad = theta_gradient(front.prepared, front.prepared.config(last.point.theta),
+                          front.prepared.tracks[0], dT_dP)
+    dT = np.array([v.dT_dtheta for v in last.certificate.variables])
+    # observed: 4e-5 apart; without the effort row's p-term the certificate's λa entry is 0.9 %
+    # off and β's 9e-7 against 4e-9 (both caught here)
+    assert np.allclose(grad, dT, rtol=2e-3, atol=1e-4 * np.max(np.abs(dT))), (grad, dT)
     laps = [p.point.objective for p in front.points]
     assert all(b >= a - 1e-6 for a, b in zip(laps, laps[1:], strict=False))
     assert front.points[-1].measure < 0.85 * front.points[0].measure
@@ -369,12 +385,14 @@ def _effort_limited_lap(prep, point, theta, eps):
     from casadrone.codesign.nlp import effort
     from casadrone.limit.nlp import ipopt_options
     from casadrone.limit.starts import prepare as prepare_lap
+    from casadrone.model import n_params
 
     part, cd = prep.nlp.parts[0], prep.nlp
     sym = part.nlp.problem
+    p = sym["p"][:n_params(part.propulsion)]  # propeller: the thrusts depend on the frame
     solver = ca.nlpsol("effort_oracle", "ipopt",
                        {"x": sym["x"], "p": sym["p"], "f": sym["f"],
-                        "g": ca.vertcat(sym["g"], effort(part, sym["x"]))},
+                        "g": ca.vertcat(sym["g"], effort(part, sym["x"], p))},
                        ipopt_options(1e-10, 500, True))
     pb = prepare_lap(build_airframe(prep.config(theta)), prep.tracks[0], prep.options,
                      prep.options.gate_clearance_m)
@@ -407,7 +425,8 @@ def test_epsilon_certificate_against_an_independent_fixed_frame_problem(short_fr
     grad = theta_gradient(prep, cfg, prep.tracks[0], dT_dP)
     dT = np.array([v.dT_dtheta for v in cert.variables])
     scale = np.max(np.abs(dT))
-    assert np.allclose(grad, dT, rtol=0.02, atol=1e-3 * scale), (grad, dT)
+    # observed: 1e-4 apart (relative to the largest entry)
+    assert np.allclose(grad, dT, rtol=2e-3, atol=1e-4 * scale), (grad, dT)
     steps = {"lambda_a_mm": 0.2, "lambda_b_mm": 0.2, "alpha_deg": 0.1, "beta_deg": 0.1}
     for v, key in zip(cert.variables, prep.keys, strict=True):
         h = steps[key] * (-1 if v.state == "upper" else 1)

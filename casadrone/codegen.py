@@ -192,6 +192,19 @@ def compile_function(fun: ca.Function, flags: tuple[str, ...] = DEFAULT_FLAGS) -
     return ca.external(fun.name(), str(compile_source(fun.name(), casadi_source(fun), flags)))
 
 
+def compile_with_reverse(fun: ca.Function, flags: tuple[str, ...] = DEFAULT_FLAGS
+                         ) -> ca.Function:
+    """:func:`compile_function` with ``fun``'s first reverse derivative in the same library
+    (``adj1_<name>``, which CasADi's external loads with it), so that reverse-mode AD of a graph
+    that calls the compiled function passes through compiled code too. Both are CasADi's own
+    code generation of the same algorithm its virtual machine runs: the same operations in the
+    same order, so the same numbers to the last bit (tests/unit/test_codegen.py)."""
+    gen = ca.CodeGenerator(f"{fun.name()}.c", {"with_header": False})
+    gen.add(fun)
+    gen.add(fun.reverse(1))
+    return ca.external(fun.name(), str(compile_source(fun.name(), gen.dump(), flags)))
+
+
 class ZeroCopyCall:
     """Calls a CasADi Function through numpy arrays bound once to its memory
     (``Function.buffer``): no DM conversion, a few µs per call instead of tens.

@@ -54,7 +54,6 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-from scipy.optimize import minimize
 
 from casadrone.airframe import PARAM_NAMES, Airframe
 from casadrone.codegen import ZeroCopyCall
@@ -308,6 +307,8 @@ def _solve_newton(z0, p, op, o: TrimOptions):
 
 
 def _solve_nelder_mead(z0, p, op, o: TrimOptions):
+    from scipy.optimize import minimize  # here: scipy.optimize costs ~0.3 s to import
+
     fn = _functions(_level(op), _kind(p))
     nz = n_unknowns(_kind(p))
     # propeller: the rotor rows (rad/s²) weighted to the scale of the rigid-body rows, and the

@@ -25,6 +25,11 @@ class _App(typer.Typer):
         # The console script, ``python -m casadrone`` and ``python -c "...app()"`` all name the
         # program ``casadrone`` in their messages (click would take it from sys.argv[0]: ``-c``).
         kwargs.setdefault("prog_name", "casadrone")
+        # the process is casadrone's: keep MUMPS's freed workspace for its next factorization
+        # (casadrone.heap: a system-time saving, the same numbers)
+        from casadrone.heap import keep_heap
+
+        keep_heap()
         if "standalone_mode" in kwargs:
             return super().__call__(*args, **kwargs)
         try:

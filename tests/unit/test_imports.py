@@ -20,6 +20,7 @@ PACKAGE = Path(__file__).resolve().parents[2] / "casadrone"
 STAGES: tuple[str, ...] = (
     "casadrone.data",
     "casadrone.codegen",
+    "casadrone.heap",  # the process's malloc settings (the command line calls them)
     "casadrone.results",
     "casadrone.config.yamlsafe",
     "casadrone.config.io",

@@ -115,6 +115,30 @@ def test_assembled_derivatives_equal_casadi_ad(kinds, cone, scale, periodic):
     assert np.abs(np.array(H)).max() > 1e-3  # the Hessian is not trivially zero
 
 
+@pytest.mark.parametrize("scale", [None, TOY_SCALE])
+def test_solver_rows_are_the_symbolic_rows_to_the_bit(scale):
+    """The rows IPOPT evaluates (its nlp_g and jac_g's g, with the RK4 step compiled) and the
+    multipliers' gradient in P (its nlp_grad, reversed through the compiled step) equal the
+    symbolic NLP's, evaluated by CasADi's virtual machine, to the last bit: compiling the step
+    changes the time, not one number (random point and multipliers, two legs)."""
+    layout = Layout(("ball", "gate"), 3, substeps=2, end_at_rest=True)
+    nlp = build_nlp(_nonlinear_toy(scale), layout)
+    sym = nlp.problem
+    lam_g = ca.MX.sym("lam_g", sym["g"].numel())
+    ref = ca.Function("ref", [sym["x"], sym["p"], lam_g],
+                      [sym["g"], ca.gradient(sym["f"] + ca.dot(lam_g, sym["g"]), sym["p"])])
+    rng = np.random.default_rng(7)
+    w = rng.uniform(0.2, 1.5, sym["x"].numel())
+    prm = rng.uniform(0.1, 1.0, sym["p"].numel())
+    lam = rng.normal(size=lam_g.numel())
+    g_ref, grad_ref = (np.array(v) for v in ref(w, prm, lam))
+    assert np.abs(g_ref).max() > 0.1 and np.abs(grad_ref).max() > 0.1  # not trivially zero
+    np.testing.assert_array_equal(np.array(nlp.cold.get_function("nlp_g")(w, prm)), g_ref)
+    np.testing.assert_array_equal(np.array(nlp.derivatives["jac_g"](w, prm)[0]), g_ref)
+    grad = nlp.cold.get_function("nlp_grad")(w, prm, 1.0, lam)
+    np.testing.assert_array_equal(np.array(grad[3]), grad_ref)  # (f, g, ∂L/∂x, ∂L/∂p)
+
+
 @pytest.mark.parametrize("method", ["shooting", "collocation"])
 def test_scaled_states_pose_the_same_problem(method):
     """Scaling is a change of units only: at the same physical point (w = pack of the same

@@ -17,7 +17,10 @@ problem with 5 random starts, and its template start alone), or with variants:
 ``--template-laps point-mass closed-loop coarse-grid`` instead times, in this process, the
 template's limit lap on the problem's (first) track from each start alone (``a+b``: several),
 posed as co-design poses it (its intervals and gate clearance, no point-mass reference): the lap,
-the start chosen, the iterations and the CPU. The first one also builds the NLP.
+the start chosen, the iterations and the CPU (user + system, and the minor page faults), and the
+last cold solve's CPU in IPOPT's function calls (``nlp_g``, ``nlp_jac_g``, ``nlp_hess_l``). The
+first one also builds the NLP. ``--keep-heap`` first applies the command line's malloc settings
+(:func:`casadrone.heap.keep_heap`), as ``casadrone codesign`` does.
 """
 
 from __future__ import annotations
@@ -79,7 +82,7 @@ def run_variant(problem: str, overrides: list[str]) -> dict:
     return row
 
 
-def template_laps(problem: str, starts: list[str]) -> None:
+def template_laps(problem: str, starts: list[str], keep: bool = False) -> None:
     """The template's limit lap from each start set (see the module docstring)."""
     from dataclasses import replace
 
@@ -88,6 +91,12 @@ def template_laps(problem: str, starts: list[str]) -> None:
     from casadrone.codesign import driver
     from casadrone.codesign.checks import load_codesign_problem
     from casadrone.limit.lap import LimitLapOptions, limit_lap
+    from casadrone.limit.nlp import _NLPS
+
+    if keep:
+        from casadrone.heap import keep_heap
+
+        print(f"keep_heap: {keep_heap()}")
 
     cfg = load_codesign_problem(problem)
     template = driver._template(cfg)
@@ -99,11 +108,20 @@ def template_laps(problem: str, starts: list[str]) -> None:
                            point_mass_reference=False,
                            gate_clearance_m=driver.gate_clearance(template, lower, upper, keys))
     for names in starts:
-        c0 = time.process_time()
+        r0 = resource.getrusage(resource.RUSAGE_SELF)
         lap = limit_lap(template, tracks[0], replace(base, starts=tuple(names.split("+"))))
-        print(f"{names}: {lap.status}, lap {lap.lap_time_s:.5f} s from {lap.start}, "
+        r1 = resource.getrusage(resource.RUSAGE_SELF)
+        print(f"{names}: {lap.status}, lap {lap.lap_time_s:.6f} s from {lap.start}, "
               f"{[(s.start, s.iterations) for s in lap.starts]}, "
-              f"{time.process_time() - c0:.2f} s CPU, load {os.getloadavg()[0]:.1f}", flush=True)
+              f"{r1.ru_utime - r0.ru_utime:.2f} s user + {r1.ru_stime - r0.ru_stime:.2f} s "
+              f"system, {r1.ru_minflt - r0.ru_minflt} page faults, load "
+              f"{os.getloadavg()[0]:.1f}", flush=True)
+        nlp = next((n for n in _NLPS.values() if n.layout == lap.layout), None)
+        if nlp is not None:
+            st = nlp.cold.stats()
+            print("  last cold solve: " + ", ".join(
+                f"{k} {st.get('t_proc_' + k, float('nan')):.3f} s / {st.get('n_call_' + k, 0)}"
+                for k in ("nlp_g", "nlp_jac_g", "nlp_hess_l")), flush=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -114,10 +132,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", type=Path, help="write the rows here too")
     ap.add_argument("--template-laps", nargs="+", metavar="START",
                     help="time the template's limit lap from each start instead")
+    ap.add_argument("--keep-heap", action="store_true",
+                    help="with --template-laps: the command line's malloc settings first")
     args = ap.parse_args(argv)
     if args.template_laps:
         sys.path.insert(0, str(ROOT))
-        template_laps(args.problem, args.template_laps)
+        template_laps(args.problem, args.template_laps, args.keep_heap)
         return 0
     variants = [(v[0], v[1:]) for v in args.variant] if args.variant else [
         ("shipped", []), ("template-start", ["codesign.starts=0"])]

@@ -259,19 +259,40 @@ def _first_same(hist: list[dict], f_ref: float) -> tuple[int | None, float | Non
     return None, None
 
 
-def spectrum(sq: StageSqp, pb, point) -> str:
-    """Eigenvalues of the exact Hessian's stage blocks at a primal-dual point, and its active
-    bounds: how far the QP's convexified Hessian is from the exact one."""
-    o = sq.order
-    H = sq.hess(o.to_stage(point.w), pb.P, 1.0, o.to_stage(point.lam_g, rows=True)).sparse()
+def spectrum(sq: StageSqp, pb, point) -> list[str]:
+    """Eigenvalues of the exact Hessian's stage blocks at a primal-dual point, and of the
+    reduced Hessian on the active set estimated by distance to the bounds (IPOPT's interior
+    point sits near its active bounds, not on them), exact and as the QP sees it."""
+    import scipy.linalg as sla
+
+    o, (lbx, ubx) = sq.order, pb.box
+    w = o.to_stage(point.w)
+    H = sq.hess(w, pb.P, 1.0, o.to_stage(point.lam_g, rows=True)).sparse()
     eig = [np.linalg.eigvalsh(sq._block(H.tocsr(), k)) for k in range(len(sq.sizes))]
     neg = [int(np.sum(e < -1e-8)) for e in eig]
-    return (f"{len(eig)} stage blocks of {min(sq.sizes)}–{max(sq.sizes)} variables; negative "
-            f"eigenvalues per block median {np.median(neg):.0f} (max {max(neg)}, blocks with "
-            f"any {sum(n > 0 for n in neg)}); smallest eigenvalue per block median "
-            f"{np.median([e.min() for e in eig]):.3g} (min {min(e.min() for e in eig):.3g}), "
-            f"largest median {np.median([e.max() for e in eig]):.3g}; box bounds active "
-            f"(|λ_x| > 1e-8) {int(np.sum(np.abs(point.lam_x) > 1e-8))} of {len(point.w)}.")
+    out = [f"{len(eig)} stage blocks of {min(sq.sizes)}–{max(sq.sizes)} variables; negative "
+           f"eigenvalues per block median {np.median(neg):.0f} (max {max(neg)}, blocks with "
+           f"any {sum(n > 0 for n in neg)}); smallest eigenvalue per block median "
+           f"{np.median([e.min() for e in eig]):.3g} (min {min(e.min() for e in eig):.3g}), "
+           f"largest median {np.median([e.max() for e in eig]):.3g}; {len(w)} variables "
+           f"({int(np.sum(lbx == ubx))} fixed), {int(np.sum(pb.rows[0] == pb.rows[1]))} "
+           "equality rows."]
+    g = np.asarray(sq.g(w, pb.P)).ravel()
+    J = sq.jac(w, pb.P)[1]
+    Hc = ca.DM(sq.Hsp, sq.qp_hessian(H, J.sparse())).full()  # the QP's Hessian
+    lg, ug = o.to_stage(pb.rows[0], rows=True), o.to_stage(pb.rows[1], rows=True)
+    slack = np.minimum(w - o.to_stage(lbx), o.to_stage(ubx) - w)
+    for tol in (1e-6, 1e-5, 1e-4):
+        rows = (lg == ug) | (g - lg < tol) | (ug - g < tol)
+        Z = sla.null_space(np.vstack([J.full()[rows], np.eye(len(w))[slack < tol]]))
+        red = np.linalg.eigvalsh(Z.T @ H.toarray() @ Z) if Z.shape[1] else np.zeros(1)
+        red_qp = np.linalg.eigvalsh(Z.T @ Hc @ Z) if Z.shape[1] else np.zeros(1)
+        out.append(f"active = within {tol:g} of a bound: {int(np.sum(slack < tol))} variables, "
+                   f"{int(np.sum(rows & (lg < ug)))} inequality rows; reduced Hessian on "
+                   f"{Z.shape[1]} directions: eigenvalues {red.min():.3g} to {red.max():.3g} "
+                   f"({int(np.sum(red < 1e-6))} below 1e-6); with the QP's Hessian "
+                   f"({sq.variant.label}) {red_qp.min():.3g} to {red_qp.max():.3g}.")
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -287,8 +308,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--trace", action="store_true",
                     help="print every SQP iteration (lap, violation, stationarity, step)")
     ap.add_argument("--spectrum", action="store_true",
-                    help="only the exact Hessian's stage-block eigenvalues at the first "
-                    "frame's cold optimum")
+                    help="only the exact Hessian's stage-block eigenvalues at the cold optimum "
+                    "of the first frame whose solve succeeded (not 'acceptable')")
     args = ap.parse_args(argv)
     variants = [Variant.parse(v) for v in args.variants.split(",")]
     template = load_airframe(args.template)
@@ -313,9 +334,9 @@ def main(argv: list[str] | None = None) -> int:
         s = solve(pb.full, w0, pb.P, *pb.box, lbg=pb.rows[0], ubg=pb.rows[1])
         cold.append(s)
         print(f"cold {i}: {s.return_status} {s.objective:.6f} {s.iterations} it", flush=True)
-        if args.spectrum:
-            print(spectrum(StageSqp(pb.full, variants[0], args.qp_iter, args.qp_tol), pb,
-                           s.point))
+        if args.spectrum and s.return_status == "Solve_Succeeded":
+            print("\n".join(spectrum(StageSqp(pb.full, variants[0], args.qp_iter,
+                                                args.qp_tol), pb, s.point)))
             return 0
     ok = [i for i, s in enumerate(cold) if s.success]
     solvers = {v: StageSqp(problems[0].full, v, args.qp_iter, args.qp_tol) for v in variants}

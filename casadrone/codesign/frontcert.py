@@ -29,12 +29,14 @@ An ε-point (θ*, laps, ε) is certified here, with the same three parts:
 
 What is not done at an ε-point: the cold multi-start re-solve (the fastest point's check that
 no faster lap of the same frame exists from the limit lap's own cold starts). It costs a cold
-limit lap per point (about 12 s of CPU each on the paper track at 40 intervals) and, for
-``effort``, answers another question (the frame's minimum-time lap, not the fastest lap within
-ε). The 14 ε-points of the paper front would add about 170 s to a front whose target is 180 s
-in all (57.6 s without certificates; measured in benchmarks/RESULTS-codesign.md, "Certificates
-at every front point"). The warm re-solve checks local optimality at the returned frame; the
-front itself is a path of local optima followed from the certified fastest frame.
+limit lap per point (12–22 s of CPU on the paper track at 40 intervals, quiet or loaded) and,
+for ``effort``, answers another question (the frame's minimum-time lap, not the fastest lap
+within ε). On the paper front it would add 170–300 s to a front whose target is 180 s in all,
+while the ε-points' certificates as done here cost about 1 s each (benchmarks/
+RESULTS-codesign.md, "Certificates at every front point"). The warm re-solve checks local
+optimality at the returned frame; the front itself is a path of local optima followed from the
+certified fastest frame, and a point may be faster than that frame (a crossing to another
+trajectory optimum: measured there), which no local certificate reports.
 """
 
 from __future__ import annotations

@@ -362,10 +362,12 @@ def vector_of(prep: Prepared, theta: dict[str, float], ws: list[np.ndarray]) -> 
 
 def solve_from(prep: Prepared, z0: np.ndarray, epsilon: dict[str, float] | None = None,
                warm: CodesignPoint | None = None,
-               bounds: tuple[np.ndarray, ...] | None = None
+               bounds: tuple[np.ndarray, ...] | None = None, step: bool = False
                ) -> tuple[bool, str, CodesignPoint]:
     """IPOPT on the co-design NLP from ``z0`` (or ``warm``'s primal-dual point); ``bounds``
-    (lbx, ubx, lbg, ubg) replace the NLP's own (a certificate fixes θ with them)."""
+    (lbx, ubx, lbg, ubg) replace the NLP's own (a certificate fixes θ with them); ``step``: a
+    warm start's solve with the continuation step's iteration cap (:attr:`CodesignNlp.step`,
+    where the NLP has one)."""
     cd = prep.nlp
     lbx, ubx, lbg, ubg = bounds if bounds is not None else (*cd.bounds(), cd.lbg, cd.ubg)
     eps = np.array([(epsilon or {})[m] for m in cd.epsilon], float)
@@ -373,7 +375,7 @@ def solve_from(prep: Prepared, z0: np.ndarray, epsilon: dict[str, float] | None 
                 p=eps)
     solver = cd.cold
     if warm is not None:  # a point of the NLP without some rows or variables: zeros for them
-        solver = cd.warm
+        solver = cd.step if step and cd.step is not None else cd.warm
         args.update(x0=np.clip(cd.full(warm.z), lbx, ubx),
                     lam_x0=_padded(warm.lam_x, len(lbx)), lam_g0=_padded(warm.lam_g, len(cd.lbg)))
     c0 = time.process_time()

@@ -101,8 +101,9 @@ def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points:
     if on_point is not None:
         on_point(out[-1])
     stopped = ""
+    last = top
     for eps in top * lowest ** (np.arange(1, points) / (points - 1)):
-        ok, status, pt = solve_from(prep, prev.z, {measure: float(eps)}, warm=prev)
+        ok, status, pt = continued(prep, prev, measure, last, float(eps))
         if not ok:
             stopped = f"ε = {eps:.6g}: {status}"
             break
@@ -110,8 +111,31 @@ def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points:
                                         status, ok)))
         if on_point is not None:
             on_point(out[-1])
-        prev = pt
+        prev, last = pt, float(eps)
     return Front(measure, tuple(out), time.process_time() - c0, stopped, prep, cert_cpu)
+
+
+#: How many times one continuation step may be halved (each half again) before the sweep stops.
+MAX_SPLITS = 2
+
+
+def continued(prep: Prepared, prev: CodesignPoint, measure: str, last: float, eps: float,
+              splits: int = MAX_SPLITS) -> tuple[bool, str, CodesignPoint]:
+    """The ε-point ``eps`` from ``prev`` (the point at ``last``): one warm solve capped at
+    :data:`casadrone.codesign.nlp.STEP_MAX_ITER` iterations; if it fails, the step is halved
+    (geometric mean of ``last`` and ``eps``: the sweep's own spacing) and both halves are
+    solved in turn, each from the one before, at most ``splits`` levels deep. Step-length
+    control of a continuation (Allgower & Georg, *Introduction to Numerical Continuation
+    Methods*, 2003, ch. 6): a shorter step starts closer to the next optimum."""
+    ok, status, pt = solve_from(prep, prev.z, {measure: eps}, warm=prev, step=True)
+    if ok or splits == 0:
+        return ok, status, pt
+    mid = math.sqrt(last * eps)
+    ok_mid, status_mid, half = continued(prep, prev, measure, last, mid, splits - 1)
+    if not ok_mid:
+        return False, f"{status}; halved at ε = {mid:.6g}: {status_mid}", pt
+    ok, status2, pt = continued(prep, half, measure, mid, eps, splits - 1)
+    return ok, status2 if ok else f"{status}; from ε = {mid:.6g}: {status2}", pt
 
 
 #: Beside ``pareto.csv`` in a front's run directory: per point, its laps, measures and active

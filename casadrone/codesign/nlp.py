@@ -35,6 +35,12 @@ FEASIBILITY_MARGIN = 1e-6
 #: The ε-constrained measures a co-design NLP can hold: the frame's mass and span, and the
 #: limit lap's effort (:func:`effort`).
 MEASURES = ("mass_kg", "span_m", "effort")
+#: Iterations of one ε-continuation step (:attr:`CodesignNlp.step`). Every converged step of the
+#: measured fronts took 27–101 (paper track, `paper`) and 79–170 (`propeller`, 120 intervals per
+#: leg) iterations; a step that would need more is one IPOPT has lost (restoration: one step
+#: of the paper front on another machine crawled for 1090 s of CPU), and is split in two
+#: instead (:func:`casadrone.codesign.front.design_front`).
+STEP_MAX_ITER = 250
 
 
 def effort_terms(part: TrackPart, w, p=None):
@@ -132,6 +138,9 @@ class CodesignNlp:
     #: given with it (empty: CasADi's AD)
     problem: dict = field(default_factory=dict, compare=False, repr=False)
     derivatives: dict = field(default_factory=dict, compare=False, repr=False)
+    #: with ε rows: the warm solver of one continuation step, capped at :data:`STEP_MAX_ITER`
+    #: (a front's step that needs more is split, :func:`casadrone.codesign.front.design_front`)
+    step: ca.Function | None = field(default=None, compare=False, repr=False)
 
     @property
     def n_theta(self) -> int:
@@ -274,6 +283,9 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
                                      ca.vertcat(*gs[len(parts):]), tuple(offsets))
     cold = ca.nlpsol(tag, "ipopt", problem, ipopt_options(tol, max_iter, False) | extra)
     warm = ca.nlpsol(tag + "_warm", "ipopt", problem, ipopt_options(tol, max_iter, True) | extra)
+    step = (ca.nlpsol(tag + "_step", "ipopt", problem,
+                      ipopt_options(tol, min(max_iter, STEP_MAX_ITER), True) | extra)
+            if epsilon else None)
     return CodesignNlp(parts, frame, combine, tuple(epsilon), cold, warm, np.concatenate(lbg),
                        np.concatenate(ubg), tuple(offsets), n_feas, tuple(row_offsets), n_lift,
-                       lift, problem, {k: v for k, v in extra.items() if k != "expand"})
+                       lift, problem, {k: v for k, v in extra.items() if k != "expand"}, step)

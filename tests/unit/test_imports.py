@@ -86,6 +86,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.codesign.nlp",
     "casadrone.codesign.certificate",
     "casadrone.codesign.driver",
+    "casadrone.codesign.frontcert",
     "casadrone.codesign.front",
     "casadrone.codesign.polish",
     "casadrone.codesign.design",

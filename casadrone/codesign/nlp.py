@@ -41,6 +41,11 @@ MEASURES = ("mass_kg", "span_m", "effort")
 #: of the paper front on another machine crawled for 1090 s of CPU), and is split in two
 #: instead (:func:`casadrone.codesign.front.design_front`).
 STEP_MAX_ITER = 250
+#: ... and its CPU seconds (IPOPT's ``max_cpu_time``): a lost step's iterations can each take
+#: seconds (the 1090 s step above: infeasibility 10³ after restoration, slow factorisations),
+#: so the iteration cap alone does not bound it. Above the slowest converged step measured
+#: (76 s, `propeller`, 120 intervals per leg, under load).
+STEP_MAX_CPU_S = 120.0
 
 
 def effort_terms(part: TrackPart, w, p=None):
@@ -283,9 +288,11 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
                                      ca.vertcat(*gs[len(parts):]), tuple(offsets))
     cold = ca.nlpsol(tag, "ipopt", problem, ipopt_options(tol, max_iter, False) | extra)
     warm = ca.nlpsol(tag + "_warm", "ipopt", problem, ipopt_options(tol, max_iter, True) | extra)
-    step = (ca.nlpsol(tag + "_step", "ipopt", problem,
-                      ipopt_options(tol, min(max_iter, STEP_MAX_ITER), True) | extra)
-            if epsilon else None)
+    step = None
+    if epsilon:
+        options = ipopt_options(tol, min(max_iter, STEP_MAX_ITER), True)
+        options["ipopt"] = options["ipopt"] | {"max_cpu_time": STEP_MAX_CPU_S}
+        step = ca.nlpsol(tag + "_step", "ipopt", problem, options | extra)
     return CodesignNlp(parts, frame, combine, tuple(epsilon), cold, warm, np.concatenate(lbg),
                        np.concatenate(ubg), tuple(offsets), n_feas, tuple(row_offsets), n_lift,
                        lift, problem, {k: v for k, v in extra.items() if k != "expand"}, step)

@@ -27,6 +27,7 @@ import casadi as ca
 import numpy as np
 
 from casadrone.airframe import build_airframe
+from casadrone.codesign.nlp import epsilon_rows
 from casadrone.config.io import ConfigError
 from casadrone.limit.check import resimulation_miss, theta_sensitivities
 from casadrone.limit.lap import limit_lap, model_states, start_state
@@ -95,18 +96,8 @@ class Certificate:
                 "reason": self.reason}
 
     def summary(self) -> str:
-        """The certificate in one line: verdict, the worst track's gap and miss, and the why
-        (each variable's state and reduced gradient, s per box width; the active rows'
-        multipliers)."""
-        head = "PASSED" if self.passed else f"FAILED ({self.reason})"
-        if not self.tracks:
-            return head
-        gap = max((t.gap_pct for t in self.tracks), key=abs)
-        miss = max(t.resimulation_miss_m for t in self.tracks)
-        why = ", ".join(f"{v.key} {v.state} {v.reduced_gradient:+.3g}" for v in self.variables)
-        rows = ", ".join(f"{k} {v:+.3g}" for k, v in self.active.items())
-        return (f"{head}: gap {gap:+.4f} %, CVODES miss {miss:.3g} m; why: {why}"
-                + (f"; active: {rows}" if rows else ""))
+        """The certificate in one line (:func:`summary_of`)."""
+        return summary_of(self.as_dict())
 
     def text(self) -> str:
         """The certificate as lines for the terminal."""
@@ -191,6 +182,23 @@ def _fixed_laps(prep, point, k: int, cfg):
     cold = limit_lap(cfg, track, replace(prep.options, warm_starts=(ref,)
                                          if ref.solution is not None else ()))
     return warm, cold, pb
+
+
+def summary_of(c: dict[str, Any], active: bool = True) -> str:
+    """A certificate (:meth:`Certificate.as_dict`, as stored beside a front) in one line:
+    verdict, the worst track's lap gap and CVODES miss, and the why (each variable's state and
+    reduced gradient, s per box width; with ``active``, the active rows' multipliers)."""
+    head = "PASSED" if c["passed"] else f"FAILED ({c['reason']})"
+    if not c["tracks"]:
+        return head
+    gap = max((t["gap_pct"] for t in c["tracks"]), key=abs)
+    miss = max(t["resimulation_miss_m"] for t in c["tracks"])
+    why = ", ".join(f"{v['key']} {v['state']} {v['reduced_gradient']:+.3g}"
+                    for v in c["variables"])
+    rows = ", ".join(f"{k} {v:+.3g}" for k, v in c["active_constraints"].items()) if active \
+        else ""
+    return (f"{head}: lap gap {gap:+.4f} %, CVODES miss {miss:.3g} m; why: {why}"
+            + (f"; active: {rows}" if rows else ""))
 
 
 def theta_gradient(prep, cfg, track, dT_dP: np.ndarray) -> np.ndarray:
@@ -278,23 +286,30 @@ def verdict(prep, point, checks: tuple[TrackCheck, ...], g_theta: np.ndarray,
     return Certificate(checks, tuple(variables), active, not failed, "; ".join(failed))
 
 
+def appended_rows(cd) -> tuple[slice, slice | None, dict[str, slice]]:
+    """Where the rows appended to the tracks' own lie in g: the feasibility rows, the epigraph
+    rows of ``combine: worst`` (None for ``sum``), and each ε measure's rows."""
+    row = cd.row_offsets[-1]
+    feas = slice(row, row + cd.n_feas)
+    row += cd.n_feas
+    epigraph = None
+    if cd.combine == "worst":
+        epigraph = slice(row, row + len(cd.parts))
+        row += len(cd.parts)
+    eps = {}
+    for m in cd.epsilon:
+        eps[m] = slice(row, row + epsilon_rows(m))
+        row += epsilon_rows(m)
+    return feas, epigraph, eps
+
+
 def _row_multipliers(cd, lam_g: np.ndarray) -> tuple[np.ndarray, np.ndarray,
                                                       dict[str, np.ndarray]]:
     """IPOPT's multipliers of the rows appended to the tracks' own: (feasibility rows, the
     epigraph rows of ``combine: worst`` (ones for ``sum``), each ε measure's rows)."""
-    n_tr = len(cd.parts)
-    row0 = cd.row_offsets[-1]
-    lam_feas = lam_g[row0:row0 + cd.n_feas]
-    tail = lam_g[row0 + cd.n_feas:]
-    if cd.combine == "worst":
-        mu, tail = tail[:n_tr], tail[n_tr:]
-    else:
-        mu = np.ones(n_tr)
-    lam_eps, i = {}, 0
-    for m in cd.epsilon:
-        n = 2 if m == "span_m" else 1  # span: both rotor diagonals
-        lam_eps[m], i = tail[i:i + n], i + n
-    return lam_feas, mu, lam_eps
+    feas, epigraph, eps = appended_rows(cd)
+    mu = lam_g[epigraph] if epigraph is not None else np.ones(len(cd.parts))
+    return lam_g[feas], mu, {m: lam_g[rows] for m, rows in eps.items()}
 
 
 def active_constraints(prep, point) -> dict[str, float]:

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from casadrone.codesign.driver import CodesignPoint, Prepared, constrained, solve_from
+from casadrone.codesign.nlp import epsilon_rows
 
 
 @dataclass(frozen=True)
@@ -95,8 +96,7 @@ def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points:
         return fp
 
     top = measure_value(prep, best, measure)
-    n_rows = 2 if measure == "span_m" else 1
-    prev = replace(best, lam_g=np.concatenate([best.lam_g, np.zeros(n_rows)]))
+    prev = replace(best, lam_g=np.concatenate([best.lam_g, np.zeros(epsilon_rows(measure))]))
     out = [certified(FrontPoint(prev, top, math.inf, "fastest frame", True))]
     if on_point is not None:
         on_point(out[-1])

@@ -52,6 +52,7 @@ from casadrone.codesign.certificate import (
     LAP_RTOL,
     Certificate,
     TrackCheck,
+    appended_rows,
     frame_terms,
     theta_gradient,
     verdict,
@@ -77,15 +78,8 @@ def fixed_theta_bounds(prep: Prepared, point: CodesignPoint) -> tuple[np.ndarray
     lo, n = cd.offsets[-1], cd.n_theta
     lbx[lo:lo + n] = ubx[lo:lo + n] = np.clip(cd.split(point.z)[1], 0.0, 1.0)
     lbg, ubg = cd.lbg.copy(), cd.ubg.copy()
-    row = cd.row_offsets[-1]
-    free = [slice(row, row + cd.n_feas)]
-    row += cd.n_feas + (len(cd.parts) if cd.combine == "worst" else 0)
-    for m in cd.epsilon:
-        size = 2 if m == "span_m" else 1  # span: both rotor diagonals
-        if m != "effort":
-            free.append(slice(row, row + size))
-        row += size
-    for rows in free:
+    feas, _, eps = appended_rows(cd)
+    for rows in [feas, *(r for m, r in eps.items() if m != "effort")]:
         lbg[rows], ubg[rows] = -np.inf, np.inf
     return lbx, ubx, lbg, ubg
 

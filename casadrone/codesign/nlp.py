@@ -35,11 +35,17 @@ FEASIBILITY_MARGIN = 1e-6
 #: The ε-constrained measures a co-design NLP can hold: the frame's mass and span, and the
 #: limit lap's effort (:func:`effort`).
 MEASURES = ("mass_kg", "span_m", "effort")
+
+
+def epsilon_rows(measure: str) -> int:
+    """Rows of a measure's ε bound: ``span_m`` bounds both rotor diagonals, the others are one
+    row each (:func:`build_codesign_nlp` appends them in :attr:`CodesignNlp.epsilon` order)."""
+    return 2 if measure == "span_m" else 1
 #: Iterations of one ε-continuation step (:attr:`CodesignNlp.step`). Every converged step of the
 #: measured fronts took 27–101 (paper track, `paper`) and 79–170 (`propeller`, 120 intervals per
 #: leg) iterations; a step that would need more is one IPOPT has lost (restoration: one step
 #: of the paper front on another machine crawled for 1090 s of CPU), and is split in two
-#: instead (:func:`casadrone.codesign.front.design_front`).
+#: instead (:func:`casadrone.codesign.front.continued`).
 STEP_MAX_ITER = 250
 #: ... and its CPU seconds (IPOPT's ``max_cpu_time``): a lost step's iterations can each take
 #: seconds (the 1090 s step above: infeasibility 10³ after restoration, slow factorisations),
@@ -144,7 +150,7 @@ class CodesignNlp:
     problem: dict = field(default_factory=dict, compare=False, repr=False)
     derivatives: dict = field(default_factory=dict, compare=False, repr=False)
     #: with ε rows: the warm solver of one continuation step, capped at :data:`STEP_MAX_ITER`
-    #: (a front's step that needs more is split, :func:`casadrone.codesign.front.design_front`)
+    #: (a front's step that needs more is split, :func:`casadrone.codesign.front.continued`)
     step: ca.Function | None = field(default=None, compare=False, repr=False)
 
     @property

@@ -67,19 +67,13 @@ def _active(point: dict) -> str:
 
 
 def _certificate(point: dict) -> str:
-    """A point's stored certificate in one cell: verdict, the worst track's lap gap and CVODES
-    miss, and the reduced gradient of each variable (s per box width) with its state."""
+    """A point's stored certificate in one cell (its one-line summary without the active rows,
+    which have their own column)."""
+    from casadrone.codesign.certificate import summary_of
+
     c = point.get("certificate")
-    if c is None:
-        return "not certified"
-    head = "PASSED" if c["passed"] else f"FAILED ({c['reason']})"
-    if not c["tracks"]:
-        return head
-    gap = max((t["gap_pct"] for t in c["tracks"]), key=abs)
-    miss = max(t["resimulation_miss_m"] for t in c["tracks"])
-    why = ", ".join(f"{v['key']} {v['state']} {v['reduced_gradient']:+.3g}"
-                    for v in c["variables"])
-    return f"{head}: lap gap {gap:+.4f} %, CVODES miss {miss:.3g} m; {why}"
+    # the active rows have their own column
+    return "not certified" if c is None else summary_of(c, active=False)
 
 
 def section_codesign(run: Run, cands: list[Candidate], figs: Figures) -> str:

@@ -475,3 +475,51 @@ def test_planted_wrong_points_fail_their_certificates(short_front, tmp_path):
     write_run(tmp_path / "run", prep, certified, len(certified.points))
     stored = json.loads((tmp_path / "run" / "codesign.json").read_text())["points"]
     assert stored[-1]["certificate"]["passed"] is False
+
+
+def test_appended_rows_are_where_the_nlp_puts_them():
+    """The layout the certificates read (casadrone.codesign.certificate.appended_rows: the
+    multipliers, and the rows a fixed-frame re-solve frees) against the NLP's own row values at
+    a start: each ε row equals its measure minus ε, the measure recomputed apart (the mass by
+    the numeric airframe build, both tip-to-tip diagonals from its rotor positions),
+    and each epigraph row of ``combine: worst`` equals its track's weighted lap minus t."""
+    import casadi as ca
+
+    from casadrone.codesign.certificate import appended_rows
+    from casadrone.codesign.driver import constrained, initial_vector, prepare
+
+    data = _problem(SHORT, starts=0, intervals=8).model_dump()
+    del data["track"]
+    data["codesign"]["tracks"] = {"a": {"track": str(SHORT), "weight": 1.0},
+                                  "b": {"track": str(SHORT), "weight": 2.0}}
+    data["codesign"]["combine"] = "worst"
+    prep = constrained(prepare(CodesignProblemConfig.model_validate(data)),
+                       ("span_m", "mass_kg"))
+    cd = prep.nlp
+    theta = {"lambda_a_mm": 120.0, "lambda_b_mm": 110.0, "alpha_deg": 85.0, "beta_deg": 80.0}
+    z = initial_vector(prep, theta)
+    assert z is not None
+    z = cd.full(z)
+    t = 1.7  # the epigraph variable, after θ
+    z[cd.offsets[-1] + cd.n_theta] = t
+    eps = np.array([0.3, 0.4])  # span_m, mass_kg: the NLP's ε order
+    g = np.asarray(ca.Function("g", [cd.problem["x"], cd.problem["p"]],
+                               [cd.problem["g"]])(z, eps), float).ravel()
+    feas, epigraph, rows = appended_rows(cd)
+    assert rows["span_m"].stop - rows["span_m"].start == 2
+    assert feas.stop - feas.start == cd.n_feas and rows["mass_kg"].start == rows["span_m"].stop
+    cfg = with_theta(r_template(), theta)
+    frame = build_airframe(cfg)
+    assert g[rows["mass_kg"]] == pytest.approx([frame.mass - 0.4], rel=1e-9)
+    assert g[rows["span_m"]] + 0.3 == pytest.approx(_diagonals(frame, cfg), rel=1e-9)
+    ws, _ = cd.split(z)
+    laps = [float(np.sum(part.nlp.unpack(w)[0])) for part, w in zip(cd.parts, ws, strict=True)]
+    assert g[epigraph] == pytest.approx([1.0 * laps[0] - t, 2.0 * laps[1] - t], rel=1e-12)
+
+
+def _diagonals(frame, cfg) -> list[float]:
+    """The two tip-to-tip diagonals (m), FR–RL and FL–RR: the distance between opposite rotor
+    hubs (the numeric airframe's positions) plus one propeller diameter."""
+    r = np.asarray(frame.rotor_positions, float)
+    d = cfg.prop_diameter_mm / 1000
+    return [float(np.linalg.norm(r[0] - r[2])) + d, float(np.linalg.norm(r[1] - r[3])) + d]

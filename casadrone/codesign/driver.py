@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from casadrone.airframe import build_airframe, random_thetas, with_theta
+from casadrone.codesign.budget import STOPPED
 from casadrone.codesign.frame import CODESIGN_KEYS, SymbolicFrame
 from casadrone.codesign.nlp import CodesignNlp, TrackPart, build_codesign_nlp
 from casadrone.config.airframe import AirframeConfig, load_airframe
@@ -362,12 +363,12 @@ def vector_of(prep: Prepared, theta: dict[str, float], ws: list[np.ndarray]) -> 
 
 def solve_from(prep: Prepared, z0: np.ndarray, epsilon: dict[str, float] | None = None,
                warm: CodesignPoint | None = None,
-               bounds: tuple[np.ndarray, ...] | None = None, step: bool = False
-               ) -> tuple[bool, str, CodesignPoint]:
+               bounds: tuple[np.ndarray, ...] | None = None, step: bool = False,
+               budget_s: float | None = None) -> tuple[bool, str, CodesignPoint]:
     """IPOPT on the co-design NLP from ``z0`` (or ``warm``'s primal-dual point); ``bounds``
     (lbx, ubx, lbg, ubg) replace the NLP's own (a certificate fixes θ with them); ``step``: a
     warm start's solve with the continuation step's iteration cap (:attr:`CodesignNlp.step`,
-    where the NLP has one)."""
+    where the NLP has one), stopped past ``budget_s`` CPU seconds if given."""
     cd = prep.nlp
     lbx, ubx, lbg, ubg = bounds if bounds is not None else (*cd.bounds(), cd.lbg, cd.ubg)
     eps = np.array([(epsilon or {})[m] for m in cd.epsilon], float)
@@ -378,11 +379,15 @@ def solve_from(prep: Prepared, z0: np.ndarray, epsilon: dict[str, float] | None 
         solver = cd.step if step and cd.step is not None else cd.warm
         args.update(x0=np.clip(cd.full(warm.z), lbx, ubx),
                     lam_x0=_padded(warm.lam_x, len(lbx)), lam_g0=_padded(warm.lam_g, len(cd.lbg)))
+    if solver is cd.step and cd.budget is not None:
+        cd.budget.start(budget_s)
     c0 = time.process_time()
     try:
         out = solver(**args)
         stats = solver.stats()
         status = str(stats.get("return_status", "unknown"))
+        if status == STOPPED and cd.budget is not None and solver is cd.step:
+            status = f"stopped at the step's CPU budget ({cd.budget.limit_s:.3g} s)"
         ok = bool(stats.get("success", False)) and np.isfinite(float(out["f"]))
         z, lam_x, lam_g = (np.array(out[k], float).ravel() for k in ("x", "lam_x", "lam_g"))
         iters = int(stats.get("iter_count", 0))

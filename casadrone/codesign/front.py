@@ -22,7 +22,12 @@ from typing import Any
 import numpy as np
 
 from casadrone.codesign.driver import CodesignPoint, Prepared, constrained, solve_from
-from casadrone.codesign.nlp import epsilon_rows
+from casadrone.codesign.nlp import (
+    STEP_CPU_FACTOR,
+    STEP_MAX_CPU_S,
+    STEP_MIN_CPU_S,
+    epsilon_rows,
+)
 
 
 @dataclass(frozen=True)
@@ -102,8 +107,10 @@ def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points:
         on_point(out[-1])
     stopped = ""
     last = top
+    step_cpu: list[float] = []  # the CPU of each converged solve of the sweep (its last)
     for eps in top * lowest ** (np.arange(1, points) / (points - 1)):
-        ok, status, pt = continued(prep, prev, measure, last, float(eps))
+        ok, status, pt = continued(prep, prev, measure, last, float(eps),
+                                   budget_s=step_budget(step_cpu))
         if not ok:
             stopped = f"ε = {eps:.6g}: {status}"
             break
@@ -112,6 +119,7 @@ def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points:
         if on_point is not None:
             on_point(out[-1])
         prev, last = pt, float(eps)
+        step_cpu.append(pt.cpu_s)
     return Front(measure, tuple(out), time.process_time() - c0, stopped, prep, cert_cpu)
 
 
@@ -120,22 +128,37 @@ MAX_SPLITS = 2
 
 
 def continued(prep: Prepared, prev: CodesignPoint, measure: str, last: float, eps: float,
-              splits: int = MAX_SPLITS) -> tuple[bool, str, CodesignPoint]:
+              splits: int = MAX_SPLITS, budget_s: float | None = None
+              ) -> tuple[bool, str, CodesignPoint]:
     """The ε-point ``eps`` from ``prev`` (the point at ``last``): one warm solve capped at
-    :data:`casadrone.codesign.nlp.STEP_MAX_ITER` iterations; if it fails, the step is halved
-    (geometric mean of ``last`` and ``eps``: the sweep's own spacing) and both halves are
-    solved in turn, each from the one before, at most ``splits`` levels deep. Step-length
-    control of a continuation (Allgower & Georg, *Introduction to Numerical Continuation
-    Methods*, 2003, ch. 6): a shorter step starts closer to the next optimum."""
-    ok, status, pt = solve_from(prep, prev.z, {measure: eps}, warm=prev, step=True)
+    :data:`casadrone.codesign.nlp.STEP_MAX_ITER` iterations and ``budget_s`` CPU seconds; if
+    it fails, the step is halved (geometric mean of ``last`` and ``eps``: the sweep's own
+    spacing) and both halves are solved in turn, each from the one before and with the same
+    budget, at most ``splits`` levels deep. Step-length control of a continuation (Allgower &
+    Georg, *Introduction to Numerical Continuation Methods*, 2003, ch. 6): a shorter step
+    starts closer to the next optimum."""
+    ok, status, pt = solve_from(prep, prev.z, {measure: eps}, warm=prev, step=True,
+                                budget_s=budget_s)
     if ok or splits == 0:
         return ok, status, pt
     mid = math.sqrt(last * eps)
-    ok_mid, status_mid, half = continued(prep, prev, measure, last, mid, splits - 1)
+    ok_mid, status_mid, half = continued(prep, prev, measure, last, mid, splits - 1, budget_s)
     if not ok_mid:
         return False, f"{status}; halved at ε = {mid:.6g}: {status_mid}", pt
-    ok, status2, pt = continued(prep, half, measure, mid, eps, splits - 1)
+    ok, status2, pt = continued(prep, half, measure, mid, eps, splits - 1, budget_s)
     return ok, status2 if ok else f"{status}; from ε = {mid:.6g}: {status2}", pt
+
+
+def step_budget(converged_cpu_s: list[float]) -> float | None:
+    """A continuation step's CPU budget from the steps converged so far (their CPU seconds):
+    :data:`~casadrone.codesign.nlp.STEP_CPU_FACTOR` × the slowest, at least
+    :data:`~casadrone.codesign.nlp.STEP_MIN_CPU_S` and at most
+    :data:`~casadrone.codesign.nlp.STEP_MAX_CPU_S`; ``None`` before the first (the solver's own
+    cap, ``STEP_MAX_CPU_S``, holds). A step that needs many times what its neighbours needed
+    has lost its way; halving it is cheaper."""
+    if not converged_cpu_s:
+        return None
+    return min(STEP_MAX_CPU_S, max(STEP_MIN_CPU_S, STEP_CPU_FACTOR * max(converged_cpu_s)))
 
 
 #: Beside ``pareto.csv`` in a front's run directory: per point, its laps, measures and active

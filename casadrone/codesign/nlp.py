@@ -21,6 +21,7 @@ from typing import Any, Literal, cast
 import casadi as ca
 import numpy as np
 
+from casadrone.codesign.budget import CpuBudget
 from casadrone.codesign.derivatives import codesign_derivatives, uses_blocks
 from casadrone.codesign.frame import SymbolicFrame
 from casadrone.indices import EFFORT_SMOOTHING_N  # one δ for the index and the NLP
@@ -52,6 +53,14 @@ STEP_MAX_ITER = 250
 #: so the iteration cap alone does not bound it. Above the slowest converged step measured
 #: (76 s, `propeller`, 120 intervals per leg, under load).
 STEP_MAX_CPU_S = 120.0
+#: A step's own budget follows the front (:func:`casadrone.codesign.front.step_budget`): this
+#: many times the slowest step converged so far, at least :data:`STEP_MIN_CPU_S`, at most
+#: :data:`STEP_MAX_CPU_S`. Why: the lost step above, re-run, took 113 iterations of 1.2 s on
+#: average (the converged steps' take 0.1 s; a limit of 10 successive restoration iterations
+#: did not stop it) and ended at the 120 s cap, while the paper front's converged steps took
+#: 2–10 s; its two halves then converged in 2 and 7 s.
+STEP_CPU_FACTOR = 3.0
+STEP_MIN_CPU_S = 15.0
 
 
 def effort_terms(part: TrackPart, w, p=None):
@@ -152,6 +161,8 @@ class CodesignNlp:
     #: with ε rows: the warm solver of one continuation step, capped at :data:`STEP_MAX_ITER`
     #: (a front's step that needs more is split, :func:`casadrone.codesign.front.continued`)
     step: ca.Function | None = field(default=None, compare=False, repr=False)
+    #: :attr:`step`'s CPU budget, set per solve (:func:`casadrone.codesign.driver.solve_from`)
+    budget: CpuBudget | None = field(default=None, compare=False, repr=False)
 
     @property
     def n_theta(self) -> int:
@@ -292,13 +303,18 @@ def build_codesign_nlp(parts: tuple[TrackPart, ...], frame: SymbolicFrame, combi
     if not expand and compiled and uses_blocks(frame.cfg.propulsion.model, parts):
         extra = codesign_derivatives(parts, ws, s, z, eps, frame.function, x0s, Ps, objective,
                                      ca.vertcat(*gs[len(parts):]), tuple(offsets))
+    kind = frame.cfg.propulsion.model  # the warm settings of the limit lap's own kind
     cold = ca.nlpsol(tag, "ipopt", problem, ipopt_options(tol, max_iter, False) | extra)
-    warm = ca.nlpsol(tag + "_warm", "ipopt", problem, ipopt_options(tol, max_iter, True) | extra)
-    step = None
+    warm = ca.nlpsol(tag + "_warm", "ipopt", problem,
+                     ipopt_options(tol, max_iter, True, propulsion=kind) | extra)
+    step = budget = None
     if epsilon:
-        options = ipopt_options(tol, min(max_iter, STEP_MAX_ITER), True)
+        options = ipopt_options(tol, min(max_iter, STEP_MAX_ITER), True, propulsion=kind)
         options["ipopt"] = options["ipopt"] | {"max_cpu_time": STEP_MAX_CPU_S}
-        step = ca.nlpsol(tag + "_step", "ipopt", problem, options | extra)
+        budget = CpuBudget(tag + "_budget", z.numel(), problem["g"].numel(), eps.numel())
+        step = ca.nlpsol(tag + "_step", "ipopt", problem,
+                         options | extra | {"iteration_callback": budget})
     return CodesignNlp(parts, frame, combine, tuple(epsilon), cold, warm, np.concatenate(lbg),
                        np.concatenate(ubg), tuple(offsets), n_feas, tuple(row_offsets), n_lift,
-                       lift, problem, {k: v for k, v in extra.items() if k != "expand"}, step)
+                       lift, problem, {k: v for k, v in extra.items() if k != "expand"}, step,
+                       budget)

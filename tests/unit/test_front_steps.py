@@ -15,7 +15,7 @@ import casadrone.codesign.front as front
 
 
 def _solver(reach: float, calls: list):
-    def solve_from(prep, z0, epsilon, warm=None, step=False):
+    def solve_from(prep, z0, epsilon, warm=None, step=False, budget_s=None):
         eps = epsilon["effort"]
         start = warm.epsilon["effort"]
         calls.append((start, eps, step))
@@ -63,3 +63,50 @@ def test_two_levels_of_halving_then_the_sweep_stops(monkeypatch):
     assert not ok
     assert "halved at ε = 16" in status
     assert front.MAX_SPLITS == 2
+
+
+def test_a_step_budget_follows_the_slowest_converged_step():
+    """No budget before the first converged step (the solver's own cap holds); then a few times
+    the slowest step so far, never below the floor nor above the solver's cap."""
+    from casadrone.codesign import nlp
+
+    assert front.step_budget([]) is None
+    assert front.step_budget([1.0, 2.0]) == nlp.STEP_MIN_CPU_S  # 3 × 2 s is below the floor
+    slow = 2 * nlp.STEP_MIN_CPU_S
+    assert front.step_budget([1.0, slow, 3.0]) == pytest.approx(nlp.STEP_CPU_FACTOR * slow)
+    assert front.step_budget([10 * nlp.STEP_MAX_CPU_S]) == nlp.STEP_MAX_CPU_S
+
+
+def _rosenbrock(budget=None):
+    import casadi as ca
+
+    x = ca.MX.sym("x", 2)
+    options = {"ipopt": {"print_level": 0, "sb": "yes"}, "print_time": False,
+               "error_on_fail": False}
+    if budget is not None:
+        options["iteration_callback"] = budget
+    f = (1 - x[0]) ** 2 + 100 * (x[1] - x[0] ** 2) ** 2
+    return ca.nlpsol("rosen", "ipopt", {"x": x, "f": f}, options)
+
+
+def test_the_cpu_budget_stops_ipopt_and_otherwise_leaves_it_alone():
+    """Rosenbrock's function from (−1.2, 1) (minimum at (1, 1), about 20 IPOPT iterations):
+    with an unlimited budget the solve is bit-identical to one without the callback; a spent
+    budget stops IPOPT at its first iteration with the status the driver reads."""
+    import numpy as np
+
+    from casadrone.codesign.budget import STOPPED, CpuBudget
+
+    plain = _rosenbrock()
+    reference = np.array(plain(x0=[-1.2, 1.0])["x"]).ravel()
+    assert plain.stats()["success"] and np.allclose(reference, [1.0, 1.0], atol=1e-6)
+    budget = CpuBudget("budget", 2, 0, 0)
+    solver = _rosenbrock(budget)
+    budget.start(None)
+    x = np.array(solver(x0=[-1.2, 1.0])["x"]).ravel()
+    assert solver.stats()["success"] and np.array_equal(x, reference)
+    assert solver.stats()["iter_count"] == plain.stats()["iter_count"]
+    budget.start(0.0)
+    solver(x0=[-1.2, 1.0])
+    assert solver.stats()["return_status"] == STOPPED
+    assert solver.stats()["iter_count"] <= 1

@@ -129,6 +129,18 @@ def test_front_follows_the_effort_bound(short_front):
         assert numpy_effort == pytest.approx(p.measure, rel=1e-9)
 
 
+def test_front_steps_after_the_first_run_on_a_budget(short_front):
+    """The sweep's second step is solved within a CPU budget from the first's CPU (its steps take
+    a second or so here, so the floor): the budget reached the step solver's callback. Unset
+    (a wiring lost between the front, continued and solve_from) it stays unlimited."""
+    from casadrone.codesign.nlp import STEP_MIN_CPU_S
+
+    result, _ = short_front
+    assert len(result.front.points) == 3
+    assert max(p.point.cpu_s for p in result.front.points[1:]) < STEP_MIN_CPU_S / 3
+    assert result.front.prepared.nlp.budget.limit_s == STEP_MIN_CPU_S
+
+
 def test_front_run_directory_is_read_by_decide(short_front, cli_runner):
     from casadrone.cli import app
     from casadrone.optimise.store import RunStore

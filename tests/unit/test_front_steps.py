@@ -14,11 +14,13 @@ import pytest
 import casadrone.codesign.front as front
 
 
-def _solver(reach: float, calls: list):
+def _solver(reach: float, calls: list, budgets: list | None = None):
     def solve_from(prep, z0, epsilon, warm=None, step=False, budget_s=None):
         eps = epsilon["effort"]
         start = warm.epsilon["effort"]
         calls.append((start, eps, step))
+        if budgets is not None:
+            budgets.append(budget_s)
         ok = abs(math.log(eps / start)) <= math.log(reach) + 1e-12
         return ok, "Solve_Succeeded" if ok else "Maximum_Iterations_Exceeded", \
             SimpleNamespace(z=None, epsilon={"effort": eps})
@@ -110,3 +112,11 @@ def test_the_cpu_budget_stops_ipopt_and_otherwise_leaves_it_alone():
     solver(x0=[-1.2, 1.0])
     assert solver.stats()["return_status"] == STOPPED
     assert solver.stats()["iter_count"] <= 1
+
+
+def test_every_solve_of_a_halved_step_gets_the_step_budget(monkeypatch):
+    calls: list = []
+    budgets: list = []
+    monkeypatch.setattr(front, "solve_from", _solver(1.3, calls, budgets))
+    ok, _, _ = front.continued(None, _point(100.0), "effort", 100.0, 64.0, budget_s=7.0)
+    assert ok and len(calls) == 3 and budgets == [7.0, 7.0, 7.0]

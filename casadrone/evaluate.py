@@ -198,7 +198,7 @@ def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory
     if not warm:
         return limit_lap(cfg, setup.track, cold)
     first = limit_lap(cfg, setup.track, replace(cold, starts=(), warm_starts=warm,
-                                                fallback_reference=None))
+                                                fallback_reference=None, refinements=0))
     if first.completed:
         return first
     lap = limit_lap(cfg, setup.track, cold)  # every warm start failed: the cold starts decide

@@ -235,10 +235,12 @@ def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Pr
     # a propeller lap on the paper's 40 intervals misses its re-simulation (DEFAULT_INTERVALS)
     intervals = problem.codesign.intervals or DEFAULT_INTERVALS[template.propulsion.model]
     # The template's lap and the certificate's cold re-solve use ``codesign.lap_starts`` and no
-    # point-mass reference (see template_lap).
+    # point-mass reference (see template_lap). No grid refinement inside the limit lap: every
+    # lap here is on the co-design NLP's grid, which co-design refines itself (design.py).
     options = LimitLapOptions(intervals=intervals, sensitivities=False,
                               starts=problem.codesign.lap_starts, point_mass_reference=False,
-                              gate_clearance_m=gate_clearance(template, lower, upper, keys))
+                              gate_clearance_m=gate_clearance(template, lower, upper, keys),
+                              refinements=0)
     parts = tuple(_part(template, t, options, w) for t, w in zip(tracks, weights, strict=True))
     frame = SymbolicFrame(template, keys, lower, upper)
     nlp = _built(problem, template, keys, lower, upper, tracks, weights, parts, frame, epsilon)

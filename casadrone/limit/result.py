@@ -121,6 +121,10 @@ class LimitLapOptions:
     # Shipped airframe whose limit lap (same track and options) starts a frame whose own starts
     # all fail (module docstring, "fallback"); None: no fallback.
     fallback_reference: str | None = "SY250"
+    # Grid refinements when starts converge but none passes the re-simulation check (the grid
+    # too coarse for the lap: casadrone.limit.lap.refined): the fastest converged lap resampled
+    # onto REFINE_FACTOR times the intervals, at most this many times; 0: none.
+    refinements: int = 2
 
 
 @dataclass(frozen=True)

@@ -197,7 +197,8 @@ def _grid_continuation(pb: Problem, lap_of: LapOf, intervals: int, start: Start
     this grid and solved here (None when that lap fails)."""
     other = lap_of(pb.frame, pb.track, replace(
         pb.options, intervals=intervals, starts=(start,), warm_starts=(),
-        point_mass_reference=False, sensitivities=False, fallback_reference=None))
+        point_mass_reference=False, sensitivities=False, fallback_reference=None,
+        refinements=0))  # a start: its resampled optimum is checked on this grid
     if not other.completed:
         return None
     return pb.solve(guess_from_lap(pb.full, other, pb.x0))

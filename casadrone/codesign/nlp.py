@@ -48,17 +48,19 @@ def epsilon_rows(measure: str) -> int:
 #: of the paper front on another machine crawled for 1090 s of CPU), and is split in two
 #: instead (:func:`casadrone.codesign.front.continued`).
 STEP_MAX_ITER = 250
-#: ... and its CPU seconds (IPOPT's ``max_cpu_time``): a lost step's iterations can each take
-#: seconds (the 1090 s step above: infeasibility 10³ after restoration, slow factorisations),
-#: so the iteration cap alone does not bound it. Above the slowest converged step measured
-#: (76 s, `propeller`, 120 intervals per leg, under load).
-STEP_MAX_CPU_S = 120.0
+#: ... and its CPU seconds (IPOPT's ``max_cpu_time``), an absolute guard: a lost step's
+#: iterations can each take seconds (the 1090 s step above: infeasibility 10³ after
+#: restoration, slow factorisations), so the iteration cap alone does not bound it. The budget
+#: below decides first; this only bounds a budget gone wrong.
+STEP_MAX_CPU_S = 600.0
 #: A step's own budget follows the front (:func:`casadrone.codesign.front.step_budget`): this
-#: many times the slowest step converged so far, at least :data:`STEP_MIN_CPU_S`, at most
-#: :data:`STEP_MAX_CPU_S`. Why: the lost step above, re-run, took 113 iterations of 1.2 s on
-#: average (the converged steps' take 0.1 s; a limit of 10 successive restoration iterations
-#: did not stop it) and ended at the 120 s cap, while the paper front's converged steps took
-#: 2–10 s; its two halves then converged in 2 and 7 s.
+#: many times the slowest solve so far (the fastest frame's and every converged step's), at
+#: least :data:`STEP_MIN_CPU_S`. Why a multiple, not a fixed cap: the lost paper step above,
+#: re-run, took 113 iterations of 1.2 s on average (the converged steps' take 0.1 s; a limit of
+#: 10 successive restoration iterations did not stop it) to a 120 s cap, while the paper
+#: front's converged steps took 2–10 s and its two halves converged in 2 and 7 s; and a fixed
+#: 120 s cap stopped the `propeller` front (120 intervals per leg) at its 12th point on a
+#: loaded 2-vCPU VM, where its converged steps took 33–109 s (benchmarks/RESULTS-codesign.md).
 STEP_CPU_FACTOR = 3.0
 STEP_MIN_CPU_S = 15.0
 

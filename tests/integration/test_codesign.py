@@ -130,9 +130,9 @@ def test_front_follows_the_effort_bound(short_front):
 
 
 def test_front_steps_after_the_first_run_on_a_budget(short_front):
-    """The sweep's second step is solved within a CPU budget from the first's CPU (its steps take
-    a second or so here, so the floor): the budget reached the step solver's callback. Unset
-    (a wiring lost between the front, continued and solve_from) it stays unlimited."""
+    """The sweep's steps are solved within a CPU budget from the solves before them (a second or
+    so each here, so the floor): the budget reached the step solver's callback. Unset (a wiring
+    lost between the front, continued and solve_from) it stays unlimited."""
     from casadrone.codesign.nlp import STEP_MIN_CPU_S
 
     result, _ = short_front

@@ -80,6 +80,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.optimise.store",
     "casadrone.optimise.timings",
     "casadrone.optimise.writer",
+    "casadrone.codesign.budget",
     "casadrone.codesign.frame",
     "casadrone.codesign.blocks",
     "casadrone.codesign.derivatives",

@@ -28,7 +28,7 @@ from casadrone.codesign.driver import (
 )
 from casadrone.codesign.front import design_front, write_run
 from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
-from casadrone.limit.lap import MAX_INTERVALS
+from casadrone.limit.lap import refined_intervals
 
 #: Co-design restarts from the certificate's faster fixed-frame lap (at most this many): where
 #: the limit lap's own cold starts find a faster lap of the returned frame than the co-design's
@@ -36,14 +36,15 @@ from casadrone.limit.lap import MAX_INTERVALS
 #: co-design NLP stopped in a slower local optimum of the trajectory, and started from that lap
 #: it can improve the frame as well.
 RESTARTS = 2
-#: Co-design re-poses a point whose certificate fails on the re-simulation on a grid this many
-#: times finer (at most REFINEMENTS times, up to the limit lap's MAX_INTERVALS), from the point
+#: Co-design re-poses a point whose certificate fails on the re-simulation on the limit lap's
+#: refined grid (casadrone.limit.lap.refined_intervals: REFINE_FACTOR times finer, up to
+#: MAX_INTERVALS; at most REFINEMENTS times), from the point
 #: resampled onto it. Why: the legs share one number of intervals, so a long leg gets long
 #: steps, and a frame whose optimum switches rotors faster than RK4's steps follow the rotor
 #: speed's ~20 ms time constant (``propeller``) drifts open loop. Measured
 #: (benchmarks/RESULTS-codesign.md): SY250-components-propeller's paper-track optimum on 80
 #: intervals per leg flies its 1.5 s straights on 19 ms intervals and misses CVODES by 0.17 m.
-REFINE_FACTOR, REFINEMENTS = 1.5, 2
+REFINEMENTS = 2
 
 
 def _faster_fixed_lap(cert) -> bool:
@@ -75,10 +76,10 @@ def _restart(prep, best, cert, reports: list):
 
 
 def _refine(prep, best, reports: list):
-    """(the problem on a grid REFINE_FACTOR finer, the co-design point solved there from
+    """(the problem on the refined grid (refined_intervals), the co-design point solved there from
     ``best``'s frame and laps) (reported as a start); None when the grid cannot be refined or
     the solve fails."""
-    finer = min(MAX_INTERVALS, round(REFINE_FACTOR * (prep.options.intervals or 0)))
+    finer = refined_intervals(prep.options.intervals or 0)
     if finer <= (prep.options.intervals or 0):
         return None
     c0 = time.process_time()

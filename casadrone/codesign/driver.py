@@ -110,7 +110,7 @@ class CodesignResult:
     certificate: Any = None  # casadrone.codesign.certificate.Certificate
     front: Any = None  # casadrone.codesign.front.Front, when the problem names a measure
     #: intervals per leg of the returned point (finer than the problem's after a refinement,
-    #: casadrone.codesign.design.REFINE_FACTOR; 0 when no point was returned)
+    #: casadrone.limit.lap.refined_intervals; 0 when no point was returned)
     intervals: int = 0
     cpu_s: float = math.nan
     wall_time_s: float = math.nan

@@ -181,10 +181,15 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     return replace(result, wall_time_s=time.perf_counter() - start)
 
 
-#: Intervals per leg of a grid refinement, as a multiple of the grid that missed (the co-design's
-#: factor, casadrone.codesign.design.REFINE_FACTOR: SY250-components-propeller's fastest frame
-#: missed its re-simulation on 80 intervals and passed on 120, 2.2 cm).
+#: Intervals per leg of a grid refinement, as a multiple of the grid that missed; the limit
+#: lap's and co-design's (casadrone.codesign.design): SY250-components-propeller's fastest frame
+#: missed its re-simulation on 80 intervals and passed on 120, 2.2 cm.
 REFINE_FACTOR = 1.5
+
+
+def refined_intervals(n: int) -> int:
+    """Intervals per leg of the grid that refines one of ``n`` (at most MAX_INTERVALS)."""
+    return min(MAX_INTERVALS, math.ceil(REFINE_FACTOR * n))
 
 
 def refined(airframe, track: TrackConfig, options: LimitLapOptions, pb: Problem,
@@ -196,8 +201,8 @@ def refined(airframe, track: TrackConfig, options: LimitLapOptions, pb: Problem,
     verified lap either. The lap's chosen start is named ``refined-N`` (N intervals per leg)."""
     converged = [(n, s) for n, s in solves if s.success]
     n = pb.layout.intervals
-    fine = min(MAX_INTERVALS, math.ceil(REFINE_FACTOR * n))
-    if not converged or options.refinements <= 0 or fine <= n or not options.resimulate:
+    fine = refined_intervals(n)
+    if not converged or options.refinements <= 0 or fine <= n:
         return None
     _, sol = best(converged)
     T, X, U = pb.full.unpack(sol.point.w)

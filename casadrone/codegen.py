@@ -22,6 +22,8 @@ from __future__ import annotations
 import contextlib
 import errno
 import hashlib
+import inspect
+import marshal
 import os
 import shutil
 import signal
@@ -30,6 +32,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import casadi as ca
@@ -70,12 +73,20 @@ def compile_source(name: str, src: str, flags: tuple[str, ...] = DEFAULT_FLAGS) 
     Raises NoCompiler when ``$CC`` (else gcc) is not a program here, CalledProcessError when it
     fails on the source.
     """
+    target = cache_dir() / f"{name}_{_digest(src, *flags)}.so"
+    if not target.exists():
+        _build(name, src, flags, target)
+    return target
+
+
+def _digest(*parts: str) -> str:
     version = ca.__version__  # type: ignore[attr-defined]  # absent from the stubs
-    digest = hashlib.sha256("\0".join([src, *flags, version]).encode()).hexdigest()[:16]
-    cache = cache_dir()
-    target = cache / f"{name}_{digest}.so"
-    if target.exists():
-        return target
+    return hashlib.sha256("\0".join([*parts, version]).encode()).hexdigest()[:16]
+
+
+def _build(name: str, src: str, flags: tuple[str, ...], target: Path) -> None:
+    """Compile ``src`` into the shared library ``target`` (in the cache), atomically."""
+    cache = target.parent
     _remove_stale(cache)
     _remove_stale_temp_dirs()
     cc = os.environ.get("CC", "gcc")
@@ -97,7 +108,6 @@ def compile_source(name: str, src: str, flags: tuple[str, ...] = DEFAULT_FLAGS) 
     except _Terminated:  # cleaned up: now end as SIGTERM would have ended the process
         _terminated_again()
         raise
-    return target
 
 
 def _install(so_file: Path, target: Path, name: str, cache: Path) -> None:
@@ -246,3 +256,38 @@ class ZeroCopyCall:
     def stats(self) -> dict:
         """The Function's statistics of this thread's last call (solvers: iterations, status)."""
         return self._bound()[0].stats()
+
+
+def recipe_fingerprint(fun: ca.Function, *builders: Callable) -> str:
+    """What determines the C that ``builders`` generate from ``fun``: ``fun`` serialised (its whole
+    expression graph, model and parameters included; a few ms) and the builders' source text.
+    Code that is not source here (a frozen build) falls back to its marshalled bytecode."""
+    parts = [fun.serialize()]
+    for builder in builders:
+        try:
+            parts.append(inspect.getsource(builder))
+        except (OSError, TypeError):
+            parts.append(marshal.dumps(builder.__code__).hex())
+    return hashlib.sha256("\0".join(parts).encode()).hexdigest()
+
+
+def compile_recipe(names: tuple[str, ...], fingerprint: str,
+                   build: Callable[[], Sequence[ca.Function]],
+                   flags: tuple[str, ...] = DEFAULT_FLAGS) -> list[ca.Function]:
+    """The functions ``names``, compiled together into one library that the cache finds by
+    ``fingerprint`` (:func:`recipe_fingerprint` of what determines them) instead of by their C
+    source: a process that finds the library never calls ``build`` (which returns the functions,
+    in the order of ``names``) nor generates their C. For the limit lap's interval blocks that is
+    1-3 s of CPU in every process (CasADi's code generator on a ~10⁵-line Hessian), most of what a
+    cached process pays before its first solve. On a miss, ``build()`` is compiled as
+    :func:`compile_source` does (the same atomic install), under the fingerprint's name."""
+    target = cache_dir() / f"{names[0]}_r{_digest('recipe', fingerprint, *names, *flags)}.so"
+    if not target.exists():
+        gen = ca.CodeGenerator(f"{names[0]}.c", {"with_header": False})
+        built = list(build())
+        if [f.name() for f in built] != list(names):
+            raise ValueError(f"build() returned {[f.name() for f in built]}, not {list(names)}")
+        for f in built:
+            gen.add(f)
+        _build(names[0], gen.dump(), flags, target)
+    return [ca.external(n, str(target)) for n in names]

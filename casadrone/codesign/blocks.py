@@ -73,9 +73,12 @@ def theta_blocks(model: OcpModel, substeps: int, n_dir: int) -> tuple[ca.Functio
     in memory)."""
     key = (model.name, model.scale, substeps, n_dir)
     if key not in _THETA_BLOCKS:
-        from casadrone.codegen import compile_function
+        from casadrone.codegen import compile_recipe, recipe_fingerprint
 
-        jac, hess = theta_block_functions(model, substeps, n_dir)
-        _THETA_BLOCKS[key] = (compile_function(jac, BLOCK_FLAGS),
-                              compile_function(hess, BLOCK_FLAGS))
+        tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+        jac, hess = compile_recipe(
+            (f"codesign_jac_{tag}", f"codesign_hess_{tag}"),
+            recipe_fingerprint(rk4_step(model, substeps), theta_block_functions),
+            lambda: theta_block_functions(model, substeps, n_dir), BLOCK_FLAGS)
+        _THETA_BLOCKS[key] = (jac, hess)
     return _THETA_BLOCKS[key]

@@ -608,10 +608,28 @@ def interval_blocks(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Fun
     it costs ~0.1 s per IPOPT iteration, most of a solve).
     """
     key = (model.name, substeps)
-    if key in _BLOCKS:
-        return _BLOCKS[key]
-    from casadrone.codegen import compile_function
+    if key not in _BLOCKS:
+        from casadrone.codegen import compile_recipe, recipe_fingerprint
 
+        names = tuple(f"limit_{part}_{_block_tag(model, substeps)}"
+                      for part in ("jac", "hess", "hess_pattern"))
+        jac, hess, pattern = compile_recipe(
+            names, recipe_fingerprint(rk4_step(model, substeps), interval_block_functions),
+            lambda: interval_block_functions(model, substeps), BLOCK_FLAGS)
+        rows, cols = (np.asarray(a, dtype=int).ravel() for a in pattern.call([]))
+        _BLOCKS[key] = (jac, hess, rows, cols)
+    return _BLOCKS[key]
+
+
+def _block_tag(model: OcpModel, substeps: int) -> str:
+    return f"{model.name.replace('-', '_')}_rk4x{substeps}"
+
+
+def interval_block_functions(model: OcpModel, substeps: int
+                             ) -> tuple[ca.Function, ca.Function, ca.Function]:
+    """:func:`interval_blocks`' functions as SX (uncompiled): ``jac``, ``hess`` and
+    ``hess_pattern() -> (rows, cols)``, H's structural nonzeros' indices in z as constants (kept
+    in the compiled library, so that a process which finds it cached builds no Hessian)."""
     nx, nu = model.nx, model.nu
     z = ca.SX.sym("z", 1 + nu + nx)
     p = ca.SX.sym("p", model.np)
@@ -620,16 +638,16 @@ def interval_blocks(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Fun
     step = rk4_step(model, substeps)
     x_next = step(z[1 + nu:], z[1:1 + nu], p, z[0] * inv_n)
     H = ca.triu(ca.hessian(ca.dot(lam, x_next), z)[0])
-    rows, cols = (np.array(a, dtype=int) for a in H.sparsity().get_triplet())
-    tag = f"{model.name.replace('-', '_')}_rk4x{substeps}"
+    rows, cols = H.sparsity().get_triplet()
+    tag = _block_tag(model, substeps)
     jac = ca.Function(f"limit_jac_{tag}", [z, p, inv_n], [x_next, ca.densify(
         ca.jacobian(x_next, z))], ["z", "p", "inv_n"], ["x_next", "J"])
     nonzeros = ca.vertcat(*H.nonzeros())  # type: ignore[call-overload]  # SXElem: not in stubs
     hess = ca.Function(f"limit_hess_{tag}", [z, p, inv_n, lam], [nonzeros],
                        ["z", "p", "inv_n", "lam"], ["H"])
-    built = (compile_function(jac, BLOCK_FLAGS), compile_function(hess, BLOCK_FLAGS), rows, cols)
-    _BLOCKS[key] = built
-    return built
+    pattern = ca.Function(f"limit_hess_pattern_{tag}", [], [ca.DM(rows), ca.DM(cols)],
+                          [], ["rows", "cols"])
+    return jac, hess, pattern
 
 
 _STEPS: dict[tuple, ca.Function] = {}

@@ -11,7 +11,13 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from casadrone.codegen import ZeroCopyCall, compile_function, compile_with_reverse
+from casadrone.codegen import (
+    ZeroCopyCall,
+    compile_function,
+    compile_recipe,
+    compile_with_reverse,
+    recipe_fingerprint,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -81,6 +87,88 @@ def test_compiled_reverse_equals_virtual_machine(tmp_path, monkeypatch):
     for vm, compiled in zip(*values, strict=True):
         np.testing.assert_array_equal(compiled, vm)
 
+
+
+def _probe_builder(scale: float):
+    x = ca.SX.sym("x", 2)
+    y = ca.vertcat(ca.exp(x[0]) * x[1], ca.atan2(x[1], x[0])) * scale
+    return [ca.Function("probe_recipe", [x], [y]),
+            ca.Function("probe_recipe_jac", [x], [ca.jacobian(y, x)])]
+
+
+def _other_builder(scale: float):
+    return _probe_builder(2 * scale)
+
+
+def test_a_cached_recipe_is_found_without_building_it(tmp_path, monkeypatch):
+    """compile_recipe compiles build() once; a second call with the same fingerprint loads the
+    library without calling build (it raises here) and gives the virtual machine's numbers bit
+    for bit; a changed function or builder changes the fingerprint, so it is built again."""
+    monkeypatch.setenv("CASADRONE_CACHE", str(tmp_path))
+    x = ca.SX.sym("x")
+    key_fun = ca.Function("key", [x], [ca.sin(x)])
+    fp = recipe_fingerprint(key_fun, _probe_builder)
+    names = ("probe_recipe", "probe_recipe_jac")
+    calls = []
+
+    def build():
+        calls.append(1)
+        return _probe_builder(1.0)
+
+    first = compile_recipe(names, fp, build)
+
+    def refuse():
+        raise AssertionError("build() called although the library is cached")
+
+    second = compile_recipe(names, fp, refuse)
+    assert calls == [1]
+    assert [f.class_name() for f in second] == ["External", "External"]
+    for v in ([0.3, -1.2], [2.0, 0.5]):
+        for vm, a, b in zip(_probe_builder(1.0), first, second, strict=True):
+            np.testing.assert_array_equal(np.array(a(v)), np.array(vm(v)))
+            np.testing.assert_array_equal(np.array(b(v)), np.array(vm(v)))
+    assert recipe_fingerprint(key_fun, _other_builder) != fp
+    assert recipe_fingerprint(ca.Function("key", [x], [ca.cos(x)]), _probe_builder) != fp
+    assert recipe_fingerprint(ca.Function("key", [x], [ca.sin(x)]), _probe_builder) == fp
+    compile_recipe(names, recipe_fingerprint(key_fun, _other_builder), build)
+    assert calls == [1, 1]
+    with pytest.raises(ValueError, match="probe_recipe_jac"):
+        compile_recipe(names[::-1], "another", build)
+
+
+def test_interval_blocks_from_the_cache_equal_their_sx(tmp_path, monkeypatch):
+    """The limit lap's interval blocks found by fingerprint (a fresh process: nothing built) give
+    the uncompiled SX functions' values and the Hessian pattern of the SX Hessian."""
+    monkeypatch.setenv("CASADRONE_CACHE", str(tmp_path))
+    from casadrone.limit import nlp
+
+    model = nlp.point_mass_ocp_model()
+    nlp.interval_blocks(model, 1)
+    nlp._BLOCKS.clear()
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a cache hit builds the Hessian or generates C")
+
+    monkeypatch.setattr(ca, "hessian", refuse)
+    monkeypatch.setattr(ca, "CodeGenerator", refuse)
+    jac, hess, rows, cols = nlp.interval_blocks(model, 1)
+    monkeypatch.undo()
+    sx_jac, sx_hess, _ = nlp.interval_block_functions(model, 1)
+    z = ca.SX.sym("z", 1 + model.nu + model.nx)
+    lam = ca.SX.sym("lam", model.nx)
+    step = nlp.rk4_step(model, 1)
+    x_next = step(z[1 + model.nu:], z[1:1 + model.nu], ca.SX.sym("p", model.np), z[0] * 0.1)
+    H = ca.triu(ca.hessian(ca.dot(lam, x_next), z)[0])
+    r, c = H.sparsity().get_triplet()
+    assert len(rows) > 0
+    np.testing.assert_array_equal(rows, r)
+    np.testing.assert_array_equal(cols, c)
+    rng = np.random.default_rng(0)
+    args = [rng.uniform(0.5, 1.5, 1 + model.nu + model.nx), rng.uniform(0.5, 1.5, model.np),
+            0.1, rng.normal(size=model.nx)]
+    for a, b in zip(jac(*args[:3]), sx_jac(*args[:3]), strict=True):
+        np.testing.assert_array_equal(np.array(a), np.array(b))
+    np.testing.assert_array_equal(np.array(hess(*args)), np.array(sx_hess(*args)))
 
 def test_zero_copy_call_is_per_thread():
     """Eight threads call one ZeroCopyCall with different inputs at once: each gets its own

@@ -47,6 +47,10 @@ def limit_lap_command(
     solver: Annotated[str, typer.Option(
         help="NLP solver: ipopt (general sparse; the reference) or fatrop (the same NLP in "
              "stage order, Riccati factorisation; IPOPT re-solves where it fails)")] = "ipopt",
+    grid_rounds: Annotated[int, typer.Option(
+        min=0, max=5, help="grid-continuation rounds from the chosen lap (each about four "
+        "solves: the lap on the coarse and fine grids and back); 0: none. Three rounds found "
+        "laps up to 0.44 per cent faster on the reference frames, at 3-4x the CPU")] = 0,
     as_json: JsonOpt = False,
     plot: PlotOpt = None,
 ) -> None:
@@ -84,7 +88,8 @@ def limit_lap_command(
         raise ConfigError(["--tilt axes bounds Euler angles: with --attitude quaternion use cone "
                        "or none"])
     options = LimitLapOptions(intervals=intervals, attitude=cast("Attitude", attitude),
-                              tilt_limit=cast("TiltLimit", tilt), solver=cast("Solver", solver))
+                              tilt_limit=cast("TiltLimit", tilt), solver=cast("Solver", solver),
+                              grid_rounds=grid_rounds)
     frame = build_airframe(cfg)
     impossible = check_inputs(trk, options, frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
     if impossible:  # known before any solve: bad input, not a failed lap

@@ -91,6 +91,10 @@ def track_targets(track: TrackConfig, options: LimitLapOptions,
                                                frames, edges), first, tuple(ends), route)
 
 
+#: At most this many grid-continuation rounds (each about four solves).
+MAX_GRID_ROUNDS = 5
+
+
 def check_inputs(track: TrackConfig, options: LimitLapOptions,
                  clearance_m: float | None = None) -> str:
     """Why the problem cannot be posed (empty string when it can)."""
@@ -99,6 +103,8 @@ def check_inputs(track: TrackConfig, options: LimitLapOptions,
             or not 1 <= options.substeps <= 20:
         return (f"intervals must be 2…{MAX_INTERVALS}, degree 1…9 and substeps 1…20 (got "
                 f"{options.intervals}, {options.degree}, {options.substeps})")
+    if not 0 <= options.grid_rounds <= MAX_GRID_ROUNDS:
+        return f"grid_rounds must be 0…{MAX_GRID_ROUNDS} (got {options.grid_rounds})"
     if options.start_state is not None and len(options.start_state) != NX:
         return f"start_state needs {NX} values, got {len(options.start_state)}"
     if options.solver not in SOLVERS:

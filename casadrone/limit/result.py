@@ -125,6 +125,13 @@ class LimitLapOptions:
     # too coarse for the lap: casadrone.limit.lap.refined): the fastest converged lap resampled
     # onto REFINE_FACTOR times the intervals, at most this many times; 0: none.
     refinements: int = 2
+    # Grid-continuation rounds from the chosen lap (casadrone.limit.lap.grid_rounds): the lap
+    # resampled onto the coarse- and fine-grid starts' grids and solved there, then each of
+    # those laps resampled back and solved here (starts "grid-N-round-r", verified like any
+    # other), until a round improves nothing; 0: none. Three rounds over 30/40/50/60 intervals
+    # reached laps 0.01-0.44 % below the default starts' on the five reference frames, at 3-4x
+    # their CPU (benchmarks/RESULTS-limitlap-issue19.md).
+    grid_rounds: int = 0
 
 
 @dataclass(frozen=True)

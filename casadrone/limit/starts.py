@@ -198,7 +198,7 @@ def _grid_continuation(pb: Problem, lap_of: LapOf, intervals: int, start: Start
     other = lap_of(pb.frame, pb.track, replace(
         pb.options, intervals=intervals, starts=(start,), warm_starts=(),
         point_mass_reference=False, sensitivities=False, fallback_reference=None,
-        refinements=0))  # a start: its resampled optimum is checked on this grid
+        refinements=0, grid_rounds=0))  # a start: its resampled optimum is checked here
     if not other.completed:
         return None
     return pb.solve(guess_from_lap(pb.full, other, pb.x0))
@@ -282,7 +282,8 @@ def reference_lap(name: str, track: TrackConfig, options: LimitLapOptions,
 
     ref_options = replace(options, warm_starts=(), guess_trajectory=None,
                           point_mass_reference=False, sensitivities=False,
-                          fallback_reference=None, starts=LimitLapOptions.starts)
+                          fallback_reference=None, starts=LimitLapOptions.starts,
+                          grid_rounds=0)
     key = (name, track.model_dump_json(), repr(ref_options))
     if key not in _REFERENCE_LAPS:
         _REFERENCE_LAPS[key] = lap_of(load_airframe(name), track, ref_options)

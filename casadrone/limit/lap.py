@@ -110,11 +110,13 @@ from casadrone.limit.result import (
 )
 from casadrone.limit.starts import (
     COARSE_SHARE,
-    FINE_SHARE,
     RELAXED_RADIUS_M,
     Problem,
     StartSolve,
+    coarse_intervals,
     fallback_solve,
+    fine_intervals,
+    inner_options,
     prepare,
     run_starts,
 )
@@ -192,7 +194,8 @@ def grid_rounds(airframe, track: TrackConfig, options: LimitLapOptions, pb: Prob
     the re-simulation misses with the new solves' (appended to ``solves``).
 
     Each round resamples the best verified lap onto the coarse- and fine-grid starts' grids
-    (COARSE_SHARE and FINE_SHARE of the intervals) and solves it there (``lap_on_grid``, so
+    (:func:`~casadrone.limit.starts.coarse_intervals`, :func:`~casadrone.limit.starts.
+    fine_intervals`) and solves it there (``lap_on_grid``, so
     those laps count in the result's ``grid_laps_s`` and certainty), then resamples each of
     those laps back onto this grid and solves it here as start ``grid-N-round-r``, re-simulated
     and verified like any other start. It stops after a round that improves the best lap by
@@ -201,16 +204,14 @@ def grid_rounds(airframe, track: TrackConfig, options: LimitLapOptions, pb: Prob
     another grid leaves a worse optimum; three rounds reached laps 0.01-0.44 % below the
     default starts' on the five reference frames (benchmarks/RESULTS-limitlap-issue19.md)."""
     n = pb.layout.intervals
-    grids = sorted({max(2, round(COARSE_SHARE * n)), min(MAX_INTERVALS, round(FINE_SHARE * n))}
-                   - {n})
-    sub = replace(options, starts=(), point_mass_reference=False, sensitivities=False,
-                  fallback_reference=None, refinements=0, grid_rounds=0)
+    grids = sorted({coarse_intervals(n), fine_intervals(n)} - {n})
     for r in range(1, options.grid_rounds + 1):
         good = verified(solves, misses, options)
         before = best(good)[1].objective
         here = assemble_lap(pb, good, solves, misses)
         for g in grids:
-            other = lap_on_grid(airframe, track, replace(sub, intervals=g, warm_starts=(here,)))
+            other = lap_on_grid(airframe, track, inner_options(
+                options, intervals=g, starts=(), warm_starts=(here,)))
             if other.completed:
                 solves.append((f"grid-{g}-round-{r}",
                                pb.solve(guess_from_lap(pb.full, other, pb.x0))))

@@ -172,11 +172,29 @@ def closed_loop_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
     return pb.solve(guess)
 
 
+def coarse_intervals(n: int) -> int:
+    """Intervals per leg of the coarse-grid start's grid for a grid of ``n``."""
+    return max(2, round(COARSE_SHARE * n))
+
+
+def fine_intervals(n: int) -> int:
+    """Intervals per leg of the fine-grid start's grid for a grid of ``n`` (at most
+    MAX_INTERVALS)."""
+    return min(MAX_INTERVALS, round(FINE_SHARE * n))
+
+
+def inner_options(options: LimitLapOptions, **changes) -> LimitLapOptions:
+    """``options`` for a lap solved inside another (a grid-continuation start's own grid, a grid
+    round): no point-mass reference, sensitivities, fallback, refinement or grid rounds of its
+    own (the outer lap checks what it brings back), with ``changes``."""
+    return replace(options, point_mass_reference=False, sensitivities=False,
+                   fallback_reference=None, refinements=0, grid_rounds=0, **changes)
+
+
 def coarse_grid_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
     """Grid continuation: the closed-loop start on COARSE_SHARE of the intervals, its optimum
     resampled onto this grid (None when the coarse lap fails)."""
-    return _grid_continuation(pb, lap_of, max(2, round(COARSE_SHARE * pb.layout.intervals)),
-                              "closed-loop")
+    return _grid_continuation(pb, lap_of, coarse_intervals(pb.layout.intervals), "closed-loop")
 
 
 def fine_grid_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
@@ -186,19 +204,15 @@ def fine_grid_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
     paper track: 3.942 s on 40 intervals, 3.889 s on 60), and the fine grid's, resampled, led
     to the best optimum known on the 40-interval grid for SY250 and HS210
     (benchmarks/RESULTS-limitlap-issue19.md)."""
-    return _grid_continuation(pb, lap_of,
-                              min(MAX_INTERVALS, round(FINE_SHARE * pb.layout.intervals)),
-                              "point-mass")
+    return _grid_continuation(pb, lap_of, fine_intervals(pb.layout.intervals), "point-mass")
 
 
 def _grid_continuation(pb: Problem, lap_of: LapOf, intervals: int, start: Start
                        ) -> NlpSolution | None:
     """The lap from cold start ``start`` on ``intervals`` per leg, its optimum resampled onto
     this grid and solved here (None when that lap fails)."""
-    other = lap_of(pb.frame, pb.track, replace(
-        pb.options, intervals=intervals, starts=(start,), warm_starts=(),
-        point_mass_reference=False, sensitivities=False, fallback_reference=None,
-        refinements=0, grid_rounds=0))  # a start: its resampled optimum is checked here
+    other = lap_of(pb.frame, pb.track, inner_options(
+        pb.options, intervals=intervals, starts=(start,), warm_starts=()))
     if not other.completed:
         return None
     return pb.solve(guess_from_lap(pb.full, other, pb.x0))

@@ -94,6 +94,7 @@ from casadrone.limit.problem import (
     track_targets,
 )
 from casadrone.limit.result import (
+    COMMAND_GRID_ROUNDS,
     DEFAULT_INTERVALS,
     MAX_INTERVALS,
     Attitude,
@@ -124,13 +125,14 @@ from casadrone.propulsion import max_static_thrust
 
 #: The limit lap's names, wherever their step lives (``from casadrone.limit.lap import ...``).
 __all__ = [
-    "BANG_BANG_TOL", "CERTAIN_REL", "COARSE_SHARE", "DEFAULT_INTERVALS", "MAX_INTERVALS",
-    "POINT_MASS_PARAMS", "REFERENCE_SPEEDS_MPS", "RELAXED_RADIUS_M", "Attitude", "Certainty",
-    "LimitLap", "LimitLapOptions", "Solver", "Start", "StartResult", "Targets", "TiltLimit",
-    "bounds", "check_inputs", "closed_loop_lap", "euler_states", "frame_clearance_m",
-    "guess_from_lap", "guess_from_trajectory", "lifted_guess", "limit_lap", "model_states",
-    "node_times", "param_sensitivity", "point_mass_guess", "point_mass_p", "point_mass_reference",
-    "refusal", "row_bounds", "start_state", "straight_guess", "track_targets",
+    "BANG_BANG_TOL", "CERTAIN_REL", "COARSE_SHARE", "COMMAND_GRID_ROUNDS", "DEFAULT_INTERVALS",
+    "MAX_INTERVALS", "POINT_MASS_PARAMS", "REFERENCE_SPEEDS_MPS", "RELAXED_RADIUS_M",
+    "Attitude", "Certainty", "LimitLap", "LimitLapOptions", "Solver", "Start", "StartResult",
+    "Targets", "TiltLimit", "bounds", "check_inputs", "closed_loop_lap", "euler_states",
+    "frame_clearance_m", "guess_from_lap", "guess_from_trajectory", "lifted_guess", "limit_lap",
+    "model_states", "node_times", "param_sensitivity", "point_mass_guess", "point_mass_p",
+    "point_mass_reference", "refusal", "row_bounds", "start_state", "straight_guess",
+    "track_targets",
 ]
 
 BANG_BANG_TOL = 0.02  # a command within this of 0 or 1 counts as saturated

@@ -50,6 +50,14 @@ def model_states(attitude: str, X: np.ndarray) -> np.ndarray:
 #: intervals and 2.1 cm off on 80, the lap itself the same to 0.01 % (4.3094 / 4.3090 s;
 #: benchmarks/RESULTS-propulsion.md).
 DEFAULT_INTERVALS: dict[str, int] = {"paper": 40, "propeller": 80}
+#: Grid rounds of ``casadrone limit-lap`` unless ``--grid-rounds`` says otherwise: the command
+#: answers one frame's question, so it pays ~10-25 % more CPU for the best optimum it can
+#: reach. Measured on the five reference frames over the paper, gate and split-S tracks
+#: (benchmarks/RESULTS-limitlap-issue19.md): laps 0-0.36 % faster (never slower: the fastest
+#: verified start wins), and on SY250
+#: the same lap (3.8795 s) on two VMs whose default starts had stopped at 3.8800 and 3.8914 s.
+#: Rounds stop when one gains less than CERTAIN_REL; none of the 15 calls measured ran a third.
+COMMAND_GRID_ROUNDS = 3
 #: Most intervals per leg. Grid refinement moved SY250's lap by 0.02 % from 40 to 80 intervals
 #: (LimitLapOptions.intervals), so 400 is ten times finer than any measured need; the NLP's
 #: memory grows in proportion (20 000 intervals reached 5.8 GB and failed to allocate), so 400
@@ -128,9 +136,10 @@ class LimitLapOptions:
     # Grid-continuation rounds from the chosen lap (casadrone.limit.lap.grid_rounds): the lap
     # resampled onto the coarse- and fine-grid starts' grids and solved there, then each of
     # those laps resampled back and solved here (starts "grid-N-round-r", verified like any
-    # other), until a round improves nothing; 0: none. Three rounds over 30/40/50/60 intervals
-    # reached laps 0.01-0.44 % below the default starts' on the five reference frames, at 3-4x
-    # their CPU (benchmarks/RESULTS-limitlap-issue19.md).
+    # other), until a round improves the lap by less than CERTAIN_REL; 0: none. 0 here, the
+    # setting of the searches that fly a limit lap per frame (evaluation, co-design); the
+    # command's default is COMMAND_GRID_ROUNDS (benchmarks/RESULTS-limitlap-issue19.md, "Grid
+    # rounds as the command's default").
     grid_rounds: int = 0
 
 

@@ -168,13 +168,14 @@ def test_limit_lap_json_is_the_laps_as_dict(tmp_path, sy250):
     """The short track of the optimality test (seconds a solve), flown by the command and by the
     API: the lap's as_dict beside the propulsion figures."""
     from casadrone.cli.limit import PROPULSION_KEYS
-    from casadrone.limit.lap import LimitLapOptions, limit_lap
+    from casadrone.limit.lap import COMMAND_GRID_ROUNDS, LimitLapOptions, limit_lap
     from tests.integration.test_limitlap_optimality import TRACK
 
     cfg, _ = sy250
     track = tmp_path / "track.yaml"
     track.write_text(json.dumps(TRACK.model_dump(mode="json")))
     out = cli_json("limit-lap", "SY250", "--track", str(track), "--intervals", "20")
-    expected = as_json(limit_lap(cfg, TRACK, LimitLapOptions(intervals=20)))
+    expected = as_json(limit_lap(cfg, TRACK, LimitLapOptions(
+        intervals=20, grid_rounds=COMMAND_GRID_ROUNDS)))  # the command's options
     assert {k: out[k] for k in expected} == expected
     assert set(out) - set(expected) == set(PROPULSION_KEYS)

@@ -42,3 +42,27 @@ def test_the_fallback_reference_lap_runs_no_rounds():
     starts._REFERENCE_LAPS.clear()
     (opts,) = seen
     assert opts.grid_rounds == 0
+
+
+def test_the_command_runs_grid_rounds_by_default_and_the_library_does_not(monkeypatch):
+    """``casadrone limit-lap`` answers one frame, so it runs COMMAND_GRID_ROUNDS rounds unless
+    told ``--grid-rounds 0``; the library's default (what the evaluation and co-design fly per
+    frame) stays 0."""
+    import casadrone.limit.lap as lap_module
+    from casadrone.cli import app
+    from casadrone.limit.result import COMMAND_GRID_ROUNDS, LimitLap
+    from typer.testing import CliRunner
+
+    seen = []
+
+    def fake(cfg, track, options):
+        seen.append(options.grid_rounds)
+        return LimitLap(status="failed", reason="not solved: the options were recorded")
+
+    monkeypatch.setattr(lap_module, "limit_lap", fake)
+    runner = CliRunner()
+    for args in ([], ["--grid-rounds", "0"], ["--grid-rounds", "2"]):
+        r = runner.invoke(app, ["limit-lap", "SY250", "--json", *args])
+        assert r.exit_code == 0, r.output
+    assert seen == [COMMAND_GRID_ROUNDS, 0, 2] and COMMAND_GRID_ROUNDS > 0
+    assert LimitLapOptions().grid_rounds == 0

@@ -52,8 +52,8 @@ def limit_lap_command(
         min=0, max=5, help="grid-continuation rounds from the chosen lap (each about four "
         "solves: the lap on the coarse and fine grids and back), stopping at the first round "
         "that gains less than 0.1 per cent; 0: none (the library's default, the starts' lap). "
-        "On the reference frames they made laps up to 0.36 per cent faster for 10-25 per cent "
-        "more CPU")] = COMMAND_GRID_ROUNDS,
+        "On the reference frames they made laps up to 0.36 per cent faster for 4-51 per cent "
+        "more CPU (median 20)")] = COMMAND_GRID_ROUNDS,
     as_json: JsonOpt = False,
     plot: PlotOpt = None,
 ) -> None:

@@ -51,12 +51,12 @@ def model_states(attitude: str, X: np.ndarray) -> np.ndarray:
 #: benchmarks/RESULTS-propulsion.md).
 DEFAULT_INTERVALS: dict[str, int] = {"paper": 40, "propeller": 80}
 #: Grid rounds of ``casadrone limit-lap`` unless ``--grid-rounds`` says otherwise: the command
-#: answers one frame's question, so it pays ~10-25 % more CPU for the best optimum it can
-#: reach. Measured on the five reference frames over the paper, gate and split-S tracks
-#: (benchmarks/RESULTS-limitlap-issue19.md): laps 0-0.36 % faster (never slower: the fastest
-#: verified start wins), and on SY250
-#: the same lap (3.8795 s) on two VMs whose default starts had stopped at 3.8800 and 3.8914 s.
-#: Rounds stop when one gains less than CERTAIN_REL; none of the 15 calls measured ran a third.
+#: answers one frame's question, so it pays 4-51 % more CPU (median 20 %) for the best optimum
+#: it can reach. Measured on the five reference frames over the paper, gate and split-S tracks
+#: (benchmarks/RESULTS-limitlap-issue19.md, "Grid rounds as the command's default"): laps
+#: 0-0.36 % faster (never slower: the fastest verified start wins), and SY250's paper lap the
+#: same (3.8795 s) on two VMs whose starts alone had stopped at 3.8800 and 3.8914 s. Rounds stop
+#: when one gains less than CERTAIN_REL; none of the 16 calls measured ran a third.
 COMMAND_GRID_ROUNDS = 3
 #: Most intervals per leg. Grid refinement moved SY250's lap by 0.02 % from 40 to 80 intervals
 #: (LimitLapOptions.intervals), so 400 is ten times finer than any measured need; the NLP's

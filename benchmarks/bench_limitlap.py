@@ -113,7 +113,8 @@ def main(argv: list[str] | None = None) -> int:
     med = np.median
     lines = ["# Limit lap over random Table 1 frames", "", markdown(), "",
              f"Command: `python benchmarks/bench_limitlap.py --n {args.n} --seed {args.seed} "
-             f"--intervals {args.intervals} --template {args.template} --starts "
+             + (f"--intervals {args.intervals} " if args.intervals else "")
+             + f"--template {args.template} --starts "
              f"{args.starts}` (paper track, one "
              f"core; decision variables {', '.join(keys)}).", "",
              "| quantity | value |", "|---|---|",

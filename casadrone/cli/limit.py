@@ -28,6 +28,7 @@ PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio"
 
 if TYPE_CHECKING:  # the limit lap is imported when the command runs (CasADi)
     from casadrone.limit.lap import Attitude, Solver, TiltLimit
+    from casadrone.limit.result import Resimulation
 
 
 @app.command("limit-lap")
@@ -54,6 +55,10 @@ def limit_lap_command(
         "that gains less than 0.1 per cent; 0: none (the library's default, the starts' lap). "
         "On the reference frames they made laps up to 0.36 per cent faster for 4-51 per cent "
         "more CPU (median 20)")] = COMMAND_GRID_ROUNDS,
+    resimulation: Annotated[str, typer.Option(
+        help="what the re-simulation check flies: lap (the whole lap's commands open loop "
+             "from the start) or legs (each leg from the lap's own state at the leg's start: "
+             "accepts an accurate lap that drifts open loop)")] = "lap",
     as_json: JsonOpt = False,
     plot: PlotOpt = None,
 ) -> None:
@@ -85,6 +90,8 @@ def limit_lap_command(
     if attitude not in ("euler", "quaternion") or tilt not in ("axes", "cone", "none"):
         raise ConfigError([f"--attitude {attitude} --tilt {tilt}: attitude is euler or quaternion, "
                        "tilt is axes, cone or none"])
+    if resimulation not in ("lap", "legs"):
+        raise ConfigError([f"--resimulation {resimulation}: one of lap, legs"])
     if solver not in ("ipopt", "fatrop"):
         raise ConfigError([f"--solver {solver}: one of ipopt, fatrop"])
     if attitude == "quaternion" and tilt == "axes":
@@ -92,7 +99,8 @@ def limit_lap_command(
                        "or none"])
     options = LimitLapOptions(intervals=intervals, attitude=cast("Attitude", attitude),
                               tilt_limit=cast("TiltLimit", tilt), solver=cast("Solver", solver),
-                              grid_rounds=grid_rounds)
+                              grid_rounds=grid_rounds,
+                              resimulation=cast("Resimulation", resimulation))
     frame = build_airframe(cfg)
     impossible = check_inputs(trk, options, frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
     if impossible:  # known before any solve: bad input, not a failed lap

@@ -72,14 +72,43 @@ def resimulate(airframe: Airframe, lap) -> np.ndarray:
     return X
 
 
-def resimulation_miss(airframe: Airframe, lap, targets: np.ndarray, kinds) -> float:
-    """Largest miss (m) of a ball or gate when the optimal commands are flown open loop."""
-    X = resimulate(airframe, lap)
+def resimulation_miss(airframe: Airframe, lap, targets: np.ndarray, kinds,
+                      legs: bool = False) -> float:
+    """Largest miss (m) of a ball or gate when the optimal commands are flown open loop: over
+    the whole lap from its start state, or (``legs``) each leg from the lap's own node at the
+    leg's start (LimitLapOptions.resimulation)."""
     N = lap.layout.intervals
-    misses = [target_miss(X[(k + 1) * N, 0:3], targets[TARGET_SIZE * k:TARGET_SIZE * (k + 1)],
-                          kind) for k, kind in enumerate(kinds)]
+    if legs:
+        step = scaled_cvodes(attitude=getattr(lap, "attitude", "euler"),
+                             propulsion=airframe.propulsion, lagless=_lagless(airframe))
+        ends = [_fly(step, airframe, lap, k * N, (k + 1) * N) for k in range(len(kinds))]
+    else:
+        X = resimulate(airframe, lap)
+        ends = [X[(k + 1) * N] for k in range(len(kinds))]
+    misses = [target_miss(end[0:3], targets[TARGET_SIZE * k:TARGET_SIZE * (k + 1)], kind)
+              for k, (end, kind) in enumerate(zip(ends, kinds, strict=True))]
     out = max(misses)
     return out if np.isfinite(out) else float("inf")
+
+
+def _lagless(airframe: Airframe) -> bool:
+    from casadrone.limit.lagless import is_lagless
+
+    return is_lagless(airframe)
+
+
+def _fly(step: ca.Function, airframe: Airframe, lap, first: int, last: int) -> np.ndarray:
+    """The state at node ``last`` when the commands of intervals first…last-1 are flown from
+    the lap's node ``first`` (NaN where CVODES fails)."""
+    h = np.diff(lap.t)
+    x = np.asarray(lap.x[first], float)
+    for i in range(first, last):
+        try:
+            x = np.array(step(x0=x, p=np.concatenate([lap.u[i], airframe.p, [h[i]]]))["xf"]
+                         ).ravel()
+        except RuntimeError:
+            return np.full_like(x, np.nan)
+    return x
 
 
 def theta_sensitivities(

@@ -34,7 +34,8 @@ def resimulation_misses(pb: Problem, solves: Sequence[StartSolve],
         if sol.success and name not in misses:
             misses[name] = resimulation_miss(pb.frame, trajectory(pb.full, sol.point.w,
                                                                   pb.layout),
-                                             pb.targets.vector, pb.targets.kinds)
+                                             pb.targets.vector, pb.targets.kinds,
+                                             legs=pb.options.resimulation == "legs")
     return misses
 
 

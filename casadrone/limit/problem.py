@@ -107,6 +107,8 @@ def check_inputs(track: TrackConfig, options: LimitLapOptions,
         return f"grid_rounds must be 0…{MAX_GRID_ROUNDS} (got {options.grid_rounds})"
     if options.start_state is not None and len(options.start_state) != NX:
         return f"start_state needs {NX} values, got {len(options.start_state)}"
+    if options.resimulation not in ("lap", "legs"):
+        return f"resimulation must be 'lap' or 'legs' (got {options.resimulation!r})"
     if options.solver not in SOLVERS:
         return f"solver must be one of {', '.join(SOLVERS)} (got {options.solver!r})"
     if options.solver == "fatrop" and track.end == "periodic":

@@ -19,6 +19,8 @@ Start = Literal["closed-loop", "point-mass", "coarse-grid", "fine-grid", "relaxe
 #: The attitude models of the limit lap, and the ways it limits the tilt.
 Attitude = Literal["euler", "quaternion"]
 TiltLimit = Literal["axes", "cone", "none"]
+#: What the re-simulation check flies (LimitLapOptions.resimulation).
+Resimulation = Literal["lap", "legs"]
 #: NLP solvers of the full model (casadrone.limit.nlp.SOLVERS).
 Solver = Literal["ipopt", "fatrop"]
 #: How far the verified starts agree (:func:`casadrone.limit.choose.certainty`).
@@ -125,6 +127,15 @@ class LimitLapOptions:
     # open-loop drift of a 4 s lap at up to 55 m/s); optima that exploit the discretisation
     # (RK4 near the Euler-angle singularity at 80 deg tilt) missed by 0.2-60 m.
     max_miss_m: float = 0.15
+    # What the re-simulation flies: "lap", the whole lap's commands open loop from the start
+    # state (the default: the commands alone fly the lap); "legs", each leg's commands from the
+    # NLP's own state at the leg's start node, so a lap that is accurate but drifts open loop
+    # (an open-loop-unstable optimum: local defects as small as a verified lap's, every leg
+    # within 1.7 cm from its own node, the whole lap 2-15 m off; SY250-propeller's random frames
+    # 14, 21, 35) passes, while one that exploits the discretisation still fails within its leg
+    # (casadrone.limit.check.resimulation_miss; benchmarks/RESULTS-propulsion.md, "Why a
+    # converged propeller lap misses").
+    resimulation: Resimulation = "lap"
     sensitivities: bool = True
     # Shipped airframe whose limit lap (same track and options) starts a frame whose own starts
     # all fail (module docstring, "fallback"); None: no fallback.

@@ -192,36 +192,52 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
 def grid_rounds(airframe, track: TrackConfig, options: LimitLapOptions, pb: Problem,
                 solves: list[StartSolve], misses: dict[str, float], lap_on_grid
                 ) -> dict[str, float]:
-    """Grid continuation from the chosen lap, at most ``options.grid_rounds`` rounds; returns
-    the re-simulation misses with the new solves' (appended to ``solves``).
+    """Grid continuation, at most ``options.grid_rounds`` rounds; returns the re-simulation
+    misses with the new solves' (appended to ``solves``).
 
-    Each round resamples the best verified lap onto the coarse- and fine-grid starts' grids
+    A round resamples a verified lap onto the coarse- and fine-grid starts' grids
     (:func:`~casadrone.limit.starts.coarse_intervals`, :func:`~casadrone.limit.starts.
-    fine_intervals`) and solves it there (``lap_on_grid``, so
-    those laps count in the result's ``grid_laps_s`` and certainty), then resamples each of
-    those laps back onto this grid and solves it here as start ``grid-N-round-r``, re-simulated
-    and verified like any other start. It stops after a round that improves the best lap by
-    less than CERTAIN_REL. A local optimum on one grid is often not one on another (the
-    point-mass start: SY250 3.942 s on 40 intervals, 3.889 s on 60), so the path through
-    another grid leaves a worse optimum; three rounds reached laps 0.01-0.44 % below the
-    default starts' on the five reference frames (benchmarks/RESULTS-limitlap-issue19.md)."""
+    fine_intervals`) and solves it there (``lap_on_grid``, so those laps count in the result's
+    ``grid_laps_s`` and certainty), then resamples each of those laps back onto this grid and
+    solves it here, re-simulated and verified like any other start. The first round does this
+    from **every** verified start (``grid-N-round-1-START``), later rounds from the best lap so
+    far (``grid-N-round-r``); it stops after a round that improves the best lap by less than
+    CERTAIN_REL. A local optimum on one grid is often not one on another (the point-mass
+    start: SY250 3.942 s on 40 intervals, 3.889 s on 60), so the path through another grid
+    leaves a worse optimum, and which start's path leads to the best one is not known in
+    advance: from the chosen lap alone the rounds left NSY200 at 3.7423 s and SY220 at
+    3.8164 s, from every start they reach 3.7249 s and 3.8046 s, the best laps known for them
+    (benchmarks/RESULTS-limitlap-issue19.md, "Grid rounds from every start")."""
     n = pb.layout.intervals
     grids = sorted({coarse_intervals(n), fine_intervals(n)} - {n})
     for r in range(1, options.grid_rounds + 1):
         good = verified(solves, misses, options)
         before = best(good)[1].objective
-        here = assemble_lap(pb, good, solves, misses)
-        for g in grids:
-            other = lap_on_grid(airframe, track, inner_options(
-                options, intervals=g, starts=(), warm_starts=(here,)))
-            if other.completed:
-                solves.append((f"grid-{g}-round-{r}",
-                               pb.solve(guess_from_lap(pb.full, other, pb.x0))))
+        sources = _distinct(good) if r == 1 else [best(good)]
+        for name, sol in sources:
+            here = assemble_lap(pb, [(name, sol)], solves, misses)
+            tag = f"round-{r}-{name}" if r == 1 else f"round-{r}"
+            for g in grids:
+                other = lap_on_grid(airframe, track, inner_options(
+                    options, intervals=g, starts=(), warm_starts=(here,)))
+                if other.completed:
+                    solves.append((f"grid-{g}-{tag}",
+                                   pb.solve(guess_from_lap(pb.full, other, pb.x0))))
         misses = resimulation_misses(pb, solves, misses)
         after = best(verified(solves, misses, options))[1].objective
         if after > (1 - CERTAIN_REL) * before:
             break
     return misses
+
+
+def _distinct(good: list[StartSolve]) -> list[StartSolve]:
+    """The verified starts, fastest first, without those that found the same lap as a faster
+    one (within 1e-9 relative: a start that converged to another's optimum)."""
+    out: list[StartSolve] = []
+    for name, sol in sorted(good, key=lambda ns: ns[1].objective):
+        if not any(abs(sol.objective - s.objective) <= 1e-9 * s.objective for _, s in out):
+            out.append((name, sol))
+    return out
 
 
 #: Intervals per leg of a grid refinement, as a multiple of the grid that missed; the limit

@@ -50,11 +50,10 @@ def limit_lap_command(
         help="NLP solver: ipopt (general sparse; the reference) or fatrop (the same NLP in "
              "stage order, Riccati factorisation; IPOPT re-solves where it fails)")] = "ipopt",
     grid_rounds: Annotated[int, typer.Option(
-        min=0, max=5, help="grid-continuation rounds from the chosen lap (each about four "
-        "solves: the lap on the coarse and fine grids and back), stopping at the first round "
-        "that gains less than 0.1 per cent; 0: none (the library's default, the starts' lap). "
-        "On the reference frames they made laps up to 0.36 per cent faster for 4-51 per cent "
-        "more CPU (median 20)")] = COMMAND_GRID_ROUNDS,
+        min=0, max=5, help="grid-continuation rounds: a verified lap solved on the coarse "
+        "and fine grids and brought back, the first round from every verified start, later "
+        "ones from the best lap, stopping at the first round that gains less than 0.1 per "
+        "cent; 0: none (the library's default, the starts' lap)")] = COMMAND_GRID_ROUNDS,
     resimulation: Annotated[str, typer.Option(
         help="what the re-simulation check flies: lap (the whole lap's commands open loop "
              "from the start) or legs (each leg from the lap's own state at the leg's start: "

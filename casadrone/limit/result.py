@@ -53,12 +53,13 @@ def model_states(attitude: str, X: np.ndarray) -> np.ndarray:
 #: benchmarks/RESULTS-propulsion.md).
 DEFAULT_INTERVALS: dict[str, int] = {"paper": 40, "propeller": 80}
 #: Grid rounds of ``casadrone limit-lap`` unless ``--grid-rounds`` says otherwise: the command
-#: answers one frame's question, so it pays 4-51 % more CPU (median 20 %) for the best optimum
+#: answers one frame's question, so it pays 1.2-2.9x the CPU (median 1.8x) for the best optimum
 #: it can reach. Measured on the five reference frames over the paper, gate and split-S tracks
-#: (benchmarks/RESULTS-limitlap-issue19.md, "Grid rounds as the command's default"): laps
-#: 0-0.36 % faster (never slower: the fastest verified start wins), and SY250's paper lap the
-#: same (3.8795 s) on two VMs whose starts alone had stopped at 3.8800 and 3.8914 s. Rounds stop
-#: when one gains less than CERTAIN_REL; none of the 16 calls measured ran a third.
+#: (benchmarks/RESULTS-limitlap-issue19.md, "Grid rounds as the command's default"): 9 of 15
+#: laps 0.04-1.19 % faster (never slower: the fastest verified start wins), every frame's paper
+#: lap the best known for it, and SY250's the same (3.8795 s) on two VMs whose starts alone had
+#: stopped at 3.8800 and 3.8914 s. Rounds stop when one gains less than CERTAIN_REL; none of
+#: the calls measured ran a third.
 COMMAND_GRID_ROUNDS = 3
 #: Most intervals per leg. Grid refinement moved SY250's lap by 0.02 % from 40 to 80 intervals
 #: (LimitLapOptions.intervals), so 400 is ten times finer than any measured need; the NLP's
@@ -144,10 +145,11 @@ class LimitLapOptions:
     # too coarse for the lap: casadrone.limit.lap.refined): the fastest converged lap resampled
     # onto REFINE_FACTOR times the intervals, at most this many times; 0: none.
     refinements: int = 2
-    # Grid-continuation rounds from the chosen lap (casadrone.limit.lap.grid_rounds): the lap
-    # resampled onto the coarse- and fine-grid starts' grids and solved there, then each of
-    # those laps resampled back and solved here (starts "grid-N-round-r", verified like any
-    # other), until a round improves the lap by less than CERTAIN_REL; 0: none. 0 here, the
+    # Grid-continuation rounds (casadrone.limit.lap.grid_rounds): a verified lap resampled
+    # onto the coarse- and fine-grid starts' grids and solved there, then each of those laps
+    # resampled back and solved here (verified like any other start): round 1 from every
+    # verified start ("grid-N-round-1-START"), later rounds from the best lap ("grid-N-round-r"),
+    # until a round improves the lap by less than CERTAIN_REL; 0: none. 0 here, the
     # setting of the searches that fly a limit lap per frame (evaluation, co-design); the
     # command's default is COMMAND_GRID_ROUNDS (benchmarks/RESULTS-limitlap-issue19.md, "Grid
     # rounds as the command's default").

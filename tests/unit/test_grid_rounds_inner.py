@@ -48,10 +48,11 @@ def test_the_command_runs_grid_rounds_by_default_and_the_library_does_not(monkey
     """``casadrone limit-lap`` answers one frame, so it runs COMMAND_GRID_ROUNDS rounds unless
     told ``--grid-rounds 0``; the library's default (what the evaluation and co-design fly per
     frame) stays 0."""
+    from typer.testing import CliRunner
+
     import casadrone.limit.lap as lap_module
     from casadrone.cli import app
     from casadrone.limit.result import COMMAND_GRID_ROUNDS, LimitLap
-    from typer.testing import CliRunner
 
     seen = []
 

@@ -55,10 +55,8 @@ def scaled_cvodes(rtol: float = 1e-10, atol: float = 1e-10, attitude: str = "eul
 
 def resimulate(airframe: Airframe, lap) -> np.ndarray:
     """Node states of the lap's commands integrated by CVODES from its start state."""
-    from casadrone.limit.lagless import is_lagless
-
     step = scaled_cvodes(attitude=getattr(lap, "attitude", "euler"),
-                         propulsion=airframe.propulsion, lagless=is_lagless(airframe))
+                         propulsion=airframe.propulsion, lagless=_lagless(airframe))
     h = np.diff(lap.t)
     X = np.zeros_like(lap.x)
     X[0] = lap.x[0]

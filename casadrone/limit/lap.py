@@ -207,7 +207,7 @@ def grid_rounds(airframe, track: TrackConfig, options: LimitLapOptions, pb: Prob
     leaves a worse optimum, and which start's path leads to the best one is not known in
     advance: from the chosen lap alone the rounds left NSY200 at 3.7423 s and SY220 at
     3.8164 s, from every start they reach 3.7249 s and 3.8046 s, the best laps known for them
-    (benchmarks/RESULTS-limitlap-issue19.md, "Grid rounds from every start")."""
+    (benchmarks/RESULTS-limitlap-issue19.md, "Grid rounds as the command's default")."""
     n = pb.layout.intervals
     grids = sorted({coarse_intervals(n), fine_intervals(n)} - {n})
     for r in range(1, options.grid_rounds + 1):

@@ -134,8 +134,8 @@ class LimitLapOptions:
     # (an open-loop-unstable optimum: local defects as small as a verified lap's, every leg
     # within 1.7 cm from its own node, the whole lap 2-15 m off; SY250-propeller's random frames
     # 14, 21, 35) passes, while one that exploits the discretisation still fails within its leg
-    # (casadrone.limit.check.resimulation_miss; benchmarks/RESULTS-propulsion.md, "Why a
-    # converged propeller lap misses").
+    # (casadrone.limit.check.resimulation_miss; benchmarks/RESULTS-propulsion.md, "Random
+    # Table 1 frames under `propeller`, 50 frames").
     resimulation: Resimulation = "lap"
     sensitivities: bool = True
     # Shipped airframe whose limit lap (same track and options) starts a frame whose own starts

@@ -36,29 +36,19 @@ from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
-from casadrone.limit.check import resimulate, scaled_cvodes  # noqa: E402
+from casadrone.limit.check import fly  # noqa: E402
 from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
 
 
 def legs(frame, lap) -> dict:
     """Local defects, each leg from its own start node, and the whole lap's drift."""
-    step = scaled_cvodes(attitude=lap.attitude, propulsion=frame.propulsion)
-    h, x, u = np.diff(lap.t), lap.x, lap.u
-
-    def fly(x0, i):
-        return np.array(step(x0=x0, p=np.concatenate([u[i], frame.p, [h[i]]]))["xf"]).ravel()
-
-    defect = np.array([fly(x[i], i) - x[i + 1] for i in range(len(u))])
-    n = lap.layout.intervals
-    own = []
-    for k in range(len(u) // n):
-        xk = x[k * n].copy()
-        for i in range(k * n, (k + 1) * n):
-            xk = fly(xk, i)
-        own.append(float(np.linalg.norm(xk[:3] - x[(k + 1) * n, :3])))
-    whole = resimulate(frame, lap)
+    x, n = lap.x, lap.layout.intervals
+    defect = np.array([fly(frame, lap, i, i + 1)[-1] - x[i + 1] for i in range(len(lap.u))])
+    own = [float(np.linalg.norm(fly(frame, lap, k * n, (k + 1) * n)[-1, :3] - x[(k + 1) * n, :3]))
+           for k in range(len(lap.u) // n)]
+    whole = fly(frame, lap)
     drift = [float(np.linalg.norm(whole[(k + 1) * n, :3] - x[(k + 1) * n, :3]))
-             for k in range(len(u) // n)]
+             for k in range(len(lap.u) // n)]
     return {"defect_position_m": float(np.abs(defect[:, 0:3]).max()),
             "defect_velocity_m_s": float(np.abs(defect[:, 3:6]).max()),
             "defect_rotor": float(np.abs(defect[:, -4:]).max()),

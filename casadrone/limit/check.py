@@ -53,21 +53,28 @@ def scaled_cvodes(rtol: float = 1e-10, atol: float = 1e-10, attitude: str = "eul
                          {"abstol": atol, "reltol": rtol})
 
 
-def resimulate(airframe: Airframe, lap) -> np.ndarray:
-    """Node states of the lap's commands integrated by CVODES from its start state."""
+def fly(airframe: Airframe, lap, first: int = 0, last: int | None = None) -> np.ndarray:
+    """Node states first…last (``last`` None: the lap's end) when the lap's commands of those
+    intervals are integrated by CVODES from the lap's own node ``first``; NaN from where
+    CVODES fails."""
     step = scaled_cvodes(attitude=getattr(lap, "attitude", "euler"),
                          propulsion=airframe.propulsion, lagless=_lagless(airframe))
+    last = len(lap.u) if last is None else last
     h = np.diff(lap.t)
-    X = np.zeros_like(lap.x)
-    X[0] = lap.x[0]
-    for i in range(len(lap.u)):
+    X = np.full((last - first + 1, lap.x.shape[1]), np.nan)
+    X[0] = lap.x[first]
+    for j, i in enumerate(range(first, last)):
         try:
-            X[i + 1] = np.array(step(x0=X[i], p=np.concatenate(
+            X[j + 1] = np.array(step(x0=X[j], p=np.concatenate(
                 [lap.u[i], airframe.p, [h[i]]]))["xf"]).ravel()
         except RuntimeError:
-            X[i + 1:] = np.nan
             break
     return X
+
+
+def resimulate(airframe: Airframe, lap) -> np.ndarray:
+    """Node states of the lap's commands integrated by CVODES from its start state."""
+    return fly(airframe, lap)
 
 
 def resimulation_miss(airframe: Airframe, lap, targets: np.ndarray, kinds,
@@ -77,9 +84,7 @@ def resimulation_miss(airframe: Airframe, lap, targets: np.ndarray, kinds,
     leg's start (LimitLapOptions.resimulation)."""
     N = lap.layout.intervals
     if legs:
-        step = scaled_cvodes(attitude=getattr(lap, "attitude", "euler"),
-                             propulsion=airframe.propulsion, lagless=_lagless(airframe))
-        ends = [_fly(step, airframe, lap, k * N, (k + 1) * N) for k in range(len(kinds))]
+        ends = [fly(airframe, lap, k * N, (k + 1) * N)[-1] for k in range(len(kinds))]
     else:
         X = resimulate(airframe, lap)
         ends = [X[(k + 1) * N] for k in range(len(kinds))]
@@ -93,20 +98,6 @@ def _lagless(airframe: Airframe) -> bool:
     from casadrone.limit.lagless import is_lagless
 
     return is_lagless(airframe)
-
-
-def _fly(step: ca.Function, airframe: Airframe, lap, first: int, last: int) -> np.ndarray:
-    """The state at node ``last`` when the commands of intervals first…last-1 are flown from
-    the lap's node ``first`` (NaN where CVODES fails)."""
-    h = np.diff(lap.t)
-    x = np.asarray(lap.x[first], float)
-    for i in range(first, last):
-        try:
-            x = np.array(step(x0=x, p=np.concatenate([lap.u[i], airframe.p, [h[i]]]))["xf"]
-                         ).ravel()
-        except RuntimeError:
-            return np.full_like(x, np.nan)
-    return x
 
 
 def theta_sensitivities(

@@ -67,6 +67,12 @@ class OcpModel:
     #: exponential step (:func:`exponential_rotor`, :func:`etdrk4_step`); None: classical RK4
     rotor_rate: Callable | None = None
     propulsion: str = "paper"  # the propulsion kind (per-kind solver settings: ipopt_options)
+    #: ``(rows(x_i, x_next, u_i, p) -> g, lower, upper)``: rows of every shooting interval on its
+    #: two end nodes and its command (model units), with their bounds (numbers or arrays); the
+    #: NLP maps them over the intervals and differentiates them with CasADi's own AD, beside the
+    #: compiled interval blocks. A model whose commands are not the ESC commands bounds them
+    #: here (benchmarks/bench_flat_rotor.py). None: none
+    interval_rows: tuple | None = None
 
     @property
     def nx(self) -> int:
@@ -451,6 +457,22 @@ def advance_rows(model: OcpModel, j_max: float, M: int) -> ca.Function:
                        ["g"])
 
 
+def _interval_rows(model: OcpModel, M: int, X, U, p) -> list:
+    """The model's :attr:`OcpModel.interval_rows` on each of the M intervals (none if it has
+    none): one block of rows per interval, in interval order."""
+    if model.interval_rows is None:
+        return []
+    rows, lower, upper = model.interval_rows
+    x0, x1 = ca.SX.sym("x0", model.nx), ca.SX.sym("x1", model.nx)
+    u, p_ = ca.SX.sym("u", model.nu), ca.SX.sym("p", model.np)
+    g = rows(x0, x1, u, p_)
+    one = ca.Function("interval_rows", [x0, x1, u, p_], [g])
+    n = g.numel()
+    lo = np.tile(np.broadcast_to(np.asarray(lower, float), (n,)), M)
+    hi = np.tile(np.broadcast_to(np.asarray(upper, float), (n,)), M)
+    return [(ca.vec(one.map(M)(X[:, :M], X[:, 1:M + 1], U, p)), lo, hi)]
+
+
 def _leg_end_rows(model: OcpModel, layout: Layout, X, targets, p) -> list:
     """Constraint rows of every leg's end node (its target) and, if asked, rest at the end;
     first, if asked, the advance-ratio rows of every node after the start (the rows whose
@@ -728,7 +750,8 @@ def _shooting_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np
         return ca.vec(Xs[:, 1:] - x_next)
 
     same_i = np.array([i for i in range(1, M) if i % N], dtype=int)
-    trows = _leg_end_rows(model, layout, X, targets, p)
+    trows = _interval_rows(model, M, X, Zb[1:1 + nu, :], p) + \
+        _leg_end_rows(model, layout, X, targets, p)
     gt = ca.vertcat(*[r[0] for r in trows])
     rows = [(dynamics(rk4_step(model, layout.substeps)), 0.0, 0.0),
             ((S[same_i] - S[same_i - 1]).T, 0.0, 0.0), (Xs[:, 0] - x_start, 0.0, 0.0), *trows]
@@ -804,6 +827,8 @@ def _collocation_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray,
     """Radau collocation as an SX NLP (CasADi's own derivatives), kept for comparison."""
     L, N, M, nx, nu = layout.n_legs, layout.intervals, layout.n_intervals, model.nx, model.nu
     d = layout.n_coll
+    if model.interval_rows is not None:
+        raise ValueError(f"model {model.name}: interval rows are a shooting NLP's")
     # per interval i: its leg's duration S_i (its length is S_i / N), command, collocation
     # states, start node; then the last node. S is one unknown per interval, equal within a leg
     # (S_i = S_{i-1}): a leg's duration then couples neighbours only, and the KKT matrix stays

@@ -65,7 +65,12 @@ def test_double_integrator_rest_to_rest_through_a_point():
     np.testing.assert_allclose(T[0], math.sqrt(2 * D / 4 / A), rtol=1e-3)
 
 
-def _nonlinear_toy(scale: tuple[float, ...] | None = None) -> OcpModel:
+def _toy_rows(x0, x1, u, p):
+    """Interval rows with every kind of dependence: both nodes, the command, the parameters."""
+    return ca.vertcat(x0[3] * u[0] + p[0] * x1[6] ** 2, ca.sin(x1[4]) * u[1])
+
+
+def _nonlinear_toy(scale: tuple[float, ...] | None = None, rows: bool = False) -> OcpModel:
     """A planar 'drone' with quadratic drag, thrust along a rotating axis and a lagged thrust:
     every second derivative the quadrotor's RK4 step has (products, trig, |v|v), small;
     ``scale``: the states' units in the NLP (OcpModel.scale)."""
@@ -76,25 +81,30 @@ def _nonlinear_toy(scale: tuple[float, ...] | None = None) -> OcpModel:
         - p[0] * ca.fabs(x[3:6]) * x[3:6]
     f = ca.Function("f_toy", [x, u, p], [ca.vertcat(x[3:6], acc, p[1] * u[1])],
                     ["x", "u", "p"], ["xdot"])
-    return OcpModel("toy", f, lambda s: s[3:6], up_z=lambda s: ca.cos(s[6]), scale=scale)
+    return OcpModel("toy-rows" if rows else "toy", f, lambda s: s[3:6],
+                    up_z=lambda s: ca.cos(s[6]), scale=scale,
+                    interval_rows=(_toy_rows, -1.0, 1.0) if rows else None)
 
 
 #: Units of the toy's states in the NLP, far from 1 (as the propeller's krad/s rotor speeds).
 TOY_SCALE = (1.0, 2.0, 1.0, 10.0, 1.0, 0.5, 1000.0)
 
 
-@pytest.mark.parametrize("kinds, cone, scale, periodic", [
-    (("ball", "gate"), False, None, False), (("circle", "polygon"), True, None, False),
-    (("ball", "gate"), True, TOY_SCALE, False), (("ball", "gate"), True, TOY_SCALE, True)])
-def test_assembled_derivatives_equal_casadi_ad(kinds, cone, scale, periodic):
+@pytest.mark.parametrize("kinds, cone, scale, periodic, rows", [
+    (("ball", "gate"), False, None, False, False), (("circle", "polygon"), True, None, False,
+                                                    False),
+    (("ball", "gate"), True, TOY_SCALE, False, False), (("ball", "gate"), True, TOY_SCALE, True,
+                                                        False),
+    (("ball", "gate"), True, TOY_SCALE, False, True)])
+def test_assembled_derivatives_equal_casadi_ad(kinds, cone, scale, periodic, rows):
     """The constraint Jacobian and Lagrangian Hessian assembled from the compiled interval
     blocks equal CasADi's own AD of the same NLP, entry by entry (ball, gate, circle and
-    polygon targets, a rest condition, the tilt cone's rows, 3 intervals per leg, random point
-    and multipliers; also with scaled states, where the blocks are rescaled around the compiled
-    code)."""
+    polygon targets, a rest condition, the tilt cone's rows, interval rows on both nodes and the
+    command, 3 intervals per leg, random point and multipliers; also with scaled states, where
+    the blocks are rescaled around the compiled code)."""
     from casadrone.limit.nlp import _shooting_nlp
 
-    model = _nonlinear_toy(scale)
+    model = _nonlinear_toy(scale, rows)
     layout = Layout(kinds, 3, substeps=2, end_at_rest=True, tilt_cone=cone, periodic=periodic)
     nlp, lbg, ubg, extra = _shooting_nlp(model, layout)
     W, P = nlp["x"], nlp["p"]
@@ -196,6 +206,41 @@ def test_scaled_double_integrator_keeps_its_analytic_time():
     T, X, _ = nlp.unpack(sol.point.w)
     np.testing.assert_allclose(T.sum(), (2 + math.sqrt(2)) * math.sqrt(L / A), rtol=1e-3)
     assert np.abs(X[:, 3]).max() > 3.0  # physical m/s come back, not hundreds of m/s
+
+
+def test_interval_rows_speed_limit_keeps_the_analytic_time():
+    """Rest to rest over D with |a| ≤ A (box) and a speed limit |v_x| ≤ V that only interval
+    rows impose (OcpModel.interval_rows on both end nodes of every interval): accelerate to V,
+    cruise, brake, T = D/V + V/A (D > V²/A); without the rows the bang-bang 2√(D/A) is faster."""
+    D, A, V, intervals = 20.0, 2.0, 4.0, 40
+    base = _double_integrator()
+
+    def rows(x0, x1, u, p):
+        return ca.vertcat(x0[3], x1[3])
+
+    model = OcpModel("double-integrator-speed-rows", base.f, base.world_velocity,
+                     interval_rows=(rows, -V, V))
+    kinds = ("ball",)
+    nlp = build_nlp(model, Layout(kinds, intervals, end_at_rest=True))
+    P = np.concatenate([[0.0], np.zeros(6), target_vector(
+        np.array([[D, 0, 0]], float), kinds, np.zeros(1), np.zeros(1), np.zeros(1), 0.0)])
+    lbx = nlp.pack([1e-2], np.full((intervals + 1, 6), -np.inf), np.full((intervals, 3), -A))
+    ubx = nlp.pack([1e2], np.full((intervals + 1, 6), np.inf), np.full((intervals, 3), A))
+    sol = solve(nlp, nlp.pack([5.0], np.zeros((intervals + 1, 6)), np.zeros((intervals, 3))),
+                P, lbx, ubx)
+    assert sol.success, sol.return_status
+    T, X, _ = nlp.unpack(sol.point.w)
+    assert 2 * math.sqrt(D / A) < D / V + V / A  # the rows bind
+    np.testing.assert_allclose(T.sum(), D / V + V / A, rtol=2e-3)
+    assert np.abs(X[:, 3]).max() <= V + 1e-6
+
+
+def test_interval_rows_refused_by_collocation():
+    base = _double_integrator()
+    model = OcpModel("double-integrator-rows-colloc", base.f, base.world_velocity,
+                     interval_rows=(lambda x0, x1, u, p: u, -1.0, 1.0))
+    with pytest.raises(ValueError, match="shooting"):
+        build_nlp(model, Layout(("ball",), 4, method="collocation"))
 
 
 def test_gate_miss_geometry():

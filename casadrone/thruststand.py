@@ -2,15 +2,37 @@
 
 The log is a CSV as the common stands' software writes it (Tyto Robotics / RCbenchmark
 Series 1520/1580/1585 and their clones): one row per sample, one column per sensor, the unit in
-the header (``Thrust (kgf)``, ``Torque (N·m)``, ``Motor Optical Speed (RPM)`` …). The unit is
-read from the header and converted to SI; a column in a unit casadrone does not know is refused,
-never guessed.
+the header (``Thrust (kgf)``, ``Torque (N·m)``, ``Motor Optical Speed (RPM)`` or ``(rad/s)`` …).
+The unit is read from the header and converted to SI; a column in a unit casadrone does not know
+is refused, never guessed. What a real log holds besides, and how it is read:
+
+- **ESC signal without a unit: DShot.** A log of a PWM-driven ESC carries ``ESC signal (µs)``; the
+  published RCbenchmark logs of bhabas/sar_simulation (``Motor_SO_V5``, MIT licence), recorded
+  with ``protocol = "dshot600"`` in their test script, carry ``ESC signal`` with no unit and values
+  0-2047 — what Tyto's software writes for DShot, as these logs show. Such a column is read as
+  DShot command values, whose throttle range is 48-2047 (0 disarms, 1-47 are commands:
+  ``DSHOT_MIN_THROTTLE``/``DSHOT_MAX_THROTTLE`` of Betaflight's and INAV's DShot drivers); the
+  duty range then defaults to 48-2047 instead of PWM's 1000-2000 µs (a range given by the user
+  is kept). A column whose unit is written but unknown is still refused.
+- **Blank cells of a time series.** A stand samples its load cells and its power sensor
+  asynchronously: a time series leaves thrust or torque blank in the rows where that sensor gave
+  no new sample (alternate rows in the published 100 Hz log above). A blank cell in the thrust,
+  torque, voltage or current column is a missing sample (NaN, skipped by every mean); a column
+  left without any sample, and any text that is not a number, is refused with its row.
+- **Comment rows.** A row whose first cell starts with ``#`` is a comment (the published logs
+  above carry their author's fit results so).
 
 What is fitted, and from which part of the log:
 
 - **Steady points.** A *plateau* is a run of rows with the same ESC signal lasting at least
   ``min_plateau_s``; its steady value is the mean of its last ``settled_fraction`` (the first part
-  holds the step response). From the steady points:
+  holds the step response). A log with no plateau whose rows are at least ``min_plateau_s`` apart
+  (median interval) is a log of *averaged rows*: the stands' "discrete steps" script settles at
+  each ESC signal and writes one row, the average of many samples (``samplesAvg`` in Tyto's
+  ``Motor_Step_Test.js``); each row is then a steady point (:func:`steady_points`; the fit reports
+  which of the two it used, and fits no step response from averaged rows). A steady point missing
+  a quantity (a blank cell, or a plateau whose settled part has no sample of it) is not used.
+  From the steady points:
 
   - static propeller coefficients, by least squares through the origin of the momentum-theory
     scalings ``T = C_T0 ρ n² D⁴`` and ``P = 2π n Q = C_P0 ρ n³ D⁵`` (n in rev/s; the coefficient
@@ -21,7 +43,7 @@ What is fitted, and from which part of the log:
     mean of ``I_m − K_v Q``). The motor's voltage and current are not measured: the ESC is taken
     as a lossless buck converter, ``V_m = d V_bus`` and ``I_m = I_bus / d``, with the duty d the
     ESC signal's fraction of its range ``[esc_min_us, esc_max_us]`` (the throttle mapping of
-    BLHeli-family ESCs without thrust linearisation);
+    BLHeli-family ESCs without thrust linearisation; 1000-2000 µs for PWM, 48-2047 for DShot);
   - the battery's internal resistance and open-circuit voltage, ``V_bus = V_oc − R_int I_bus``
     (linear regression over the steady points).
 
@@ -50,7 +72,7 @@ import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -63,6 +85,12 @@ MIN_STEP_SAMPLES = 5
 #: Largest log read (bytes): a stand's log at 1 kHz for an hour is ~100 MB of text; beyond that
 #: the file is not a log.
 MAX_LOG_BYTES = 200 * 1024 * 1024
+#: Default duty range ``(zero, full)`` of the ESC signal per protocol: PWM pulse width (µs) of the
+#: BLHeli-family ESCs, DShot throttle commands (48-2047, module docstring).
+ESC_RANGES: dict[str, tuple[float, float]] = {"pwm": (1000.0, 2000.0), "dshot": (48.0, 2047.0)}
+#: Where the steady points came from (module docstring): held plateaus of a time series, or one
+#: averaged row per step.
+SteadySource = Literal["plateaus", "averaged rows"]
 
 
 class LogError(ValueError):
@@ -84,8 +112,8 @@ UNITS: dict[str, dict[str, float]] = {
                "nmm": 1e-3, "kgf·cm": G0 * 1e-2},
     "voltage": {"v": 1.0},
     "current": {"a": 1.0},
-    "optical_rpm": {"rpm": 2 * math.pi / 60},
-    "electrical_rpm": {"rpm": 2 * math.pi / 60},
+    "optical_rpm": {"rpm": 2 * math.pi / 60, "rad/s": 1.0},
+    "electrical_rpm": {"rpm": 2 * math.pi / 60, "rad/s": 1.0},
 }
 #: Header name (before the unit) of each quantity, lower case.
 NAMES: dict[str, tuple[str, ...]] = {
@@ -99,6 +127,8 @@ NAMES: dict[str, tuple[str, ...]] = {
     "electrical_rpm": ("motor electrical speed",),
 }
 REQUIRED = ("time", "esc", "thrust", "torque", "voltage", "current")
+#: Columns whose blank cells are missing samples of an asynchronous sensor (module docstring).
+SPARSE = ("thrust", "torque", "voltage", "current")
 _HEADER = re.compile(r"^\s*(?P<name>[^()]*?)\s*\((?P<unit>[^()]*)\)\s*$")
 
 
@@ -115,9 +145,12 @@ class StandLog:
 
     Attributes:
         source: the file's name (no directory: results carry no machine path).
-        time_s, esc_us, thrust_n, torque_nm, voltage_v, current_a: the samples.
+        time_s, esc_us, thrust_n, torque_nm, voltage_v, current_a: the samples; thrust, torque,
+            voltage and current are NaN where the log's cell is blank. ``esc_us`` is the ESC
+            signal as logged: a pulse width (µs) for PWM, a command value for DShot.
         speed_rad_s: rotor (mechanical) speed, from the optical sensor or the electrical speed
             divided by the motor's pole pairs.
+        esc_protocol: "pwm" (``ESC signal (µs)``) or "dshot" (``ESC signal`` without a unit).
     """
 
     source: str
@@ -128,14 +161,20 @@ class StandLog:
     voltage_v: np.ndarray
     current_a: np.ndarray
     speed_rad_s: np.ndarray
+    esc_protocol: str = "pwm"
 
 
-def _columns(header: list[str], source: str) -> dict[str, tuple[int, float]]:
-    """quantity → (column index, factor to SI), from the header's names and units."""
+def _columns(header: list[str], source: str) -> tuple[dict[str, tuple[int, float]], str]:
+    """quantity → (column index, factor to SI), from the header's names and units; and the ESC
+    protocol: "dshot" where the ESC signal's header has no unit (module docstring)."""
     found: dict[str, tuple[int, float]] = {}
+    protocol = "pwm"
     for j, text in enumerate(header):
         m = _HEADER.match(text)
         if not m:
+            if text.strip().lower() in NAMES["esc"] and "esc" not in found:
+                found["esc"] = (j, 1.0)
+                protocol = "dshot"
             continue
         name = m["name"].strip().lower()
         for quantity, names in NAMES.items():
@@ -150,7 +189,7 @@ def _columns(header: list[str], source: str) -> dict[str, tuple[int, float]]:
         if quantity not in found:
             raise LogError(f"{source}: column missing: {quantity} (e.g. "
                            f"'{NAMES[quantity][0].capitalize()} (unit)')")
-    return found
+    return found, protocol
 
 
 def _read_rows(path: Path) -> list[list[str]]:
@@ -163,7 +202,8 @@ def _read_rows(path: Path) -> list[list[str]]:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError:
         text = raw.decode("latin-1")  # Windows exports: units still parse, "µ" may be mangled
-    rows = list(csv.reader(text.splitlines()))
+    rows = [r for r in csv.reader(text.splitlines())
+            if not (r and r[0].lstrip().startswith("#"))]  # comment rows (module docstring)
     if len(rows) < 2:
         raise LogError(f"{path.name}: no data rows")
     return rows
@@ -172,14 +212,16 @@ def _read_rows(path: Path) -> list[list[str]]:
 def read_log(path: str | Path, motor_poles: int | None = None) -> StandLog:
     """Read a stand log (units from the header) into SI arrays.
 
-    Rotor speed comes from ``Motor Optical Speed (RPM)`` when it holds data, else from
-    ``Motor Electrical Speed (RPM)`` (see :func:`_rotor_speed` for ``motor_poles``).
-    A row with a missing or non-numeric value in a used column is refused with its row number.
+    Rotor speed comes from ``Motor Optical Speed (RPM or rad/s)`` when it holds data, else from
+    ``Motor Electrical Speed`` (see :func:`_rotor_speed` for ``motor_poles``).
+    A blank thrust, torque, voltage or current cell is a missing sample (NaN); a column of them
+    without any sample, a blank time or ESC signal, and a non-numeric value in a used column are
+    refused with the row number (the row of the file, comment rows counted out).
     """
     path = Path(path)
     rows = _read_rows(path)
     source = path.name
-    cols = _columns(rows[0], source)
+    cols, protocol = _columns(rows[0], source)
     if "optical_rpm" not in cols and "electrical_rpm" not in cols:
         raise LogError(f"{source}: column missing: rotor speed ('Motor Optical Speed (RPM)' or "
                        "'Motor Electrical Speed (RPM)')")
@@ -189,15 +231,19 @@ def read_log(path: str | Path, motor_poles: int | None = None) -> StandLog:
             continue
         for q, (j, factor) in cols.items():
             cell = row[j].strip() if j < len(row) else ""
+            blank_ok = q.endswith("rpm") or q in SPARSE
             try:
-                value = float(cell) if cell else (math.nan if q.endswith("rpm") else None)
+                value = float(cell) if cell else (math.nan if blank_ok else None)
             except ValueError:
                 value = None
-            if value is None or (not q.endswith("rpm") and not math.isfinite(value)):
+            if value is None or (cell and not q.endswith("rpm") and not math.isfinite(value)):
                 raise LogError(f"{source}: row {i}, column '{rows[0][j]}': "
                                f"not a number: {cell!r}")
             data[q].append(value * factor)
     arrays = {q: np.asarray(v, dtype=float) for q, v in data.items()}
+    for q in SPARSE:
+        if len(arrays[q]) and not np.any(np.isfinite(arrays[q])):
+            raise LogError(f"{source}: column '{rows[0][cols[q][0]]}': no data (every cell blank)")
     speed = _rotor_speed(arrays, motor_poles, source)
     t = arrays["time"]
     if len(t) < 10:
@@ -208,15 +254,15 @@ def read_log(path: str | Path, motor_poles: int | None = None) -> StandLog:
     if np.any(np.diff(t[order]) <= 0):
         bad = int(order[int(np.argmax(np.diff(t[order]) <= 0)) + 1]) + 2
         raise LogError(f"{source}: row {bad}, column 'Time': time stamp repeated")
-    return StandLog(source, t[order], *(x[order] for x in (
-        arrays["esc"], arrays["thrust"], arrays["torque"], arrays["voltage"],
-        arrays["current"], speed)))
+    return StandLog(source, t[order], arrays["esc"][order], arrays["thrust"][order],
+                    arrays["torque"][order], arrays["voltage"][order], arrays["current"][order],
+                    speed[order], protocol)
 
 
 def _rotor_speed(arrays: dict[str, np.ndarray], motor_poles: int | None,
                  source: str) -> np.ndarray:
     """Rotor speed (rad/s): the optical sensor where it holds data, else the electrical speed
-    column. Tyto/RCbenchmark software writes that column already in rotor rpm (it divides by the
+    column. Tyto/RCbenchmark software writes that column already in rotor speed (it divides by the
     pole count set in its settings; checked on a published 9-inch log, whose fit gives C_T0 ≈ 0.11
     this way and 49× that divided again by 7 pole pairs): it is divided by the pole pairs only
     when ``motor_poles`` is given, for a log of the raw commutation frequency."""
@@ -252,10 +298,16 @@ class Plateau:
     speed_rad_s: float
 
 
+def _mean(x: np.ndarray) -> float:
+    """Mean of the samples present (NaN marks a blank cell); NaN where none is."""
+    ok = np.isfinite(x)
+    return float(np.mean(x[ok])) if np.any(ok) else math.nan
+
+
 def plateaus(log: StandLog, min_plateau_s: float = 0.5, settled_fraction: float = 0.5
              ) -> list[Plateau]:
     """The runs of constant ESC signal lasting ≥ ``min_plateau_s``, with the means of their
-    last ``settled_fraction``."""
+    last ``settled_fraction`` (of the samples present: blank cells are skipped)."""
     change = np.flatnonzero(np.abs(np.diff(log.esc_us)) > 0.5) + 1
     bounds = np.concatenate([[0], change, [len(log.esc_us)]])
     out = []
@@ -264,10 +316,22 @@ def plateaus(log: StandLog, min_plateau_s: float = 0.5, settled_fraction: float 
             continue
         s = slice(a + int((b - a) * (1 - settled_fraction)), b)
         out.append(Plateau(int(a), int(b), float(log.esc_us[a]),
-                           *(float(np.mean(x[s])) for x in (log.thrust_n, log.torque_nm,
-                                                            log.voltage_v, log.current_a,
-                                                            log.speed_rad_s))))
+                           *(_mean(x[s]) for x in (log.thrust_n, log.torque_nm, log.voltage_v,
+                                                   log.current_a, log.speed_rad_s))))
     return out
+
+
+def steady_points(log: StandLog, min_plateau_s: float = 0.5, settled_fraction: float = 0.5
+                  ) -> tuple[list[Plateau], SteadySource]:
+    """The log's steady points and where they came from (module docstring): its plateaus; or,
+    for a log without any plateau whose rows are a median ``min_plateau_s`` or more apart, every
+    row (a stand's averaged row per step, each a one-row "plateau")."""
+    found = plateaus(log, min_plateau_s, settled_fraction)
+    if found or float(np.median(np.diff(log.time_s))) < min_plateau_s:
+        return found, "plateaus"
+    return [Plateau(i, i + 1, float(log.esc_us[i]), float(log.thrust_n[i]),
+                    float(log.torque_nm[i]), float(log.voltage_v[i]), float(log.current_a[i]),
+                    float(log.speed_rad_s[i])) for i in range(len(log.time_s))], "averaged rows"
 
 
 # ------------------------------------------------------------------------------------------------
@@ -320,6 +384,9 @@ class PropulsionFit:
         time_constant_s: median of the resolved step responses, or None.
         rotor_inertia_kgm2: the rotor's inertia from the steps (module docstring), or None.
         steps: every step fitted. residuals: one per fit.
+        steady_source: "plateaus" or "averaged rows" (:func:`steady_points`).
+        esc_protocol, esc_range: the ESC signal's protocol and the duty range ``(zero, full)``
+            used (µs for PWM, command values for DShot).
     """
 
     source: str
@@ -337,6 +404,9 @@ class PropulsionFit:
     rotor_inertia_kgm2: float | None
     steps: tuple[StepFit, ...]
     residuals: tuple[Residual, ...]
+    steady_source: SteadySource = "plateaus"
+    esc_protocol: str = "pwm"
+    esc_range: tuple[float, float] = ESC_RANGES["pwm"]
 
     def section(self, shape: str | None = None) -> dict[str, Any]:
         """The airframe's ``propulsion:`` section (the keys of the propeller model).
@@ -380,6 +450,9 @@ class PropulsionFit:
         return {
             "source": self.source,
             "plateaus": len(self.plateaus),
+            "steady_points_from": self.steady_source,
+            "esc": {"protocol": self.esc_protocol, "zero_duty": self.esc_range[0],
+                    "full_duty": self.esc_range[1]},
             "propulsion": self.section(shape),
             "residuals": [vars(r) for r in self.residuals],
             "steps": [vars(s) for s in self.steps],
@@ -486,7 +559,7 @@ PHYSICAL: dict[str, tuple[str, float, float, str]] = {
     "cp0": ("static power coefficient C_P0", 0.005, 0.4, "Torque, rotor speed"),
     "kv": ("motor KV (rpm/V)", 50.0, 30000.0, "Voltage, Current, rotor speed, ESC signal"),
     "R": ("motor resistance (Ω)", 1e-3, 5.0, "Voltage, Current, rotor speed, ESC signal"),
-    "i0": ("no-load current (A)", 0.0, 20.0, "Current, Torque"),
+    "i0": ("no-load current (A)", 0.0, 20.0, "Current, Torque, ESC signal"),
     "v0": ("open-circuit voltage (V)", 1.0, 60.0, "Voltage, Current"),
     "r_int": ("battery internal resistance (Ω)", 0.0, 1.0, "Voltage, Current"),
 }
@@ -496,16 +569,28 @@ def _check_physical(source: str, values: dict[str, float]) -> None:
     for key, value in values.items():
         name, lo, hi, columns = PHYSICAL[key]
         if not lo <= value <= hi:
+            hint = ("; the motor fit takes the ESC as a lossless buck whose duty is linear in "
+                    "the ESC signal over --esc-min-us..--esc-max-us" if key in ("kv", "R", "i0")
+                    else "")
             raise LogError(f"{source}: columns {columns}: the fitted {name} is {value:.4g}, "
                            f"outside the physical {lo:g}-{hi:g} (check the columns' signs, "
-                           "units and tare)")
+                           f"units and tare{hint})")
+
+
+def _complete(p: Plateau) -> bool:
+    return all(math.isfinite(x) for x in (p.thrust_n, p.torque_nm, p.voltage_v, p.current_a,
+                                          p.speed_rad_s))
 
 
 def fit_propulsion(log: StandLog, diameter_m: float, air_density_kg_m3: float = RHO_ISA,
-                   esc_min_us: float = 1000.0, esc_max_us: float = 2000.0,
+                   esc_min_us: float | None = None, esc_max_us: float | None = None,
                    min_plateau_s: float = 0.5) -> PropulsionFit:
     """Fit the propeller, motor, battery and motor time constant of :mod:`this module's
     <casadrone.thruststand>` docstring from a stand log.
+
+    Args:
+        esc_min_us, esc_max_us: the ESC signal at zero and full duty; None: the log's protocol's
+            range (:data:`ESC_RANGES`: 1000-2000 µs for PWM, 48-2047 for DShot).
 
     Raises:
         LogError: fewer than three powered steady points, a point outside the ESC range, or a
@@ -515,28 +600,41 @@ def fit_propulsion(log: StandLog, diameter_m: float, air_density_kg_m3: float = 
         raise LogError(f"{log.source}: propeller diameter {diameter_m} m outside 0.02-2 m")
     if not 0.3 <= air_density_kg_m3 <= 1.5:
         raise LogError(f"{log.source}: air density {air_density_kg_m3} kg/m³ outside 0.3-1.5")
-    allp = _tared(plateaus(log, min_plateau_s), esc_min_us)
+    lo, hi = ESC_RANGES[log.esc_protocol]
+    esc_min_us = lo if esc_min_us is None else esc_min_us
+    esc_max_us = hi if esc_max_us is None else esc_max_us
+    unit = " µs" if log.esc_protocol == "pwm" else " (DShot)"
+    if not esc_min_us < esc_max_us:
+        raise LogError(f"{log.source}: ESC range {esc_min_us:g}-{esc_max_us:g}{unit}: the zero "
+                       "duty must be below the full duty (--esc-min-us, --esc-max-us)")
+    points, source = steady_points(log, min_plateau_s)
+    allp = _tared([q for q in points if _complete(q)], esc_min_us)
     powered = [q for q in allp if q.esc_us > esc_min_us and q.speed_rad_s > 0 and q.current_a > 0]
     if len(powered) < 3:
         raise LogError(f"{log.source}: {len(powered)} powered steady points (ESC signal held "
-                       f"≥ {min_plateau_s} s above {esc_min_us:g} µs); a fit needs ≥ 3")
+                       f"≥ {min_plateau_s} s above {esc_min_us:g}{unit}, or averaged rows); "
+                       "a fit needs ≥ 3")
     duty = np.array([(q.esc_us - esc_min_us) / (esc_max_us - esc_min_us) for q in powered])
     if np.any(duty > 1.0 + 1e-9):
         bad = powered[int(np.argmax(duty))]
-        raise LogError(f"{log.source}: row {bad.start + 2}, column 'ESC signal': {bad.esc_us:g} µs "
-                       f"above the ESC range's top {esc_max_us:g} µs (--esc-max-us)")
+        raise LogError(f"{log.source}: row {bad.start + 2}, column 'ESC signal': "
+                       f"{bad.esc_us:g}{unit} above the ESC range's top {esc_max_us:g}{unit} "
+                       "(--esc-max-us)")
     ct0, cp0, res_prop = _fit_propeller(powered, diameter_m, air_density_kg_m3)
     kv, R, i0, res_motor = _fit_motor(powered, duty)
     v0, r_int, res_batt = _fit_battery(powered)
     _check_physical(log.source, dict(ct0=ct0, cp0=cp0, kv=kv, R=R, i0=i0, v0=v0, r_int=r_int))
+    # a step response needs the time series between two plateaus: none from averaged rows
     steps = tuple(s for a, b in zip(allp[:-1], allp[1:], strict=True)
-                  if b.start == a.stop and (s := _fit_step(log, a, b)) is not None)
+                  if source == "plateaus" and b.start == a.stop
+                  and (s := _fit_step(log, a, b)) is not None)
     tau = float(np.median([s.time_constant_s for s in steps])) if steps else None
     inertia = _rotor_inertia(steps, cp0, kv, R, r_int, diameter_m, air_density_kg_m3,
                              esc_min_us, esc_max_us)
     return PropulsionFit(log.source, diameter_m, air_density_kg_m3, tuple(powered), ct0, cp0,
                          kv, R, i0, v0, r_int, tau, inertia, steps,
-                         (*res_prop, *res_motor, res_batt))
+                         (*res_prop, *res_motor, res_batt), source, log.esc_protocol,
+                         (esc_min_us, esc_max_us))
 
 
 def _rotor_inertia(steps: tuple[StepFit, ...], cp0: float, kv_rpm_per_v: float, R: float,

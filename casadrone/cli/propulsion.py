@@ -35,10 +35,11 @@ def fit_propulsion_command(
         "--motor-poles", min=2, max=64,
         help="motor poles, to turn a raw commutation frequency logged as 'Motor Electrical Speed "
         "(RPM)' into rotor speed (Tyto/RCbenchmark software already logs rotor rpm there)")] = None,
-    esc_min_us: Annotated[float, typer.Option(
-        "--esc-min-us", help="ESC signal at zero duty (µs)")] = 1000.0,
-    esc_max_us: Annotated[float, typer.Option(
-        "--esc-max-us", help="ESC signal at full duty (µs)")] = 2000.0,
+    esc_min_us: Annotated[float | None, typer.Option(
+        "--esc-min-us", help="ESC signal at zero duty (default: 1000 µs for a log of 'ESC signal "
+        "(µs)', 48 for a DShot log: 'ESC signal' without a unit)")] = None,
+    esc_max_us: Annotated[float | None, typer.Option(
+        "--esc-max-us", help="ESC signal at full duty (default: 2000 µs; 2047 for DShot)")] = None,
     shape: Annotated[str | None, typer.Option(
         "--shape", help="J-dependence of CT and CP from a shipped propeller dataset, scaled to "
         "the fitted static values (e.g. uiuc-da4022-5x3.75-3blade); default: static only")
@@ -67,7 +68,7 @@ def fit_propulsion_command(
     if (diameter_in is None) == (diameter_m is None):
         raise bad_input(["fit-propulsion: give the propeller diameter: --diameter-in or "
                          "--diameter-m (one of them)"])
-    if not esc_min_us < esc_max_us:
+    if esc_min_us is not None and esc_max_us is not None and not esc_min_us < esc_max_us:
         raise bad_input([f"fit-propulsion: --esc-min-us {esc_min_us:g} must be below "
                          f"--esc-max-us {esc_max_us:g}"])
     if shape is not None and shape not in shipped_propellers():
@@ -114,7 +115,8 @@ def section_yaml(fit, shape: str | None = None) -> str:
     import yaml
 
     head = [f"# propulsion: section fitted by casadrone fit-propulsion from {fit.source}",
-            f"# {len(fit.plateaus)} steady points, {len(fit.steps)} step responses; residuals:"]
+            f"# {len(fit.plateaus)} steady points ({fit.steady_source}), {len(fit.steps)} step "
+            "responses; residuals:"]
     head += [f"#   {r.quantity}: rms {r.rms:.4g} {r.unit} ({100 * r.relative_rms:.2f} %), "
              f"max {r.max_abs:.4g} {r.unit}" for r in fit.residuals]
     body = yaml.safe_dump({"propulsion": fit.section(shape)}, sort_keys=False)
@@ -122,7 +124,15 @@ def section_yaml(fit, shape: str | None = None) -> str:
 
 
 def _print_text(fit) -> None:
-    typer.echo(f"{fit.source}: {len(fit.plateaus)} steady points, {len(fit.steps)} step responses")
+    typer.echo(f"{fit.source}: {len(fit.plateaus)} steady points from {fit.steady_source}, "
+               f"{len(fit.steps)} step responses")
+    zero, full = fit.esc_range
+    unit = " µs" if fit.esc_protocol == "pwm" else ""
+    typer.echo(f"ESC signal {fit.esc_protocol.upper() if fit.esc_protocol == 'dshot' else 'PWM'}"
+               f", duty 0 at {zero:g}{unit}, 1 at {full:g}{unit}")
+    if fit.steady_source == "averaged rows":
+        typer.echo("           (no plateau and rows seconds apart: each row taken as one "
+                   "averaged steady point; no step response fitted)")
     typer.echo(f"propeller  CT0 {fit.ct0:.5f}  CP0 {fit.cp0:.5f}  (D {fit.diameter_m:.4f} m, "
                f"rho {fit.air_density_kg_m3:g} kg/m³)")
     typer.echo(f"motor      KV {fit.kv_rpm_per_v:.1f} rpm/V  R {fit.resistance_ohm * 1e3:.1f} mΩ  "

@@ -212,3 +212,160 @@ def test_the_section_is_read_by_the_airframe_schema_and_hovers(tmp_path, log_fil
     sweep = points[points[:, 0] > 0]
     # observed: within 1.2 % at every sweep point
     np.testing.assert_allclose(ct(sweep[:, 0], c) / c[0], sweep[:, 2] / static, rtol=0.03)
+
+
+# ------------------------------------------------------------------------------------------------
+# Real logs: bhabas/sar_simulation, Motor_SO_V5 (MIT; tests/data/thruststand/README.md)
+# ------------------------------------------------------------------------------------------------
+
+DATA = Path(__file__).parents[1] / "data" / "thruststand"
+STEPS = DATA / "sar_simulation_so_v5_steps.csv"
+SERIES = DATA / "sar_simulation_so_v5_time_constant_rows_1-654.csv"
+#: The log's authors' own thrust and torque constants of this motor and propeller,
+#: T = k_f ω², Q = k_q ω² (sar_config/Model_Types.yaml, Source_One_V5: Thrust_Coeff 1.43e-6
+#: N/(rad/s)², Torque_Coeff 1.57e-8 N·m/(rad/s)²).
+K_F, K_Q = 1.43e-6, 1.57e-8
+
+
+def _column(path: Path, name: str) -> list[str]:
+    rows = list(csv.reader(path.open(encoding="utf-8-sig")))
+    j = rows[0].index(name)
+    return [r[j] for r in rows[1:]]
+
+
+def test_real_dshot_log_of_averaged_rows_is_read_in_si():
+    """The unitless 'ESC signal' is DShot, the 'rad/s' speed is taken as is, 'gf' is converted,
+    and the 102 rows (each the average at the end of a step) are the steady points."""
+    from casadrone.thruststand import steady_points
+
+    log = read_log(STEPS)
+    assert log.esc_protocol == "dshot" and len(log.time_s) == 102
+    raw = sorted(zip(map(float, _column(STEPS, "Time (s)")),
+                     map(float, _column(STEPS, "Motor Optical Speed (rad/s)")),
+                     map(float, _column(STEPS, "Thrust (gf)")), strict=True))
+    np.testing.assert_allclose(log.speed_rad_s, [r[1] for r in raw])
+    np.testing.assert_allclose(log.thrust_n, [r[2] * 9.80665e-3 for r in raw])
+    points, source = steady_points(log)
+    assert source == "averaged rows" and len(points) == 102
+    # the steady points reproduce the authors' own constants (a plain fit done here)
+    w = np.array([q.speed_rad_s for q in points])
+    for values, k in (([q.thrust_n for q in points], K_F), ([q.torque_nm for q in points], K_Q)):
+        y = np.asarray(values)
+        assert float(y @ w**2 / (w**4).sum()) == pytest.approx(k, rel=0.03)
+
+
+def test_real_log_fit_reports_the_dshot_range_and_refuses_the_motor(cli_runner):
+    """On the real steps log the propeller obeys T = k_f ω² (above), but Drela's motor behind a
+    lossless ESC with duty linear in DShot 48-2047 does not describe it: the fitted no-load current
+    is negative, so the fit is refused (exit 2, naming the value and the ESC assumption), never
+    written."""
+    from casadrone.cli import app
+
+    r = cli_runner.invoke(app, ["fit-propulsion", str(STEPS), "--diameter-in", "5.0", "--json"])
+    assert r.exit_code == 2 and "Traceback" not in r.stderr
+    assert "sar_simulation_so_v5_steps.csv" in r.stderr and "no-load current" in r.stderr
+    assert "ESC signal" in r.stderr
+
+
+def test_real_time_series_with_blank_cells_is_read():
+    """Thrust and torque are blank in alternate rows (asynchronous sensors): missing samples.
+    The plateaus' thrust matches the authors' k_f at the plateaus' speed (another log's
+    constant)."""
+    from casadrone.thruststand import steady_points
+
+    log = read_log(SERIES)
+    blank = sum(1 for c in _column(SERIES, "Thrust (gf)") if not c.strip())
+    assert log.esc_protocol == "dshot" and int(np.isnan(log.thrust_n).sum()) == blank > 100
+    points, source = steady_points(log)
+    assert source == "plateaus" and [q.esc_us for q in points] == [341, 702, 1062]
+    for q in points[1:]:  # the tare (stand zeroed before the test) is small beside these loads
+        assert q.thrust_n == pytest.approx(K_F * q.speed_rad_s**2, rel=0.05)
+
+
+def _dshot(rows: list[list[str]]) -> list[list[str]]:
+    """The synthetic log as a DShot stand writes it: unitless ESC signal (the same duty:
+    48 + d · 1999), speed in rad/s."""
+    out = [["Time (s)", "ESC signal", *rows[0][2:6], "Motor Optical Speed (rad/s)"]]
+    for r in rows[1:]:
+        duty = (float(r[1]) - 1000) / 1000
+        out.append([r[0], f"{48 + duty * 1999:g}" if duty > 0 else "0", *r[2:6],
+                    f"{float(r[6]) * 2 * math.pi / 60:.3f}"])
+    return out
+
+
+def _write(path: Path, rows: list[list[str]]) -> Path:
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        csv.writer(fh).writerows(rows)
+    return path
+
+
+def test_dshot_and_rad_s_headers_fit_as_the_pwm_log(tmp_path, log_file):
+    rows = list(csv.reader(log_file.open(encoding="utf-8")))
+    pwm = fit_propulsion(read_log(log_file), D, RHO)
+    dshot = fit_propulsion(read_log(_write(tmp_path / "d.csv", _dshot(rows))), D, RHO)
+    assert dshot.esc_protocol == "dshot" and dshot.esc_range == (48.0, 2047.0)
+    for key in ("ct0", "cp0", "kv_rpm_per_v", "resistance_ohm", "internal_resistance_ohm"):
+        assert getattr(dshot, key) == pytest.approx(getattr(pwm, key), rel=2e-3), key
+    # a range given by the user is kept: the unitless column holding the PWM values
+    user = _dshot(rows)
+    for r, orig in zip(user[1:], rows[1:], strict=True):
+        r[1] = orig[1]
+    kept = fit_propulsion(read_log(_write(tmp_path / "u.csv", user)), D, RHO, 1000.0, 2000.0)
+    assert kept.esc_range == (1000.0, 2000.0)
+    assert kept.kv_rpm_per_v == pytest.approx(pwm.kv_rpm_per_v, rel=2e-3)
+
+
+def test_averaged_rows_recover_the_motor_and_battery(tmp_path, log_file):
+    """One row per step, the mean of its settled half, seconds apart: each row is a steady point
+    and every coefficient is still recovered within 2 %; the battery resistance is the slope of
+    the rows' voltage against current (numpy.polyfit here)."""
+    data = np.array([[float(c) for c in r] for r in list(csv.reader(log_file.open()))[1:]])
+    rows, change = [], np.flatnonzero(np.diff(data[:, 1])) + 1
+    for a, b in zip([0, *change], [*change, len(data)], strict=True):
+        rows.append([f"{v:.6g}" for v in data[(a + b) // 2:b].mean(axis=0)])
+        rows[-1][0] = f"{data[b - 1, 0]:.4f}"
+    header = ["Time (s)", "ESC signal (µs)", "Torque (N·m)", "Thrust (kgf)", "Voltage (V)",
+              "Current (A)", "Motor Optical Speed (RPM)"]
+    fit = fit_propulsion(read_log(_write(tmp_path / "avg.csv", [header, *rows])), D, RHO)
+    assert fit.steady_source == "averaged rows" and fit.steps == ()
+    assert fit.as_dict()["steady_points_from"] == "averaged rows"
+    for key in ("ct0", "cp0", "kv_rpm_per_v", "resistance_ohm", "no_load_current_a",
+                "internal_resistance_ohm"):
+        assert getattr(fit, key) == pytest.approx(TRUE[key], rel=0.02), key
+    powered = np.array([[float(r[5]), float(r[4])] for r in rows if float(r[1]) > 1000])
+    assert fit.internal_resistance_ohm == pytest.approx(
+        -np.polyfit(powered[:, 0], powered[:, 1], 1)[0], rel=1e-9)
+
+
+def test_blank_cells_are_missing_samples_text_is_refused(tmp_path, log_file):
+    rows = list(csv.reader(log_file.open(encoding="utf-8")))
+    sparse = [r if i % 2 else r[:2] + ["", ""] + r[4:] for i, r in enumerate(rows)]
+    sparse[0] = rows[0]
+    fit = fit_propulsion(read_log(_write(tmp_path / "sparse.csv", sparse)), D, RHO)
+    for key in ("ct0", "cp0", "kv_rpm_per_v", "internal_resistance_ohm"):
+        assert getattr(fit, key) == pytest.approx(TRUE[key], rel=0.02), key
+    text = [*sparse[:50], sparse[50][:3] + ["n/a"] + sparse[50][4:], *sparse[51:]]
+    with pytest.raises(LogError, match=r"text.csv: row 51, column 'Thrust \(kgf\)'"):
+        read_log(_write(tmp_path / "text.csv", text))
+    empty = [rows[0]] + [r[:3] + [""] + r[4:] for r in rows[1:]]
+    with pytest.raises(LogError, match=r"empty.csv: column 'Thrust \(kgf\)': no data"):
+        read_log(_write(tmp_path / "empty.csv", empty))
+    unknown = [[c.replace("Motor Optical Speed (RPM)", "Motor Optical Speed (Hz)") for c in r]
+               for r in rows]
+    with pytest.raises(LogError, match="unit 'Hz' not known"):
+        read_log(_write(tmp_path / "hz.csv", unknown))
+
+
+def test_real_log_propeller_fit_equals_the_authors_constants():
+    """casadrone's static propeller fit on the real steps log, turned back into k_f and k_q
+    (T = C_T0 ρ n² D⁴ = k_f ω² with n = ω/2π, likewise Q = C_P0 ρ n² D⁵ / 2π), equals the
+    constants the log's authors identified for this propeller (another fit, their own) within
+    3 %; the diameter is their CAD's (tests/data/thruststand/README.md)."""
+    from casadrone.thruststand import RHO_ISA, _complete, _fit_propeller, steady_points
+
+    points = [q for q in steady_points(read_log(STEPS))[0] if _complete(q) and q.speed_rad_s > 0]
+    D = 5.0 * 0.0254
+    ct0, cp0, _ = _fit_propeller(points, D, RHO_ISA)
+    k_f = ct0 * RHO_ISA * D**4 / (2 * math.pi) ** 2
+    k_q = cp0 * RHO_ISA * D**5 / (2 * math.pi) ** 3
+    assert k_f == pytest.approx(K_F, rel=0.03) and k_q == pytest.approx(K_Q, rel=0.03)

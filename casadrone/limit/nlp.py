@@ -71,7 +71,9 @@ class OcpModel:
     #: two end nodes and its command (model units), with their bounds (numbers or arrays); the
     #: NLP maps them over the intervals and differentiates them with CasADi's own AD, beside the
     #: compiled interval blocks. A model whose commands are not the ESC commands bounds them
-    #: here (benchmarks/bench_flat_rotor.py). None: none
+    #: here (benchmarks/bench_flat_rotor.py). IPOPT only: a row on two stages is not a gap row,
+    #: so the stage order of fatrop refuses it (:func:`casadrone.limit.stagewise.stage_order`).
+    #: None: none
     interval_rows: tuple | None = None
 
     @property

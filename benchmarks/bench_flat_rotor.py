@@ -87,9 +87,11 @@ DISC_EPS = 1.0e-2
 
 
 def flat_terms(x, a, p):
-    """(ẋ (16), δ (4)) of the ``propeller`` Euler model with rotor accelerations ``a``
-    (ACCEL_UNIT) as the input: the same forces and moments as casadrone.propulsion.
-    propeller_terms, with the motor torque J_r ω̇ + Q (the rotor's own residual solved for it)."""
+    """(ẋ (16), δ (4), the pack's discriminant V_oc² − 4 R_b Σ e I (V²): negative where no
+    command gives these accelerations) of the ``propeller`` Euler model with rotor
+    accelerations ``a`` (ACCEL_UNIT) as the input: the same forces and moments as
+    casadrone.propulsion.propeller_terms, with the motor torque J_r ω̇ + Q (the rotor's own
+    residual solved for it)."""
     g, J, r, s, cda = unpack_params(p)
     q = named(p)
     vel, omega, eul, w = x[VEL], x[RATE], x[EUL], x[12:16]
@@ -120,14 +122,14 @@ def flat_terms(x, a, p):
     V = 0.5 * (q["batt_Voc"] + ca.sqrt(0.5 * (disc + ca.sqrt(disc**2 + DISC_EPS**2))))
     dc = q["motor_dc"]
     delta = dc * e / V + (1 - dc) * (w + q["motor_tau"] * wdot) / (q["motor_kv"] * q["batt_Voc"])
-    return xdot, delta
+    return xdot, delta, disc
 
 
 @lru_cache(maxsize=1)
 def flat_model() -> OcpModel:
     x, a = ca.SX.sym("x", NX), ca.SX.sym("a", NU)
     p = ca.SX.sym("p", n_params("propeller"))
-    xdot, delta = flat_terms(x, a, p)
+    xdot, delta, _ = flat_terms(x, a, p)
     f = ca.Function("f_flat", [x, a, p], [xdot], ["x", "u", "p"], ["xdot"])
     commands = ca.Function("delta_flat", [x, a, p], [delta], ["x", "u", "p"], ["delta"])
 
@@ -145,10 +147,32 @@ def flat_model() -> OcpModel:
                     interval_rows=(rows, 0.0, 1.0))
 
 
+def inverse_check(p, n: int = 200, seed: int = 1) -> float:
+    """Largest relative difference between the accelerations model and the original model fed
+    the accelerations' commands, f(x, δ(x, a), p) against f_flat(x, a, p), over ``n`` random
+    states and accelerations the pack can power (discriminant ≥ 1 V²; the rotor rows included:
+    ω̇ must come back as a)."""
+    x, a, pp = ca.SX.sym("x", NX), ca.SX.sym("a", NU), ca.SX.sym("p", len(p))
+    xdot, delta, disc = flat_terms(x, a, pp)
+    both = ca.Function("both", [x, a, pp],
+                       [xdot, quadrotor_model("propeller").f(x, delta, pp), disc])
+    rng = np.random.default_rng(seed)
+    worst, used = 0.0, 0
+    while used < n:
+        xx = np.r_[rng.normal(size=3), rng.normal(scale=10, size=3), rng.normal(scale=3, size=3),
+                   rng.uniform(-1, 1, 3), rng.uniform(800, 2800, 4)]
+        flat, orig, d = (np.array(v).ravel() for v in both(xx, rng.uniform(-5, 5, 4), p))
+        if d[0] < 1.0:
+            continue
+        used += 1
+        worst = max(worst, float(np.max(np.abs(flat - orig) / (1 + np.abs(orig)))))
+    return worst
+
+
 def commands_of(X, A, p) -> tuple[np.ndarray, np.ndarray]:
     """δ at the start and at the end of every interval (M, 4) each."""
     x, a, pp = ca.SX.sym("x", NX), ca.SX.sym("a", NU), ca.SX.sym("p", len(p))
-    d = ca.Function("d", [x, a, pp], [flat_terms(x, a, pp)[1]])
+    d = ca.Function("d", [x, a, pp], [flat_terms(x, a, pp)[1]])  # δ
     M = len(A)
     d0 = np.array(d.map(M)(X[:-1].T, A.T, np.repeat(p[:, None], M, axis=1))).T
     d1 = np.array(d.map(M)(X[1:].T, A.T, np.repeat(p[:, None], M, axis=1))).T
@@ -304,6 +328,7 @@ def main(argv: list[str] | None = None) -> int:
                           "ms_per_iteration": 1e3 * t / max(sol.iterations, 1)}), flush=True)
     if args.no_flat:
         return warm_delta(args, cfg, base, problem)
+    print(json.dumps({"inverse_check_max_rel_diff": inverse_check(frame.p)}), flush=True)
     pb = problem(frame, args.intervals)
     nlp, box, rows = flat_problem(pb)
     w0 = flat_guess(nlp, pb.full, pb.lifted)

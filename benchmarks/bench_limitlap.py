@@ -71,12 +71,15 @@ def main(argv: list[str] | None = None) -> int:
                          "and inertia from the parts)")
     ap.add_argument("--starts", default=",".join(LimitLapOptions().starts),
                     help="cold starts, comma-separated (default: the library's)")
+    ap.add_argument("--resimulation", choices=("lap", "legs"), default="lap",
+                    help="what the re-simulation check flies (LimitLapOptions.resimulation)")
     ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap-frames.md")
     args = ap.parse_args(argv)
     template = load_airframe(args.template)
     track = load(TrackConfig, DEFAULT_TRACK)
     options = LimitLapOptions(intervals=args.intervals,
-                              starts=tuple(args.starts.split(",")))  # type: ignore[arg-type]
+                              starts=tuple(args.starts.split(",")),  # type: ignore[arg-type]
+                              resimulation=args.resimulation)
     thetas, _ = random_thetas(template, args.n, args.seed)
     keys = list(thetas[0])
     lo = np.array([TABLE1_BOUNDS[k][0] for k in keys])
@@ -115,7 +118,9 @@ def main(argv: list[str] | None = None) -> int:
              f"Command: `python benchmarks/bench_limitlap.py --n {args.n} --seed {args.seed} "
              + (f"--intervals {args.intervals} " if args.intervals else "")
              + f"--template {args.template} --starts "
-             f"{args.starts}` (paper track, one "
+             f"{args.starts}"
+             + (f" --resimulation {args.resimulation}" if args.resimulation != "lap" else "")
+             + "` (paper track, one "
              f"core; decision variables {', '.join(keys)}).", "",
              "| quantity | value |", "|---|---|",
              f"| frames | {args.n} |",

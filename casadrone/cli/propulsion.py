@@ -68,9 +68,6 @@ def fit_propulsion_command(
     if (diameter_in is None) == (diameter_m is None):
         raise bad_input(["fit-propulsion: give the propeller diameter: --diameter-in or "
                          "--diameter-m (one of them)"])
-    if esc_min_us is not None and esc_max_us is not None and not esc_min_us < esc_max_us:
-        raise bad_input([f"fit-propulsion: --esc-min-us {esc_min_us:g} must be below "
-                         f"--esc-max-us {esc_max_us:g}"])
     if shape is not None and shape not in shipped_propellers():
         raise bad_input([f"--shape: {shape!r} is not a shipped propeller dataset (shipped: "
                          f"{', '.join(shipped_propellers())})"])

@@ -369,3 +369,19 @@ def test_real_log_propeller_fit_equals_the_authors_constants():
     k_f = ct0 * RHO_ISA * D**4 / (2 * math.pi) ** 2
     k_q = cp0 * RHO_ISA * D**5 / (2 * math.pi) ** 3
     assert k_f == pytest.approx(K_F, rel=0.03) and k_q == pytest.approx(K_Q, rel=0.03)
+
+
+@pytest.mark.parametrize("bounds", [("--esc-min-us", "2000", "--esc-max-us", "1000"),
+                                    ("--esc-min-us", "2500")])
+def test_an_esc_range_upside_down_is_refused_with_the_options(tmp_path, log_file, cli_runner,
+                                                                bounds):
+    """Zero duty at or above full duty, given both ways or by one option against the other's
+    protocol default (PWM: 2000 µs), is refused (exit 2, one line naming both options); no
+    section is written."""
+    from casadrone.cli import app
+
+    out = tmp_path / "prop.yaml"
+    r = cli_runner.invoke(app, ["fit-propulsion", str(log_file), "--diameter-m", str(D),
+                                "--out", str(out), *bounds])
+    assert r.exit_code == 2 and "Traceback" not in r.stderr, r.stderr
+    assert "--esc-min-us" in r.stderr and "--esc-max-us" in r.stderr and not out.exists()

@@ -17,6 +17,12 @@ draws resampled), on one core:
 
 Run: ``python benchmarks/bench_limitlap.py [--n 50] [--seed 0] [--template SY250]``. Writes
 ``benchmarks/RESULTS-limitlap-frames.md`` (``--out``). Target: ≤ 1 s CPU per warm solve.
+
+``--solver fatrop`` solves every start with fatrop (IPOPT where fatrop fails:
+``LimitLapOptions.solver``). ``--laps-json FILE`` writes each frame's cold lap; ``--compare-json
+FILE`` reads another run's and reports how many frames' laps agree within 0.01 % (the same
+frames: the same ``--n``, ``--seed`` and ``--template``), e.g. the two solvers' answers with the
+command's whole start strategy.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
+import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from dataclasses import replace  # noqa: E402
@@ -73,13 +80,17 @@ def main(argv: list[str] | None = None) -> int:
                     help="cold starts, comma-separated (default: the library's)")
     ap.add_argument("--resimulation", choices=("lap", "legs"), default="lap",
                     help="what the re-simulation check flies (LimitLapOptions.resimulation)")
+    ap.add_argument("--solver", choices=("ipopt", "fatrop"), default="ipopt")
+    ap.add_argument("--laps-json", type=Path, default=None, help="write each frame's cold lap")
+    ap.add_argument("--compare-json", type=Path, default=None,
+                    help="another run's --laps-json: how many laps agree within 0.01 %%")
     ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap-frames.md")
     args = ap.parse_args(argv)
     template = load_airframe(args.template)
     track = load(TrackConfig, DEFAULT_TRACK)
     options = LimitLapOptions(intervals=args.intervals,
                               starts=tuple(args.starts.split(",")),  # type: ignore[arg-type]
-                              resimulation=args.resimulation)
+                              resimulation=args.resimulation, solver=args.solver)
     thetas, _ = random_thetas(template, args.n, args.seed)
     keys = list(thetas[0])
     lo = np.array([TABLE1_BOUNDS[k][0] for k in keys])
@@ -120,6 +131,7 @@ def main(argv: list[str] | None = None) -> int:
              + f"--template {args.template} --starts "
              f"{args.starts}"
              + (f" --resimulation {args.resimulation}" if args.resimulation != "lap" else "")
+             + (f" --solver {args.solver}" if args.solver != "ipopt" else "")
              + "` (paper track, one "
              f"core; decision variables {', '.join(keys)}).", "",
              "| quantity | value |", "|---|---|",
@@ -160,6 +172,19 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             rho, p = spearmanr(v, laps)
             lines.append(f"| {name} | {rho:+.2f} | {p:.2g} |")
+    mine = {str(i): float(cold[i][1].lap_time_s) for i in ok}
+    if args.laps_json:
+        args.laps_json.write_text(json.dumps(mine, indent=1) + "\n")
+    if args.compare_json:
+        theirs = json.loads(args.compare_json.read_text())
+        both = sorted(set(mine) & set(theirs), key=int)
+        rel = np.array([(mine[k] - theirs[k]) / theirs[k] for k in both])
+        if len(rel):
+            lines += ["", f"Against `{args.compare_json.name}` ({len(both)} frames solved by "
+                      f"both): within 0.01 %: {int(np.sum(np.abs(rel) <= 1e-4))}/{len(both)}; "
+                      f"this run faster on {int(np.sum(rel < -1e-4))}, slower on "
+                      f"{int(np.sum(rel > 1e-4))}; |difference| median "
+                      f"{100 * np.median(np.abs(rel)):.4f} %, max {100 * np.abs(rel).max():.4f} %."]
     args.out.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0

@@ -18,7 +18,17 @@ intervals per leg) from the same starts:
 fatrop is measured alone (no IPOPT fallback): success, iterations, CPU time (process time) and
 CPU time per iteration, and the lap against IPOPT's from the same start. ``--solvers`` may add
 ``ipopt-stage``: IPOPT on the stage-ordered NLP (what MUMPS's fill-in makes of that order; cold
-only).
+only), and ``ipopt-monotone``: IPOPT with the monotone (Fiacco–McCormick) barrier strategy,
+fatrop's, instead of the adaptive one (cold only; a control: how far two settings of the
+reference solver itself land apart from the same start).
+
+**Cross-check** (every cold solve of a solver other than ``ipopt``): IPOPT re-solves the NLP from
+that solver's optimum (primal-dual, its warm setting chosen by the start's violation). If the
+point is a local optimum of the same NLP, IPOPT stays there: the lap moves by ≤ 0.01 % in a few
+iterations. It tells a different local optimum (the NLP is not convex) from a wrong answer.
+
+``--ipopt-option KEY=VALUE`` (repeatable) adds an IPOPT option to every IPOPT solve, e.g.
+``linear_solver=spral`` or ``mumps_pivot_order=0``, to measure the linear algebra.
 
 Run: ``python benchmarks/bench_limitlap_solvers.py [--n 50] [--seed 0]``. Writes
 ``benchmarks/RESULTS-limitlap-solvers.md`` (``--out``).
@@ -78,10 +88,41 @@ def _ipopt_stage(pb, w0) -> tuple[bool, float, int, str, NlpPoint]:
         str(st["return_status"]), point
 
 
+_VARIANTS: dict = {}
+
+
+def _ipopt_variant(nlp, name: str, overrides: dict):
+    """A cold IPOPT instance on ``nlp``'s own functions with ``overrides`` on top of the
+    library's cold options (built once per NLP and variant)."""
+    import casadi as ca
+
+    from casadrone.limit.nlp import _shooting_nlp, ipopt_options
+
+    key = (id(nlp), name)
+    if key not in _VARIANTS:
+        problem, _, _, extra = _shooting_nlp(nlp.model, nlp.layout)
+        solved = problem | {"g": extra.pop("g")}
+        opts = ipopt_options(nlp.tol, nlp.max_iter, False)
+        opts["ipopt"].update(overrides)
+        _VARIANTS[key] = ca.nlpsol(f"limit_{name}", "ipopt", solved, opts | extra)
+    return _VARIANTS[key]
+
+
 def _timed(pb, w0, solver: str, warm: NlpPoint | None = None) -> dict:
     """One solve by ``solver`` alone (fatrop's own result, not its IPOPT fallback);
-    ``ipopt-far``: IPOPT with the far warm setting whatever the start."""
+    ``ipopt-far``: IPOPT with the far warm setting whatever the start; ``ipopt-monotone``:
+    IPOPT with the monotone barrier strategy (cold)."""
     c0 = time.process_time()
+    if solver == "ipopt-monotone":
+        S = _ipopt_variant(pb.full, "monotone", {"mu_strategy": "monotone"})
+        lbx, ubx = pb.box
+        out = S(x0=np.clip(w0, lbx, ubx), p=pb.P, lbx=lbx, ubx=ubx, lbg=pb.rows[0],
+                ubg=pb.rows[1])
+        st = S.stats()
+        point = NlpPoint(*(np.array(out[k]).ravel() for k in ("x", "lam_x", "lam_g", "lam_p")))
+        return {"ok": bool(st["success"]), "f": float(out["f"]), "it": int(st["iter_count"]),
+                "cpu": time.process_time() - c0, "status": str(st["return_status"]),
+                "point": point}
     if solver == "ipopt-far":  # solve()'s default
         s = solve(pb.full, w0, pb.P, *pb.box, warm=warm, lbg=pb.rows[0], ubg=pb.rows[1])
         return {"ok": s.success, "f": s.objective, "it": s.iterations,
@@ -111,6 +152,8 @@ def _solver_of(pb, solver: str):
         return fatrop_solver(nlp, nlp.tol, nlp.max_iter).cold
     if solver == "ipopt-stage":
         return _STAGE_IPOPT[id(fatrop_solver(nlp, nlp.tol, nlp.max_iter))]
+    if solver == "ipopt-monotone":
+        return _VARIANTS[(id(nlp), "monotone")]
     return nlp.cold
 
 
@@ -193,6 +236,47 @@ def near_solves(template, thetas, cold, args, track, options) -> dict[str, list]
     return runs
 
 
+def cross_check(problems, cold: dict) -> dict[str, list]:
+    """IPOPT from each other solver's cold optimum (primal-dual; ``solve(..., near=True)``)."""
+    out: dict[str, list] = {}
+    for s, runs in cold.items():
+        if s == "ipopt":
+            continue
+        out[s] = []
+        for i, r in enumerate(runs):
+            if r["ok"] and np.any(r["point"].lam_g):  # ipopt-stage keeps no multipliers
+                c = _timed(problems[i], r["point"].w, "ipopt", warm=r["point"])
+                out[s].append(c | {"frame": i, "from": r["f"]})
+    return out
+
+
+def _pct(rel: np.ndarray) -> str:
+    """Median and largest of relative differences, in per cent, and how many are ≤ 0.01 %."""
+    if not len(rel):
+        return "no frames"
+    return (f"median {100 * np.median(rel):.5f} %, max {100 * rel.max():.5f} %; within "
+            f"0.01 %: {int(np.sum(rel <= 1e-4))}/{len(rel)}")
+
+
+def _cross_lines(cross: dict[str, list], cold: dict) -> list[str]:
+    lines = []
+    ref = {i: c["f"] for i, c in enumerate(cold["ipopt"]) if c["ok"]}
+    for s, runs in cross.items():
+        ok = [r for r in runs if r["ok"]]
+        if not ok:
+            continue
+        moved = np.array([abs(r["f"] - r["from"]) / r["from"] for r in ok])
+        other = np.array([abs(r["from"] - ref[r["frame"]]) / ref[r["frame"]] for r in ok
+                          if r["frame"] in ref])
+        lines.append(
+            f"Cross-check, IPOPT from {s}'s optimum ({len(ok)}/{len(runs)} converged): the lap "
+            f"moves by {_pct(moved)}; iterations median "
+            f"{np.median([r['it'] for r in ok]):.0f}, CPU median "
+            f"{np.median([r['cpu'] for r in ok]):.2f} s. ({s}'s optimum against IPOPT's own "
+            f"from the same start: {_pct(other)}.)")
+    return ["", *lines] if lines else []
+
+
 def _agreement(runs: dict[str, list], label: str) -> list[str]:
     """How far fatrop's and the far setting's laps are from IPOPT's on the same starts."""
     ref = {r["frame"]: r for r in runs.get("ipopt", []) if r["ok"]}
@@ -208,6 +292,31 @@ def _agreement(runs: dict[str, list], label: str) -> list[str]:
     return ["", *out] if out else []
 
 
+def _with_ipopt_options(pairs: list[str]) -> None:
+    """Every IPOPT instance built from now on gets these options (``KEY=VALUE``: numbers as
+    numbers, anything else as text)."""
+    import casadrone.limit.nlp as nlp_module
+
+    extra: dict = {}
+    for pair in pairs:
+        key, _, value = pair.partition("=")
+        try:
+            extra[key] = int(value)
+        except ValueError:
+            try:
+                extra[key] = float(value)
+            except ValueError:
+                extra[key] = value
+    base = nlp_module.ipopt_options
+
+    def with_extra(*a, **k) -> dict:
+        opts = base(*a, **k)
+        opts["ipopt"].update(extra)
+        return opts
+
+    nlp_module.ipopt_options = with_extra  # type: ignore[assignment]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=50)
@@ -220,6 +329,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="near warm starts: each frame moved by this fraction of the range")
     ap.add_argument("--cold-start", choices=("closed-loop", "point-mass"), default="closed-loop",
                     help="the guess of the cold solves (module docstring)")
+    ap.add_argument("--ipopt-option", action="append", default=[], metavar="KEY=VALUE",
+                    help="an IPOPT option added to every IPOPT solve (repeatable)")
     ap.add_argument("--profile", metavar="AIRFRAME",
                     help="only print the per-iteration split of one cold solve of AIRFRAME")
     args = ap.parse_args(argv)
@@ -227,6 +338,8 @@ def main(argv: list[str] | None = None) -> int:
         print("\n".join(profile(args.profile)))
         return 0
     SOLVERS = tuple(args.solvers.split(","))
+    if args.ipopt_option:
+        _with_ipopt_options(args.ipopt_option)
     template = load_airframe(args.template)
     track = load(TrackConfig, DEFAULT_TRACK)
     options = limit.LimitLapOptions(intervals=limit.DEFAULT_INTERVALS["paper"])
@@ -260,7 +373,9 @@ def main(argv: list[str] | None = None) -> int:
         print(i, *(f"{s}: {cold[s][-1]['status']} {cold[s][-1]['f']:.5f} "
                    f"{cold[s][-1]['it']} it {cold[s][-1]['cpu']:.1f} s" for s in SOLVERS),
               flush=True)
-    warm: dict[str, list[dict]] = {s: [] for s in SOLVERS if s != "ipopt-stage"}
+    cross = cross_check(problems, cold)
+    warm: dict[str, list[dict]] = {s: [] for s in SOLVERS
+                                   if s not in ("ipopt-stage", "ipopt-monotone")}
     for s in warm:
         ok = [i for i, r in enumerate(cold[s]) if r["ok"]]
         for i in ok:
@@ -277,7 +392,8 @@ def main(argv: list[str] | None = None) -> int:
     lines = ["# Limit-lap NLP: IPOPT and fatrop side by side", "", markdown(), "",
              f"Command: `python benchmarks/bench_limitlap_solvers.py --n {args.n} --seed "
              f"{args.seed} --template {args.template} --solvers {args.solvers} --cold-start "
-             f"{args.cold_start}` (paper track, "
+             f"{args.cold_start}{''.join(' --ipopt-option ' + o for o in args.ipopt_option)}` "
+             f"(paper track, "
              f"40 intervals per leg, one core; CPU = process time; decision variables "
              f"{', '.join(keys)}).", "",
              "| solve | converged | iterations (median) | CPU median (s) | CPU max (s) | "
@@ -298,6 +414,14 @@ def main(argv: list[str] | None = None) -> int:
         lines += ["", f"Same start, both converged ({len(both)} frames): |fatrop − IPOPT| / "
                   f"IPOPT lap median {100 * np.median(rel):.4f} %, max {100 * rel.max():.4f} %; "
                   f"within 0.01 %: {int(np.sum(rel <= 1e-4))}/{len(both)}."]
+    for s in SOLVERS:
+        if s not in ("ipopt", "fatrop"):
+            pairs = [(cold[s][i]["f"], cold["ipopt"][i]["f"]) for i in range(args.n)
+                     if cold[s][i]["ok"] and cold["ipopt"][i]["ok"]]
+            rel_s = np.array([abs(a - b) / b for a, b in pairs])
+            lines += ["", f"Same start, {s} against IPOPT ({len(rel_s)} frames): "
+                      f"{_pct(rel_s)}."]
+    lines += _cross_lines(cross, cold)
     lines += _agreement(near, "near")
     fails = [f"frame {i}: {cold['fatrop'][i]['status']}" for i in range(args.n)
              if not cold["fatrop"][i]["ok"]]

@@ -314,7 +314,7 @@ def _with_ipopt_options(pairs: list[str]) -> None:
         opts["ipopt"].update(extra)
         return opts
 
-    nlp_module.ipopt_options = with_extra  # type: ignore[assignment]
+    nlp_module.ipopt_options = with_extra
 
 
 def main(argv: list[str] | None = None) -> int:

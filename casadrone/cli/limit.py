@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import TYPE_CHECKING, Annotated, cast
 
 import typer
@@ -20,7 +21,7 @@ from casadrone.cli.common import (
     reports_config_errors,
     save_figures,
 )
-from casadrone.limit.result import COMMAND_GRID_ROUNDS
+from casadrone.limit.result import COMMAND_GRID_ROUNDS, MAX_SUBSTEPS
 
 #: What the propulsion did (:func:`casadrone.limit.check.lap_propulsion`), added to ``--json``.
 PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio",
@@ -28,7 +29,7 @@ PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio"
 
 if TYPE_CHECKING:  # the limit lap is imported when the command runs (CasADi)
     from casadrone.limit.lap import Attitude, Solver, TiltLimit
-    from casadrone.limit.result import Resimulation
+    from casadrone.limit.result import Resimulation, RotorStep
 
 
 @app.command("limit-lap")
@@ -54,6 +55,15 @@ def limit_lap_command(
         "and fine grids and brought back, the first round from every verified start, later "
         "ones from the best lap, stopping at the first round that gains less than 0.1 per "
         "cent; 0: none (the library's default, the starts' lap)")] = COMMAND_GRID_ROUNDS,
+    rotor_step: Annotated[str, typer.Option(
+        help="step of the rotor states: rk4 (classical RK4, every state) or exponential "
+             "(ETDRK4: the rotors' linear decay integrated exactly; with propeller, 40 "
+             "intervals of 4 steps follow the rotor lag where RK4 needs 80 of 3: "
+             "benchmarks/RESULTS-propulsion.md)")] = "rk4",
+    substeps: Annotated[int | None, typer.Option(
+        min=1, max=MAX_SUBSTEPS, help="integration steps per shooting interval (default 3); "
+        "a new combination of steps and rotor step compiles its derivative blocks once per "
+        "machine (minutes)")] = None,
     resimulation: Annotated[str, typer.Option(
         help="what the re-simulation check flies: lap (the whole lap's commands open loop "
              "from the start) or legs (each leg from the lap's own state at the leg's start: "
@@ -93,13 +103,18 @@ def limit_lap_command(
         raise ConfigError([f"--resimulation {resimulation}: one of lap, legs"])
     if solver not in ("ipopt", "fatrop"):
         raise ConfigError([f"--solver {solver}: one of ipopt, fatrop"])
+    if rotor_step not in ("rk4", "exponential"):
+        raise ConfigError([f"--rotor-step {rotor_step}: one of rk4, exponential"])
     if attitude == "quaternion" and tilt == "axes":
         raise ConfigError(["--tilt axes bounds Euler angles: with --attitude quaternion use cone "
                        "or none"])
     options = LimitLapOptions(intervals=intervals, attitude=cast("Attitude", attitude),
                               tilt_limit=cast("TiltLimit", tilt), solver=cast("Solver", solver),
                               grid_rounds=grid_rounds,
-                              resimulation=cast("Resimulation", resimulation))
+                              resimulation=cast("Resimulation", resimulation),
+                              rotor_step=cast("RotorStep", rotor_step))
+    if substeps is not None:
+        options = replace(options, substeps=substeps)
     frame = build_airframe(cfg)
     impossible = check_inputs(trk, options, frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
     if impossible:  # known before any solve: bad input, not a failed lap

@@ -23,6 +23,8 @@ TiltLimit = Literal["axes", "cone", "none"]
 Resimulation = Literal["lap", "legs"]
 #: NLP solvers of the full model (casadrone.limit.nlp.SOLVERS).
 Solver = Literal["ipopt", "fatrop"]
+#: Steps of the rotor states (LimitLapOptions.rotor_step).
+RotorStep = Literal["rk4", "exponential"]
 #: How far the verified starts agree (:func:`casadrone.limit.choose.certainty`).
 Certainty = Literal["agreed", "single", "spread"]
 
@@ -66,6 +68,9 @@ COMMAND_GRID_ROUNDS = 3
 #: memory grows in proportion (20 000 intervals reached 5.8 GB and failed to allocate), so 400
 #: stays near 0.1 GB.
 MAX_INTERVALS = 400
+#: Most integration steps per shooting interval: each one adds to the compiled interval
+#: blocks (4 RK4 steps of the propeller model: an 11 MB Hessian block of C).
+MAX_SUBSTEPS = 20
 
 
 @dataclass(frozen=True)
@@ -83,9 +88,11 @@ class LimitLapOptions:
     # (ETDRK4: the rotors' linear decay integrated exactly, RK4 elsewhere;
     # casadrone.limit.nlp.etdrk4_step), which follows the propeller kind's ~20 ms rotor lag on
     # coarser grids: SY250-propeller on 40 intervals of 4 steps re-simulates within 2.1 cm (RK4
-    # on 40 x 3: 0.30 m), but its warm solves were not cheaper than 80 x 3 RK4's (more
-    # iterations), so it is opt-in (benchmarks/RESULTS-propulsion.md, "Exponential rotor step").
-    rotor_step: Literal["rk4", "exponential"] = "rk4"
+    # on 40 x 3: 0.30 m) and its warm solves take 0.69x the CPU of 80 x 3 RK4's at the same
+    # iterations (measured side by side on a quiet machine). Opt-in: the default grid decides
+    # every propeller figure and the co-design blocks (benchmarks/RESULTS-propulsion.md,
+    # "The exponential rotor step, side by side on a quiet machine").
+    rotor_step: RotorStep = "rk4"
     degree: int = 3  # Radau collocation points per interval (collocation)
     # "coarse-grid": grid continuation, the closed-loop start solved on COARSE_SHARE of the
     # intervals and its optimum resampled onto this grid (a coarse grid smooths the problem);

@@ -109,3 +109,57 @@ def test_derivatives_continuous_across_the_switch():
     below = np.array(d(-0.2 + 1e-9)).ravel()
     above = np.array(d(-0.2 - 1e-9)).ravel()
     np.testing.assert_allclose(below, above, rtol=0, atol=1e-8)
+
+
+def test_cli_rotor_step_and_substeps_reach_the_options(monkeypatch, cli_runner):
+    """`casadrone limit-lap --rotor-step exponential --substeps 4` reaches the limit lap as
+    those options (the grid the propeller kind's exponential step is measured on); without them
+    the library's defaults (classical RK4, 3 steps) are kept."""
+    import casadrone.limit.lap as lap_module
+    from casadrone.cli import app
+    from casadrone.limit.result import LimitLap, LimitLapOptions
+
+    seen = []
+
+    def fake(cfg, track, options):
+        seen.append((options.rotor_step, options.substeps, options.intervals))
+        return LimitLap(status="failed", reason="not solved: the options were recorded")
+
+    monkeypatch.setattr(lap_module, "limit_lap", fake)
+    for args in ([], ["--rotor-step", "exponential", "--substeps", "4", "--intervals", "40"]):
+        r = cli_runner.invoke(app, ["limit-lap", "SY250-propeller", "--json", *args])
+        assert r.exit_code == 0, r.output
+    defaults = LimitLapOptions()
+    assert seen == [(defaults.rotor_step, defaults.substeps, None), ("exponential", 4, 40)]
+    assert (defaults.rotor_step, defaults.substeps) == ("rk4", 3)
+
+
+@pytest.mark.parametrize("args, key", [
+    (["--rotor-step", "euler"], "--rotor-step"),
+    (["--substeps", "0"], "--substeps"),
+    (["--substeps", "21"], "--substeps"),
+])
+def test_cli_bad_rotor_step_or_substeps_exit_2(cli_runner, args, key):
+    """A step that is not one of the two, or a number of steps outside 1…MAX_SUBSTEPS: exit 2
+    naming the option, before any solve."""
+    from casadrone.cli import app
+
+    r = cli_runner.invoke(app, ["limit-lap", "SY250", "--json", *args])
+    assert r.exit_code == 2 and "Traceback" not in r.output and key in r.stderr
+
+
+def test_library_refuses_an_unknown_rotor_step():
+    """check_inputs names a rotor step the NLP does not know (the API's guard, as the CLI's)."""
+    from dataclasses import replace
+
+    from casadrone.config.io import load
+    from casadrone.config.track import TrackConfig
+    from casadrone.evaluate import DEFAULT_TRACK
+    from casadrone.limit.problem import check_inputs
+    from casadrone.limit.result import LimitLapOptions
+
+    track = load(TrackConfig, DEFAULT_TRACK)
+    assert check_inputs(track, LimitLapOptions()) == ""
+    bad = replace(LimitLapOptions(), rotor_step="euler")  # type: ignore[arg-type]
+    assert "rotor_step" in check_inputs(track, bad)
+    assert "substeps" in check_inputs(track, replace(LimitLapOptions(), substeps=21))

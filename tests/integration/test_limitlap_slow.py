@@ -61,7 +61,8 @@ def test_grid_refinement_changes_the_lap_little(laps, name):
     optimum, not discretisation error.)"""
     coarse = laps[name]
     cfg = load_airframe(name)
-    fine = limit_lap(cfg, TRACK, replace(FAST, intervals=2 * FAST.intervals,
+    assert coarse.layout is not None  # the grid the default solved it on (40 per leg)
+    fine = limit_lap(cfg, TRACK, replace(FAST, intervals=2 * coarse.layout.intervals,
                                          point_mass_reference=False, starts=(),
                                          warm_starts=(coarse,)))
     assert fine.completed, fine.reason

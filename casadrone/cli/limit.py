@@ -58,7 +58,8 @@ def limit_lap_command(
     rotor_step: Annotated[str, typer.Option(
         help="step of the rotor states: rk4 (classical RK4, every state) or exponential "
              "(ETDRK4: the rotors' linear decay integrated exactly; with propeller, 40 "
-             "intervals of 4 steps follow the rotor lag where RK4 needs 80 of 3: "
+             "intervals of 4 steps cost 0.69x the default 80 x 3 RK4 per warm solve, but "
+             "not every lap on them re-simulates within 5 cm: "
              "benchmarks/RESULTS-propulsion.md)")] = "rk4",
     substeps: Annotated[int | None, typer.Option(
         min=1, max=MAX_SUBSTEPS, help="integration steps per shooting interval (default 3); "

@@ -285,13 +285,12 @@ def neighbours(cfg, n: int, seed: int) -> list:
 
 
 def lbfgs_solver(nlp) -> ca.Function:
-    """IPOPT on the same NLP, warm settings, with a limited-memory quasi-Newton Hessian instead
-    of the compiled exact one (the compiled constraint Jacobian kept)."""
-    from casadrone.limit.nlp import ipopt_options
+    """IPOPT on the same NLP (its compiled rows and constraint Jacobian), warm settings, with a
+    limited-memory quasi-Newton Hessian instead of the compiled exact one."""
+    from casadrone.limit.nlp import ipopt_solver
 
-    o = ipopt_options(nlp.tol, 3000, True, propulsion=nlp.model.propulsion)
-    o["ipopt"] = dict(o["ipopt"], hessian_approximation="limited-memory")
-    return ca.nlpsol("limit_lbfgs", "ipopt", nlp.problem, o | {"jac_g": nlp.derivatives["jac_g"]})
+    return ipopt_solver(nlp, "limit_lbfgs", {"hessian_approximation": "limited-memory",
+                                             "max_iter": 3000}, warm=True)
 
 
 def warm_delta(args, cfg, base, problem) -> int:

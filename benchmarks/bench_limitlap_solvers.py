@@ -94,17 +94,11 @@ _VARIANTS: dict = {}
 def _ipopt_variant(nlp, name: str, overrides: dict):
     """A cold IPOPT instance on ``nlp``'s own functions with ``overrides`` on top of the
     library's cold options (built once per NLP and variant)."""
-    import casadi as ca
-
-    from casadrone.limit.nlp import _shooting_nlp, ipopt_options
+    from casadrone.limit.nlp import ipopt_solver
 
     key = (id(nlp), name)
     if key not in _VARIANTS:
-        problem, _, _, extra = _shooting_nlp(nlp.model, nlp.layout)
-        solved = problem | {"g": extra.pop("g")}
-        opts = ipopt_options(nlp.tol, nlp.max_iter, False)
-        opts["ipopt"].update(overrides)
-        _VARIANTS[key] = ca.nlpsol(f"limit_{name}", "ipopt", solved, opts | extra)
+        _VARIANTS[key] = ipopt_solver(nlp, f"limit_{name}", overrides)
     return _VARIANTS[key]
 
 

@@ -21,7 +21,7 @@ from casadrone.cli.common import (
     reports_config_errors,
     save_figures,
 )
-from casadrone.limit.result import COMMAND_GRID_ROUNDS, MAX_SUBSTEPS
+from casadrone.limit.result import COMMAND_GRID_ROUNDS, MAX_SUBSTEPS, ROTOR_STEPS
 
 #: What the propulsion did (:func:`casadrone.limit.check.lap_propulsion`), added to ``--json``.
 PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio",
@@ -104,8 +104,8 @@ def limit_lap_command(
         raise ConfigError([f"--resimulation {resimulation}: one of lap, legs"])
     if solver not in ("ipopt", "fatrop"):
         raise ConfigError([f"--solver {solver}: one of ipopt, fatrop"])
-    if rotor_step not in ("rk4", "exponential"):
-        raise ConfigError([f"--rotor-step {rotor_step}: one of rk4, exponential"])
+    if rotor_step not in ROTOR_STEPS:
+        raise ConfigError([f"--rotor-step {rotor_step}: one of {', '.join(ROTOR_STEPS)}"])
     if attitude == "quaternion" and tilt == "axes":
         raise ConfigError(["--tilt axes bounds Euler angles: with --attitude quaternion use cone "
                        "or none"])

@@ -224,6 +224,9 @@ class Nlp:
     #: The derivative functions given to ``nlpsol`` with it (``jac_g``, ``hess_lag``: assembled
     #: from the compiled interval blocks; empty: CasADi's own AD), for the stage-ordered solver.
     derivatives: dict = field(default_factory=dict, compare=False, repr=False)
+    #: What ``nlpsol`` solves: ``problem`` with the rows as IPOPT evaluates them (the compiled
+    #: step), for other IPOPT settings on the same NLP (:func:`ipopt_solver`).
+    oracle: dict = field(default_factory=dict, compare=False, repr=False)
     tol: float = 1e-8  # the solvers' convergence tolerance and iteration limit
     max_iter: int = 1000
     #: IPOPT with the warm start of a start near the optimum (:data:`NEAR_VIOLATION`); None:
@@ -886,10 +889,19 @@ def build_nlp(model: OcpModel, layout: Layout, tol: float = 1e-8, max_iter: int 
                                              propulsion=model.propulsion) | extra),
                 near=ca.nlpsol(name + "_near", "ipopt", solved,
                                ipopt_options(tol, max_iter, True, near=True) | extra),
-                lbg=lbg, ubg=ubg, problem=dict(nlp), derivatives=dict(extra), tol=tol,
-                max_iter=max_iter)
+                lbg=lbg, ubg=ubg, problem=dict(nlp), derivatives=dict(extra), oracle=solved,
+                tol=tol, max_iter=max_iter)
     _NLPS[key] = built
     return built
+
+
+def ipopt_solver(nlp: Nlp, name: str, overrides: dict, warm: bool = False) -> ca.Function:
+    """IPOPT on ``nlp``'s own oracle and derivatives (what :attr:`Nlp.cold` solves) with
+    ``overrides`` on top of :func:`ipopt_options` (cold, or the far warm setting), for measuring
+    other IPOPT settings on the same NLP."""
+    opts = ipopt_options(nlp.tol, nlp.max_iter, warm, propulsion=nlp.model.propulsion)
+    opts["ipopt"].update(overrides)
+    return ca.nlpsol(name, "ipopt", nlp.oracle or nlp.problem, opts | nlp.derivatives)
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,13 @@ from casadrone.config.track import TrackConfig
 from casadrone.guidance import segment_headings
 from casadrone.limit.gates import MAX_EDGES, TargetKind, gate_frame, target_vector
 from casadrone.limit.nlp import SOLVERS, Nlp
-from casadrone.limit.result import MAX_INTERVALS, MAX_SUBSTEPS, LimitLapOptions, model_states
+from casadrone.limit.result import (
+    MAX_INTERVALS,
+    MAX_SUBSTEPS,
+    ROTOR_STEPS,
+    LimitLapOptions,
+    model_states,
+)
 from casadrone.limit.targets import kind_of_shape
 from casadrone.model import NX
 from casadrone.propulsion import hover_rotors, rotor_state_bounds, rotor_thrust_bound
@@ -104,8 +110,8 @@ def check_inputs(track: TrackConfig, options: LimitLapOptions,
         return (f"intervals must be 2…{MAX_INTERVALS}, degree 1…9 and substeps "
                 f"1…{MAX_SUBSTEPS} (got {options.intervals}, {options.degree}, "
                 f"{options.substeps})")
-    if options.rotor_step not in ("rk4", "exponential"):
-        return f"rotor_step must be 'rk4' or 'exponential' (got {options.rotor_step!r})"
+    if options.rotor_step not in ROTOR_STEPS:
+        return f"rotor_step must be one of {', '.join(ROTOR_STEPS)} (got {options.rotor_step!r})"
     if not 0 <= options.grid_rounds <= MAX_GRID_ROUNDS:
         return f"grid_rounds must be 0…{MAX_GRID_ROUNDS} (got {options.grid_rounds})"
     if options.start_state is not None and len(options.start_state) != NX:

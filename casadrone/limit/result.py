@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -25,6 +25,7 @@ Resimulation = Literal["lap", "legs"]
 Solver = Literal["ipopt", "fatrop"]
 #: Steps of the rotor states (LimitLapOptions.rotor_step).
 RotorStep = Literal["rk4", "exponential"]
+ROTOR_STEPS: tuple[str, ...] = get_args(RotorStep)
 #: How far the verified starts agree (:func:`casadrone.limit.choose.certainty`).
 Certainty = Literal["agreed", "single", "spread"]
 

@@ -35,7 +35,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
-import time  # noqa: E402
 from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -44,7 +43,7 @@ from scipy.stats import spearmanr  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.machine import markdown  # noqa: E402
+from benchmarks.machine import cpu_time, markdown  # noqa: E402
 from casadrone.airframe import TABLE1_BOUNDS, build_airframe, random_thetas, with_theta  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
@@ -100,9 +99,9 @@ def main(argv: list[str] | None = None) -> int:
     cold = []
     for i, theta in enumerate(thetas):
         cfg = with_theta(template, theta, name=f"frame{i}")
-        c0 = time.process_time()
+        c0 = cpu_time()
         lap = limit_lap(cfg, track, replace(options, sensitivities=False))
-        cold.append((cfg, lap, time.process_time() - c0))
+        cold.append((cfg, lap, cpu_time() - c0))
         print(f"{i}: {lap.status} {lap.lap_time_s:.4f} s "
               f"(reference {lap.point_mass_reference_s:.4f}) "
               f"{cold[-1][2]:.1f} s CPU {lap.reason} starts: "
@@ -117,9 +116,9 @@ def main(argv: list[str] | None = None) -> int:
         j = min(others, key=lambda j: np.linalg.norm(unit[i] - unit[j]))
         wopts = replace(options, starts=(), warm_starts=(cold[j][1],), point_mass_reference=False,
                         resimulate=False, sensitivities=False)
-        c0 = time.process_time()
+        c0 = cpu_time()
         lap = limit_lap(cold[i][0], track, wopts)
-        warm.append((i, lap, time.process_time() - c0))
+        warm.append((i, lap, cpu_time() - c0))
     laps = np.array([cold[i][1].lap_time_s for i in ok])
     lbs = np.array([cold[i][1].point_mass_reference_s for i in ok])
     misses = np.array([cold[i][1].resimulation_miss_m for i in ok])

@@ -11,6 +11,16 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 
 
+def cpu_time() -> float:
+    """CPU seconds of this process and of its waited-for children: a fatrop solve runs in a
+    forked child (casadrone.limit.watchdog), whose CPU time.process_time() does not see."""
+    import resource
+    import time
+
+    child = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + child.ru_utime + child.ru_stime
+
+
 def cpu_model() -> str:
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():

@@ -55,7 +55,8 @@ def start_results(solves: Sequence[StartSolve], misses: Mapping[str, float]
                   ) -> tuple[StartResult, ...]:
     """What each start gave."""
     return tuple(StartResult(n, s.success, s.return_status, s.objective, s.iterations,
-                             s.wall_time_s, misses.get(n, math.nan), s.solver)
+                             s.wall_time_s, misses.get(n, math.nan), s.solver,
+                             s.fatrop[0] if s.fatrop else "")
                  for n, s in solves)
 
 

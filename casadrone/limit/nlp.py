@@ -970,21 +970,37 @@ def _failed_point(nlp: Nlp, w0: np.ndarray, P: np.ndarray) -> NlpPoint:
                     np.zeros(len(P)))
 
 
-def _solve_fatrop(nlp: Nlp, w0, P, lbx, ubx, warm, lbg, ubg) -> NlpSolution:
+def _solve_fatrop(nlp: Nlp, w0, P, lbx, ubx, warm, lbg, ubg,
+                  stall_s: float | None = None, guard: bool = True) -> NlpSolution:
+    """fatrop alone, in a forked child given up after ``stall_s`` seconds (default
+    :data:`casadrone.limit.watchdog.STALL_S`) without an evaluation: fatrop can loop forever
+    inside an iteration (the module docstring of :mod:`casadrone.limit.watchdog`). A stalled
+    or failed solve is a failed solution, and :func:`solve` falls back to IPOPT. ``guard=False``
+    solves in this process (for the solver's own statistics; it can hang)."""
     import time
 
     from casadrone.limit.stagewise import StageError, fatrop_solver, solve_stagewise
+    from casadrone.limit.watchdog import STALL_S, run_guarded
 
     start = time.perf_counter()
     x0 = np.clip(w0 if warm is None else warm.w, lbx, ubx)
     try:
-        fs = fatrop_solver(nlp, nlp.tol, nlp.max_iter)
-        success, status, f, point, iters = solve_stagewise(fs, x0, P, lbx, ubx, lbg, ubg,
-                                                           warm is not None)
+        fs = fatrop_solver(nlp, nlp.tol, nlp.max_iter)  # built here, once: the child inherits it
+    except StageError as exc:
+        status = f"error: {str(exc).splitlines()[-1][:100]}"
+        wall = time.perf_counter() - start
+        return NlpSolution(False, status, np.nan, _failed_point(nlp, w0, P), 0, wall, "fatrop",
+                           (status, 0, wall))
+    run = run_guarded(lambda: solve_stagewise(fs, x0, P, lbx, ubx, lbg, ubg, warm is not None),
+                      STALL_S if stall_s is None else stall_s, fork=guard)
+    if run.outcome == "ok":
+        success, status, f, point, iters = run.value
         sol_point = NlpPoint(*point)
-    except (RuntimeError, StageError) as exc:
-        status, success, iters, f = f"error: {str(exc).splitlines()[-1][:100]}", False, 0, np.nan
-        sol_point = _failed_point(nlp, w0, P)
+    else:
+        message = run.message.splitlines()[-1][:100] if run.message else run.outcome
+        status = f"error: {message}" if run.outcome == "error" else f"fatrop {run.outcome}: " \
+            f"{message}"
+        success, iters, f, sol_point = False, 0, np.nan, _failed_point(nlp, w0, P)
     wall = time.perf_counter() - start
     return NlpSolution(success, status, f, sol_point, iters, wall, "fatrop", (status, iters, wall))
 

@@ -177,6 +177,9 @@ class StartResult(AsDict):
     wall_time_s: float
     resimulation_miss_m: float = math.nan  # NaN: not converged or not re-simulated
     solver: str = "ipopt"  # whose point it is ("ipopt" also where fatrop failed first)
+    #: fatrop's own status where it ran ("" where it did not): its failure, e.g. "fatrop
+    #: stalled: …" (casadrone.limit.watchdog), is otherwise hidden behind IPOPT's fallback
+    fatrop_status: str = ""
 
 
 @dataclass(frozen=True)

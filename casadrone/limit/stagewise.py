@@ -31,6 +31,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from casadrone.limit.watchdog import beat
+
 
 class StageError(ValueError):
     """The NLP cannot be put in stage order (a row couples stages fatrop cannot take)."""
@@ -310,6 +312,7 @@ class CachedJacobian(_Wrapped):
         super().__init__(name, fn)
 
     def eval(self, arg):
+        beat()  # the solve is alive (casadrone.limit.watchdog)
         out = self.fn(*arg)
         self.key = (np.asarray(arg[0]).tobytes(), np.asarray(arg[1]).tobytes())
         self.jac_t = out[1].T
@@ -331,6 +334,7 @@ class CachedHessian(_Wrapped):
         super().__init__(name, fn)
 
     def eval(self, arg):
+        beat()
         x, p, lam_f, lam_g = arg
         if self.jac.key != (np.asarray(x).tobytes(), np.asarray(p).tobytes()):
             return list(self.fn(*arg))

@@ -1,0 +1,106 @@
+"""The guard around fatrop's solves (casadrone.limit.watchdog): a child that stops evaluating is
+ended, one that keeps evaluating is not, and a stalled fatrop solve falls back to IPOPT.
+
+Oracles: the process table (/proc: the ended child no longer exists), wall clocks against the
+stall limit, the unguarded call's own result, and IPOPT's solve of the same NLP."""
+
+from __future__ import annotations
+
+import os
+import select
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from casadrone.limit import watchdog
+from casadrone.limit.watchdog import beat, run_guarded
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="the guard needs os.fork")
+
+
+def test_result_comes_back_equal_to_the_unguarded_call():
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(300, 300))
+
+    def work():
+        beat()
+        return np.linalg.inv(a), "label"
+
+    got = run_guarded(work, stall_s=5.0)
+    assert got.outcome == "ok" and got.cpu_s > 0
+    np.testing.assert_array_equal(got.value[0], np.linalg.inv(a))
+    assert got.value[1] == "label"
+
+
+def test_a_silent_child_is_ended_and_gone(tmp_path):
+    """A child blocked in C (select on nothing) with no beat: ended after the limit, not after
+    its own 60 s, and its process no longer exists."""
+    pid_file = tmp_path / "pid"
+
+    def stall():
+        pid_file.write_text(str(os.getpid()))
+        beat()
+        select.select([], [], [], 60.0)
+
+    t0 = time.monotonic()
+    got = run_guarded(stall, stall_s=1.0)
+    took = time.monotonic() - t0
+    assert got.outcome == "stalled" and "no evaluation" in got.message
+    assert 1.0 <= took < 10.0, took
+    pid = int(pid_file.read_text())
+    assert pid != os.getpid() and not Path(f"/proc/{pid}").exists()
+
+
+def test_a_child_that_keeps_evaluating_is_not_ended():
+    """Four times the limit in all, beating every 0.1 s: finishes normally."""
+    def busy():
+        for _ in range(20):
+            beat()
+            time.sleep(0.1)
+        return 42
+
+    got = run_guarded(busy, stall_s=0.5)
+    assert got.outcome == "ok" and got.value == 42
+
+
+def test_errors_and_deaths_are_results_not_exceptions():
+    def raises():
+        raise RuntimeError("first line\nlast line")
+
+    err = run_guarded(raises)
+    assert err.outcome == "error" and err.message.endswith("last line")
+    died = run_guarded(lambda: os._exit(3))
+    assert died.outcome == "died" and died.value is None
+
+
+def test_stalled_fatrop_solve_falls_back_to_ipopt(monkeypatch):
+    """fatrop replaced by a solve that hangs in C: the limit-lap solve gives it up after the
+    limit, says so, and returns IPOPT's optimum of the same NLP from the same start."""
+    from casadrone.limit import stagewise
+    from casadrone.limit.nlp import Layout, build_nlp, solve, target_vector
+    from tests.unit.test_limitlap import _double_integrator
+    from tests.unit.test_limitlap_stagewise import _double_integrator_bounds
+
+    kinds, N, L = ("ball", "ball"), 10, 2
+    M = N * L
+    nlp = build_nlp(_double_integrator(), Layout(kinds, N))
+    P = np.concatenate([[0.0], np.zeros(6), target_vector(
+        np.array([[10.0, 0, 0], [0, 0, 0]]), kinds, np.zeros(L), np.zeros(L), np.zeros(L), 0.0)])
+    lbx, ubx = _double_integrator_bounds(nlp, L, M, 2.0)
+    w0 = nlp.pack(np.ones(L), np.zeros((M + 1, 6)), np.zeros((M, 3)))
+    ref = solve(nlp, w0, P, lbx, ubx)
+
+    def hangs(*args, **kwargs):
+        beat()
+        select.select([], [], [], 60.0)
+
+    monkeypatch.setattr(stagewise, "solve_stagewise", hangs)
+    monkeypatch.setattr(watchdog, "STALL_S", 1.0)
+    t0 = time.monotonic()
+    sol = solve(nlp, w0, P, lbx, ubx, solver="fatrop")
+    assert time.monotonic() - t0 < 20.0
+    assert sol.solver == "ipopt" and sol.success
+    assert sol.fatrop is not None and sol.fatrop[0].startswith("fatrop stalled")
+    np.testing.assert_allclose(sol.objective, ref.objective, rtol=1e-9)

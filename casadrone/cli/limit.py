@@ -21,7 +21,12 @@ from casadrone.cli.common import (
     reports_config_errors,
     save_figures,
 )
-from casadrone.limit.result import COMMAND_GRID_ROUNDS, MAX_SUBSTEPS, ROTOR_STEPS
+from casadrone.limit.result import (
+    COMMAND_GRID_ROUNDS,
+    DEFAULT_INTERVALS,
+    MAX_SUBSTEPS,
+    ROTOR_STEPS,
+)
 
 #: What the propulsion did (:func:`casadrone.limit.check.lap_propulsion`), added to ``--json``.
 PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio",
@@ -117,7 +122,10 @@ def limit_lap_command(
     if substeps is not None:
         options = replace(options, substeps=substeps)
     frame = build_airframe(cfg)
-    impossible = check_inputs(trk, options, frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
+    resolved = options if options.intervals is not None else replace(
+        options, intervals=DEFAULT_INTERVALS.get(frame.propulsion, 40))  # as limit_lap does
+    impossible = check_inputs(trk, resolved, frame_clearance_m(frame,
+                                                               cfg.prop_diameter_mm / 1000))
     if impossible:  # known before any solve: bad input, not a failed lap
         raise bad_input([f"{track_path}: {impossible}; no limit lap can pass it"])
     lap = limit_lap(cfg, trk, options)

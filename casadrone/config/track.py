@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, StrictBool, field_validator, model_validator
 
 from casadrone.config.io import CONFIG_DIR, Schema, load, resolve_config
 from casadrone.limit.targets import TARGET_KINDS, gate_shapes, kind_of_shape
@@ -23,6 +23,14 @@ Vec3 = tuple[float, float, float]
 #: Shortest leg between consecutive route points (m): a waypoint on top of the previous one
 #: gives a segment with no direction, which the guidance cannot fly.
 MIN_LEG_M = 0.01
+#: Fastest speed a track may ask for (m/s): Mach 0.3 at sea level (0.3 × 340.3 m/s), the usual
+#: limit of incompressible aerodynamics, on which every drag and propeller model here rests.
+#: Racing quadrotors fly below it (SY250's limit lap peaks at 55.6 m/s).
+MAX_SPEED_MPS = 102.0
+
+
+def _speed_over(v: tuple[float, ...] | float) -> bool:
+    return float(np.linalg.norm(np.atleast_1d(v))) > MAX_SPEED_MPS
 
 
 class GateConfig(Schema):
@@ -115,7 +123,8 @@ class TrackConfig(Schema):
     gates: list[GateConfig] | None = Field(
         None, description="gates in order, instead of waypoints_m: closed-loop guidance flies "
         "through their centres, the limit lap through their openings")
-    straight: list[bool] = Field(description="leg ending at each waypoint is a straight sector")
+    straight: list[StrictBool] = Field(
+        description="leg ending at each waypoint is a straight sector (true or false)")
     acceptance_radius_m: float = Field(
         1.0, gt=0,
         description="switch to the next segment within this distance of its end (m)",
@@ -186,8 +195,22 @@ class TrackConfig(Schema):
         if isinstance(self.tolerance_m, list) and len(self.tolerance_m) != len(self.waypoints_m):
             raise ValueError(f"tolerance_m: needs one entry per waypoint ({len(self.waypoints_m)})"
                              f", got {len(self.tolerance_m)}")
-        if self.tolerance_m is not None and min(np.atleast_1d(self.tolerance_m)) < 0:
-            raise ValueError("tolerance_m: a radius cannot be negative")
+        if self.tolerance_m is not None and min(np.atleast_1d(self.tolerance_m)) <= 0:
+            raise ValueError("tolerance_m: a radius must be positive (as acceptance_radius_m)")
+        if self.tolerance_m is not None and self.gates is not None:
+            raise ValueError("tolerance_m: the limit lap flies through the gates' openings; "
+                             "a waypoint radius has nothing to apply to on a gate track")
+        if self.end != "velocity" and any(self.end_velocity_mps):
+            raise ValueError(f"end_velocity_mps: applies with end: velocity only (end is "
+                             f"{self.end!r})")
+        for key, v in (("start.velocity_mps", self.start.velocity_mps),
+                       ("end_velocity_mps", self.end_velocity_mps),
+                       ("speed_mps", self.speed_mps), ("corner_speed_mps", self.corner_speed_mps),
+                       ("climb_speed_mps", self.climb_speed_mps)):
+            if _speed_over(v):
+                raise ValueError(f"{key}: {float(np.linalg.norm(np.atleast_1d(v))):.4g} m/s is "
+                                 f"beyond {MAX_SPEED_MPS:g} m/s (Mach 0.3: the models' "
+                                 "incompressible aerodynamics)")
         if self.floor_m is not None and self.ceiling_m is not None \
                 and self.ceiling_m <= self.floor_m:
             raise ValueError(f"ceiling_m: {self.ceiling_m:g} m is not above floor_m "
@@ -198,6 +221,7 @@ class TrackConfig(Schema):
         if self.ceiling_m is not None and self.start_position_m[2] > self.ceiling_m:
             raise ValueError(f"ceiling_m: the start ({self.start_position_m[2]:g} m) is above "
                              f"the ceiling ({self.ceiling_m:g} m)")
+        self._targets_between_floor_and_ceiling()
         if self.end == "periodic" and any(self.start.velocity_mps):
             raise ValueError("start: a periodic lap (end: periodic) optimises its start state; "
                              "give no start.velocity_mps")
@@ -211,6 +235,27 @@ class TrackConfig(Schema):
                              f"before it (a leg needs at least {MIN_LEG_M} m; a zero-length leg "
                              "has no direction to fly)")
         return self
+
+    def _targets_between_floor_and_ceiling(self) -> None:
+        """A target wholly above the ceiling or below the floor cannot be reached: a waypoint's
+        ball (tolerance_m, or acceptance_radius_m), a gate's opening (any orientation: its
+        half-diagonal about the centre)."""
+        if self.floor_m is None and self.ceiling_m is None:
+            return
+        if self.gates is not None:
+            reach = [math.hypot(g.width_m, g.height_m) / 2 for g in self.gates]
+            what = "gate"
+        else:
+            tol = self.acceptance_radius_m if self.tolerance_m is None else self.tolerance_m
+            reach = list(np.broadcast_to(np.asarray(tol, float), (len(self.waypoints_m),)))
+            what = "waypoint"
+        for j, (w, r) in enumerate(zip(self.waypoints_m, reach, strict=True)):
+            if self.ceiling_m is not None and w[2] - r > self.ceiling_m:
+                raise ValueError(f"ceiling_m: {what} {j + 1} (z {w[2]:g} m, reach {r:g} m) "
+                                 f"lies wholly above the ceiling ({self.ceiling_m:g} m)")
+            if self.floor_m is not None and w[2] + r < self.floor_m:
+                raise ValueError(f"floor_m: {what} {j + 1} (z {w[2]:g} m, reach {r:g} m) "
+                                 f"lies wholly below the floor ({self.floor_m:g} m)")
 
     @property
     def route(self) -> np.ndarray:

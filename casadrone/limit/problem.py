@@ -15,8 +15,10 @@ from casadrone.guidance import segment_headings
 from casadrone.limit.gates import MAX_EDGES, TargetKind, gate_frame, target_vector
 from casadrone.limit.nlp import SOLVERS, Nlp
 from casadrone.limit.result import (
+    DEFAULT_INTERVALS,
     MAX_INTERVALS,
     MAX_SUBSTEPS,
+    MAX_TOTAL_INTERVALS,
     ROTOR_STEPS,
     LimitLapOptions,
     model_states,
@@ -110,6 +112,15 @@ def check_inputs(track: TrackConfig, options: LimitLapOptions,
         return (f"intervals must be 2…{MAX_INTERVALS}, degree 1…9 and substeps "
                 f"1…{MAX_SUBSTEPS} (got {options.intervals}, {options.degree}, "
                 f"{options.substeps})")
+    # intervals None: the propulsion kind decides (limit_lap resolves it before calling this);
+    # the fewest of the kinds' defaults here, so that no posable problem is refused early
+    per_leg = options.intervals or min(DEFAULT_INTERVALS.values())
+    legs = len(track.waypoints_m) * track.laps + (track.climb_to_m is not None)
+    if legs * per_leg > MAX_TOTAL_INTERVALS:
+        return (f"waypoints_m: {legs} legs ({len(track.waypoints_m)} targets x {track.laps} "
+                f"laps) at {per_leg} intervals each make {legs * per_leg} intervals, more than "
+                f"the {MAX_TOTAL_INTERVALS} a limit lap takes (memory grows with them); use "
+                f"fewer laps or targets, or fewer intervals per leg")
     if options.rotor_step not in ROTOR_STEPS:
         return f"rotor_step must be one of {', '.join(ROTOR_STEPS)} (got {options.rotor_step!r})"
     if not 0 <= options.grid_rounds <= MAX_GRID_ROUNDS:
@@ -133,6 +144,9 @@ def check_inputs(track: TrackConfig, options: LimitLapOptions,
         if clear is None:
             break
         inner = kind_of_shape(gate.shape).inner_m(gate)  # its largest inscribed radius
+        if inner <= clear and gate.vertices_m is not None:
+            return (f"gate {j + 1}: the polygon's largest circle about its centre (radius "
+                    f"{inner:.3g} m) is not wider than the clearance {clear:.3g} m")
         if inner <= clear:
             return (f"gate {j + 1}: opening {gate.width_m:g} x {gate.height_m:g} m is not wider "
                     f"than twice the clearance {clear:.3g} m")

@@ -69,6 +69,13 @@ COMMAND_GRID_ROUNDS = 3
 #: memory grows in proportion (20 000 intervals reached 5.8 GB and failed to allocate), so 400
 #: stays near 0.1 GB.
 MAX_INTERVALS = 400
+#: Most intervals over the whole course (legs × laps × intervals per leg), the grid rounds and
+#: the refinement then solving up to 1.5× as many. The NLP's memory grows ~0.3 MB per interval
+#: in a whole limit lap (the 5.8 GB of 20 000 above; building the NLP and three IPOPT
+#: iterations alone: 0.07-0.1 MB, 390 MB at 3 200), so 6 000 keep a limit lap within about
+#: 2-3 GB, and still take a 20-gate, three-lap race at the propeller model's 80 per leg. A
+#: 5 000-waypoint, 20-lap track had run out of memory (5.4 GB under a 6 GB limit) unrefused.
+MAX_TOTAL_INTERVALS = 6000
 #: Most integration steps per shooting interval: each one adds to the compiled interval
 #: blocks (4 exponential steps of the propeller model: an 11 MB Hessian block of C).
 MAX_SUBSTEPS = 20
@@ -103,9 +110,11 @@ class LimitLapOptions:
     # "fine-grid": the point-mass start solved on FINE_SHARE of the intervals, resampled.
     # Measured (benchmarks/RESULTS-limitlap-issue19.md): on the gate track the coarse-grid start
     # is 0.34 % faster than the other two; on the paper track it adds nothing (+0.03 %). The
-    # fine-grid start reaches the best optimum known on the paper track for SY250 (3.8800 s
-    # against 3.9097 s from the other starts) and HS210 (3.8405 s against 3.8954 s), for about
-    # 20-30 s of CPU; the relaxed-tolerance start lands where the point-mass start does.
+    # fine-grid start was the best start on the paper track for SY250 (3.8800 s against 3.9097 s
+    # from the other starts) and HS210 (3.8405 s against 3.8954 s), for about 20-30 s of CPU;
+    # the best laps known are 3.8795 s (SY250, from grid rounds) and 3.8307 s (HS210, its
+    # fine-grid start on another VM). The relaxed-tolerance start lands where the point-mass
+    # start does.
     starts: tuple[Start, ...] = ("closed-loop", "point-mass", "coarse-grid", "fine-grid")
     warm_starts: tuple[LimitLap, ...] = ()  # neighbouring solutions (same legs; any grid)
     guess_trajectory: object | None = None  # the frame's closed-loop lap, if already flown

@@ -301,9 +301,25 @@ def _polygon_check(gate: Opening) -> str:
     if not 3 <= len(v) <= MAX_EDGES:
         return f"vertices_m: 3 to {MAX_EDGES} vertices, got {len(v)}"
     e = np.roll(v, -1, axis=0) - v
-    cross = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+    nxt = np.roll(e, -1, axis=0)
+    cross = e[:, 0] * nxt[:, 1] - e[:, 1] * nxt[:, 0]
     if np.any(cross <= 0):
         return "vertices_m: not a convex polygon given counter-clockwise"
+    # every turn to the left is not enough: a star (pentagram) turns left at each vertex too,
+    # but winds twice; a simple convex polygon's exterior angles add up to one turn, 2π
+    turning = float(np.sum(np.arctan2(cross, np.sum(e * nxt, axis=1))))
+    if turning > 3 * math.pi:
+        return (f"vertices_m: the edges cross (they wind {turning / (2 * math.pi):.0f} times "
+                "around the centre): not a simple convex polygon")
+    if _polygon_inner(gate) <= 0:
+        return "vertices_m: the polygon does not hold the gate's centre (0, 0) inside it"
+    # width_m and height_m of a polygon are the smallest rectangle about the centre that holds
+    # it (what figures and the closed-loop guidance read); other values would be silently unused
+    w, h = 2 * float(np.max(np.abs(v[:, 0]))), 2 * float(np.max(np.abs(v[:, 1])))
+    if abs(gate.width_m - w) > 1e-3 or abs(gate.height_m - h) > 1e-3:
+        return (f"width_m, height_m: a polygon's are those of the smallest rectangle about the "
+                f"centre that holds it, {w:.4g} x {h:.4g} m (got {gate.width_m:g} x "
+                f"{gate.height_m:g} m)")
     return ""
 
 

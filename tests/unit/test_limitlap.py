@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from casadrone.config.airframe import load_airframe
-from casadrone.config.io import ConfigError, load
+from casadrone.config.io import CONFIG_DIR, ConfigError, load
 from casadrone.config.track import TrackConfig
 from casadrone.evaluate import DEFAULT_TRACK
 from casadrone.limit.check import target_miss
@@ -480,11 +480,72 @@ def test_track_limits_enter_the_bounds_and_targets():
     (["max_body_rate_rad_s={roll_pitch: -1, yaw: 3}"], "roll_pitch"),
     (["end=upside-down"], "end"),
     (["laps=0"], "laps"),
+    (["tolerance_m=0"], "tolerance_m"),  # a zero ball (acceptance_radius_m must be > 0 too)
+    (["end_velocity_mps=[1, 0, 0]"], "end_velocity_mps"),  # end: free would ignore it
+    (["end=rest", "end_velocity_mps=[0, 2, 0]"], "end_velocity_mps"),
+    (["start={velocity_mps: [1e8, 0, 0]}"], "start.velocity_mps"),  # beyond Mach 0.3
+    (["end=velocity", "end_velocity_mps=[80, 80, 0]"], "end_velocity_mps"),  # 113 m/s
+    (["speed_mps=150"], "speed_mps"),
+    (["ceiling_m=18.5"], "ceiling_m"),  # every waypoint at 20 m, its ball 1 m: above 18.5
+    (["tolerance_m=0.3", "ceiling_m=19.6"], "ceiling_m"),  # 20 − 0.3 > 19.6
+    (["straight=[true, 'no', true, false]"], "straight"),  # text is not a switch
 ])
 def test_bad_track_limits_are_refused_naming_the_key(override, key):
     with pytest.raises(ConfigError) as err:
         load(TrackConfig, DEFAULT_TRACK, override)
     assert key in str(err.value)
+
+
+def test_track_limits_that_hold_are_kept():
+    """The edges of the refusals above: a ceiling the balls reach (20 − 1 ≤ 19.5), an end
+    velocity just below Mach 0.3 (101.8 m/s against 102), a zero end velocity with end: free."""
+    trk = load(TrackConfig, DEFAULT_TRACK, ["ceiling_m=19.5", "end=velocity",
+                                             "end_velocity_mps=[72, 72, 0]"])
+    assert trk.ceiling_m == 19.5 and math.hypot(*trk.end_velocity_mps) < 102.0
+    assert load(TrackConfig, DEFAULT_TRACK, ["end_velocity_mps=[0, 0, 0]"]).end == "free"
+
+
+GATES = CONFIG_DIR / "tracks" / "multigp-cdra-gates.yaml"
+#: A pentagram: every vertex a left turn (the convexity test of consecutive edges passes), but
+#: the edges wind twice around the centre.
+STAR = [[1.0, 0.0], [-0.809, 0.588], [0.309, -0.951], [0.309, 0.951], [-0.809, -0.588]]
+
+
+@pytest.mark.parametrize("override, key", [
+    (["tolerance_m=0.3"], "tolerance_m"),  # nothing to apply to: the targets are openings
+    (["ceiling_m=0.1"], "ceiling_m"),  # gates at 1.2 m, half-diagonal 1.08 m
+    (["gates.0.shape=polygon", f"gates.0.vertices_m={STAR}", "gates.0.width_m=2",
+      "gates.0.height_m=1.902"], "vertices_m"),
+    (["gates.0.shape=polygon", "gates.0.vertices_m=[[0.2, 0.1], [1, 0.1], [1, 1], [0.2, 1]]",
+      "gates.0.width_m=2", "gates.0.height_m=2"], "vertices_m"),  # the centre is outside
+    (["gates.0.shape=polygon", "gates.0.vertices_m=[[-1, -1], [1, -1], [1, 1], [-1, 1]]",
+      "gates.0.width_m=100", "gates.0.height_m=0.01"], "width_m"),  # the box is 2 x 2
+])
+def test_bad_gate_tracks_are_refused_naming_the_key(override, key):
+    with pytest.raises(ConfigError) as err:
+        load(TrackConfig, GATES, override)
+    assert key in str(err.value)
+
+
+def test_polygon_gate_given_its_own_box_is_kept():
+    """The square of the last refusal above, with width_m and height_m its 2 x 2 m box."""
+    trk = load(TrackConfig, GATES, [
+        "gates.0.shape=polygon", "gates.0.vertices_m=[[-1, -1], [1, -1], [1, 1], [-1, 1]]",
+        "gates.0.width_m=2", "gates.0.height_m=2"])
+    assert trk.gates is not None and trk.gates[0].shape == "polygon"
+
+
+def test_too_many_intervals_over_the_course_are_refused_before_any_solve():
+    """5 000 waypoints × 20 laps ran out of memory; the input check names the waypoints and
+    the interval count (legs × intervals per leg against MAX_TOTAL_INTERVALS)."""
+    from casadrone.limit.problem import check_inputs
+    from casadrone.limit.result import MAX_TOTAL_INTERVALS
+
+    trk = load(TrackConfig, DEFAULT_TRACK, ["laps=20"])  # 4 × 20 + the climb: 81 legs
+    assert check_inputs(trk, LimitLapOptions(intervals=40)) == ""  # 3 240 intervals
+    why = check_inputs(trk, LimitLapOptions(intervals=80))  # 6 480
+    assert why.startswith("waypoints_m: 81 legs") and str(MAX_TOTAL_INTERVALS) in why
+    assert "6480 intervals" in why
 
 
 def _gate_lap(kind, half, edges=None):

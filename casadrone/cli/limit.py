@@ -109,6 +109,10 @@ def limit_lap_command(
         raise ConfigError([f"--resimulation {resimulation}: one of lap, legs"])
     if solver not in ("ipopt", "fatrop"):
         raise ConfigError([f"--solver {solver}: one of ipopt, fatrop"])
+    if solver == "fatrop" and trk.end == "periodic":
+        raise ConfigError([f"--solver fatrop: {track_path} has end: periodic, which ties the "
+                           "last node to the first (fatrop's stages couple neighbours only); "
+                           "use --solver ipopt"])
     if rotor_step not in ROTOR_STEPS:
         raise ConfigError([f"--rotor-step {rotor_step}: one of {', '.join(ROTOR_STEPS)}"])
     if attitude == "quaternion" and tilt == "axes":

@@ -13,6 +13,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from casadrone.config.io import CONFIG_DIR
 from casadrone.limit.nlp import Layout, build_nlp, solve, target_vector
 from casadrone.limit.stagewise import (
     StageError,
@@ -234,3 +235,19 @@ def test_fatrop_and_ipopt_give_the_same_quadrotor_lap():
     assert [s.solver for s in fa.starts] == ["fatrop"]
     assert abs(fa.lap_time_s - ip.lap_time_s) <= 1e-4 * ip.lap_time_s
     assert fa.resimulation_miss_m <= opts.max_miss_m
+
+
+def test_cli_fatrop_on_a_periodic_track_names_the_option(cli_runner, tmp_path):
+    """fatrop cannot take the periodic rows: the refusal names --solver (the option to change)
+    and the track, in one line, before any solve."""
+    from casadrone.cli import app
+
+    src = (CONFIG_DIR / "tracks" / "paper-rectangle.yaml").read_text()
+    track = tmp_path / "periodic.yaml"
+    track.write_text(src + "\nend: periodic\n")
+    r = cli_runner.invoke(app, ["limit-lap", "SY250", "--track", str(track), "--solver",
+                                "fatrop", "--json"])
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("--solver fatrop:"), lines
+    assert str(track) in lines[0] and "end: periodic" in lines[0]

@@ -134,9 +134,9 @@ def makespan(costs: np.ndarray, sizes: list[int], workers: int, per_chunk_s: flo
 def projection(costs: np.ndarray, ipc: dict, workers: int) -> dict:
     rows = len(costs)
     policies = {
-        "guided (this branch)": guided_sizes(rows, workers),
+        "guided (the process backend's)": guided_sizes(rows, workers),
         "1 chunk per worker": [len(c) for c in np.array_split(np.arange(rows), workers)],
-        "4 equal chunks per worker (before)": [
+        "4 equal chunks per worker (the former policy)": [
             len(c) for c in np.array_split(np.arange(rows), 4 * workers)],
     }
     serial = float(costs.sum())
@@ -232,7 +232,8 @@ def report(args, cmd, serial, backends, ip, proj, load) -> str:
         f"{serial['wall_s']:.2f} s of evaluation per generation this is "
         f"{(ip['noop_generation_s'] + ip['unpickle_records_s']) / serial['wall_s']:.2%}.",
         "",
-        "## Projection (model from the measurements above; no 16-core machine this session)",
+        "## Projection (model from the measurements above; not measured: no 16-core machine was "
+        "available)",
         "",
         "List scheduling of the measured per-evaluation CPU times onto W workers, each chunk "
         "costing its evaluations plus the measured per-chunk round trip, plus the records' "

@@ -125,7 +125,7 @@ def summary(run_dir: Path) -> list[str]:
         "",
         f"- run directory `{run_dir}`; status {m.get('status')}; started {m.get('started')}, "
         f"finished {m.get('finished')}; resumed: {m.get('resumed') or 'never'}; backend "
-        f"{m.get('backend')} (last session's: see the command above)",
+        f"{m.get('backend')} (that of the run's last start: see the command above)",
         f"- {a.name}, population {a.population}, {a.generations} generations, "
         f"n_ind_ga {a.settings.get('n_ind_ga')}, n_div {a.settings.get('n_div')}; "
         f"{len(rows)} generations recorded, {evals} evaluations",
@@ -202,7 +202,7 @@ def main() -> None:
         run_dir = args.run_root / problem
         if not args.report_only:
             wall = run_or_resume(problem, run_dir, args.generations, args.backend, args.workers)
-            sessions.append(f"- {problem}: this session {wall:.0f} s")
+            sessions.append(f"- {problem}: {wall:.0f} s of wall time under the command above")
     lines = [
         "# Paper-scale runs: paper-run1 and paper-run2, measured",
         "",

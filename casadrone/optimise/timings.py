@@ -21,7 +21,8 @@ Columns (seconds unless named otherwise):
 - ``wall_s``: the whole generation until its files are handed to the writer (the progress line
   after it is not included);
 - ``cpu_s``: CPU time of the coordinating process over the generation (with the serial backend it
-  includes the evaluations);
+  includes the evaluations, except fatrop's limit-lap solves, which run in forked children:
+  :mod:`casadrone.limit.watchdog`);
 - ``coordinator_s``: ``wall_s - evaluate_s``;
 - ``coordinator_cpu_s``: ``cpu_s`` less the coordinator's CPU time during the evaluation step.
 """

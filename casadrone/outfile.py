@@ -71,16 +71,16 @@ def check_out(path: str | Path, force: bool = False) -> Path:
     return path
 
 
-def write_out(path: str | Path, text: str, force: bool = False) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` after :func:`check_out`; atomically, and without
-    replacing a file that appeared meanwhile unless ``force``. A failed write (a full disk)
-    raises OSError naming ``path`` and leaves no temporary file."""
+def write_out(path: str | Path, text: str | bytes, force: bool = False) -> Path:
+    """Write ``text`` (UTF-8; bytes as they are) to ``path`` after :func:`check_out`; atomically,
+    and without replacing a file that appeared meanwhile unless ``force``. A failed write (a
+    full disk) raises OSError naming ``path`` and leaves no temporary file."""
     path = check_out(path, force)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         with open(tmp, "wb") as fh:
-            fh.write(text.encode("utf-8"))
+            fh.write(text.encode("utf-8") if isinstance(text, str) else text)
             fh.flush()
             os.fsync(fh.fileno())
         if force:

@@ -78,10 +78,24 @@ symbolic functions; its airframe-level helpers take any object with the
 from __future__ import annotations
 
 import math
-from functools import cache, lru_cache
 from typing import Any
 
-from casadrone.config.propulsion import PropulsionConfig
+from casadrone.config.propulsion import (  # noqa: F401 (the data helpers re-exported)
+    DIAMETER_RTOL,
+    FIT_MAX_J,
+    FIT_MIN_STATIC_RPM,
+    FIT_SWEEP_RPM,
+    MAX_FIGURE_OF_MERIT,
+    RPM_PER_V_TO_RAD_S_PER_V,
+    SHIPPED_PROPELLER,
+    SPEED_OF_SOUND_M_S,
+    PropulsionConfig,
+    data_advance_ratio,
+    figure_of_merit,
+    fit_points,
+    propeller_data,
+    shipped_datasets,
+)
 
 #: The propulsion kinds (the registry): each names a parameter layout and a symbolic model.
 KINDS: tuple[str, ...] = ("paper", "propeller")
@@ -104,7 +118,6 @@ PROPELLER_PARAM_NAMES = (
     "batt_Voc",  # battery open-circuit voltage (V)
     "batt_R",  # battery internal resistance (Ω)
 )  # fmt: skip
-RPM_PER_V_TO_RAD_S_PER_V = 2 * math.pi / 60
 
 
 # --------------------------------------------------------------------------------------------
@@ -449,51 +462,6 @@ def hover_rotors(airframe, thrusts) -> tuple[list[float], list[float]]:
 # Shipped propeller data and the fit behind the shipped coefficients
 # --------------------------------------------------------------------------------------------
 
-#: The shipped 5-inch propeller: UIUC Propeller Database, Vol. 2, DA4022 5.0x3.75, 3 blades.
-SHIPPED_PROPELLER = "uiuc-da4022-5x3.75-3blade"
-#: The points the shipped fit uses: the static points at ≥ 5000 rpm and the wind-tunnel sweep
-#: at the highest rpm (6034), the nearest the database comes to a racing propeller's Reynolds
-#: number, over J ≤ 0.62 (CT down to a third of its static value: 40 m/s of axial inflow at
-#: 30 000 rpm is J = 0.63).
-FIT_MIN_STATIC_RPM, FIT_SWEEP_RPM, FIT_MAX_J = 5000.0, 6034.0, 0.62
-
-
-def propeller_data(name: str = SHIPPED_PROPELLER):
-    """The raw points (J, rpm, CT, CP) of a shipped propeller dataset (numpy array, 4 columns)."""
-    from importlib import resources
-
-    import numpy as np
-
-    path = resources.files("casadrone") / "data" / "propulsion" / f"{name}.csv"
-    with path.open() as fh:
-        return np.loadtxt(fh, delimiter=",", comments="#", skiprows=7)
-
-
-def fit_points(data):
-    """The rows of :func:`propeller_data` the shipped fit uses (see :data:`FIT_MAX_J`)."""
-    J, rpm = data[:, 0], data[:, 1]
-    return data[((J == 0) & (rpm >= FIT_MIN_STATIC_RPM))
-                | ((rpm == FIT_SWEEP_RPM) & (J > 0) & (J <= FIT_MAX_J))]
-
-
-@cache
-def data_advance_ratio(name: str = SHIPPED_PROPELLER) -> float:
-    """The largest advance ratio of the points a shipped dataset's fit uses
-    (:func:`fit_points`): where its CT(J), CP(J) are measured, 0.618 for the shipped propeller.
-    Read once per process (package data; every propeller airframe build asks for it)."""
-    return float(fit_points(propeller_data(name))[:, 0].max())
-
-
-@lru_cache(maxsize=1)
-def shipped_datasets() -> tuple[str, ...]:
-    """Names of the propeller datasets shipped in the package data."""
-    from importlib import resources
-
-    folder = resources.files("casadrone") / "data" / "propulsion"
-    return tuple(sorted(f.name[:-4] for f in folder.iterdir()
-                        if f.name.endswith(".csv") and f.name != "parts.csv"))
-
-
 def advance_ratio_limit(cfg: PropulsionConfig) -> float | None:
     """The largest advance ratio the limit lap may fly (dimensionless), None for none: the
     section's ``propeller.max_advance_ratio``; else, when ``propeller.data`` names a shipped
@@ -543,3 +511,58 @@ def equal_rotor_guess(airframe, thrust_per_rotor):
     q = airframe_values(airframe)
     rows = [hover_commands(q, [max(ti, 0.0)] * 4) for ti in t]
     return np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
+
+
+def airframe_problems(prop: PropulsionConfig, *, mass_kg: float | None, rho: float | None,
+                      prop_diameter_mm: float | None, mass_key: str) -> list[tuple[str, str]]:
+    """Problems of a valid ``propeller`` section against the rest of its airframe, as (airframe
+    key, message): those that need the vehicle's mass, the air density or the airframe's own
+    propeller diameter. Checks whose input is absent (None) are skipped."""
+    if prop.model != "propeller" or prop.propeller is None:
+        return []
+    found: list[tuple[str, str]] = []
+    p, motor, batt = prop.propeller, prop.motor, prop.battery
+    D = p.diameter_m
+    if prop_diameter_mm is not None and abs(D - prop_diameter_mm / 1000) > DIAMETER_RTOL * D:
+        found.append(("propulsion.propeller.diameter_m", (
+            f"{D:g} m disagrees with prop_diameter_mm {prop_diameter_mm:g} (the rotor-overlap "
+            f"check's; more than {DIAMETER_RTOL:.0%} apart): one propeller has one diameter")))
+    if mass_kg is not None:
+        # Each rotor's mass lies within D/2 of its axis, so J_r ≤ m_r (D/2)²; four rotors weigh
+        # at most the vehicle, m_r ≤ m/4: J_r ≤ m D²/16 (the whole quarter mass at the tips).
+        most = mass_kg * D**2 / 16
+        if p.rotor_inertia_kgm2 > most:
+            found.append(("propulsion.propeller.rotor_inertia_kgm2", (
+                f"{p.rotor_inertia_kgm2:g} kg·m² exceeds m D²/16 = {most:.3g} kg·m², a quarter of "
+                f"the vehicle's {mass_kg:g} kg all at the propeller tips (diameter {D:g} m)")))
+        # The parts are within the whole, and the rest (frame, propellers, electronics) weighs
+        # more than nothing.
+        m_motors = 4 * motor.mass_kg if motor is not None and motor.mass_kg else 0.0
+        m_batt = batt.mass_kg if batt is not None and batt.mass_kg else 0.0
+        if m_motors + m_batt >= mass_kg:
+            key = ("propulsion.battery.mass_kg" if m_batt >= mass_kg else
+                   "propulsion.motor.mass_kg" if m_motors >= mass_kg else mass_key)
+            found.append((key, f"four motors ({m_motors:g} kg) and the battery ({m_batt:g} kg) "
+                          f"weigh at least the whole vehicle ({mass_kg:g} kg): the parts cannot "
+                          "outweigh the airframe they are part of"))
+    if rho is not None and motor is not None and batt is not None:
+        if p.linear_inflow is not None:
+            ct, cp = coefficients(prop, rho)
+            fm = figure_of_merit(ct[0], cp[0])
+            if fm > MAX_FIGURE_OF_MERIT:
+                lin = p.linear_inflow
+                found.append(("propulsion.propeller.linear_inflow.k_m_n_m_s2", (
+                    f"static figure of merit k_η^1.5 / (k_m √(ρπ/2) D) = {fm:.3g} exceeds 1 "
+                    f"(k_eta_n_s2 = {lin.k_eta_n_s2:g}, D = {D:g} m, ρ = {rho:g} kg/m³): "
+                    "momentum theory needs a shaft power of at least the ideal T^1.5/√(2ρA), "
+                    f"k_m ≥ {fm * lin.k_m_n_m_s2:.4g} N·m·s² for this k_eta")))
+                return found
+        w = static_speed(values(prop, rho), 1.0)
+        tip = w * D / 2
+        if tip >= SPEED_OF_SOUND_M_S:
+            found.append(("propulsion.battery.open_circuit_voltage_v", (
+                f"{batt.open_circuit_voltage_v:g} V drives the propeller at full command at rest "
+                f"to {w * 60 / (2 * math.pi):.4g} rpm (K_V {motor.kv_rpm_per_v:g} rpm/V, "
+                f"{motor.kind} motor): tip speed {tip:.4g} m/s, at or above the speed of sound "
+                f"{SPEED_OF_SOUND_M_S:g} m/s, where no propeller model here holds")))
+    return found

@@ -21,6 +21,10 @@ is refused, never guessed. What a real log holds besides, and how it is read:
   left without any sample, and any text that is not a number, is refused with its row.
 - **Comment rows.** A row whose first cell starts with ``#`` is a comment (the published logs
   above carry their author's fit results so).
+- **Refused, never guessed.** Two columns of one quantity (``Thrust (kgf)`` beside
+  ``Thrust (N)``), a cell beyond any stand's range (:data:`MAX_MAGNITUDE`), a record the csv
+  module cannot read (a quote left open), a log over :data:`MAX_LOG_BYTES`; each with its row or
+  columns. The log is read a row at a time into float arrays: memory stays a few times its size.
 
 What is fitted, and from which part of the log:
 
@@ -67,9 +71,15 @@ section carries the static coefficients as ``ct_coefficients: [C_T0]`` and
 
 from __future__ import annotations
 
+import codecs
 import csv
 import math
 import re
+import stat
+import warnings
+from array import array
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -82,9 +92,33 @@ G0 = 9.80665
 RHO_ISA = 1.225
 #: Fewest samples inside three time constants for a step response to count.
 MIN_STEP_SAMPLES = 5
-#: Largest log read (bytes): a stand's log at 1 kHz for an hour is ~100 MB of text; beyond that
-#: the file is not a log.
-MAX_LOG_BYTES = 200 * 1024 * 1024
+#: Largest log read (bytes). Real logs are a few MB to tens of MB (14 minutes at 10 Hz: ~8 400
+#: rows, ~1 MB; a Tyto time series at 110 Hz: ~1.5 MB a minute). Read whole, as before, a log
+#: cost ~16-19x its size in memory (21 MB: 337 MB above the imports' ~107 MB; 69 MB: 1.29 GB);
+#: read a row at a time into float arrays it costs 1.2x (that 21 MB log: 25 MB above) and at
+#: worst 3.8x (66 MB of one-character cells: 250 MB above, 358 MB peak RSS): 64 MB keeps the
+#: peak well under 1 GB.
+MAX_LOG_BYTES = 64 * 1024 * 1024
+#: Longest line read (characters): a stand's row is a few hundred; a longer one is not a log row
+#: (and is not read whole into memory).
+MAX_LINE_CHARS = 1 << 20
+#: Most steady points fitted: a stand's step test holds tens to hundreds, each held ≥ 0.5 s (20 000
+#: are ≥ 2.8 hours of steps); each costs ~1 kB in the fit (a log of 26 MB, one point per row,
+#: peaked at 860 MB), so more are refused before they are built.
+MAX_STEADY_POINTS = 20_000
+#: Largest magnitude of each quantity in SI (s, µs or DShot value, N, N·m, V, A, rad/s), beyond
+#: any thrust stand (a 10-tonne-force load cell, 10 kV, ~10 million rpm): a cell beyond is refused
+#: naming its row, before it can overflow a fit.
+MAX_MAGNITUDE: dict[str, tuple[float, str]] = {
+    "time": (1e10, "s"), "esc": (1e4, ""), "thrust": (1e5, "N"), "torque": (1e4, "N·m"),
+    "voltage": (1e4, "V"), "current": (1e4, "A"), "optical_rpm": (1e6, "rad/s"),
+    "electrical_rpm": (1e7, "rad/s"),
+}
+#: Ranges of the fit's options: propeller diameter (m), air density (kg/m³), ESC signal (µs or
+#: DShot value, as :data:`MAX_MAGNITUDE`).
+DIAMETER_RANGE_M = (0.02, 2.0)
+AIR_DENSITY_RANGE = (0.3, 1.5)
+ESC_SIGNAL_RANGE = (0.0, MAX_MAGNITUDE["esc"][0])
 #: Default duty range ``(zero, full)`` of the ESC signal per protocol: PWM pulse width (µs) of the
 #: BLHeli-family ESCs, DShot throttle commands (48-2047, module docstring).
 ESC_RANGES: dict[str, tuple[float, float]] = {"pwm": (1000.0, 2000.0), "dshot": (48.0, 2047.0)}
@@ -164,27 +198,40 @@ class StandLog:
     esc_protocol: str = "pwm"
 
 
+def _quantity(text: str) -> tuple[str, str | None] | None:
+    """The quantity a header cell names and its unit as written (None: no unit written), or None
+    for a column casadrone does not read."""
+    m = _HEADER.match(text)
+    if not m:
+        return ("esc", None) if text.strip().lower() in NAMES["esc"] else None
+    name = m["name"].strip().lower()
+    return next(((q, m["unit"]) for q, names in NAMES.items() if name in names), None)
+
+
 def _columns(header: list[str], source: str) -> tuple[dict[str, tuple[int, float]], str]:
     """quantity → (column index, factor to SI), from the header's names and units; and the ESC
-    protocol: "dshot" where the ESC signal's header has no unit (module docstring)."""
+    protocol: "dshot" where the ESC signal's header has no unit (module docstring). Two columns
+    of one quantity are refused: which one holds the data is not guessed."""
     found: dict[str, tuple[int, float]] = {}
     protocol = "pwm"
     for j, text in enumerate(header):
-        m = _HEADER.match(text)
-        if not m:
-            if text.strip().lower() in NAMES["esc"] and "esc" not in found:
-                found["esc"] = (j, 1.0)
-                protocol = "dshot"
+        named = _quantity(text)
+        if named is None:
             continue
-        name = m["name"].strip().lower()
-        for quantity, names in NAMES.items():
-            if name in names and quantity not in found:
-                unit = _unit_key(quantity, m["unit"])
-                if unit not in UNITS[quantity]:
-                    known = ", ".join(UNITS[quantity])
-                    raise LogError(f"{source}: column '{text}': unit '{m['unit']}' not known for "
-                                   f"{quantity} (known: {known})")
-                found[quantity] = (j, UNITS[quantity][unit])
+        quantity, written = named
+        if quantity in found:
+            raise LogError(f"{source}: columns '{header[found[quantity][0]]}' and '{text}' are "
+                           f"both {quantity}: keep one (which holds the data is not guessed)")
+        if written is None:
+            found[quantity] = (j, 1.0)
+            protocol = "dshot"
+            continue
+        unit = _unit_key(quantity, written)
+        if unit not in UNITS[quantity]:
+            known = ", ".join(UNITS[quantity])
+            raise LogError(f"{source}: column '{text}': unit '{written}' not known for "
+                           f"{quantity} (known: {known})")
+        found[quantity] = (j, UNITS[quantity][unit])
     for quantity in REQUIRED:
         if quantity not in found:
             raise LogError(f"{source}: column missing: {quantity} (e.g. "
@@ -192,71 +239,166 @@ def _columns(header: list[str], source: str) -> tuple[dict[str, tuple[int, float
     return found, protocol
 
 
-def _read_rows(path: Path) -> list[list[str]]:
-    if not path.is_file():
-        raise LogError(f"{path.name}: file not found")
-    if path.stat().st_size > MAX_LOG_BYTES:
-        raise LogError(f"{path.name}: larger than {MAX_LOG_BYTES // 2**20} MB, not a stand log")
-    raw = path.read_bytes()
+def check_log_file(path: Path) -> None:
+    """LogError unless ``path`` is a regular file of at most :data:`MAX_LOG_BYTES` (a folder, a
+    FIFO or a device is said to be one, not "not found")."""
     try:
-        text = raw.decode("utf-8-sig")
+        mode = path.stat()
+    except FileNotFoundError:
+        raise LogError(f"{path}: file not found") from None
+    except OSError as exc:
+        raise LogError(f"{path}: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(mode.st_mode):
+        raise LogError(f"{path}: is a directory, not a log file")
+    if not stat.S_ISREG(mode.st_mode):
+        raise LogError(f"{path}: not a regular file (a device, FIFO or socket), not a log")
+    if mode.st_size > MAX_LOG_BYTES:
+        raise LogError(f"{path}: larger than {MAX_LOG_BYTES // 2**20} MB, not a stand log")
+
+
+def _encoding(path: Path) -> str:
+    """UTF-8 (a BOM skipped) if the whole file decodes so, else Latin-1 (Windows exports: units
+    still parse, "µ" may be mangled); checked a block at a time, never read whole."""
+    decoder = codecs.getincrementaldecoder("utf-8-sig")()
+    try:
+        with path.open("rb") as fh:
+            while block := fh.read(1 << 20):
+                decoder.decode(block)
+        decoder.decode(b"", final=True)
     except UnicodeDecodeError:
-        text = raw.decode("latin-1")  # Windows exports: units still parse, "µ" may be mangled
-    rows = [r for r in csv.reader(text.splitlines())
-            if not (r and r[0].lstrip().startswith("#"))]  # comment rows (module docstring)
-    if len(rows) < 2:
-        raise LogError(f"{path.name}: no data rows")
-    return rows
+        return "latin-1"
+    return "utf-8-sig"
+
+
+def _lines(fh, source: str) -> Iterator[str]:
+    """The file's lines, refusing one longer than :data:`MAX_LINE_CHARS` before reading it all."""
+    number = 0
+    while line := fh.readline(MAX_LINE_CHARS + 1):
+        number += 1
+        if len(line) > MAX_LINE_CHARS:
+            raise LogError(f"{source}: line {number}: longer than {MAX_LINE_CHARS} characters, "
+                           "not a stand log's row")
+        yield line
+
+
+def _records(fh, source: str) -> Iterator[tuple[int, list[str]]]:
+    """(row number, cells) of each CSV record, comment rows skipped and not counted (module
+    docstring); a record csv cannot read (an unclosed quote swallowing the lines after it, a
+    cell over csv's field limit) is refused naming its row."""
+    reader = csv.reader(_lines(fh, source))
+    number = 0
+    while True:
+        try:
+            row = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            raise LogError(f"{source}: row {number + 1}: {exc} (an unclosed quote, or a cell "
+                           f"longer than {csv.field_size_limit()} characters)") from None
+        if row and row[0].lstrip().startswith("#"):
+            continue
+        number += 1
+        yield number, row
+
+
+def _shown(cell: str) -> str:
+    """A cell as an error message quotes it: at most 40 characters; a cell holding line breaks
+    (a quote left open) said to be one."""
+    shown = repr(cell if len(cell) <= 40 else cell[:40] + "…")
+    return shown + (" (a quote left open runs over the lines after it)" if "\n" in cell else "")
+
+
+def _value(quantity: str, cell: str, factor: float) -> float:
+    """The SI value of one (stripped) cell; ValueError saying why it is none (module
+    docstring: a blank sparse or speed cell is a missing sample, NaN)."""
+    if not cell:
+        if quantity.endswith("rpm") or quantity in SPARSE:
+            return math.nan
+        raise ValueError(f"not a number: {_shown(cell)}")
+    try:
+        value = float(cell) * factor
+    except ValueError:
+        raise ValueError(f"not a number: {_shown(cell)}") from None
+    if not math.isfinite(value):
+        if quantity.endswith("rpm"):
+            return value  # refused by _rotor_speed only in the column used
+        raise ValueError(f"not a number: {_shown(cell)}")
+    limit, unit = MAX_MAGNITUDE[quantity]
+    if abs(value) > limit:
+        raise ValueError(f"{_shown(cell)} is beyond any thrust stand's range (at most "
+                         f"{limit:g} {unit} in magnitude)".replace("  ", " "))
+    return value
+
+
+def _read_columns(fh, source: str) -> tuple[dict[str, str], dict[str, np.ndarray], str]:
+    """Each used column's header and SI values (a row of blank cells skipped), and the ESC
+    protocol; read a row at a time into float arrays."""
+    records = _records(fh, source)
+    header = next(records, (0, []))[1]
+    cols, protocol = _columns(header, source)
+    data = {q: array("d") for q in cols}
+    rows = 0
+    for i, row in records:
+        if not any(cell.strip() for cell in row):
+            continue
+        rows += 1
+        for q, (j, factor) in cols.items():
+            try:
+                data[q].append(_value(q, row[j].strip() if j < len(row) else "", factor))
+            except ValueError as exc:
+                raise LogError(f"{source}: row {i}, column '{header[j]}': {exc}") from None
+    if not rows:
+        raise LogError(f"{source}: no data rows")
+    names = {q: header[j] for q, (j, _) in cols.items()}
+    return names, {q: np.frombuffer(v, dtype=float) for q, v in data.items()}, protocol
 
 
 def read_log(path: str | Path, motor_poles: int | None = None) -> StandLog:
     """Read a stand log (units from the header) into SI arrays.
 
     Rotor speed comes from ``Motor Optical Speed (RPM or rad/s)`` when it holds data, else from
-    ``Motor Electrical Speed`` (see :func:`_rotor_speed` for ``motor_poles``).
+    ``Motor Electrical Speed`` (see :func:`_rotor_speed` for ``motor_poles``, an even number).
     A blank thrust, torque, voltage or current cell is a missing sample (NaN); a column of them
-    without any sample, a blank time or ESC signal, and a non-numeric value in a used column are
-    refused with the row number (the row of the file, comment rows counted out).
+    without any sample, a blank time or ESC signal, a non-numeric value in a used column and a
+    value beyond :data:`MAX_MAGNITUDE` are refused with the row number (the row of the file,
+    comment rows counted out); so are two columns of one quantity.
     """
     path = Path(path)
-    rows = _read_rows(path)
     source = path.name
-    cols, protocol = _columns(rows[0], source)
-    if "optical_rpm" not in cols and "electrical_rpm" not in cols:
+    if motor_poles is not None and (motor_poles < 2 or motor_poles % 2):
+        raise LogError(f"{source}: motor poles {motor_poles}: a motor has an even number of "
+                       "poles, at least 2")
+    check_log_file(path)
+    with path.open(encoding=_encoding(path), newline="") as fh:
+        names, arrays, protocol = _read_columns(fh, source)
+    if "optical_rpm" not in names and "electrical_rpm" not in names:
         raise LogError(f"{source}: column missing: rotor speed ('Motor Optical Speed (RPM)' or "
                        "'Motor Electrical Speed (RPM)')")
-    data: dict[str, list[float]] = {q: [] for q in cols}
-    for i, row in enumerate(rows[1:], start=2):
-        if not any(cell.strip() for cell in row):
-            continue
-        for q, (j, factor) in cols.items():
-            cell = row[j].strip() if j < len(row) else ""
-            blank_ok = q.endswith("rpm") or q in SPARSE
-            try:
-                value = float(cell) if cell else (math.nan if blank_ok else None)
-            except ValueError:
-                value = None
-            if value is None or (cell and not q.endswith("rpm") and not math.isfinite(value)):
-                raise LogError(f"{source}: row {i}, column '{rows[0][j]}': "
-                               f"not a number: {cell!r}")
-            data[q].append(value * factor)
-    arrays = {q: np.asarray(v, dtype=float) for q, v in data.items()}
     for q in SPARSE:
         if len(arrays[q]) and not np.any(np.isfinite(arrays[q])):
-            raise LogError(f"{source}: column '{rows[0][cols[q][0]]}': no data (every cell blank)")
+            raise LogError(f"{source}: column '{names[q]}': no data (every cell blank)")
     speed = _rotor_speed(arrays, motor_poles, source)
     t = arrays["time"]
     if len(t) < 10:
         raise LogError(f"{source}: {len(t)} data rows; a fit needs a logged test (≥ 10 rows)")
-    # The stands' software stamps each sample; its first samples can be written out of order
-    # (seen in published RCbenchmark logs): sort by time, refuse only a repeated stamp.
+    order = _time_order(t, source)
+    return StandLog(source, t[order], arrays["esc"][order], arrays["thrust"][order],
+                    arrays["torque"][order], arrays["voltage"][order], arrays["current"][order],
+                    speed[order], protocol)
+
+
+def _time_order(t: np.ndarray, source: str) -> np.ndarray | slice:
+    """Indices putting the samples in time order; a slice of them all (no copy) when they are.
+
+    The stands' software stamps each sample; its first samples can be written out of order
+    (seen in published RCbenchmark logs): sort by time, refuse only a repeated stamp."""
+    if np.all(np.diff(t) > 0):
+        return slice(None)
     order = np.argsort(t, kind="stable")
     if np.any(np.diff(t[order]) <= 0):
         bad = int(order[int(np.argmax(np.diff(t[order]) <= 0)) + 1]) + 2
         raise LogError(f"{source}: row {bad}, column 'Time': time stamp repeated")
-    return StandLog(source, t[order], arrays["esc"][order], arrays["thrust"][order],
-                    arrays["torque"][order], arrays["voltage"][order], arrays["current"][order],
-                    speed[order], protocol)
+    return order
 
 
 def _rotor_speed(arrays: dict[str, np.ndarray], motor_poles: int | None,
@@ -310,15 +452,24 @@ def plateaus(log: StandLog, min_plateau_s: float = 0.5, settled_fraction: float 
     last ``settled_fraction`` (of the samples present: blank cells are skipped)."""
     change = np.flatnonzero(np.abs(np.diff(log.esc_us)) > 0.5) + 1
     bounds = np.concatenate([[0], change, [len(log.esc_us)]])
+    starts, stops = bounds[:-1], bounds[1:]
+    held = (stops - starts >= 3) & (log.time_s[stops - 1] - log.time_s[starts] >= min_plateau_s)
+    _check_count(log, int(np.count_nonzero(held)))
     out = []
-    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
-        if b - a < 3 or log.time_s[b - 1] - log.time_s[a] < min_plateau_s:
-            continue
+    for a, b in zip(starts[held], stops[held], strict=True):
         s = slice(a + int((b - a) * (1 - settled_fraction)), b)
         out.append(Plateau(int(a), int(b), float(log.esc_us[a]),
                            *(_mean(x[s]) for x in (log.thrust_n, log.torque_nm, log.voltage_v,
                                                    log.current_a, log.speed_rad_s))))
     return out
+
+
+def _check_count(log: StandLog, count: int) -> None:
+    """LogError for more steady points than :data:`MAX_STEADY_POINTS`."""
+    if count > MAX_STEADY_POINTS:
+        raise LogError(f"{log.source}: {count} steady points (held ESC signals or averaged "
+                       f"rows), over the {MAX_STEADY_POINTS} of any stand's step test: not a "
+                       "step test's log")
 
 
 def steady_points(log: StandLog, min_plateau_s: float = 0.5, settled_fraction: float = 0.5
@@ -329,6 +480,7 @@ def steady_points(log: StandLog, min_plateau_s: float = 0.5, settled_fraction: f
     found = plateaus(log, min_plateau_s, settled_fraction)
     if found or float(np.median(np.diff(log.time_s))) < min_plateau_s:
         return found, "plateaus"
+    _check_count(log, len(log.time_s))
     return [Plateau(i, i + 1, float(log.esc_us[i]), float(log.thrust_n[i]),
                     float(log.torque_nm[i]), float(log.voltage_v[i]), float(log.current_a[i]),
                     float(log.speed_rad_s[i])) for i in range(len(log.time_s))], "averaged rows"
@@ -541,6 +693,8 @@ def _tared(points: list[Plateau], esc_min_us: float) -> list[Plateau]:
     of its mounting)."""
     import dataclasses
 
+    if not points:
+        return []
     top_speed = max(q.speed_rad_s for q in points)
     idle = [q for q in points if q.esc_us <= esc_min_us and q.speed_rad_s < 0.01 * top_speed]
     t0 = float(np.mean([q.thrust_n for q in idle])) if idle else 0.0
@@ -596,17 +750,43 @@ def fit_propulsion(log: StandLog, diameter_m: float, air_density_kg_m3: float = 
         LogError: fewer than three powered steady points, a point outside the ESC range, or a
             fitted value outside :data:`PHYSICAL`.
     """
-    if not 0.02 <= diameter_m <= 2.0:
+    if not DIAMETER_RANGE_M[0] <= diameter_m <= DIAMETER_RANGE_M[1]:
         raise LogError(f"{log.source}: propeller diameter {diameter_m} m outside 0.02-2 m")
-    if not 0.3 <= air_density_kg_m3 <= 1.5:
+    if not AIR_DENSITY_RANGE[0] <= air_density_kg_m3 <= AIR_DENSITY_RANGE[1]:
         raise LogError(f"{log.source}: air density {air_density_kg_m3} kg/m³ outside 0.3-1.5")
     lo, hi = ESC_RANGES[log.esc_protocol]
     esc_min_us = lo if esc_min_us is None else esc_min_us
     esc_max_us = hi if esc_max_us is None else esc_max_us
     unit = " µs" if log.esc_protocol == "pwm" else " (DShot)"
+    for flag, value in (("--esc-min-us", esc_min_us), ("--esc-max-us", esc_max_us)):
+        if not ESC_SIGNAL_RANGE[0] <= value <= ESC_SIGNAL_RANGE[1]:
+            raise LogError(f"{log.source}: ESC signal {value:g}{unit} ({flag}) outside "
+                           f"{ESC_SIGNAL_RANGE[0]:g}-{ESC_SIGNAL_RANGE[1]:g}")
     if not esc_min_us < esc_max_us:
         raise LogError(f"{log.source}: ESC range {esc_min_us:g}-{esc_max_us:g}{unit}: the zero "
                        "duty must be below the full duty (--esc-min-us, --esc-max-us)")
+    with _quiet_numerics():
+        try:
+            return _fit(log, diameter_m, air_density_kg_m3, esc_min_us, esc_max_us,
+                        min_plateau_s)
+        except np.linalg.LinAlgError as exc:
+            raise LogError(f"{log.source}: the steady points determine no fit ({exc})") from None
+
+
+@contextmanager
+def _quiet_numerics() -> Iterator[None]:
+    """No numpy or scipy warning on stderr during a fit (an ill-conditioned regression, an
+    overflow in a step fit): every fitted value is checked against :data:`PHYSICAL`, a NaN or inf
+    included, and refused with a message naming its columns."""
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        yield
+
+
+def _fit(log: StandLog, diameter_m: float, air_density_kg_m3: float, esc_min_us: float,
+         esc_max_us: float, min_plateau_s: float) -> PropulsionFit:
+    """:func:`fit_propulsion` once its arguments are checked."""
+    unit = " µs" if log.esc_protocol == "pwm" else " (DShot)"
     points, source = steady_points(log, min_plateau_s)
     allp = _tared([q for q in points if _complete(q)], esc_min_us)
     powered = [q for q in allp if q.esc_us > esc_min_us and q.speed_rad_s > 0 and q.current_a > 0]

@@ -3,6 +3,8 @@ log (:mod:`casadrone.thruststand`)."""
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated
 
@@ -10,7 +12,6 @@ import typer
 
 from casadrone.cli.common import (
     JsonOpt,
-    PlotOpt,
     app,
     bad_input,
     check_plot_dir,
@@ -18,6 +19,11 @@ from casadrone.cli.common import (
     reports_config_errors,
     save_figures,
 )
+
+#: The figures ``--plot`` writes (:func:`casadrone.plots.propulsion_fit_figures`), each in each
+#: format (:func:`casadrone.plots.save_figure`): their paths are checked before the log is read.
+FIGURES = ("propulsion-fit-steady", "propulsion-fit-steps")
+FIGURE_FORMATS = ("png", "svg")
 
 
 @app.command("fit-propulsion")
@@ -33,8 +39,9 @@ def fit_propulsion_command(
         "--air-density", help="air density during the test (kg/m³; ISA sea level 1.225)")] = 1.225,
     motor_poles: Annotated[int | None, typer.Option(
         "--motor-poles", min=2, max=64,
-        help="motor poles, to turn a raw commutation frequency logged as 'Motor Electrical Speed "
-        "(RPM)' into rotor speed (Tyto/RCbenchmark software already logs rotor rpm there)")] = None,
+        help="motor poles (even), to turn a raw commutation frequency logged as 'Motor Electrical "
+        "Speed (RPM)' into rotor speed (Tyto/RCbenchmark software already logs rotor rpm there)")
+    ] = None,
     esc_min_us: Annotated[float | None, typer.Option(
         "--esc-min-us", help="ESC signal at zero duty (default: 1000 µs for a log of 'ESC signal "
         "(µs)', 48 for a DShot log: 'ESC signal' without a unit)")] = None,
@@ -45,14 +52,20 @@ def fit_propulsion_command(
         "the fitted static values (e.g. uiuc-da4022-5x3.75-3blade); default: static only")
     ] = None,
     out: Annotated[Path | None, typer.Option(
-        "--out", help="write the section as a YAML file (refused if it exists, unless --force)")
-    ] = None,
-    force: Annotated[bool, typer.Option("--force", help="replace an existing --out file")] = False,
-    plot: PlotOpt = None,
+        "--out", help="write the section as a YAML file (refused if it exists, unless --force; "
+        "never the log itself nor a file in a run directory)")] = None,
+    force: Annotated[bool, typer.Option(
+        "--force", help="replace an existing --out file and existing --plot figures")] = False,
+    plot: Annotated[Path | None, typer.Option(
+        "--plot", help="save figures (PNG and SVG) into this folder (existing figures of the "
+        "same names are refused, unless --force)")] = None,
     as_json: JsonOpt = False,
 ):
     """Fit a propulsion: section (propeller CT0/CP0, DC motor KV/R/I0, battery resistance, rotor
     inertia from step tests) from a thrust-stand log, print the fit residuals.
+
+    Every destination (--out, the --plot figures) is checked before the log is read and its
+    folder created before any file is written: a refused command writes nothing.
 
     Examples:
 
@@ -62,40 +75,161 @@ def fit_propulsion_command(
 
       casadrone fit-propulsion stand.csv --diameter-m 0.127 --motor-poles 14 --json
     """
-    from casadrone.optimise.store import atomic_write
-    from casadrone.thruststand import LogError, fit_propulsion, read_log
+    from casadrone.outfile import OutputRefused, write_out
+    from casadrone.thruststand import LogError, check_log_file, fit_propulsion, read_log
 
-    if (diameter_in is None) == (diameter_m is None):
-        raise bad_input(["fit-propulsion: give the propeller diameter: --diameter-in or "
-                         "--diameter-m (one of them)"])
-    if shape is not None and shape not in shipped_propellers():
-        raise bad_input([f"--shape: {shape!r} is not a shipped propeller dataset (shipped: "
-                         f"{', '.join(shipped_propellers())})"])
-    if out is not None and out.exists() and not (force and out.is_file()):
-        raise bad_input([f"--out: {out}: exists (give --force to replace a file)"])
     check_plot_dir(plot)
+    problem = (option_problem(diameter_in, diameter_m, air_density, motor_poles, esc_min_us,
+                              esc_max_us) or shape_problem(shape))
+    if problem is not None:
+        raise bad_input([problem])
+    try:
+        check_log_file(log)
+    except LogError as exc:
+        raise bad_input([str(exc)]) from None
+    problem = next(destination_problems(log, out, plot, force), None)
+    if problem is not None:
+        raise bad_input([problem])
     D = diameter_m if diameter_m is not None else 0.0254 * (diameter_in or 0.0)
     try:
         stand = read_log(log, motor_poles)
         fit = fit_propulsion(stand, D, air_density, esc_min_us, esc_max_us)
     except LogError as exc:
         raise bad_input([str(exc)]) from None
+    files: dict[tuple[str, Path], str | bytes] = {}
     if out is not None:
-        atomic_write(out, section_yaml(fit, shape))
-    figures = []
+        files["--out", out] = section_yaml(fit, shape)
     if plot is not None:
         from casadrone.plots import propulsion_fit_figures
 
-        plot.mkdir(parents=True, exist_ok=True)
-        figures = save_figures(propulsion_fit_figures(fit, stand), plot)
+        figures = render_figures(propulsion_fit_figures(fit, stand), plot)
+        files |= {("--plot", path): data for path, data in figures.items()}
+    problem = make_folders(list(files))
+    if problem is not None:
+        raise bad_input([problem])
+    try:
+        written = [str(write_out(path, data, force)) for (_, path), data in files.items()]
+    except OutputRefused as exc:  # a file that appeared since the check
+        raise bad_input([str(exc)]) from None
+    shown_out = written.pop(0) if out is not None else None
     if as_json:
-        print_json({**fit.as_dict(shape), "out": str(out) if out else None, "figures": figures})
+        print_json({**fit.as_dict(shape), "out": shown_out, "figures": written})
         return
     _print_text(fit)
-    if out is not None:
-        typer.echo(f"wrote {out}")
-    for path in figures:
+    for path in ([shown_out] if shown_out else []) + written:
         typer.echo(f"wrote {path}")
+
+
+def option_problem(diameter_in: float | None, diameter_m: float | None, air_density: float,
+                   motor_poles: int | None, esc_min_us: float | None, esc_max_us: float | None
+                   ) -> str | None:
+    """The first option outside its range (NaN and inf included), as one line naming it."""
+    from casadrone.thruststand import AIR_DENSITY_RANGE, DIAMETER_RANGE_M, ESC_SIGNAL_RANGE
+
+    if (diameter_in is None) == (diameter_m is None):
+        return ("fit-propulsion: give the propeller diameter: --diameter-in or --diameter-m (one "
+                "of them)")
+    inch = tuple(d / 0.0254 for d in DIAMETER_RANGE_M)
+    ranges = (("--diameter-in", diameter_in, inch, "inch"),
+              ("--diameter-m", diameter_m, DIAMETER_RANGE_M, "m"),
+              ("--air-density", air_density, AIR_DENSITY_RANGE, "kg/m³"),
+              ("--esc-min-us", esc_min_us, ESC_SIGNAL_RANGE, "µs or DShot value"),
+              ("--esc-max-us", esc_max_us, ESC_SIGNAL_RANGE, "µs or DShot value"))
+    for flag, value, (lo, hi), unit in ranges:
+        if value is not None and not lo <= value <= hi:
+            return f"{flag}: {value:g} is not a number in {lo:.4g}-{hi:.4g} ({unit})"
+    if motor_poles is not None and motor_poles % 2:
+        return (f"--motor-poles: {motor_poles} is odd; a motor has an even number of poles (two "
+                "per pole pair)")
+    return None
+
+
+def shape_problem(shape: str | None) -> str | None:
+    """``--shape`` naming no shipped propeller dataset, as one line; else None."""
+    if shape is None or shape in shipped_propellers():
+        return None
+    return (f"--shape: {shape!r} is not a shipped propeller dataset (shipped: "
+            f"{', '.join(shipped_propellers())})")
+
+
+def destinations(out: Path | None, plot: Path | None) -> list[tuple[str, Path]]:
+    """(option, path) of every file the command may write: ``--out`` and each --plot figure."""
+    figures = [] if plot is None else [("--plot", plot / f"{name}.{fmt}") for name in FIGURES
+                                         for fmt in FIGURE_FORMATS]
+    return ([("--out", out)] if out is not None else []) + figures
+
+
+def destination_problems(log: Path, out: Path | None, plot: Path | None, force: bool
+                         ) -> Iterator[str]:
+    """One line per destination that must not be written, checked before any work."""
+    targets = destinations(out, plot)
+    if out is not None and any(_same_file(out, path) for _, path in targets[1:]):
+        yield f"--out: {out}: is also a --plot figure; choose another --out"
+    for flag, path in targets:
+        problem = destination_problem(flag, path, log, force)
+        if problem is not None:
+            yield problem
+
+
+def destination_problem(flag: str, path: Path, log: Path, force: bool) -> str | None:
+    """Why ``path`` (given by ``flag``) must not be written, as one line; None if it may. Never
+    the log, a dangling symbolic link, a folder or a file in a run directory
+    (:func:`casadrone.outfile.check_out`); an existing file only with ``force``; never where its
+    folder cannot be written."""
+    from casadrone.outfile import OutputRefused, check_out
+
+    what = "--out" if flag == "--out" else "--plot folder"
+    if path.is_symlink() and not path.exists():
+        return (f"{flag}: {path}: is a dangling symbolic link (to {os.readlink(path)}); it was "
+                f"left untouched, choose another {what} (--force does not apply here)")
+    if _same_file(path, log):
+        return (f"{flag}: {path}: is the input log; it was left untouched, choose another {what} "
+                "(--force does not apply here)")
+    try:
+        check_out(path, force=True)
+    except OutputRefused as exc:
+        return f"{flag}: {exc}"
+    if path.exists() and not force:
+        return (f"{flag}: {path}: exists and was left untouched; choose another {what} or pass "
+                "--force to replace it")
+    folder = _existing_folder(path)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"{flag}: {path}: the folder {folder} is not writable"
+    return None
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` name one file (through links, either spelling)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.abspath(a) == os.path.abspath(b)
+
+
+def _existing_folder(path: Path) -> Path:
+    """The nearest folder above ``path`` that exists."""
+    return next(f for f in Path(os.path.abspath(path)).parents if f.is_dir())
+
+
+def render_figures(figures: dict, folder: Path) -> dict[Path, bytes]:
+    """Each figure's files (:func:`casadrone.cli.common.save_figures`), read back from a
+    temporary folder: path in ``folder`` → bytes, nothing written there yet."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="casadrone-fit-propulsion-") as tmp:
+        return {folder / Path(p).name: Path(p).read_bytes()
+                for p in save_figures(figures, Path(tmp))}
+
+
+def make_folders(targets: list[tuple[str, Path]]) -> str | None:
+    """Create the folder of each (option, path), as one line the first that cannot be."""
+    for flag, path in targets:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            why = exc.strerror or str(exc)
+            return f"{flag}: {path}: its folder {path.parent} cannot be created: {why}"
+    return None
 
 
 def shipped_propellers() -> list[str]:

@@ -188,6 +188,13 @@ class AirframeConfig(Schema):
         elif v.get("mass_model") == "free" and has_keys(v, *MASS_KEYS[1:]) and not mass_problems:
             found += inertia_problems(inertia_tensor(v))
         prop = v.get("propulsion")
+        if prop is not None:  # the section against the vehicle's mass, air and prop diameter
+            from casadrone.propulsion import airframe_problems
+
+            found += airframe_problems(
+                prop, mass_kg=mass, rho=v.get("air_density_kgm3"),
+                prop_diameter_mm=v.get("prop_diameter_mm"),
+                mass_key="mass_kg" if v.get("mass_model") == "free" else "components")
         thrust = v.get("thrust")
         if (thrust is not None and thrust.time_constant_s == 0 and prop is not None
                 and prop.model != "paper"):

@@ -50,6 +50,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.simulate",
     "casadrone.limit.attitude",
     "casadrone.limit.gates",
+    "casadrone.limit.watchdog",  # the forked, guarded solve that stagewise beats for
     "casadrone.limit.stagewise",  # the stage-ordered NLP solve (fatrop) that nlp calls
     "casadrone.limit.nlp",
     "casadrone.limit.lagless",

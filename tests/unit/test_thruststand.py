@@ -200,6 +200,9 @@ def test_the_section_is_read_by_the_airframe_schema_and_hovers(tmp_path, log_fil
     fit = fit_propulsion(read_log(log_file), D, RHO)
     data = yaml.safe_load(resolve_config("SY250-propeller", "airframes").read_text("utf-8"))
     data["propulsion"] = yaml.safe_load(section_yaml(fit, SHIPPED_PROPELLER))["propulsion"]
+    # the fitted 5.1-inch propeller is the frame's propeller: the airframe's diameter must agree
+    # (a 5-inch prop_diameter_mm with it is refused, casadrone.config.propulsion.DIAMETER_RTOL)
+    data["prop_diameter_mm"] = 1000 * D
     path = tmp_path / "fitted.yaml"
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
     frame = build_airframe(load_airframe(path))

@@ -8,6 +8,7 @@ Units: SI, except angles in degrees and airframe dimensions in millimetres; ever
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -604,20 +605,98 @@ def convergence(generations: Sequence[int], hypervolume: Sequence[float],
 #: White margin (inches) around a figure saved with a tight bounding box.
 PAD_INCHES = 0.05
 
+#: The metadata entry, per format, that carries :func:`figure_mark` in every figure casadrone
+#: writes: PNG's tEXt ``Software`` and SVG's creator (``<dc:creator><cc:Agent><dc:title>`` in the
+#: RDF under ``<metadata>``), both as matplotlib writes them.
+MARK_KEYS = {"png": "Software", "svg": "Creator"}
+
+#: How much of a file is read to find the mark (matplotlib puts it before any drawing).
+_MARK_HEAD_BYTES = 64 * 1024
+
+
+def figure_mark() -> str:
+    """The mark of a figure casadrone wrote: ``casadrone <version>``."""
+    from casadrone import __version__
+
+    return f"casadrone {__version__}"
+
+
+def _is_mark(text: str) -> bool:
+    """Whether metadata text is casadrone's mark, of any version."""
+    name, _, version = text.strip().partition(" ")
+    return name == "casadrone" and bool(version) and " " not in version
+
+
+def is_casadrone_figure(path: str | Path) -> bool:
+    """Whether ``path`` is a figure casadrone wrote (:func:`save_figure`): a regular file, not a
+    link, that is a PNG whose tEXt ``Software`` or an SVG whose creator is :func:`figure_mark`
+    (any version). Reads at most a few tens of kilobytes; a file that cannot be read is not."""
+    path = Path(path)
+    if path.is_symlink() or not path.is_file():
+        return False
+    try:
+        with path.open("rb") as fh:
+            if path.suffix.lower() == ".png":
+                return _png_marked(fh)
+            if path.suffix.lower() == ".svg":
+                return _svg_marked(fh.read(_MARK_HEAD_BYTES))
+    except OSError:
+        return False
+    return False
+
+
+def _png_marked(fh) -> bool:
+    """The PNG's chunks up to its image data hold a tEXt ``Software`` that is the mark."""
+    if fh.read(8) != b"\x89PNG\r\n\x1a\n":
+        return False
+    for _ in range(64):  # chunks before IDAT: matplotlib writes three
+        head = fh.read(8)
+        if len(head) < 8:
+            return False
+        size, kind = int.from_bytes(head[:4], "big"), head[4:]
+        if kind in (b"IDAT", b"IEND"):
+            return False
+        if kind == b"tEXt" and size <= _MARK_HEAD_BYTES:
+            key, _, text = fh.read(size).partition(b"\0")
+            if key == MARK_KEYS["png"].encode("latin-1"):
+                return _is_mark(text.decode("latin-1"))
+            fh.seek(4, 1)  # CRC
+        else:
+            fh.seek(size + 4, 1)
+    return False
+
+
+_SVG_CREATOR = re.compile(r"<dc:creator>\s*<cc:Agent>\s*<dc:title>([^<]*)</dc:title>")
+
+
+def _svg_marked(head: bytes) -> bool:
+    """The SVG's ``<metadata>`` (within its first bytes) names the mark as its creator."""
+    text = head.decode("utf-8", errors="replace")
+    start = text.find("<metadata>")
+    end = text.find("</metadata>", start)
+    if start < 0 or end < 0 or "<svg" not in text[:start]:
+        return False
+    found = _SVG_CREATOR.search(text, start, end)
+    return found is not None and _is_mark(found.group(1))
+
 
 def save_figure(fig: Figure, path_without_suffix: str | Path,
                 formats: Sequence[str] = ("png", "svg"), dpi: int = 150) -> list[Path]:
     """Write ``fig`` once per format (parent folders created); returns the paths written.
 
     The saved extent is the figure's tight bounding box plus :data:`PAD_INCHES`, so no label,
-    title or legend is clipped off the edge whatever the figure size or dpi."""
+    title or legend is clipped off the edge whatever the figure size or dpi. PNG and SVG files
+    carry casadrone's mark (:data:`MARK_KEYS`, :func:`is_casadrone_figure`). No check here: the
+    caller decides whether an existing file may be replaced
+    (:func:`casadrone.cli.common.save_figures`)."""
     base = Path(path_without_suffix)
     base.parent.mkdir(parents=True, exist_ok=True)
     paths = []
-    for fmt in formats:
-        path = base.with_name(f"{base.name}.{fmt.lstrip('.')}")
-        fig.savefig(path, format=fmt.lstrip("."), dpi=dpi, bbox_inches="tight",
-                    pad_inches=PAD_INCHES)
+    for fmt in (f.lstrip(".") for f in formats):
+        path = base.with_name(f"{base.name}.{fmt}")
+        key = MARK_KEYS.get(fmt.lower())
+        fig.savefig(path, format=fmt, dpi=dpi, bbox_inches="tight", pad_inches=PAD_INCHES,
+                    metadata={key: figure_mark()} if key else None)
         paths.append(path)
     return paths
 

@@ -117,7 +117,9 @@ OverridesArg = Annotated[
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="print one JSON object instead of text")]
 PlotOpt = Annotated[
-    Path | None, typer.Option("--plot", help="save figures (PNG and SVG) into this folder")
+    Path | None, typer.Option(
+        "--plot", help="save figures (PNG and SVG) into this folder (a figure casadrone wrote "
+        "is replaced; any other file of a figure's name is refused)")
 ]
 TrackOpt = Annotated[
     str | None,
@@ -266,14 +268,53 @@ def load_airframe_or_exit(airframe: str, overrides: list[str] | None):
     return cfg, build_airframe(cfg)
 
 
-def check_plot_dir(folder: Path | None) -> None:
-    """Exit 2 before any work when ``--plot`` names something that cannot be a folder."""
-    if folder is not None and folder.exists() and not folder.is_dir():
+#: The formats each ``--plot`` figure is saved in (:func:`save_figures`).
+FIGURE_FORMATS = ("png", "svg")
+
+
+def figure_paths(folder: Path, names: Iterable[str]) -> list[Path]:
+    """The files :func:`save_figures` writes for figures named ``names`` in ``folder``."""
+    return [folder / f"{name}.{fmt}" for name in names for fmt in FIGURE_FORMATS]
+
+
+def foreign_figures(paths: Iterable[Path]) -> list[Path]:
+    """The paths that hold something casadrone must not replace: anything (a file, a folder, a
+    link) that is not a figure casadrone wrote (:func:`casadrone.plots.is_casadrone_figure`)."""
+    existing = [p for p in paths if p.exists() or p.is_symlink()]
+    if not existing:
+        return []
+    from casadrone.plots import is_casadrone_figure  # only now: it imports matplotlib
+
+    return [p for p in existing if not is_casadrone_figure(p)]
+
+
+def foreign_figure_line(refused: list[Path], flag: str = "--plot", hint: str = "") -> str:
+    """The one line that refuses ``refused`` (the first named, the others counted)."""
+    more = f" (and {len(refused) - 1} more such file(s) there)" if len(refused) > 1 else ""
+    return (f"{flag}: {refused[0]}: exists and is not a casadrone figure{more}; it was left "
+            f"untouched, move it or choose another {flag} folder{hint}")
+
+
+def check_plot_dir(folder: Path | None, names: Iterable[str] = ()) -> None:
+    """Exit 2 before any work when ``--plot`` names something that cannot be a folder, or when
+    a figure ``names`` would be written to (each in :data:`FIGURE_FORMATS`) exists and is not a
+    figure casadrone wrote: one line on stderr. Nothing the user owns is replaced; a casadrone
+    figure is (re-running a command into the same folder)."""
+    if folder is None:
+        return
+    if folder.exists() and not folder.is_dir():
         raise bad_input([f"--plot: {folder}: exists and is not a folder"])
+    refused = foreign_figures(figure_paths(folder, names))
+    if refused:
+        raise bad_input([foreign_figure_line(refused)])
 
 
 def save_figures(figures: dict, folder: Path) -> list[str]:
-    """Save each named figure as PNG and SVG in ``folder``; the paths written."""
+    """Save each named figure as PNG and SVG in ``folder``; the paths written. Every path is
+    checked first (:func:`check_plot_dir`): when one holds something that is not a casadrone
+    figure, none is written and the command exits 2."""
     from casadrone.plots import save_figure
 
-    return [str(p) for name, fig in figures.items() for p in save_figure(fig, folder / name)]
+    check_plot_dir(folder, figures)
+    return [str(p) for name, fig in figures.items()
+            for p in save_figure(fig, folder / name, FIGURE_FORMATS)]

@@ -308,6 +308,10 @@ def linearise(
 # --------------------------------------------------------------------------------------------
 
 
+#: The figures ``lqr --plot`` writes, checked before any work (:func:`check_plot_dir`).
+LQR_FIGURES = ("eigenvalue-cloud", "disturbance-responses")
+
+
 @app.command()
 @reports_config_errors
 def lqr(
@@ -333,7 +337,7 @@ def lqr(
 
     from casadrone.config.controller import load_controller
 
-    check_plot_dir(plot)
+    check_plot_dir(plot, LQR_FIGURES)
     cfg, frame = load_airframe_or_exit(airframe, overrides)
     ctrl = load_controller(controller)
     from casadrone import control

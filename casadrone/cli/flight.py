@@ -38,6 +38,10 @@ IntegratorOpt = Annotated[str, registry_option(
 # simulate
 # --------------------------------------------------------------------------------------------
 
+#: The figures ``simulate --plot`` writes, checked before any work (:func:`check_plot_dir`).
+SIMULATE_FIGURES = ("track-top-view", "track-3d", "time-histories")
+
+
 @app.command()
 @reports_config_errors
 def simulate(
@@ -62,7 +66,7 @@ def simulate(
 
     --plot DIR saves the track top view, the 3-D track and the time histories (PNG and SVG).
     """
-    check_plot_dir(plot)
+    check_plot_dir(plot, SIMULATE_FIGURES)
     cfg, _ = load_airframe_or_exit(airframe, overrides)
     from casadrone.config.controller import load_controller
     from casadrone.config.io import load, resolve_config

@@ -32,6 +32,10 @@ from casadrone.limit.result import (
 PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio",
                    "data_advance_ratio", "beyond_data_share", "min_thrust_ratio")
 
+#: The figures ``limit-lap --plot`` writes (:func:`casadrone.plots.limit_lap_figures` and the
+#: thrust against airspeed), checked before any solve (:func:`check_plot_dir`).
+LIMIT_FIGURES = ("limit-top-view", "limit-3d", "limit-time-histories", "limit-thrust-airspeed")
+
 if TYPE_CHECKING:  # the limit lap is imported when the command runs (CasADi)
     from casadrone.limit.lap import Attitude, Solver, TiltLimit
     from casadrone.limit.result import Resimulation, RotorStep
@@ -91,7 +95,7 @@ def limit_lap_command(
     --plot DIR saves the limit lap beside the closed-loop lap (top view, 3-D) and its speed and
     commands over time.
     """
-    check_plot_dir(plot)
+    check_plot_dir(plot, LIMIT_FIGURES)
     from casadrone.airframe import build_airframe
     from casadrone.config.airframe import load_airframe
     from casadrone.config.io import ConfigError, load, resolve_config

@@ -11,19 +11,21 @@ from typing import Annotated
 import typer
 
 from casadrone.cli.common import (
+    FIGURE_FORMATS,
     JsonOpt,
     app,
     bad_input,
     check_plot_dir,
+    foreign_figure_line,
     print_json,
     reports_config_errors,
     save_figures,
 )
 
 #: The figures ``--plot`` writes (:func:`casadrone.plots.propulsion_fit_figures`), each in each
-#: format (:func:`casadrone.plots.save_figure`): their paths are checked before the log is read.
+#: format (:data:`casadrone.cli.common.FIGURE_FORMATS`): their paths are checked before the log
+#: is read.
 FIGURES = ("propulsion-fit-steady", "propulsion-fit-steps")
-FIGURE_FORMATS = ("png", "svg")
 
 
 @app.command("fit-propulsion")
@@ -55,17 +57,19 @@ def fit_propulsion_command(
         "--out", help="write the section as a YAML file (refused if it exists, unless --force; "
         "never the log itself nor a file in a run directory)")] = None,
     force: Annotated[bool, typer.Option(
-        "--force", help="replace an existing --out file and existing --plot figures")] = False,
+        "--force", help="replace an existing --out file, and existing files of the --plot "
+        "figures' names that casadrone did not write")] = False,
     plot: Annotated[Path | None, typer.Option(
-        "--plot", help="save figures (PNG and SVG) into this folder (existing figures of the "
-        "same names are refused, unless --force)")] = None,
+        "--plot", help="save figures (PNG and SVG) into this folder (a figure casadrone wrote "
+        "is replaced; any other file of a figure's name is refused, unless --force)")] = None,
     as_json: JsonOpt = False,
 ):
     """Fit a propulsion: section (propeller CT0/CP0, DC motor KV/R/I0, battery resistance, rotor
     inertia from step tests) from a thrust-stand log, print the fit residuals.
 
     Every destination (--out, the --plot figures) is checked before the log is read and its
-    folder created before any file is written: a refused command writes nothing.
+    folder created before any file is written: a refused command writes nothing. A figure
+    casadrone wrote (marked in its metadata) is replaced without --force, as by every --plot.
 
     Examples:
 
@@ -108,7 +112,8 @@ def fit_propulsion_command(
     if problem is not None:
         raise bad_input([problem])
     try:
-        written = [str(write_out(path, data, force)) for (_, path), data in files.items()]
+        written = [str(write_out(path, data, force or replaceable_figure(flag, path)))
+                   for (flag, path), data in files.items()]
     except OutputRefused as exc:  # a file that appeared since the check
         raise bad_input([str(exc)]) from None
     shown_out = written.pop(0) if out is not None else None
@@ -174,8 +179,9 @@ def destination_problems(log: Path, out: Path | None, plot: Path | None, force: 
 def destination_problem(flag: str, path: Path, log: Path, force: bool) -> str | None:
     """Why ``path`` (given by ``flag``) must not be written, as one line; None if it may. Never
     the log, a dangling symbolic link, a folder or a file in a run directory
-    (:func:`casadrone.outfile.check_out`); an existing file only with ``force``; never where its
-    folder cannot be written."""
+    (:func:`casadrone.outfile.check_out`); an existing file only with ``force``, or without it
+    a figure casadrone wrote (:func:`replaceable_figure`); never where its folder cannot be
+    written."""
     from casadrone.outfile import OutputRefused, check_out
 
     what = "--out" if flag == "--out" else "--plot folder"
@@ -189,13 +195,25 @@ def destination_problem(flag: str, path: Path, log: Path, force: bool) -> str | 
         check_out(path, force=True)
     except OutputRefused as exc:
         return f"{flag}: {exc}"
-    if path.exists() and not force:
+    if path.exists() and not force and not replaceable_figure(flag, path):
+        if flag == "--plot":
+            return foreign_figure_line([path], flag, " or pass --force to replace it")
         return (f"{flag}: {path}: exists and was left untouched; choose another {what} or pass "
                 "--force to replace it")
     folder = _existing_folder(path)
     if not os.access(folder, os.W_OK | os.X_OK):
         return f"{flag}: {path}: the folder {folder} is not writable"
     return None
+
+
+def replaceable_figure(flag: str, path: Path) -> bool:
+    """Whether ``path`` is a ``--plot`` figure casadrone wrote, which a run replaces without
+    ``--force`` (:func:`casadrone.plots.is_casadrone_figure`)."""
+    if flag != "--plot":
+        return False
+    from casadrone.plots import is_casadrone_figure  # only now: it imports matplotlib
+
+    return is_casadrone_figure(path)
 
 
 def _same_file(a: Path, b: Path) -> bool:

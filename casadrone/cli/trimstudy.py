@@ -26,6 +26,9 @@ OPTION_OF = {"starts": "--starts", "seed": "--seed", "angle_spread_deg": "--angl
              "command_spread": "--command-spread", "solvers": "--solvers",
              "reference_solver": "--reference", "distinct_tolerance": "--distinct-tolerance"}
 
+#: The figures ``trim-study --plot`` writes, checked before any work (:func:`check_plot_dir`).
+TRIM_STUDY_FIGURES = ("trim-study-envelope", "trim-study-basins", "trim-study-residuals")
+
 
 @app.command("trim-study")
 @reports_config_errors
@@ -60,7 +63,7 @@ def trim_study(
 ) -> None:
     """Compare the trim solvers from many starts at operating points across the envelope:
     success rate, iterations, wall time, residual, distance from the reference, distinct roots."""
-    check_plot_dir(plot)
+    check_plot_dir(plot, TRIM_STUDY_FIGURES)
     points, options, focus = _parse(conditions, starts, seed, angle_spread, command_spread,
                                     solvers, reference, distinct_tolerance, basin_grid, plot_point)
     _, frame = load_airframe_or_exit(airframe, overrides)

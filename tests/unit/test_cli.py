@@ -290,7 +290,10 @@ def test_lqr_ensemble_must_be_positive(cli_runner):
 
 def test_lqr_plot_saves_robustness_figures(cli_runner, tmp_path):
     out = run_json(cli_runner, "lqr", "SY250", "--ensemble", "3", "--plot", tmp_path / "figs")
+    from casadrone.cli.design import LQR_FIGURES
+
     names = ("eigenvalue-cloud", "disturbance-responses")
+    assert names == LQR_FIGURES  # the names checked before any work are the ones written
     expected = [str(tmp_path / "figs" / f"{n}.{ext}") for n in names for ext in ("png", "svg")]
     assert out["figures"] == expected and out["ensemble_n"] == 3
     assert all(Path(p).stat().st_size > 0 for p in expected)

@@ -36,6 +36,11 @@ def test_text_table_and_figures(cli_runner, tmp_path):
     assert "forward 10 m/s (reference by newton" in res.stdout
     for name in ("envelope", "basins", "residuals"):
         assert (tmp_path / f"trim-study-{name}.png").stat().st_size > 1000
+    from casadrone.cli.common import figure_paths
+    from casadrone.cli.trimstudy import TRIM_STUDY_FIGURES
+
+    # the names checked before any work are the ones written
+    assert sorted(tmp_path.iterdir()) == sorted(figure_paths(tmp_path, TRIM_STUDY_FIGURES))
 
 
 @pytest.mark.parametrize(("args", "line"), [

@@ -129,6 +129,31 @@ def test_existing_figures_are_kept_unless_forced(tmp_path, log_file, cli_runner)
     assert (plots / "propulsion-fit-steady.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_its_own_figures_are_replaced_without_force(tmp_path, log_file, cli_runner):
+    """As every --plot: a figure casadrone wrote (its mark read back by PIL) is replaced, a
+    picture of the user's (written by PIL) is not, and then nothing is written."""
+    from PIL import Image
+
+    log = _copy(log_file, tmp_path)
+    plots = tmp_path / "plots"
+    assert _run(cli_runner, log, *BASE, "--plot", plots).exit_code == 0
+    figures = sorted(plots.iterdir())
+    assert len(figures) == 4
+    with Image.open(plots / "propulsion-fit-steps.png") as im:
+        assert im.info["Software"].startswith("casadrone ")
+    for path in figures:
+        os.utime(path, ns=(10**18, 10**18))
+    again = _run(cli_runner, log, *BASE, "--plot", plots)
+    assert again.exit_code == 0, again.stderr
+    assert sorted(plots.iterdir()) == figures
+    assert all(p.stat().st_mtime_ns > 10**18 for p in figures)
+    Image.new("RGB", (3, 2)).save(plots / "propulsion-fit-steps.png")
+    before = _snapshot(tmp_path)
+    line = _refused(_run(cli_runner, log, *BASE, "--plot", plots, "--out", tmp_path / "p.yaml"),
+                    "--plot", "propulsion-fit-steps.png", "not a casadrone figure", "--force")
+    assert _snapshot(tmp_path) == before, line
+
+
 def test_out_that_is_also_a_figure_is_refused(tmp_path, log_file, cli_runner):
     log = _copy(log_file, tmp_path)
     before = _snapshot(tmp_path)

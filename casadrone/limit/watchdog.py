@@ -16,8 +16,9 @@ derivatives (once or twice per iteration); the parent ends the child when no bea
 ``stall_s`` seconds, a silence no finishing solve has: an iteration of the largest NLPs
 casadrone builds takes well under a second (the 19-waypoint three-lap course: about 2 300
 intervals). The child's CPU time comes back with its result (``resource.RUSAGE_CHILDREN`` in
-the parent also counts it once it has been waited for). Where ``os.fork`` does not exist the
-solve runs in this process, unguarded.
+the parent also counts it once it has been waited for). On Linux the child is killed with its
+parent (``prctl(PR_SET_PDEATHSIG)``), so a stalled solve never outlives a killed run. Where
+``os.fork`` does not exist the solve runs in this process, unguarded.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import pickle
 import select
 import signal
 import struct
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -59,8 +61,29 @@ class Guarded:
     cpu_s: float = 0.0
 
 
-def _child(fn: Callable[[], Any], beat_buf: mmap.mmap, w: int) -> None:
+#: Linux's prctl option that sends a signal to this process when its parent dies.
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:
+    """Linux: SIGKILL this (child) process when its parent dies, so that a stalled solve does not
+    outlive a killed run, spinning for ever. Elsewhere, or where prctl is missing, nothing."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
+def _child(fn: Callable[[], Any], beat_buf: mmap.mmap, w: int, parent: int) -> None:
     global _BEAT
+    _die_with_parent()
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
     _BEAT = beat_buf
     c0 = time.process_time()
     try:
@@ -85,11 +108,12 @@ def run_guarded(fn: Callable[[], Any], stall_s: float = STALL_S, fork: bool = Tr
     beat_buf = mmap.mmap(-1, 8)
     struct.pack_into("d", beat_buf, 0, time.monotonic())
     r, w = os.pipe()
+    parent = os.getpid()
     pid = os.fork()
     if pid == 0:  # the child: answer through the pipe, never return into the caller's code
         try:
             os.close(r)
-            _child(fn, beat_buf, w)
+            _child(fn, beat_buf, w, parent)
         finally:
             os._exit(0)
     os.close(w)

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import os
 import select
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -104,3 +106,43 @@ def test_stalled_fatrop_solve_falls_back_to_ipopt(monkeypatch):
     assert sol.solver == "ipopt" and sol.success
     assert sol.fatrop is not None and sol.fatrop[0].startswith("fatrop stalled")
     np.testing.assert_allclose(sol.objective, ref.objective, rtol=1e-9)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="prctl(PR_SET_PDEATHSIG)")
+def test_a_killed_run_takes_its_solve_with_it(tmp_path):
+    """A process guarding a solve that hangs in C is killed (SIGKILL, as a killed run is): the
+    child does not outlive it (/proc), though its own stall limit (600 s) is far away."""
+    pid_file = tmp_path / "child"
+    script = (
+        "import select, sys\n"
+        "from pathlib import Path\n"
+        "from casadrone.limit.watchdog import beat, run_guarded\n"
+        "def hang():\n"
+        f"    Path({str(pid_file)!r}).write_text(str(__import__('os').getpid()))\n"
+        "    beat()\n"
+        "    select.select([], [], [], 3600)\n"
+        "run_guarded(hang, stall_s=600)\n")
+    parent = subprocess.Popen([sys.executable, "-c", script])
+    try:
+        deadline = time.monotonic() + 60
+        while not (pid_file.exists() and pid_file.read_text()) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        child = int(pid_file.read_text())
+        assert Path(f"/proc/{child}").exists()
+    finally:
+        parent.kill()
+        parent.wait()
+    deadline = time.monotonic() + 10
+    while Path(f"/proc/{child}").exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+        try:  # reaped by init once gone; a zombie still has /proc/PID: read its state
+            if (Path(f"/proc/{child}/stat").read_text().split(")")[1].split()[0]) == "Z":
+                break
+        except (OSError, IndexError):
+            break
+    state = ""
+    try:
+        state = Path(f"/proc/{child}/stat").read_text().split(")")[1].split()[0]
+    except (OSError, IndexError):
+        pass
+    assert state in ("", "Z"), f"the child {child} outlived its parent (state {state})"

@@ -78,6 +78,7 @@ symbolic functions; its airframe-level helpers take any object with the
 from __future__ import annotations
 
 import math
+from functools import cache
 from typing import Any
 
 from casadrone.config.propulsion import (  # noqa: F401 (the data helpers re-exported)
@@ -545,24 +546,37 @@ def airframe_problems(prop: PropulsionConfig, *, mass_kg: float | None, rho: flo
             found.append((key, f"four motors ({m_motors:g} kg) and the battery ({m_batt:g} kg) "
                           f"weigh at least the whole vehicle ({mass_kg:g} kg): the parts cannot "
                           "outweigh the airframe they are part of"))
-    if rho is not None and motor is not None and batt is not None:
-        if p.linear_inflow is not None:
-            ct, cp = coefficients(prop, rho)
-            fm = figure_of_merit(ct[0], cp[0])
-            if fm > MAX_FIGURE_OF_MERIT:
-                lin = p.linear_inflow
-                found.append(("propulsion.propeller.linear_inflow.k_m_n_m_s2", (
-                    f"static figure of merit k_η^1.5 / (k_m √(ρπ/2) D) = {fm:.3g} exceeds 1 "
-                    f"(k_eta_n_s2 = {lin.k_eta_n_s2:g}, D = {D:g} m, ρ = {rho:g} kg/m³): "
-                    "momentum theory needs a shaft power of at least the ideal T^1.5/√(2ρA), "
-                    f"k_m ≥ {fm * lin.k_m_n_m_s2:.4g} N·m·s² for this k_eta")))
-                return found
-        w = static_speed(values(prop, rho), 1.0)
-        tip = w * D / 2
-        if tip >= SPEED_OF_SOUND_M_S:
-            found.append(("propulsion.battery.open_circuit_voltage_v", (
-                f"{batt.open_circuit_voltage_v:g} V drives the propeller at full command at rest "
-                f"to {w * 60 / (2 * math.pi):.4g} rpm (K_V {motor.kv_rpm_per_v:g} rpm/V, "
-                f"{motor.kind} motor): tip speed {tip:.4g} m/s, at or above the speed of sound "
-                f"{SPEED_OF_SOUND_M_S:g} m/s, where no propeller model here holds")))
+    if rho is not None:
+        found += _air_problems(prop, rho)
     return found
+
+
+@cache
+def _air_problems(prop: PropulsionConfig, rho: float) -> tuple[tuple[str, str], ...]:
+    """The checks of :func:`airframe_problems` that need only the section and the air (momentum
+    theory of the linear-inflow form, subsonic tips): the same for every candidate of a study,
+    so worked out once per (section, density), not per candidate (the section is frozen,
+    hashable)."""
+    p, motor, batt = prop.propeller, prop.motor, prop.battery
+    if p is None or motor is None or batt is None:
+        return ()
+    D = p.diameter_m
+    if p.linear_inflow is not None:
+        ct, cp = coefficients(prop, rho)
+        fm = figure_of_merit(ct[0], cp[0])
+        if fm > MAX_FIGURE_OF_MERIT:
+            lin = p.linear_inflow
+            return (("propulsion.propeller.linear_inflow.k_m_n_m_s2", (
+                f"static figure of merit k_η^1.5 / (k_m √(ρπ/2) D) = {fm:.3g} exceeds 1 "
+                f"(k_eta_n_s2 = {lin.k_eta_n_s2:g}, D = {D:g} m, ρ = {rho:g} kg/m³): "
+                "momentum theory needs a shaft power of at least the ideal T^1.5/√(2ρA), "
+                f"k_m ≥ {fm * lin.k_m_n_m_s2:.4g} N·m·s² for this k_eta")),)
+    w = static_speed(values(prop, rho), 1.0)
+    tip = w * D / 2
+    if tip < SPEED_OF_SOUND_M_S:
+        return ()
+    return (("propulsion.battery.open_circuit_voltage_v", (
+        f"{batt.open_circuit_voltage_v:g} V drives the propeller at full command at rest "
+        f"to {w * 60 / (2 * math.pi):.4g} rpm (K_V {motor.kv_rpm_per_v:g} rpm/V, "
+        f"{motor.kind} motor): tip speed {tip:.4g} m/s, at or above the speed of sound "
+        f"{SPEED_OF_SOUND_M_S:g} m/s, where no propeller model here holds")),)

@@ -11,16 +11,17 @@ from typing import Annotated
 import typer
 
 from casadrone.cli.common import (
-    FIGURE_FORMATS,
     JsonOpt,
     app,
     bad_input,
     check_plot_dir,
+    figure_paths,
     foreign_figure_line,
     print_json,
     reports_config_errors,
     save_figures,
 )
+from casadrone.config.propulsion import shipped_datasets
 
 #: The figures ``--plot`` writes (:func:`casadrone.plots.propulsion_fit_figures`), each in each
 #: format (:data:`casadrone.cli.common.FIGURE_FORMATS`): their paths are checked before the log
@@ -151,16 +152,15 @@ def option_problem(diameter_in: float | None, diameter_m: float | None, air_dens
 
 def shape_problem(shape: str | None) -> str | None:
     """``--shape`` naming no shipped propeller dataset, as one line; else None."""
-    if shape is None or shape in shipped_propellers():
+    if shape is None or shape in shipped_datasets():
         return None
     return (f"--shape: {shape!r} is not a shipped propeller dataset (shipped: "
-            f"{', '.join(shipped_propellers())})")
+            f"{', '.join(shipped_datasets())})")
 
 
 def destinations(out: Path | None, plot: Path | None) -> list[tuple[str, Path]]:
     """(option, path) of every file the command may write: ``--out`` and each --plot figure."""
-    figures = [] if plot is None else [("--plot", plot / f"{name}.{fmt}") for name in FIGURES
-                                         for fmt in FIGURE_FORMATS]
+    figures = [] if plot is None else [("--plot", p) for p in figure_paths(plot, FIGURES)]
     return ([("--out", out)] if out is not None else []) + figures
 
 
@@ -248,15 +248,6 @@ def make_folders(targets: list[tuple[str, Path]]) -> str | None:
             why = exc.strerror or str(exc)
             return f"{flag}: {path}: its folder {path.parent} cannot be created: {why}"
     return None
-
-
-def shipped_propellers() -> list[str]:
-    """Names of the propeller datasets in the package data (``data/propulsion/*.csv``)."""
-    from importlib import resources
-
-    folder = resources.files("casadrone") / "data" / "propulsion"
-    return sorted(p.name[:-4] for p in folder.iterdir()
-                  if p.name.endswith(".csv") and p.name != "parts.csv")
 
 
 def section_yaml(fit, shape: str | None = None) -> str:

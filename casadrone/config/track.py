@@ -14,6 +14,7 @@ import numpy as np
 from pydantic import Field, StrictBool, field_validator, model_validator
 
 from casadrone.config.io import CONFIG_DIR, Schema, load, resolve_config
+from casadrone.config.propulsion import SPEED_OF_SOUND_M_S
 from casadrone.limit.targets import TARGET_KINDS, gate_shapes, kind_of_shape
 
 #: The paper's rectangular track (Fig. 7), flown when no track is named.
@@ -23,10 +24,11 @@ Vec3 = tuple[float, float, float]
 #: Shortest leg between consecutive route points (m): a waypoint on top of the previous one
 #: gives a segment with no direction, which the guidance cannot fly.
 MIN_LEG_M = 0.01
-#: Fastest speed a track may ask for (m/s): Mach 0.3 at sea level (0.3 × 340.3 m/s), the usual
-#: limit of incompressible aerodynamics, on which every drag and propeller model here rests.
-#: Racing quadrotors fly below it (SY250's limit lap peaks at 55.6 m/s).
-MAX_SPEED_MPS = 102.0
+#: Fastest speed a track may ask for (m/s): Mach 0.3 (0.3 × the speed of sound of the propeller
+#: model's bound, 343 m/s), the usual limit of incompressible aerodynamics, on which every drag
+#: and propeller model here rests. Racing quadrotors fly below it (SY250's limit lap peaks at
+#: 55.6 m/s).
+MAX_SPEED_MPS = 0.3 * SPEED_OF_SOUND_M_S
 
 
 def _speed_over(v: tuple[float, ...] | float) -> bool:
@@ -209,7 +211,7 @@ class TrackConfig(Schema):
                        ("climb_speed_mps", self.climb_speed_mps)):
             if _speed_over(v):
                 raise ValueError(f"{key}: {float(np.linalg.norm(np.atleast_1d(v))):.4g} m/s is "
-                                 f"beyond {MAX_SPEED_MPS:g} m/s (Mach 0.3: the models' "
+                                 f"beyond {MAX_SPEED_MPS:.4g} m/s (Mach 0.3: the models' "
                                  "incompressible aerodynamics)")
         if self.floor_m is not None and self.ceiling_m is not None \
                 and self.ceiling_m <= self.floor_m:

@@ -29,11 +29,12 @@ import pickle
 import select
 import signal
 import struct
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
+
+from casadrone.parentdeath import die_with_parent
 
 #: Seconds without an evaluation after which a guarded solve is given up (module docstring).
 STALL_S = 30.0
@@ -61,27 +62,9 @@ class Guarded:
     cpu_s: float = 0.0
 
 
-#: Linux's prctl option that sends a signal to this process when its parent dies.
-_PR_SET_PDEATHSIG = 1
-
-
-def _die_with_parent() -> None:
-    """Linux: SIGKILL this (child) process when its parent dies, so that a stalled solve does not
-    outlive a killed run, spinning for ever. Elsewhere, or where prctl is missing, nothing."""
-    if not sys.platform.startswith("linux"):
-        return
-    try:
-        import ctypes
-
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-    except (OSError, AttributeError):
-        pass
-
-
 def _child(fn: Callable[[], Any], beat_buf: mmap.mmap, w: int, parent: int) -> None:
     global _BEAT
-    _die_with_parent()
+    die_with_parent()  # a stalled solve must not outlive a killed run
     if os.getppid() != parent:  # the parent died before prctl took effect
         os._exit(1)
     _BEAT = beat_buf

@@ -14,28 +14,13 @@ from __future__ import annotations
 
 import os
 import signal
-import sys
 import threading
 import time
 
+from casadrone.parentdeath import die_with_parent
+
 #: Seconds between two looks at the parent pid (the fallback where prctl is unavailable).
 POLL_S = 0.25
-_PR_SET_PDEATHSIG = 1
-
-
-def _kernel_death_signal() -> None:
-    """Linux: SIGKILL this process when its parent dies (no-op elsewhere or on failure)."""
-    if not sys.platform.startswith("linux"):
-        return
-    try:
-        import ctypes
-
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-    except (OSError, AttributeError):
-        pass
-
-
 def _watch(parent_pid: int) -> None:
     while True:
         if os.getppid() != parent_pid:
@@ -46,7 +31,7 @@ def _watch(parent_pid: int) -> None:
 def worker_init(parent_pid: int) -> None:
     """Pool initialiser: end this worker when the process ``parent_pid`` is gone."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _kernel_death_signal()
+    die_with_parent()
     if os.getppid() != parent_pid:  # the parent died before we got here
         os._exit(0)
     threading.Thread(target=_watch, args=(parent_pid,), name="casadrone-lifeline",

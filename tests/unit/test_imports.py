@@ -21,6 +21,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.data",
     "casadrone.codegen",
     "casadrone.heap",  # the process's malloc settings (the command line calls them)
+    "casadrone.parentdeath",  # child processes that die with their parent
     "casadrone.results",
     "casadrone.config.yamlsafe",
     "casadrone.config.io",

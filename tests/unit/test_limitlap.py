@@ -484,7 +484,7 @@ def test_track_limits_enter_the_bounds_and_targets():
     (["end_velocity_mps=[1, 0, 0]"], "end_velocity_mps"),  # end: free would ignore it
     (["end=rest", "end_velocity_mps=[0, 2, 0]"], "end_velocity_mps"),
     (["start={velocity_mps: [1e8, 0, 0]}"], "start.velocity_mps"),  # beyond Mach 0.3
-    (["end=velocity", "end_velocity_mps=[80, 80, 0]"], "end_velocity_mps"),  # 113 m/s
+    (["end=velocity", "end_velocity_mps=[72.8, 72.8, 0]"], "end_velocity_mps"),  # 103.0
     (["speed_mps=150"], "speed_mps"),
     (["ceiling_m=18.5"], "ceiling_m"),  # every waypoint at 20 m, its ball 1 m: above 18.5
     (["tolerance_m=0.3", "ceiling_m=19.6"], "ceiling_m"),  # 20 − 0.3 > 19.6
@@ -498,10 +498,13 @@ def test_bad_track_limits_are_refused_naming_the_key(override, key):
 
 def test_track_limits_that_hold_are_kept():
     """The edges of the refusals above: a ceiling the balls reach (20 − 1 ≤ 19.5), an end
-    velocity just below Mach 0.3 (101.8 m/s against 102), a zero end velocity with end: free."""
+    velocity just below Mach 0.3 (102.8 m/s against 0.3 × 343 = 102.9), a zero end velocity
+    with end: free."""
+    from casadrone.config.track import MAX_SPEED_MPS
+
     trk = load(TrackConfig, DEFAULT_TRACK, ["ceiling_m=19.5", "end=velocity",
-                                             "end_velocity_mps=[72, 72, 0]"])
-    assert trk.ceiling_m == 19.5 and math.hypot(*trk.end_velocity_mps) < 102.0
+                                             "end_velocity_mps=[72.7, 72.7, 0]"])
+    assert trk.ceiling_m == 19.5 and math.hypot(*trk.end_velocity_mps) < MAX_SPEED_MPS
     assert load(TrackConfig, DEFAULT_TRACK, ["end_velocity_mps=[0, 0, 0]"]).end == "free"
 
 

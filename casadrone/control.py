@@ -155,7 +155,9 @@ def design_lqri(linear_model: LinearModel, ctrl: ControllerConfig,
     eig, stable, lmin = certify(Aa - Ba @ K, certificate)
     return LQRIDesign(K=K, Ad=Aa, Bd=Ba, sample_time_s=Ts, x0=linear_model.x0,
                       u0=linear_model.u0, closed_loop_eigenvalues=eig, stable=stable,
-                      lyapunov_min_eig=lmin, riccati=S)
+                      lyapunov_min_eig=lmin, riccati=S,
+                      state_names=tuple(linear_model.state_names)
+                      + AUG_STATE_NAMES[len(STATE_NAMES):])
 
 
 def design_for(

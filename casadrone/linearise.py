@@ -15,7 +15,7 @@ import numpy as np
 
 from casadrone.airframe import Airframe
 from casadrone.codegen import ZeroCopyCall
-from casadrone.model import INPUT_NAMES, NU, NX, STATE_NAMES, quadrotor_model
+from casadrone.model import INPUT_NAMES, NU, NX, STATE_NAMES, quadrotor_model, state_names
 from casadrone.results import AsDict
 
 Method = Literal["exact", "fd"]
@@ -84,7 +84,7 @@ def linearise(airframe: Airframe, trim_point, method: Method = "exact") -> Linea
     A = -np.linalg.solve(E, Ap)
     B = -np.linalg.solve(E, Bp)
     return LinearModel(E=E, A_prime=Ap, B_prime=Bp, A=A, B=B, x0=x0, u0=u0, xdot0=xdot0,
-                       method=method)
+                       method=method, state_names=state_names(airframe.propulsion))
 
 
 @dataclass(frozen=True)

@@ -83,9 +83,11 @@ from typing import Any
 
 from casadrone.config.propulsion import (  # noqa: F401 (the data helpers re-exported)
     DIAMETER_RTOL,
+    FIRST_ORDER_TIME_CONSTANT_S,
     FIT_MAX_J,
     FIT_MIN_STATIC_RPM,
     FIT_SWEEP_RPM,
+    INFLOW_SMOOTHING_M_S,
     MAX_FIGURE_OF_MERIT,
     RPM_PER_V_TO_RAD_S_PER_V,
     SHIPPED_PROPELLER,
@@ -94,6 +96,7 @@ from casadrone.config.propulsion import (  # noqa: F401 (the data helpers re-exp
     data_advance_ratio,
     figure_of_merit,
     fit_points,
+    momentum_problem,
     propeller_data,
     shipped_datasets,
 )
@@ -148,11 +151,13 @@ def propeller_params(cfg: PropulsionConfig, rho: float) -> list[float]:
     assert prop is not None and motor is not None and batt is not None
     ct, cp = coefficients(cfg, rho)
     signed = prop.linear_inflow is not None or prop.inflow == "signed"
+    eps = INFLOW_SMOOTHING_M_S if prop.inflow_smoothing_m_s is None else prop.inflow_smoothing_m_s
     return [
         prop.diameter_m, *ct, *cp, prop.rotor_inertia_kgm2, prop.rotor_drag_n_s2_per_m,
-        float(prop.axial_inflow), 0.0 if signed else 1.0, prop.inflow_smoothing_m_s,
+        float(prop.axial_inflow), 0.0 if signed else 1.0, eps,
         1.0 if motor.kind == "dc" else 0.0, motor.kv_rpm_per_v * RPM_PER_V_TO_RAD_S_PER_V,
-        motor.resistance_ohm, motor.no_load_current_a, motor.time_constant_s,
+        motor.resistance_ohm, motor.no_load_current_a,
+        FIRST_ORDER_TIME_CONSTANT_S if motor.time_constant_s is None else motor.time_constant_s,
         batt.open_circuit_voltage_v, batt.internal_resistance_ohm,
     ]
 
@@ -571,6 +576,17 @@ def _air_problems(prop: PropulsionConfig, rho: float) -> tuple[tuple[str, str], 
                 f"(k_eta_n_s2 = {lin.k_eta_n_s2:g}, D = {D:g} m, ρ = {rho:g} kg/m³): "
                 "momentum theory needs a shaft power of at least the ideal T^1.5/√(2ρA), "
                 f"k_m ≥ {fm * lin.k_m_n_m_s2:.4g} N·m·s² for this k_eta")),)
+        # The climbing actuator disc over the range the limit lap flies (the section's
+        # max_advance_ratio, else its dataset's: advance_ratio_limit), as for CT/CP
+        # coefficients (casadrone.config.propulsion.momentum_problem): the linear form is the
+        # same propeller in other units, and with k_z small its thrust holds up in climb at a
+        # power momentum theory does not allow.
+        j_max = advance_ratio_limit(prop)
+        problem = momentum_problem(ct, cp, j_max) if j_max is not None else None
+        if problem is not None:
+            return (("propulsion.propeller.linear_inflow.k_m_n_m_s2", (
+                f"{problem} (C_T, C_P of the linear-inflow form at ρ = {rho:g} kg/m³: "
+                "c₀ = 4π²k_η/(ρD⁴), c₁ = −2πk_z/(ρD³), C_P = 8π³k_m/(ρD⁵))")),)
     w = static_speed(values(prop, rho), 1.0)
     tip = w * D / 2
     if tip < SPEED_OF_SOUND_M_S:

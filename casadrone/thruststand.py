@@ -135,11 +135,11 @@ class LogError(ValueError):
 # Columns: quantity, header pattern, units
 # ------------------------------------------------------------------------------------------------
 
-#: Factor to SI of each unit a stand writes, per quantity. The µ of "µs" is also accepted as
-#: "us" and as the mojibake some exports carry (a non-ASCII run before "s").
+#: Factor to SI of each unit a stand writes, per quantity (the ESC signal to µs). The µ of "µs"
+#: is also accepted as "us" and as the mojibake some exports carry (:data:`_MOJIBAKE_US`).
 UNITS: dict[str, dict[str, float]] = {
     "time": {"s": 1.0, "ms": 1e-3},
-    "esc": {"µs": 1.0, "us": 1.0},
+    "esc": {"µs": 1.0, "us": 1.0, "ms": 1e3},
     "thrust": {"n": 1.0, "kgf": G0, "kg": G0, "gf": G0 * 1e-3, "g": G0 * 1e-3,
                "lbf": 4.4482216152605},
     "torque": {"n·m": 1.0, "n-m": 1.0, "nm": 1.0, "n.m": 1.0, "n*m": 1.0, "n·mm": 1e-3,
@@ -166,10 +166,16 @@ SPARSE = ("thrust", "torque", "voltage", "current")
 _HEADER = re.compile(r"^\s*(?P<name>[^()]*?)\s*\((?P<unit>[^()]*)\)\s*$")
 
 
+#: "µs" as exports mis-decode it: the µ turned into a short run of non-ASCII characters ("Âµs":
+#: UTF-8 read as Latin-1), or the µ and the s into one ("탎": cp1252 read as cp949). Only a
+#: non-ASCII run: "ms", "s" or "ns" are other units, never taken for µs.
+_MOJIBAKE_US = re.compile(r"[^\x00-\x7f]{1,3}s?")
+
+
 def _unit_key(quantity: str, unit: str) -> str:
     key = unit.strip().lower().replace(" ", "")
-    if quantity == "esc" and key not in UNITS["esc"] and key.endswith("s") and len(key) <= 4:
-        return "µs"  # "탎", "Âµs": the µ mis-decoded by an export
+    if quantity == "esc" and key not in UNITS["esc"] and _MOJIBAKE_US.fullmatch(key):
+        return "µs"
     return key
 
 
@@ -256,18 +262,18 @@ def check_log_file(path: Path) -> None:
         raise LogError(f"{path}: larger than {MAX_LOG_BYTES // 2**20} MB, not a stand log")
 
 
-def _encoding(path: Path) -> str:
-    """UTF-8 (a BOM skipped) if the whole file decodes so, else Latin-1 (Windows exports: units
-    still parse, "µ" may be mangled); checked a block at a time, never read whole."""
-    decoder = codecs.getincrementaldecoder("utf-8-sig")()
-    try:
-        with path.open("rb") as fh:
-            while block := fh.read(1 << 20):
-                decoder.decode(block)
-        decoder.decode(b"", final=True)
-    except UnicodeDecodeError:
-        return "latin-1"
-    return "utf-8-sig"
+def _latin1_fallback(exc: UnicodeError) -> tuple[str, int]:
+    """Decode error handler: the bytes that are not UTF-8 read as Latin-1 (see :data:`ENCODING`)."""
+    assert isinstance(exc, UnicodeDecodeError)
+    return exc.object[exc.start:exc.end].decode("latin-1"), exc.end
+
+
+#: How a log is decoded: UTF-8 (a BOM skipped), each byte that is not UTF-8 read as Latin-1
+#: (Windows exports write "µ" and "·" as the single bytes B5, B7). Byte by byte, not the whole file
+#: at once: one stray Latin-1 byte in a UTF-8 log (a comment, an operator's note) used to turn the
+#: whole file to Latin-1, its header's "N·m" into "NÂ·m", and the log was refused for a unit.
+ENCODING, DECODE_ERRORS = "utf-8-sig", "casadrone-latin-1-fallback"
+codecs.register_error(DECODE_ERRORS, _latin1_fallback)
 
 
 def _lines(fh, source: str) -> Iterator[str]:
@@ -334,7 +340,8 @@ def _read_columns(fh, source: str) -> tuple[dict[str, str], dict[str, np.ndarray
     """Each used column's header and SI values (a row of blank cells skipped), and the ESC
     protocol; read a row at a time into float arrays."""
     records = _records(fh, source)
-    header = next(records, (0, []))[1]
+    # the header is the first record with a cell: blank lines above it are no header
+    header = next((row for _, row in records if any(cell.strip() for cell in row)), [])
     cols, protocol = _columns(header, source)
     data = {q: array("d") for q in cols}
     rows = 0
@@ -369,7 +376,7 @@ def read_log(path: str | Path, motor_poles: int | None = None) -> StandLog:
         raise LogError(f"{source}: motor poles {motor_poles}: a motor has an even number of "
                        "poles, at least 2")
     check_log_file(path)
-    with path.open(encoding=_encoding(path), newline="") as fh:
+    with path.open(encoding=ENCODING, errors=DECODE_ERRORS, newline="") as fh:
         names, arrays, protocol = _read_columns(fh, source)
     if "optical_rpm" not in names and "electrical_rpm" not in names:
         raise LogError(f"{source}: column missing: rotor speed ('Motor Optical Speed (RPM)' or "
@@ -577,6 +584,10 @@ class PropulsionFit:
         }
         if self.rotor_inertia_kgm2 is not None:
             propeller["rotor_inertia_kgm2"] = _round(self.rotor_inertia_kgm2)
+        if shape:  # the shape holds to its data's largest J only: the limit lap keeps to it
+            from casadrone.config.propulsion import data_advance_ratio
+
+            propeller["max_advance_ratio"] = _round(data_advance_ratio(shape))
         propeller["data"] = (f"{source}: static values; J-dependence of {shape} scaled to them"
                              if shape else
                              f"{source}: static coefficients only (a static stand sees J = 0)")
@@ -811,10 +822,38 @@ def _fit(log: StandLog, diameter_m: float, air_density_kg_m3: float, esc_min_us:
     tau = float(np.median([s.time_constant_s for s in steps])) if steps else None
     inertia = _rotor_inertia(steps, cp0, kv, R, r_int, diameter_m, air_density_kg_m3,
                              esc_min_us, esc_max_us)
-    return PropulsionFit(log.source, diameter_m, air_density_kg_m3, tuple(powered), ct0, cp0,
-                         kv, R, i0, v0, r_int, tau, inertia, steps,
-                         (*res_prop, *res_motor, res_batt), source, log.esc_protocol,
-                         (esc_min_us, esc_max_us))
+    fit = PropulsionFit(log.source, diameter_m, air_density_kg_m3, tuple(powered), ct0, cp0,
+                        kv, R, i0, v0, r_int, tau, inertia, steps,
+                        (*res_prop, *res_motor, res_batt), source, log.esc_protocol,
+                        (esc_min_us, esc_max_us))
+    problem = section_problem(fit.section(), air_density_kg_m3)
+    if problem is not None:
+        raise LogError(f"{log.source}: the fitted section is not a physical propulsion system, "
+                       f"{problem} (check the columns' units, signs and tare)")
+    return fit
+
+
+def section_problem(section: dict[str, Any], air_density_kg_m3: float) -> str | None:
+    """The first reason the airframe schema would refuse a fitted ``propulsion:`` section, as
+    ``propulsion.key: message``; None if it loads. :data:`PHYSICAL` bounds each value alone; the
+    schema's bounds join them (casadrone.config.propulsion: the static figure of merit
+    √(2/π) C_T0^1.5/C_P0 ≤ 1 of momentum theory, the DC motor's mechanical time constant, tips
+    below the speed of sound), so a section passing :data:`PHYSICAL` can still be impossible: a
+    torque column read low gives a C_P0 inside its range but a rotor above the ideal."""
+    from pydantic import ValidationError
+
+    from casadrone.config.io import error_pairs
+    from casadrone.config.propulsion import PropulsionConfig
+    from casadrone.propulsion import airframe_problems
+
+    try:
+        cfg = PropulsionConfig.model_validate(section)
+    except ValidationError as exc:
+        key, message = error_pairs(exc, PropulsionConfig)[0]
+        return f"propulsion.{key}: {message}"
+    found = airframe_problems(cfg, mass_kg=None, rho=air_density_kg_m3, prop_diameter_mm=None,
+                              mass_key="mass_kg")
+    return f"{found[0][0]}: {found[0][1]}" if found else None
 
 
 def _rotor_inertia(steps: tuple[StepFit, ...], cp0: float, kv_rpm_per_v: float, R: float,

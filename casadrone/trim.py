@@ -71,6 +71,7 @@ from casadrone.model import (
     propeller_outputs,
     quadrotor_model,
     rotation_matrix,
+    state_names,
 )
 from casadrone.propulsion import hover_rotors
 from casadrone.results import AsDict
@@ -462,6 +463,7 @@ def trim(
         airframe=airframe.name,
         climb_angle_deg=float(climb_angle_deg),
         turn_rate_dps=float(turn_rate_dps),
+        state_names=state_names(airframe.propulsion),
     )
 
 

@@ -304,9 +304,31 @@ def check_plot_dir(folder: Path | None, names: Iterable[str] = ()) -> None:
         return
     if folder.exists() and not folder.is_dir():
         raise bad_input([f"--plot: {folder}: exists and is not a folder"])
+    problem = folder_creation_problem(folder)
+    if problem:
+        raise bad_input([f"--plot: {folder}: {problem}"])
     refused = foreign_figures(figure_paths(folder, names))
     if refused:
         raise bad_input([foreign_figure_line(refused)])
+
+
+def folder_creation_problem(folder: Path) -> str:
+    """Why ``folder`` (not yet there) cannot be made, judged by its nearest existing ancestor
+    (empty when it can): a file on the way (``--plot afile/sub``) or a folder that cannot be
+    written. Found before any work: a limit lap found it only when it saved its figures, minutes
+    later, and its result was lost."""
+    import os
+
+    if folder.exists():
+        return ""
+    ancestor = next((a for a in folder.absolute().parents if a.exists()), None)
+    if ancestor is None:
+        return ""
+    if not ancestor.is_dir():
+        return f"cannot be made: {ancestor} is a file, not a folder"
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        return f"cannot be made: {ancestor} is not writable"
+    return ""
 
 
 def save_figures(figures: dict, folder: Path) -> list[str]:

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import replace
+from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, cast
 
 import typer
@@ -98,13 +100,12 @@ def limit_lap_command(
     check_plot_dir(plot, LIMIT_FIGURES)
     from casadrone.airframe import build_airframe
     from casadrone.config.airframe import load_airframe
-    from casadrone.config.io import ConfigError, load, resolve_config
+    from casadrone.config.io import ConfigError, load
     from casadrone.config.track import TrackConfig
-    from casadrone.evaluate import DEFAULT_TRACK
     from casadrone.limit.lap import LimitLapOptions, check_inputs, frame_clearance_m, limit_lap
 
     cfg = load_airframe(airframe, overrides or [])
-    track_path = resolve_config(track, "tracks") if track else DEFAULT_TRACK
+    track_path = _track_path(track)
     trk = load(TrackConfig, track_path)
     if attitude not in ("euler", "quaternion") or tilt not in ("axes", "cone", "none"):
         raise ConfigError([f"--attitude {attitude} --tilt {tilt}: attitude is euler or quaternion, "
@@ -144,12 +145,40 @@ def limit_lap_command(
     frame = build_airframe(cfg)
     prop = lap_propulsion(frame, lap.x_euler, lap.u)
     result |= {k: prop[k] for k in PROPULSION_KEYS}
+    result["param_sensitivity"] = named_parameters(lap.param_sensitivity, frame.propulsion)
     if plot is not None:
         result["figures"] = _figures(cfg, trk, lap, plot, frame, prop, options)
     if as_json:
         print_json(result)
         return
-    typer.echo(_text(cfg.name, trk.name, result))
+    typer.echo(_text(cfg.name, trk.name, result, frame.propulsion))
+
+
+def named_parameters(values: Iterable[float], propulsion: str) -> dict[str, float]:
+    """dT/dp keyed by the model's parameter names (s per SI unit of each): ``--json`` gave a
+    bare list of 31 numbers (50 with ``propeller``) in an order only the code states
+    (casadrone.model.param_names). Empty for a failed lap (no sensitivities)."""
+    from casadrone.model import param_names
+
+    names = param_names(propulsion)
+    floats = [float(v) for v in values]
+    return dict(zip(names, floats, strict=True)) if len(floats) == len(names) else {}
+
+
+def _track_path(track: str | None) -> Path:
+    """The track file of ``--track`` (the paper's rectangle without one). An empty or blank
+    name is refused: it read as no ``--track`` at all and flew the default track for minutes
+    (``--track ""`` from an unset shell variable)."""
+    from casadrone.config.io import ConfigError, kind_dir, resolve_config
+    from casadrone.evaluate import DEFAULT_TRACK
+
+    if track is None:
+        return DEFAULT_TRACK
+    if not track.strip():
+        known = ", ".join(sorted(f.stem for f in kind_dir("tracks").glob("*.yaml")))
+        raise ConfigError([f"--track {track!r}: empty; give a track YAML or a shipped "
+                           f"track's name (known: {known})"])
+    return resolve_config(track, "tracks")
 
 
 def _figures(cfg, trk, lap, folder, frame, prop, options) -> list[str]:
@@ -179,8 +208,15 @@ def _rotor_text(r: dict) -> str:
             f"advance ratio {r['max_advance_ratio']:.2f}{data}")
 
 
-def _start_text(r: dict) -> list[str]:
-    """The start state flown (the optimised one with ``end: periodic``), Euler-model layout."""
+#: What the rotor states are, and their unit, by propulsion kind
+#: (casadrone.propulsion.rotor_state_bounds): thrusts with ``paper``, rotor speeds with
+#: ``propeller``; the text gave them without a unit, and the two differ by 10^3.
+ROTOR_STATES = {"paper": ("rotor thrusts", "N"), "propeller": ("rotor speeds", "rad/s")}
+
+
+def _start_text(r: dict, propulsion: str = "paper") -> list[str]:
+    """The start state flown (the optimised one with ``end: periodic``), Euler-model layout;
+    every group with its unit (the rotor states' depends on ``propulsion``)."""
     x = r.get("start_state")
     if x is None or len(x) != 16:
         return []
@@ -189,18 +225,33 @@ def _start_text(r: dict) -> list[str]:
         return "(" + ", ".join(format(c, fmt) for c in v) + ")"
 
     eul = [math.degrees(a) for a in x[9:12]]
+    rotors, unit = ROTOR_STATES.get(propulsion, ("rotor states", ""))
     return [f"  start state: position {vec(x[0:3], '.3f')} m, velocity {vec(x[3:6], '.3f')} m/s, "
             f"body rates {vec(x[6:9], '.3f')} rad/s, roll/pitch/yaw {vec(eul, '.2f')} deg, "
-            f"rotor states {vec(x[12:16], '.4g')}"]
+            f"{rotors} {vec(x[12:16], '.4g')} {unit}".rstrip()]
 
 
-def _text(name: str, track: str, r: dict) -> str:
+def _reference_text(seconds: float, lap_s: float) -> str:
+    """The point-mass reference, or why there is none: no start of that relaxation converged
+    (it printed "nan s", which reads as a number gone wrong). A reference slower than the lap
+    says so: the relaxation's global optimum cannot be, so it is a local one (SY250 on a 30 m
+    straight: 1.192 s against a 0.996 s lap), and the figure is no bound."""
+    if not math.isfinite(seconds):
+        return "point-mass reference: none converged"
+    if seconds > lap_s:
+        return (f"point-mass reference {seconds:.3f} s, slower than the lap: a local optimum of "
+                "the relaxation, no bound")
+    return f"point-mass reference {seconds:.3f} s"
+
+
+def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
     if r["status"] != "completed":
         return f"{name} on {track}: limit lap FAILED: {r['reason']} ({r['wall_time_s']:.1f} s)"
     splits = ", ".join(f"{t:.3f}" for t in r["split_times_s"])
     lines = [
         f"{name} on {track}: limit lap {r['lap_time_s']:.3f} s "
-        f"(point-mass reference {r['point_mass_reference_s']:.3f} s; start {r['start']}, "
+        f"({_reference_text(r['point_mass_reference_s'], r['lap_time_s'])}; "
+        f"start {r['start']}, "
         f"{r['certainty']}; {r['iterations']} iterations, "
         f"{r['wall_time_s']:.1f} s wall time)",
         f"  split times (s): {splits}",
@@ -208,7 +259,7 @@ def _text(name: str, track: str, r: dict) -> str:
         f"  bang-bang fraction: {r['bang_bang_fraction']:.2f}; re-simulation miss: "
         f"{r['resimulation_miss_m']:.4f} m",
         f"  top speed {r['top_speed_m_s']:.1f} m/s" + _rotor_text(r),
-        *_start_text(r),
+        *_start_text(r, propulsion),
         "  sensitivity dT/dθ (s per unit):",
     ]
     lines += [f"    {k:<14}{v:>+12.4g}" for k, v in r["sensitivities"].items()

@@ -81,7 +81,13 @@ def fit_propulsion_command(
       casadrone fit-propulsion stand.csv --diameter-m 0.127 --motor-poles 14 --json
     """
     from casadrone.outfile import OutputRefused, write_out
-    from casadrone.thruststand import LogError, check_log_file, fit_propulsion, read_log
+    from casadrone.thruststand import (
+        LogError,
+        check_log_file,
+        fit_propulsion,
+        read_log,
+        section_problem,
+    )
 
     check_plot_dir(plot)
     problem = (option_problem(diameter_in, diameter_m, air_density, motor_poles, esc_min_us,
@@ -101,6 +107,9 @@ def fit_propulsion_command(
         fit = fit_propulsion(stand, D, air_density, esc_min_us, esc_max_us)
     except LogError as exc:
         raise bad_input([str(exc)]) from None
+    problem = section_problem(fit.section(shape), air_density) if shape else None
+    if problem is not None:  # the static section passed; the shape's J-dependence did not
+        raise bad_input([f"{log.name}: with --shape {shape}: {problem}"])
     files: dict[tuple[str, Path], str | bytes] = {}
     if out is not None:
         files["--out", out] = section_yaml(fit, shape)

@@ -552,19 +552,25 @@ def resolve_config(name: str | Path, kind: str) -> Path:
 
     Raises ConfigError naming the known configs when neither exists.
     """
+    folder = kind_dir(kind)
+    where = "problems" if kind == "problems" else f"configs/{kind}"
+    if not str(name).strip():  # an unset shell variable: Path("") would read as "."
+        known = sorted(f.stem for f in folder.glob("*.yaml"))
+        raise ConfigError([f"{str(name)!r}: an empty name: give a YAML file or the name of a "
+                           f"shipped {where} file (known: {', '.join(known) or 'none'})"])
     p = Path(name)
     for candidate in (p, ROOT / p, DATA_DIR / p):
         if candidate.is_file():
             return candidate
-    folder = kind_dir(kind)
     candidate = folder / f"{p.stem}.yaml"
     if len(p.parts) == 1 and p.suffix in ("", ".yaml", ".yml") and candidate.is_file():
         return candidate
-    if len(p.parts) > 1 or p.is_symlink():
+    # something there that is not a file (a folder in the working directory, a dangling link):
+    # say what it is, not "file not found"
+    if len(p.parts) > 1 or p.is_symlink() or p.exists():
         raise ConfigError([f"{name}: {not_a_file(p)}"])
     known = sorted(f.stem for f in folder.glob("*.yaml"))
     close = difflib.get_close_matches(p.stem, known, n=1, cutoff=0.6)
     hint = f"did you mean '{close[0]}'? " if close else ""
-    where = "problems" if kind == "problems" else f"configs/{kind}"
     raise ConfigError([f"{name}: file not found, and no shipped {where}/{p.stem}.yaml "
                        f"({hint}known: {', '.join(known) or 'none'})"])

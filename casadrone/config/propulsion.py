@@ -41,6 +41,9 @@ ESC_MAX_PWM_HZ = 128e3
 #: motor's time_constant_s and the DC motor's mechanical time constant J_r R K_V² (the rotor
 #: inertia against its back-EMF damping, :func:`casadrone.propulsion.rotor_decay_rate`).
 MIN_ROTOR_TIME_CONSTANT_S = 10 / ESC_MAX_PWM_HZ
+#: The first-order motor's lag (s) when its section gives none: the middle of the 20-30 ms that
+#: 5-inch racing rotors show in step tests (above; the shipped DC rotor's J_r R K_V² is 28 ms).
+FIRST_ORDER_TIME_CONSTANT_S = 0.03
 #: Least winding (terminal) resistance (Ω): the resistance a datasheet gives and the model's
 #: current sees includes the motor's own leads, two of them phase to phase; even two 3 cm leads
 #: of 12 AWG copper (3.31 mm², ρ_Cu = 1.68e-8 Ω·m; no motor of this class, 0802 whoop to 4215
@@ -55,6 +58,10 @@ SPEED_OF_SOUND_M_S = 343.0
 #: prop_diameter_mm (the rotor-overlap check, figures and exports): both describe the same
 #: propeller, and 1 % is finer than any catalogue size step (5.0 vs 5.1 inch is 2 %).
 DIAMETER_RTOL = 0.01
+#: Width (m/s) of the smoothed max(v_a, 0) of ``inflow: positive`` when the section gives none
+#: (the schema's default before it became optional; every shipped airframe and figure uses it):
+#: the smoothed inflow stays within ε/2 = 0.1 m/s of max(v_a, 0).
+INFLOW_SMOOTHING_M_S = 0.2
 #: A ``propeller.data`` value without blanks is a dataset name (it sets the default
 #: max_advance_ratio); text with blanks is a free description of where the coefficients come
 #: from (what ``casadrone fit-propulsion`` writes), which sets no range.
@@ -175,10 +182,15 @@ class PropellerConfig(Schema):
     axial_inflow: bool = Field(True, strict=True,
                                description="false: thrust and torque ignore the inflow (true or "
                                "false only: no 0/1, no 'no')")
-    inflow: Literal["positive", "signed"] = Field(
-        "positive", description="positive: max(v_a, 0) (data cover J ≥ 0); signed: v_a as is")
-    inflow_smoothing_m_s: float = Field(0.2, gt=0, le=10,
-                                        description="width of the smoothed max(v_a, 0) (m/s)")
+    # None (not written) rather than a default value, so that a key the user wrote can be told
+    # from one left out and refused where the model would ignore it (ignored_inflow_key), even
+    # after a model_dump round trip (an optimisation rebuilds each candidate so).
+    inflow: Literal["positive", "signed"] | None = Field(
+        None, description="positive (the default with ct/cp_coefficients): max(v_a, 0) (data "
+        "cover J ≥ 0); signed: v_a as is (linear_inflow is always signed)")
+    inflow_smoothing_m_s: float | None = Field(
+        None, gt=0, le=10, description="width of the smoothed max(v_a, 0) of positive inflow "
+        "(m/s); default 0.2 (INFLOW_SMOOTHING_M_S)")
     data: str | None = Field(
         None, description="the dataset the coefficients were fitted to: a shipped dataset's name "
         "(casadrone/data/propulsion, which sets the default max_advance_ratio), or a description "
@@ -192,11 +204,13 @@ class PropellerConfig(Schema):
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
         ct, cp, lin = v.get("ct_coefficients"), v.get("cp_coefficients"), v.get("linear_inflow")
+        ignored = ignored_inflow_key(lin is not None, v.get("inflow"),
+                                     v.get("inflow_smoothing_m_s"))
+        found = [ignored] if ignored is not None else []
         if lin is not None:
             if ct is not None or cp is not None:
-                return [("linear_inflow", "give either linear_inflow or ct/cp_coefficients")]
-            return []
-        found = []
+                found.append(("linear_inflow", "give either linear_inflow or ct/cp_coefficients"))
+            return found
         if "ct_coefficients" in v and ct is None:
             found.append(("ct_coefficients", "required (or give linear_inflow)"))
         if "cp_coefficients" in v and cp is None:
@@ -231,6 +245,24 @@ class PropellerConfig(Schema):
         return found
 
 
+def ignored_inflow_key(linear: bool, inflow: str | None, smoothing: float | None
+                       ) -> tuple[str, str] | None:
+    """(key, message) for an inflow key written in the section that the model would ignore, or
+    None (``inflow``, ``smoothing``: the keys' values, None where not written). The linear-inflow
+    form is defined with signed inflow (T = k_η ω² − k_z ω v_a for either sign of v_a,
+    :func:`casadrone.propulsion.propeller_params`), so ``inflow: positive`` beside it would be
+    silently overruled; the smoothing width only shapes max(v_a, 0), so with signed inflow it
+    does nothing. A key the user wrote is either used or refused."""
+    if linear and inflow == "positive":
+        return ("inflow", "'positive' cannot apply to linear_inflow, which is the signed-inflow "
+                "form (T = k_η ω² − k_z ω v_a for either sign of v_a); remove inflow, or give "
+                "ct/cp_coefficients for max(v_a, 0)")
+    if smoothing is not None and (linear or inflow == "signed"):
+        return ("inflow_smoothing_m_s", "only shapes the smoothed max(v_a, 0) of inflow: "
+                "positive; with signed inflow (or linear_inflow) it is unused: remove it")
+    return None
+
+
 class MotorConfig(Schema):
     """A brushless motor: Drela's DC model (``dc``) or a first-order lag (``first-order``)."""
 
@@ -242,11 +274,24 @@ class MotorConfig(Schema):
                                   description="winding resistance (Ω; at least the 0.3 mΩ of "
                                   "the leads, MIN_RESISTANCE_OHM)")
     no_load_current_a: float = Field(0.0, ge=0, le=100, description="no-load current I_0 (A)")
-    time_constant_s: float = Field(0.03, ge=MIN_ROTOR_TIME_CONSTANT_S, le=10,
-                                   description="rotor-speed lag (s), kind: first-order; at least "
-                                   "ten PWM periods of the fastest ESC (MIN_ROTOR_TIME_CONSTANT_S)")
+    # None (not written) rather than a default value, so that a lag written beside kind: dc,
+    # which the DC model never reads, is refused instead of silently ignored (as the inflow keys)
+    time_constant_s: float | None = Field(
+        None, ge=MIN_ROTOR_TIME_CONSTANT_S, le=10,
+        description="rotor-speed lag (s) of kind: first-order (default "
+        f"{FIRST_ORDER_TIME_CONSTANT_S} s, FIRST_ORDER_TIME_CONSTANT_S); at least ten PWM periods "
+        "of the fastest ESC (MIN_ROTOR_TIME_CONSTANT_S); refused with kind: dc, whose lag is "
+        "J_r R K_V²")
     mass_kg: float | None = Field(None, gt=0, le=10, description="datasheet mass (kg)")
     data: str | None = Field(None, description="the datasheet")
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        if v.get("kind", "dc") == "dc" and v.get("time_constant_s") is not None:
+            return [("time_constant_s", "unused by kind: dc, whose rotor lag follows from the "
+                     "rotor inertia, the winding resistance and K_V (J_r R K_V²); remove it, or "
+                     "set kind: first-order")]
+        return []
 
 
 class BatteryConfig(Schema):

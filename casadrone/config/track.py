@@ -13,7 +13,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, StrictBool, field_validator, model_validator
 
-from casadrone.config.io import CONFIG_DIR, Schema, load, resolve_config
+from casadrone.config.io import CONFIG_DIR, MAX_MAGNITUDE, Schema, load, resolve_config
 from casadrone.config.propulsion import SPEED_OF_SOUND_M_S
 from casadrone.limit.targets import TARGET_KINDS, gate_shapes, kind_of_shape
 
@@ -33,6 +33,18 @@ MAX_SPEED_MPS = 0.3 * SPEED_OF_SOUND_M_S
 
 def _speed_over(v: tuple[float, ...] | float) -> bool:
     return float(np.linalg.norm(np.atleast_1d(v))) > MAX_SPEED_MPS
+
+
+def _centre_or_placeholder(centre: object) -> object:
+    """A gate's ``centre_m`` as the waypoint derived from it, or the origin where it is not three
+    finite numbers within MAX_MAGNITUDE: the gate's own ``gates.N.centre_m`` error names the
+    problem, and a copy would report it a second time under ``waypoints_m``, a key the file
+    does not have. The placeholder never survives: with a field error the cross-field checks
+    do not run."""
+    ok = (isinstance(centre, list | tuple) and len(centre) == 3
+          and all(isinstance(c, int | float) and not isinstance(c, bool) and math.isfinite(c)
+                  and abs(c) <= MAX_MAGNITUDE for c in centre))
+    return centre if ok else [0.0, 0.0, 0.0]
 
 
 class GateConfig(Schema):
@@ -182,7 +194,8 @@ class TrackConfig(Schema):
         if isinstance(data, dict) and data.get("gates") and "waypoints_m" not in data:
             gates = data["gates"]
             if isinstance(gates, list) and all(isinstance(g, dict) for g in gates):
-                return {**data, "waypoints_m": [g.get("centre_m") for g in gates]}
+                return {**data, "waypoints_m": [_centre_or_placeholder(g.get("centre_m"))
+                                                for g in gates]}
         return data
 
     @model_validator(mode="after")
@@ -239,25 +252,11 @@ class TrackConfig(Schema):
         return self
 
     def _targets_between_floor_and_ceiling(self) -> None:
-        """A target wholly above the ceiling or below the floor cannot be reached: a waypoint's
-        ball (tolerance_m, or acceptance_radius_m), a gate's opening (any orientation: its
-        half-diagonal about the centre)."""
-        if self.floor_m is None and self.ceiling_m is None:
-            return
-        if self.gates is not None:
-            reach = [math.hypot(g.width_m, g.height_m) / 2 for g in self.gates]
-            what = "gate"
-        else:
-            tol = self.acceptance_radius_m if self.tolerance_m is None else self.tolerance_m
-            reach = list(np.broadcast_to(np.asarray(tol, float), (len(self.waypoints_m),)))
-            what = "waypoint"
-        for j, (w, r) in enumerate(zip(self.waypoints_m, reach, strict=True)):
-            if self.ceiling_m is not None and w[2] - r > self.ceiling_m:
-                raise ValueError(f"ceiling_m: {what} {j + 1} (z {w[2]:g} m, reach {r:g} m) "
-                                 f"lies wholly above the ceiling ({self.ceiling_m:g} m)")
-            if self.floor_m is not None and w[2] + r < self.floor_m:
-                raise ValueError(f"floor_m: {what} {j + 1} (z {w[2]:g} m, reach {r:g} m) "
-                                 f"lies wholly below the floor ({self.floor_m:g} m)")
+        """A target wholly above the ceiling or below the floor cannot be reached
+        (:func:`unreachable_target`)."""
+        why = unreachable_target(self, self.floor_m, self.ceiling_m)
+        if why:
+            raise ValueError(why)
 
     @property
     def route(self) -> np.ndarray:
@@ -271,6 +270,39 @@ class TrackConfig(Schema):
     def first_timed_segment(self) -> int:
         """Index of the segment that ends at the first waypoint."""
         return 0 if self.climb_to_m is None else 1
+
+
+def unreachable_target(track: TrackConfig, floor_m: float | None, ceiling_m: float | None,
+                       floor_note: str = "") -> str:
+    """Why a target of ``track`` cannot be reached between ``floor_m`` and ``ceiling_m`` (empty
+    when every one can): a waypoint's ball (tolerance_m, or acceptance_radius_m), a gate's
+    opening (any orientation: its half-diagonal about the centre), and the climb point, which
+    the limit lap passes as a ball of acceptance_radius_m (casadrone.limit.problem.
+    track_targets): above the ceiling it was not refused and the lap failed in IPOPT's
+    restoration instead. The message names the key; ``floor_note`` says where a floor that the
+    track does not give comes from."""
+    if floor_m is None and ceiling_m is None:
+        return ""
+    if track.gates is not None:
+        reach = [math.hypot(g.width_m, g.height_m) / 2 for g in track.gates]
+        what = "gate"
+    else:
+        tol = track.acceptance_radius_m if track.tolerance_m is None else track.tolerance_m
+        reach = list(np.broadcast_to(np.asarray(tol, float), (len(track.waypoints_m),)))
+        what = "waypoint"
+    targets = [(f"{what} {j + 1}", w, r)
+               for j, (w, r) in enumerate(zip(track.waypoints_m, reach, strict=True))]
+    if track.climb_to_m is not None:
+        targets.insert(0, ("the climb point climb_to_m", track.climb_to_m,
+                           track.acceptance_radius_m))
+    for name, w, r in targets:
+        if ceiling_m is not None and w[2] - r > ceiling_m:
+            return (f"ceiling_m: {name} (z {w[2]:g} m, reach {r:g} m) lies wholly above the "
+                    f"ceiling ({ceiling_m:g} m)")
+        if floor_m is not None and w[2] + r < floor_m:
+            return (f"floor_m: {name} (z {w[2]:g} m, reach {r:g} m) lies wholly below the "
+                    f"floor ({floor_m:g} m{floor_note})")
+    return ""
 
 
 def load_track(path: str | Path | None = None, overrides: list[str] | None = None) -> TrackConfig:

@@ -152,8 +152,9 @@ def thrust_ratios(airframe, J):
 def lap_propulsion(airframe, x, u) -> dict[str, Any]:
     """What the propulsion did over a flight with Euler states ``x`` (M+1, 16) and commands
     ``u`` (M, 4) held from each state: per node (the first M) the airspeed (m/s), each rotor's
-    thrust (N) and advance ratio, and the summary ``top_speed_m_s``, ``thrust_at_top_speed_n``
-    (the four rotors), ``max_advance_ratio`` (NaN with ``paper``, which has no rotor speed),
+    thrust (N) and advance ratio, and the summary ``top_speed_m_s`` and
+    ``thrust_at_top_speed_n`` (the four rotors; over all M + 1 nodes, the finish too),
+    ``max_advance_ratio`` (NaN with ``paper``, which has no rotor speed),
     ``data_advance_ratio`` (the largest J of the propeller's data, NaN without one),
     ``beyond_data_share`` (the share of rotor-nodes with J above it) and ``min_thrust_ratio``.
 
@@ -170,23 +171,30 @@ def lap_propulsion(airframe, x, u) -> dict[str, Any]:
     stopped rotor (ω = 0, ratio 0/0) is left out."""
     x, u = np.asarray(x, float).reshape(-1, 16), np.asarray(u, float).reshape(-1, 4)
     n = min(len(u), len(x))
-    x, u = x[:n], u[:n]
-    speed = np.linalg.norm(x[:, 3:6], axis=1)
+    # The top speed counts every node, the last too (a lap's M + 1 nodes, one more than its
+    # commands): a lap that finishes on a straight (end: free) is fastest there, and without
+    # it the reported top speed was the node before (49.6 against 50.5 m/s, SY250 on a 30 m
+    # straight). The last node's thrust is evaluated under the command held into it.
+    m = n + 1 if 0 < n < len(x) else n
+    x, u = x[:m], np.vstack([u[:n], u[n - 1:n]])[:m] if n else u[:0]
+    speed_all = np.linalg.norm(x[:, 3:6], axis=1)
     if n == 0:  # a failed lap: nothing flown
-        thrust, J = np.zeros((0, 4)), np.zeros((0, 4))
+        thrust_all, J_all = np.zeros((0, 4)), np.zeros((0, 4))
     elif airframe.propulsion == "paper":
-        thrust, J = x[:, 12:16].copy(), np.full((n, 4), np.nan)
+        thrust_all, J_all = x[:, 12:16].copy(), np.full((m, 4), np.nan)
     else:
-        out = propeller_outputs().map(n)(x.T, u.T, np.repeat(airframe.p[:, None], n, axis=1))
-        thrust, J = np.asarray(out[0]).T, np.asarray(out[2]).T
-    turning = x[:, 12:16] > 0
+        out = propeller_outputs().map(m)(x.T, u.T, np.repeat(airframe.p[:, None], m, axis=1))
+        thrust_all, J_all = np.asarray(out[0]).T, np.asarray(out[2]).T
+    top = int(np.argmax(speed_all)) if n else 0
+    # per node and the ratios: the nodes with a command of their own (the figure pairs them)
+    speed, thrust, J = speed_all[:n], thrust_all[:n], J_all[:n]
+    turning = x[:n, 12:16] > 0
     ratio = thrust_ratios(airframe, J[turning])
-    top = int(np.argmax(speed)) if n else 0
     j_data = getattr(airframe, "max_advance_ratio", None)
     return {
         "speed_m_s": speed, "thrust_n": thrust, "advance_ratio": J,
-        "top_speed_m_s": float(speed[top]) if n else math.nan,
-        "thrust_at_top_speed_n": [float(t) for t in thrust[top]] if n else [],
+        "top_speed_m_s": float(speed_all[top]) if n else math.nan,
+        "thrust_at_top_speed_n": [float(t) for t in thrust_all[top]] if n else [],
         "max_advance_ratio": float(np.nanmax(J)) if n and np.isfinite(J).any() else math.nan,
         "data_advance_ratio": math.nan if j_data is None else float(j_data),
         "beyond_data_share": float(np.mean(J > j_data)) if n and j_data is not None

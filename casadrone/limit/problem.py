@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from casadrone.airframe import Airframe
-from casadrone.config.track import TrackConfig
+from casadrone.config.track import TrackConfig, unreachable_target
 from casadrone.guidance import segment_headings
 from casadrone.limit.gates import MAX_EDGES, TargetKind, gate_frame, target_vector
 from casadrone.limit.nlp import SOLVERS, Nlp
@@ -101,6 +101,17 @@ def track_targets(track: TrackConfig, options: LimitLapOptions,
 
 #: At most this many grid-continuation rounds (each about four solves).
 MAX_GRID_ROUNDS = 5
+#: Shortest leg duration (s) of the limit lap's box (:func:`bounds`): a leg of zero time would
+#: make its RK4 steps zero and its dynamics rows empty.
+MIN_LEG_S = 1e-3
+#: How far below the start (or the ground, whichever is lower) the limit lap's floor lies when
+#: the track gives no ``floor_m`` (m).
+DEFAULT_FLOOR_GAP_M = 0.1
+
+
+def default_floor_m(track: TrackConfig) -> float:
+    """The floor (m) of a track without ``floor_m``: 0.1 m below the start or the ground."""
+    return min(track.start_position_m[2], 0.0) - DEFAULT_FLOOR_GAP_M
 
 
 def check_inputs(track: TrackConfig, options: LimitLapOptions,
@@ -152,6 +163,23 @@ def check_inputs(track: TrackConfig, options: LimitLapOptions,
                     f"than twice the clearance {clear:.3g} m")
     if options.ball_radius_m is not None and options.ball_radius_m < 0:
         return "ball_radius_m must not be negative"
+    return _track_limits_problem(track, options)
+
+
+def _track_limits_problem(track: TrackConfig, options: LimitLapOptions) -> str:
+    """Why the box of :func:`bounds` cannot hold the track (empty when it can). Reading the
+    track refuses what its own keys rule out; these two come from the limit lap's own limits,
+    and without them IPOPT reported "Ill-posed problem" or infeasibility as a failed lap (exit
+    0) instead of naming the key: a time limit below the shortest leg duration, and a target
+    wholly below the floor that applies when the track gives no ``floor_m``."""
+    if track.time_limit_s * track.laps < MIN_LEG_S:
+        return (f"time_limit_s: {track.time_limit_s:g} s x {track.laps} lap(s) is below the "
+                f"shortest leg duration of the limit lap ({MIN_LEG_S:g} s)")
+    if track.floor_m is None and options.start_state is None:
+        return unreachable_target(track, default_floor_m(track), None,
+                                  floor_note=": no floor_m given, "
+                                  f"{DEFAULT_FLOOR_GAP_M:g} m below the start or the ground; "
+                                  "set floor_m to fly lower")
     return ""
 
 
@@ -203,12 +231,11 @@ def bounds(nlp: Nlp, airframe: Airframe, track: TrackConfig, options: LimitLapOp
     L, M = nlp.layout.n_legs, nlp.layout.n_intervals
     tilt = math.radians(track.max_tilt_deg if options.max_tilt_deg is None
                         else options.max_tilt_deg)
-    t_lo, t_hi = np.full(L, 1e-3), np.full(L, track.time_limit_s * track.laps)
+    t_lo, t_hi = np.full(L, MIN_LEG_S), np.full(L, track.time_limit_s * track.laps)
     if track.floor_m is not None:
         floor = track.floor_m
     else:
-        floor = min(track.start_position_m[2], 0.0) - 0.1 if options.start_state is None \
-            else -np.inf
+        floor = default_floor_m(track) if options.start_state is None else -np.inf
     nx, nu = model.nx, model.nu
     xl, xu = np.full((M + 1, nx), -np.inf), np.full((M + 1, nx), np.inf)
     ul, uu = np.full((M, nu), -np.inf), np.full((M, nu), np.inf)

@@ -200,7 +200,8 @@ class LimitLap(AsDict):
     ``u`` the ESC commands held on each interval (M, 4). ``certainty`` says whether the verified
     starts agree: "agreed" (two or more, all within CERTAIN_REL of the best), "single" (one
     verified start), "spread" (farther apart: a better optimum may exist). Agreement is no
-    proof: the best known SY250 optimum (3.8951 s) is reached by none of the default starts.
+    proof: the best known SY250 optimum on the paper track (3.8795 s, from a grid round) is
+    reached by none of the default starts alone (3.8800 s at best).
     ``sensitivities`` maps decision-variable keys to dT/dθ in
     seconds per unit of the key (only when the airframe config was given); ``param_sensitivity``
     is dT/dp over the model parameters (PARAM_NAMES order), s per SI unit.

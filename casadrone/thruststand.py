@@ -241,8 +241,24 @@ def _columns(header: list[str], source: str) -> tuple[dict[str, tuple[int, float
     for quantity in REQUIRED:
         if quantity not in found:
             raise LogError(f"{source}: column missing: {quantity} (e.g. "
-                           f"'{NAMES[quantity][0].capitalize()} (unit)')")
+                           f"'{NAMES[quantity][0].capitalize()} (unit)'){_separator_hint(header)}")
     return found, protocol
+
+
+def _separator_hint(header: list[str]) -> str:
+    """Why no column was found when the header is UTF-16 read as UTF-8 (NUL bytes between the
+    characters) or one cell holding another separator (a semicolon or tab export): said, instead
+    of only the first column missing, which reads as a misnamed column."""
+    if any("\x00" in cell for cell in header):
+        return "; the header holds NUL bytes: a UTF-16 file? save it as UTF-8"
+    if len(header) != 1:
+        return ""
+    cell = header[0]
+    for sep, name in ((";", "semicolons"), ("\t", "tabs")):
+        if sep in cell:
+            return (f"; the header reads as one column separated by {name}: the log must be "
+                    "comma-separated")
+    return ""
 
 
 def check_log_file(path: Path) -> None:

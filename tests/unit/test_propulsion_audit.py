@@ -259,3 +259,15 @@ def test_a_lag_written_beside_the_dc_motor_is_refused_and_first_order_uses_it(tm
     lin = linearise(frame, trim(frame, "hover", solver="newton"))
     rotor = slice(12, 16)
     np.testing.assert_allclose(np.diag(lin.A[rotor, rotor]), -1 / 0.02, rtol=1e-9)
+
+
+@pytest.mark.parametrize("sep, encoding, hint", [
+    (";", "utf-8", "separated by semicolons"), ("\t", "utf-8", "separated by tabs"),
+    (",", "utf-16", "UTF-16")])
+def test_a_log_in_another_dialect_says_so(tmp_path, log_file, cli_runner, sep, encoding, hint):
+    """Semicolon or tab exports, and UTF-16 files, read as one header cell: the refusal said only
+    "column missing: time", which reads as a misnamed column."""
+    text = log_file.read_text(encoding="utf-8").replace(",", sep)
+    path = tmp_path / "dialect.csv"
+    path.write_text(text, encoding=encoding)
+    _refused(_fit(cli_runner, path), "dialect.csv", "column missing", hint)

@@ -25,19 +25,32 @@ STATE_NAMES = (
     "x", "y", "z", "u", "v", "w", "p", "q", "r", "phi", "theta", "psi", "T1", "T2", "T3", "T4",
 )  # fmt: skip
 INPUT_NAMES = ("delta1", "delta2", "delta3", "delta4")
-#: The rotor states' names by propulsion kind: thrusts (N) with ``paper``, rotor speeds (rad/s)
-#: with ``propeller``, so that no output labels a rotor speed as a thrust.
-ROTOR_STATE_NAMES = {"paper": ("T1", "T2", "T3", "T4"),
-                     "propeller": ("omega1", "omega2", "omega3", "omega4")}
 NX, NU, NP = len(STATE_NAMES), len(INPUT_NAMES), len(PARAM_NAMES)  # NP: the paper's layout
 IDX = {name: i for i, name in enumerate(STATE_NAMES)}
+POS, VEL, RATE, EUL, THR = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 16)
+
+
+@dataclass(frozen=True)
+class RotorStates:
+    """What the four rotor states are with one propulsion kind: their names, what they are
+    (for text) and their unit."""
+
+    names: tuple[str, ...]
+    what: str
+    unit: str
+
+
+#: The rotor states by propulsion kind: thrusts (N) with ``paper``, rotor speeds (rad/s) with
+#: ``propeller`` (two quantities 10³ apart), so that no output labels a rotor speed a thrust.
+ROTOR_STATES = {"paper": RotorStates(("T1", "T2", "T3", "T4"), "rotor thrusts", "N"),
+                "propeller": RotorStates(("omega1", "omega2", "omega3", "omega4"),
+                                         "rotor speeds", "rad/s")}
 
 
 def state_names(propulsion: str = "paper") -> tuple[str, ...]:
     """The 16 state names of propulsion kind ``propulsion`` (:data:`STATE_NAMES` with the rotor
-    states named by :data:`ROTOR_STATE_NAMES`); the state's layout is the same for every kind."""
-    return STATE_NAMES[:12] + ROTOR_STATE_NAMES[propulsion]
-POS, VEL, RATE, EUL, THR = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 16)
+    states named by :data:`ROTOR_STATES`); the state's layout is the same for every kind."""
+    return STATE_NAMES[:12] + ROTOR_STATES[propulsion].names
 
 
 def rotation_matrix(phi, theta, psi):

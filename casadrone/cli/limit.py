@@ -167,18 +167,18 @@ def named_parameters(values: Iterable[float], propulsion: str) -> dict[str, floa
 
 def _track_path(track: str | None) -> Path:
     """The track file of ``--track`` (the paper's rectangle without one). An empty or blank
-    name is refused: it read as no ``--track`` at all and flew the default track for minutes
-    (``--track ""`` from an unset shell variable)."""
-    from casadrone.config.io import ConfigError, kind_dir, resolve_config
+    name is refused (:func:`casadrone.config.io.resolve_config`) naming the option: it read as
+    no ``--track`` at all and flew the default track for minutes (``--track ""`` from an unset
+    shell variable)."""
+    from casadrone.config.io import ConfigError, resolve_config
     from casadrone.evaluate import DEFAULT_TRACK
 
     if track is None:
         return DEFAULT_TRACK
-    if not track.strip():
-        known = ", ".join(sorted(f.stem for f in kind_dir("tracks").glob("*.yaml")))
-        raise ConfigError([f"--track {track!r}: empty; give a track YAML or a shipped "
-                           f"track's name (known: {known})"])
-    return resolve_config(track, "tracks")
+    try:
+        return resolve_config(track, "tracks")
+    except ConfigError as exc:
+        raise ConfigError([f"--track {line}" for line in exc.lines]) from None
 
 
 def _figures(cfg, trk, lap, folder, frame, prop, options) -> list[str]:
@@ -208,12 +208,6 @@ def _rotor_text(r: dict) -> str:
             f"advance ratio {r['max_advance_ratio']:.2f}{data}")
 
 
-#: What the rotor states are, and their unit, by propulsion kind
-#: (casadrone.propulsion.rotor_state_bounds): thrusts with ``paper``, rotor speeds with
-#: ``propeller``; the text gave them without a unit, and the two differ by 10^3.
-ROTOR_STATES = {"paper": ("rotor thrusts", "N"), "propeller": ("rotor speeds", "rad/s")}
-
-
 def _start_text(r: dict, propulsion: str = "paper") -> list[str]:
     """The start state flown (the optimised one with ``end: periodic``), Euler-model layout;
     every group with its unit (the rotor states' depends on ``propulsion``)."""
@@ -224,11 +218,13 @@ def _start_text(r: dict, propulsion: str = "paper") -> list[str]:
     def vec(v: list[float], fmt: str) -> str:
         return "(" + ", ".join(format(c, fmt) for c in v) + ")"
 
+    from casadrone.model import ROTOR_STATES
+
     eul = [math.degrees(a) for a in x[9:12]]
-    rotors, unit = ROTOR_STATES.get(propulsion, ("rotor states", ""))
+    rotors = ROTOR_STATES[propulsion]
     return [f"  start state: position {vec(x[0:3], '.3f')} m, velocity {vec(x[3:6], '.3f')} m/s, "
             f"body rates {vec(x[6:9], '.3f')} rad/s, roll/pitch/yaw {vec(eul, '.2f')} deg, "
-            f"{rotors} {vec(x[12:16], '.4g')} {unit}".rstrip()]
+            f"{rotors.what} {vec(x[12:16], '.4g')} {rotors.unit}"]
 
 
 def _reference_text(seconds: float, lap_s: float) -> str:

@@ -555,9 +555,9 @@ def resolve_config(name: str | Path, kind: str) -> Path:
     folder = kind_dir(kind)
     where = "problems" if kind == "problems" else f"configs/{kind}"
     if not str(name).strip():  # an unset shell variable: Path("") would read as "."
-        known = sorted(f.stem for f in folder.glob("*.yaml"))
+        listed = ", ".join(_names_in(folder)) or "none"
         raise ConfigError([f"{str(name)!r}: an empty name: give a YAML file or the name of a "
-                           f"shipped {where} file (known: {', '.join(known) or 'none'})"])
+                           f"shipped {where} file (known: {listed})"])
     p = Path(name)
     for candidate in (p, ROOT / p, DATA_DIR / p):
         if candidate.is_file():
@@ -569,8 +569,13 @@ def resolve_config(name: str | Path, kind: str) -> Path:
     # say what it is, not "file not found"
     if len(p.parts) > 1 or p.is_symlink() or p.exists():
         raise ConfigError([f"{name}: {not_a_file(p)}"])
-    known = sorted(f.stem for f in folder.glob("*.yaml"))
+    known = _names_in(folder)
     close = difflib.get_close_matches(p.stem, known, n=1, cutoff=0.6)
     hint = f"did you mean '{close[0]}'? " if close else ""
     raise ConfigError([f"{name}: file not found, and no shipped {where}/{p.stem}.yaml "
                        f"({hint}known: {', '.join(known) or 'none'})"])
+
+
+def _names_in(folder: Path) -> list[str]:
+    """The names of the shipped configs in ``folder`` (what the refusals list)."""
+    return sorted(f.stem for f in folder.glob("*.yaml"))

@@ -204,15 +204,18 @@ def stagewise_functions(problem: dict, jac_g: ca.Function, hess_lag: ca.Function
     g_o, J_o = jac_g(xo, p)
     J = _permuted(J_o, row, col)
     grad_f = ca.densify(ca.gradient(f, x))  # the interface reads gradients as dense vectors
-    grad_x = ca.densify(lam_f * grad_f + ca.mtimes(J.T, lam_g))
+    # ∇ₓL and ∂L/∂p by CasADi's reverse mode over the NLP's graph (the compiled step's own
+    # reverse function), as IPOPT's nlp_grad does: 1.7 ms at 200 intervals, where ∇f + Jᵀλ needs
+    # the Jacobian blocks again (3.5 ms) or a copy of the last Jacobian kept between two calls
+    lag_ = lam_f * f + ca.dot(lam_go, g)
+    grad_x = ca.densify(ca.gradient(lag_, x))
     H = _permuted(hess_lag(xo, p, lam_f, lam_go), col, col, symmetric=True)
     at = _stage_of_position(order)
     r_, c_ = (np.array(a, dtype=int) for a in H.sparsity().get_triplet())
     if np.any(at[r_] != at[c_]):
         k = int(np.flatnonzero(at[r_] != at[c_])[0])
         raise StageError(f"the Lagrangian Hessian couples stages {at[r_[k]]} and {at[c_[k]]}")
-    # ∂L/∂p by CasADi's AD over the NLP's graph, as IPOPT's own nlp_grad does
-    grad_p = ca.densify(ca.gradient(lam_f * f + ca.dot(lam_go, g), p))
+    grad_p = ca.densify(ca.gradient(lag_, p))
     xp = ["x", "p"]
     lag = ["x", "p", "lam_f", "lam_g"]
     return {
@@ -224,7 +227,7 @@ def stagewise_functions(problem: dict, jac_g: ca.Function, hess_lag: ca.Function
                                   ["grad_gamma_x", "hess_gamma_x_x"]),
         "nlp_grad": ca.Function("nlp_grad", [x, p, lam_f, lam_g], [f, g[row], grad_x, grad_p],
                                 lag, ["f", "g", "grad_gamma_x", "grad_gamma_p"]),
-        # the full Hessian alone: with a Jacobian already evaluated at x (CachedHessian)
+        # the full Hessian alone (benchmarks/bench_limitlap_sqp.py)
         "hess_only": ca.Function("nlp_hess_only", [x, p, lam_f, lam_g], [H], lag,
                                  ["hess_gamma_x_x"]),
         # IPOPT's signatures (to measure IPOPT on the stage order: MUMPS's fill-in)
@@ -303,53 +306,21 @@ class _Wrapped(ca.Callback):
         return self.fn.sparsity_out(i)
 
 
-class CachedJacobian(_Wrapped):
-    """``nlp_jac_g`` that keeps its last point and Jᵀ for :class:`CachedHessian`."""
-
-    def __init__(self, name: str, fn: ca.Function):
-        self.key: tuple[bytes, bytes] | None = None
-        self.jac_t: ca.DM | None = None
-        super().__init__(name, fn)
+class Beating(_Wrapped):
+    """``fn`` that tells the guard of a forked solve that the solve is alive
+    (:func:`casadrone.limit.watchdog.beat`) each time it is called. Given to the objective
+    ``nlp_f``, which fatrop evaluates at every iteration and line-search trial: one Python call
+    with a scalar result, where the derivative functions stay CasADi's own (a Python callback
+    around them copied the Jacobian's 10⁵ nonzeros on every call)."""
 
     def eval(self, arg):
         beat()  # the solve is alive (casadrone.limit.watchdog)
-        out = self.fn(*arg)
-        self.key = (np.asarray(arg[0]).tobytes(), np.asarray(arg[1]).tobytes())
-        self.jac_t = out[1].T
-        return list(out)
+        return self.fn.call(list(arg))
 
 
-class CachedHessian(_Wrapped):
-    """``nlp_hess_l`` (Lagrangian gradient and Hessian) that reuses the Jacobian of
-    :class:`CachedJacobian` when fatrop asks for both at one point, as it does every iteration:
-    the gradient is then ∇f + Jᵀλ by one sparse product instead of evaluating the compiled
-    Jacobian blocks again (measured on the paper track's 200 intervals: 46.5 → 38.3 ms per fatrop
-    iteration, the same iterates; benchmarks/RESULTS-limitlap-solvers.md). Anywhere else it is
-    the plain function."""
-
-    def __init__(self, name: str, fn: ca.Function, hess_only: ca.Function, grad_f: ca.Function,
-                 jac: CachedJacobian):
-        self.hess_only, self.grad_f, self.jac = hess_only, grad_f, jac
-        self.hits = 0
-        super().__init__(name, fn)
-
-    def eval(self, arg):
-        beat()
-        x, p, lam_f, lam_g = arg
-        if self.jac.key != (np.asarray(x).tobytes(), np.asarray(p).tobytes()):
-            return list(self.fn(*arg))
-        self.hits += 1
-        grad = float(lam_f) * self.grad_f(x, p) + ca.mtimes(self.jac.jac_t, lam_g)
-        return [ca.densify(grad), self.hess_only(*arg)]
-
-
-def cached_functions(functions: dict[str, ca.Function], name: str) -> dict[str, ca.Function]:
-    """:func:`stagewise_functions` with ``nlp_jac_g`` and ``nlp_hess_l`` replaced by the
-    caching pair (:class:`CachedHessian`)."""
-    jac = CachedJacobian(f"{name}_jac_g", functions["nlp_jac_g"])
-    hess = CachedHessian(f"{name}_hess_l", functions["nlp_hess_l"], functions["hess_only"],
-                         functions["nlp_grad_f"], jac)
-    return functions | {"nlp_jac_g": jac, "nlp_hess_l": hess}
+def beating_functions(functions: dict[str, ca.Function], name: str) -> dict[str, ca.Function]:
+    """:func:`stagewise_functions` with ``nlp_f`` :class:`Beating`."""
+    return functions | {"nlp_f": Beating(f"{name}_f", functions["nlp_f"])}
 
 
 @dataclass(frozen=True)
@@ -387,11 +358,14 @@ def fatrop_solver(nlp, tol: float, max_iter: int) -> FatropSolver:
         return _FATROP[key]
     if layout.method != "shooting" or not {"jac_g", "hess_lag"} <= set(nlp.derivatives):
         raise StageError("fatrop needs the multiple-shooting NLP (method: shooting)")
-    problem = nlp.problem
-    order = stage_order(ca.jacobian_sparsity(problem["g"], problem["x"]), layout.intervals,
+    symbolic = nlp.problem
+    order = stage_order(ca.jacobian_sparsity(symbolic["g"], symbolic["x"]), layout.intervals,
                         layout.n_intervals, model.nx, model.nu)
+    # the rows as IPOPT evaluates them, on the compiled step (8x cheaper than the SX step in
+    # CasADi's virtual machine: 3.1 → 0.4 ms per evaluation at 200 intervals)
+    problem = nlp.oracle or symbolic
     tag = f"stage_{model.name.replace('-', '_')}"
-    oracle = StageOracle(tag, cached_functions(
+    oracle = StageOracle(tag, beating_functions(
         stagewise_functions(problem, nlp.derivatives["jac_g"], nlp.derivatives["hess_lag"],
                             order), tag))
     structure = {"structure_detection": "manual", "N": layout.n_intervals,

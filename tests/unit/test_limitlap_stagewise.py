@@ -17,7 +17,6 @@ from casadrone.config.io import CONFIG_DIR
 from casadrone.limit.nlp import Layout, build_nlp, solve, target_vector
 from casadrone.limit.stagewise import (
     StageError,
-    cached_functions,
     fatrop_solver,
     stage_order,
     stagewise_functions,
@@ -67,27 +66,26 @@ def test_permuted_nlp_evaluates_identically_to_the_original(kinds, cone):
     assert np.abs(H0).max() > 1e-3
 
 
-def test_cached_hessian_equals_the_plain_one():
-    """fatrop's Lagrangian gradient from the Jacobian of the last ``nlp_jac_g`` call at the same
-    point equals the plain function's (∇f + Jᵀλ evaluated again; observed agreement ~1e-15),
-    the Hessian to the last bit; at a point without a Jacobian call it is the plain function
-    (no reuse counted)."""
-    nlp = build_nlp(_nonlinear_toy(), Layout(("ball", "gate"), 3, substeps=2, end_at_rest=True))
-    fns = stagewise_functions(nlp.problem, nlp.derivatives["jac_g"],
-                              nlp.derivatives["hess_lag"], _order(nlp))
-    cached = cached_functions(fns, "toy")
-    rng = np.random.default_rng(7)
-    prm = rng.uniform(0.1, 1.0, nlp.problem["p"].numel())
-    lam = rng.normal(size=len(nlp.lbg))
-    w, w2 = (rng.uniform(0.2, 1.5, nlp.problem["x"].numel()) for _ in range(2))
-    cached["nlp_jac_g"](w, prm)
-    for point, hits in ((w, 1), (w2, 1)):
-        grad, H = (np.array(ca.densify(a)) for a in cached["nlp_hess_l"](point, prm, 0.7, lam))
-        grad0, H0 = (np.array(ca.densify(a)) for a in fns["nlp_hess_l"](point, prm, 0.7, lam))
-        np.testing.assert_allclose(grad, grad0, rtol=1e-13, atol=1e-13)
-        np.testing.assert_array_equal(H, H0)
-        assert cached["nlp_hess_l"].hits == hits
-    assert np.abs(grad0).max() > 1e-2
+def test_a_fatrop_solve_beats_for_its_guard_at_every_iteration(monkeypatch):
+    """The guard of a forked fatrop solve (casadrone.limit.watchdog) ends a child that has not
+    beaten for ``stall_s``: a solve must beat at least once per iteration, or a slow but healthy
+    solve would be killed. Counted on a real fatrop solve (unguarded, the beat function
+    replaced by a counter): at least as many beats as fatrop's own iteration count."""
+    from casadrone.limit import stagewise
+
+    beats = []
+    monkeypatch.setattr(stagewise, "beat", lambda: beats.append(1))
+    kinds, N, L = ("ball", "ball"), 10, 2
+    M = N * L
+    nlp = build_nlp(_double_integrator(), Layout(kinds, N))
+    P = np.concatenate([[0.0], np.zeros(6), target_vector(
+        np.array([[10.0, 0, 0], [0, 0, 0]]), kinds, np.zeros(L), np.zeros(L), np.zeros(L), 0.0)])
+    lbx, ubx = _double_integrator_bounds(nlp, L, M, 2.0)
+    w0 = nlp.pack(np.ones(L), np.zeros((M + 1, 6)), np.zeros((M, 3)))
+    ok, status, _, _, iterations = stagewise.solve_stagewise(
+        fatrop_solver(nlp, nlp.tol, nlp.max_iter), w0, P, lbx, ubx, nlp.lbg, nlp.ubg, False)
+    assert ok, status
+    assert iterations >= 5 and len(beats) >= iterations, (iterations, len(beats))
 
 
 def test_stage_order_has_fatrop_structure():

@@ -75,13 +75,7 @@ def test_a_fatrop_solve_beats_for_its_guard_at_every_iteration(monkeypatch):
 
     beats = []
     monkeypatch.setattr(stagewise, "beat", lambda: beats.append(1))
-    kinds, N, L = ("ball", "ball"), 10, 2
-    M = N * L
-    nlp = build_nlp(_double_integrator(), Layout(kinds, N))
-    P = np.concatenate([[0.0], np.zeros(6), target_vector(
-        np.array([[10.0, 0, 0], [0, 0, 0]]), kinds, np.zeros(L), np.zeros(L), np.zeros(L), 0.0)])
-    lbx, ubx = _double_integrator_bounds(nlp, L, M, 2.0)
-    w0 = nlp.pack(np.ones(L), np.zeros((M + 1, 6)), np.zeros((M, 3)))
+    nlp, w0, P, lbx, ubx = out_and_back()
     ok, status, _, _, iterations = stagewise.solve_stagewise(
         fatrop_solver(nlp, nlp.tol, nlp.max_iter), w0, P, lbx, ubx, nlp.lbg, nlp.ubg, False)
     assert ok, status
@@ -137,6 +131,18 @@ def _double_integrator_bounds(nlp, L, M, a_max):
     lbx = nlp.pack(np.full(L, 1e-2), np.full((M + 1, 6), -np.inf), np.full((M, 3), -a_max))
     ubx = nlp.pack(np.full(L, 1e2), np.full((M + 1, 6), np.inf), np.full((M, 3), a_max))
     return lbx, ubx
+
+
+def out_and_back():
+    """The double integrator out to x = 10 m and back under |a| ≤ 2 m/s², 10 intervals per leg:
+    (nlp, start, P, lbx, ubx)."""
+    kinds, N, L = ("ball", "ball"), 10, 2
+    M = N * L
+    nlp = build_nlp(_double_integrator(), Layout(kinds, N))
+    P = np.concatenate([[0.0], np.zeros(6), target_vector(
+        np.array([[10.0, 0, 0], [0, 0, 0]]), kinds, np.zeros(L), np.zeros(L), np.zeros(L), 0.0)])
+    lbx, ubx = _double_integrator_bounds(nlp, L, M, 2.0)
+    return nlp, nlp.pack(np.ones(L), np.zeros((M + 1, 6)), np.zeros((M, 3))), P, lbx, ubx
 
 
 @pytest.mark.parametrize("end_at_rest", [False, True])

@@ -82,17 +82,10 @@ def test_stalled_fatrop_solve_falls_back_to_ipopt(monkeypatch):
     """fatrop replaced by a solve that hangs in C: the limit-lap solve gives it up after the
     limit, says so, and returns IPOPT's optimum of the same NLP from the same start."""
     from casadrone.limit import stagewise
-    from casadrone.limit.nlp import Layout, build_nlp, solve, target_vector
-    from tests.unit.test_limitlap import _double_integrator
-    from tests.unit.test_limitlap_stagewise import _double_integrator_bounds
+    from casadrone.limit.nlp import solve
+    from tests.unit.test_limitlap_stagewise import out_and_back
 
-    kinds, N, L = ("ball", "ball"), 10, 2
-    M = N * L
-    nlp = build_nlp(_double_integrator(), Layout(kinds, N))
-    P = np.concatenate([[0.0], np.zeros(6), target_vector(
-        np.array([[10.0, 0, 0], [0, 0, 0]]), kinds, np.zeros(L), np.zeros(L), np.zeros(L), 0.0)])
-    lbx, ubx = _double_integrator_bounds(nlp, L, M, 2.0)
-    w0 = nlp.pack(np.ones(L), np.zeros((M + 1, 6)), np.zeros((M, 3)))
+    nlp, w0, P, lbx, ubx = out_and_back()
     ref = solve(nlp, w0, P, lbx, ubx)
 
     def hangs(*args, **kwargs):

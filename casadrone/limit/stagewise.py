@@ -308,10 +308,10 @@ class _Wrapped(ca.Callback):
 
 class Beating(_Wrapped):
     """``fn`` that tells the guard of a forked solve that the solve is alive
-    (:func:`casadrone.limit.watchdog.beat`) each time it is called. Given to the objective
-    ``nlp_f``, which fatrop evaluates at every iteration and line-search trial: one Python call
-    with a scalar result, where the derivative functions stay CasADi's own (a Python callback
-    around them copied the Jacobian's 10⁵ nonzeros on every call)."""
+    (:func:`casadrone.limit.watchdog.beat`) each time it is called. Given to the objective and
+    the rows (``nlp_f``, ``nlp_g``), which fatrop evaluates at every iteration and line-search
+    trial: a Python call with a small result, where the derivative functions stay CasADi's own
+    (a Python callback around them copied the Jacobian's 10⁵ nonzeros on every call)."""
 
     def eval(self, arg):
         beat()  # the solve is alive (casadrone.limit.watchdog)
@@ -319,8 +319,9 @@ class Beating(_Wrapped):
 
 
 def beating_functions(functions: dict[str, ca.Function], name: str) -> dict[str, ca.Function]:
-    """:func:`stagewise_functions` with ``nlp_f`` :class:`Beating`."""
-    return functions | {"nlp_f": Beating(f"{name}_f", functions["nlp_f"])}
+    """:func:`stagewise_functions` with ``nlp_f`` and ``nlp_g`` :class:`Beating`."""
+    return functions | {key: Beating(f"{name}_{key}", functions[key])
+                        for key in ("nlp_f", "nlp_g")}
 
 
 @dataclass(frozen=True)

@@ -10,15 +10,16 @@ factorisation, the loop never ends and fatrop never returns (IPOPT gives up at
 --intervals 10`` spent minutes of CPU in that loop (py-spy: ``compute_search_dir`` →
 ``AugSystemSolver::solve``) without evaluating the NLP again.
 
-A C loop cannot be interrupted from Python (signal handlers run between bytecodes), so the
-solve runs in a forked child. The child calls :func:`beat` at every evaluation of the NLP's
-derivatives (once or twice per iteration); the parent ends the child when no beat has come for
-``stall_s`` seconds, a silence no finishing solve has: an iteration of the largest NLPs
-casadrone builds takes well under a second (the 19-waypoint three-lap course: about 2 300
-intervals). The child's CPU time comes back with its result (``resource.RUSAGE_CHILDREN`` in
-the parent also counts it once it has been waited for). On Linux the child is killed with its
-parent (``prctl(PR_SET_PDEATHSIG)``), so a stalled solve never outlives a killed run. Where
-``os.fork`` does not exist the solve runs in this process, unguarded.
+A C loop cannot be interrupted from Python (signal handlers run between bytecodes), so the solve
+runs in a forked child. The child calls :func:`beat` at every evaluation of the NLP's objective
+and rows (every iteration and line-search trial: :class:`casadrone.limit.stagewise.Beating`);
+the parent ends the child when no beat has come for ``stall_s`` seconds, a silence no finishing
+solve has: an iteration of the largest NLPs casadrone builds takes well under a second (the
+19-waypoint three-lap course: about 2 300 intervals). The child's CPU time comes back with its
+result (``resource.RUSAGE_CHILDREN`` in the parent also counts it once it has been waited for).
+On Linux the child is killed with its parent (``prctl(PR_SET_PDEATHSIG)``), so a stalled solve
+never outlives a killed run. Where ``os.fork`` does not exist the solve runs in this process,
+unguarded.
 """
 
 from __future__ import annotations

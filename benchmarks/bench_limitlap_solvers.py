@@ -151,10 +151,13 @@ def _solver_of(pb, solver: str):
     return nlp.cold
 
 
-def profile(template_name: str) -> list[str]:
-    """Per-iteration CPU of one cold solve of the template itself (closed-loop guess) by each
-    solver, split into the NLP's function evaluations (CasADi's t_proc_nlp_* statistics) and
-    the rest (the solver's own work: factorisation, line search, bookkeeping)."""
+def profile(template_name: str, repeat: int = 1, solvers: tuple[str, ...] = (
+        "ipopt", "fatrop", "ipopt-stage")) -> list[str]:
+    """Per-iteration CPU of ``repeat`` cold solves of the template itself (closed-loop guess) by
+    each solver (a row per solve), split into the NLP's function evaluations (CasADi's
+    t_proc_nlp_* statistics) and the rest (the solver's own work: factorisation, line search,
+    bookkeeping). Repeats show this machine's drift; two versions of the code are compared by
+    running this alternately from their checkouts."""
     template = load_airframe(template_name)
     track = load(TrackConfig, DEFAULT_TRACK)
     options = limit.LimitLapOptions(intervals=limit.DEFAULT_INTERVALS["paper"])
@@ -167,14 +170,15 @@ def profile(template_name: str) -> list[str]:
              "| solver | lap (s) | iterations | CPU per iteration (ms) | of it: function "
              "evaluations (ms) | of it: the solver's own work (ms) |", "|---|---|---|---|---|---|"]
     _GUARD[0] = False  # the solver's statistics are those of this process's instance
-    for solver in ("ipopt", "fatrop", "ipopt-stage"):
+    for solver in solvers:
         _timed(pb, w0, solver)  # builds once
-        r = _timed(pb, w0, solver)
-        st = _solver_of(pb, solver).stats()
-        ev = sum(v for k, v in st.items() if k.startswith("t_proc_nlp"))
-        it = max(r["it"], 1)
-        lines.append(f"| {solver} | {r['f']:.6f} | {r['it']} | {1e3 * r['cpu'] / it:.1f} | "
-                     f"{1e3 * ev / it:.1f} | {1e3 * (r['cpu'] - ev) / it:.1f} |")
+        for _ in range(repeat):
+            r = _timed(pb, w0, solver)
+            st = _solver_of(pb, solver).stats()
+            ev = sum(v for k, v in st.items() if k.startswith("t_proc_nlp"))
+            it = max(r["it"], 1)
+            lines.append(f"| {solver} | {r['f']:.6f} | {r['it']} | {1e3 * r['cpu'] / it:.1f} | "
+                         f"{1e3 * ev / it:.1f} | {1e3 * (r['cpu'] - ev) / it:.1f} |")
     return lines
 
 
@@ -330,9 +334,13 @@ def main(argv: list[str] | None = None) -> int:
                     help="an IPOPT option added to every IPOPT solve (repeatable)")
     ap.add_argument("--profile", metavar="AIRFRAME",
                     help="only print the per-iteration split of one cold solve of AIRFRAME")
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="with --profile: solves per solver (one row each)")
     args = ap.parse_args(argv)
     if args.profile:
-        print("\n".join(profile(args.profile)))
+        print("\n".join(profile(args.profile, args.repeat,
+                                 tuple(args.solvers.split(",")) if args.solvers != "ipopt,fatrop"
+                                 else ("ipopt", "fatrop", "ipopt-stage"))))
         return 0
     SOLVERS = tuple(args.solvers.split(","))
     if args.ipopt_option:

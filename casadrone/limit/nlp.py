@@ -557,7 +557,8 @@ def ipopt_options(tol: float, max_iter: int, warm: bool, near: bool = False,
     ``propulsion`` kind (:data:`WARM_SETTINGS`); ``near`` one for a start close to it
     (:data:`NEAR_VIOLATION`)."""
     ipopt = {"tol": tol, "acceptable_tol": 1e3 * tol, "max_iter": max_iter, "print_level": 0,
-             "linear_solver": "mumps", "sb": "yes", "mu_strategy": "adaptive"}
+             "linear_solver": "mumps", "sb": "yes", "mu_strategy": "adaptive",
+             "mumps_mem_percent": MUMPS_MEM_PERCENT}
     if warm and near:
         # Measured (benchmarks/RESULTS-limitlap-solvers.md, "Warm starts"; 10 random Table 1
         # frames): from a frame's own lap, 6 iterations (median) where the far setting below
@@ -590,6 +591,15 @@ def ipopt_options(tol: float, max_iter: int, warm: bool, near: bool = False,
     return {"ipopt": ipopt, "print_time": False, "error_on_fail": False,
             "show_eval_warnings": False}
 
+
+#: MUMPS's working space above its own estimate, in per cent (IPOPT's ``mumps_mem_percent``;
+#: IPOPT's default 1000). Measured on a warm solve of the paper track (200 intervals): the
+#: factorisation needs 4 % above the estimate (at 1 % IPOPT reports MUMPS's INFO(1) = -9 and
+#: doubles it twice, as it does whenever the space runs short), and at 1000 % each of the ~60
+#: factorisations maps and faults in ten times the space: 0.30 s of system time in a 2.8 s
+#: solve, 0.02–0.04 s at 10 %, the same iterates and lap to the last bit
+#: (benchmarks/RESULTS-limitlap-solvers.md, "MUMPS's working space").
+MUMPS_MEM_PERCENT = 20
 
 #: IPOPT settings of the far warm start by propulsion kind, on top of the common ones (absent:
 #: none). ``propeller``: ``sigma_min``, the smallest centring parameter of IPOPT's adaptive μ

@@ -323,8 +323,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--template", default="SY250")
-    ap.add_argument("--solvers", default="ipopt,fatrop",
-                    help="comma-separated: ipopt (required), fatrop, ipopt-stage, ipopt-monotone")
+    ap.add_argument("--solvers",
+                    help="comma-separated: ipopt (required), fatrop, ipopt-stage, ipopt-monotone "
+                         "(default ipopt,fatrop; with --profile ipopt,fatrop,ipopt-stage and any "
+                         "one of them alone)")
     ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap-solvers.md")
     ap.add_argument("--near", type=float, default=0.01,
                     help="near warm starts: each frame moved by this fraction of the range")
@@ -338,10 +340,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --profile: solves per solver (one row each)")
     args = ap.parse_args(argv)
     if args.profile:
-        print("\n".join(profile(args.profile, args.repeat,
-                                 tuple(args.solvers.split(",")) if args.solvers != "ipopt,fatrop"
-                                 else ("ipopt", "fatrop", "ipopt-stage"))))
+        print("\n".join(profile(args.profile, args.repeat, tuple(
+            (args.solvers or "ipopt,fatrop,ipopt-stage").split(",")))))
         return 0
+    args.solvers = args.solvers or "ipopt,fatrop"
     SOLVERS = tuple(args.solvers.split(","))
     if args.ipopt_option:
         _with_ipopt_options(args.ipopt_option)

@@ -207,15 +207,15 @@ def stagewise_functions(problem: dict, jac_g: ca.Function, hess_lag: ca.Function
     # ∇ₓL and ∂L/∂p by CasADi's reverse mode over the NLP's graph (the compiled step's own
     # reverse function), as IPOPT's nlp_grad does: 1.7 ms at 200 intervals, where ∇f + Jᵀλ needs
     # the Jacobian blocks again (3.5 ms) or a copy of the last Jacobian kept between two calls
-    lag_ = lam_f * f + ca.dot(lam_go, g)
-    grad_x = ca.densify(ca.gradient(lag_, x))
+    lagrangian = lam_f * f + ca.dot(lam_go, g)
+    grad_x = ca.densify(ca.gradient(lagrangian, x))
     H = _permuted(hess_lag(xo, p, lam_f, lam_go), col, col, symmetric=True)
     at = _stage_of_position(order)
     r_, c_ = (np.array(a, dtype=int) for a in H.sparsity().get_triplet())
     if np.any(at[r_] != at[c_]):
         k = int(np.flatnonzero(at[r_] != at[c_])[0])
         raise StageError(f"the Lagrangian Hessian couples stages {at[r_[k]]} and {at[c_[k]]}")
-    grad_p = ca.densify(ca.gradient(lag_, p))
+    grad_p = ca.densify(ca.gradient(lagrangian, p))
     xp = ["x", "p"]
     lag = ["x", "p", "lam_f", "lam_g"]
     return {

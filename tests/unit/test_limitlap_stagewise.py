@@ -82,6 +82,23 @@ def test_a_fatrop_solve_beats_for_its_guard_at_every_iteration(monkeypatch):
     assert iterations >= 5 and len(beats) >= iterations, (iterations, len(beats))
 
 
+def test_mumps_working_space_changes_no_iterate():
+    """casadrone gives MUMPS 20 % working space above its estimate (MUMPS_MEM_PERCENT) where
+    IPOPT's default gives 1000 %: the space must change the time only. The solve with the
+    shipped settings equals IPOPT's default space to the last bit (point, multipliers,
+    iteration count)."""
+    from casadrone.limit.nlp import MUMPS_MEM_PERCENT, ipopt_solver
+
+    nlp, w0, P, lbx, ubx = out_and_back()
+    args = {"x0": w0, "p": P, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
+    ours, default = nlp.cold, ipopt_solver(nlp, "default_space", {"mumps_mem_percent": 1000})
+    a, b = ours(**args), default(**args)
+    assert MUMPS_MEM_PERCENT < 1000 and ours.stats()["success"], ours.stats()["return_status"]
+    for key in ("x", "lam_g", "lam_x"):
+        np.testing.assert_array_equal(np.array(a[key]), np.array(b[key]))
+    assert ours.stats()["iter_count"] == default.stats()["iter_count"] >= 5
+
+
 def test_stage_order_has_fatrop_structure():
     """Checked on the permuted Jacobian's pattern, not on the module's bookkeeping: every row
     lies within one stage's columns or is a gap row of stage k whose only stage-(k+1) entry is

@@ -32,6 +32,7 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
+from casadrone.codegen import vector_flags
 from casadrone.limit.gates import (  # noqa: F401 (re-exported: the NLP's target layout)
     TARGET_SIZE,
     TargetKind,
@@ -708,9 +709,12 @@ def step_block(model: OcpModel, substeps: int) -> ca.Function:
     return _STEPS[key]
 
 
-#: Compiler flags of the interval blocks: -O1 compiles the ~10⁵-line Hessian block in a fraction
-#: of -O2's time and runs as fast within a few per cent (measured on the shared machine).
-BLOCK_FLAGS: tuple[str, ...] = ("-O1",)
+#: Compiler flags of the interval blocks: -O2 with AVX2 where the CPU has it
+#: (:func:`casadrone.codegen.vector_flags`). GCC 12's -O2 packs the Hessian block's straight-line
+#: code into 256-bit vector instructions: 7.3 against 11.6 ms per 200 intervals on an AMD EPYC
+#: (Zen 3), the same numbers to the last bit; -O2 alone or -O1 run as slow as each other
+#: (benchmarks/RESULTS-limitlap-solvers.md, "The interval blocks in vector registers").
+BLOCK_FLAGS: tuple[str, ...] = ("-O2", *vector_flags())
 
 
 def _assemble(nrow: int, ncol: int, rows: np.ndarray, cols: np.ndarray, values: ca.MX

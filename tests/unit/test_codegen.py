@@ -16,7 +16,9 @@ from casadrone.codegen import (
     compile_function,
     compile_recipe,
     compile_with_reverse,
+    has_avx2,
     recipe_fingerprint,
+    vector_flags,
 )
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -215,3 +217,41 @@ def test_stale_staged_files_are_removed_by_the_next_compile(tmp_path, monkeypatc
     x = ca.SX.sym("x")
     compile_function(ca.Function("probe_stale", [x], [3 * x]))
     assert not old.exists() and young.exists()
+
+
+def test_avx2_is_read_from_the_flags_line_as_a_whole_word():
+    assert has_avx2("processor\t: 0\nflags\t\t: fpu sse2 avx avx2 fma\n")
+    assert not has_avx2("flags\t\t: fpu sse2 avx avx512f\n")  # avx512f is not avx2
+    assert not has_avx2("model name\t: avx2 in a name\nflags\t\t: fpu sse2\n")
+    assert not has_avx2("")
+
+
+def test_the_quadrotor_blocks_in_vector_registers_keep_every_bit():
+    """The limit lap's interval blocks compiled with BLOCK_FLAGS (-O2, AVX2 where the CPU has it)
+    give CasADi's virtual machine's numbers to the last bit over many random intervals: vector
+    instructions without FMA round each operation as the scalar code does (IEEE 754), so the
+    flags change the speed, never an iterate."""
+    from casadrone.limit import nlp
+
+    model = nlp.quadrotor_ocp_model()
+    jac, hess, _, _ = nlp.interval_blocks(model, 3)
+    sx_jac, sx_hess, _ = nlp.interval_block_functions(model, 3)
+    step = nlp.step_block(model, 3)
+    assert hess.class_name() == "External" and step.class_name() == "External"
+    assert nlp.BLOCK_FLAGS[1:] == vector_flags()
+    rng = np.random.default_rng(7)
+    n = 64
+    z = rng.uniform(-1.0, 1.0, (1 + model.nu + model.nx, n))
+    z[0] = rng.uniform(0.5, 4.0, n)  # leg durations
+    p = rng.uniform(0.5, 1.5, model.np)  # positive: masses, inertias, gains
+    lam = rng.normal(size=(model.nx, n))
+    for compiled, sx, args in ((jac, sx_jac, (z, p, 0.025)), (hess, sx_hess, (z, p, 0.025, lam))):
+        got = [np.array(v) for v in compiled.map(n).call(list(args))]
+        want = [np.array(v) for v in sx.map(n).call(list(args))]
+        assert np.abs(want[-1]).max() > 1e-3
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)
+    x, u = z[1 + model.nu:], z[1:1 + model.nu]
+    sx_step = nlp.rk4_step(model, 3)
+    np.testing.assert_array_equal(np.array(step.map(n)(x, u, p, z[0] * 0.025)),
+                                  np.array(sx_step.map(n)(x, u, p, z[0] * 0.025)))

@@ -191,16 +191,23 @@ def summary_row(cold: dict, warm: dict, n: int, cold_start: str = "closed-loop"
     def med_cpu(runs):
         return float(np.median([r["cpu"] for r in runs])) if runs else float("nan")
 
-    best_warm = min(med_cpu(warm["ipopt"]), med_cpu(warm["fatrop"]))
-    best_cold = min(med_cpu(cold["ipopt"]), med_cpu(cold["fatrop"]))
-    verdict = "met" if best_warm <= 0.25 and best_cold <= 3.0 else "not met"
+    def max_cpu(runs):
+        return max(r["cpu"] for r in runs) if runs else float("nan")
+
+    def verdict(ok: list[str]) -> str:  # issue #19's targets, each on its own
+        return f"met by {' and '.join(ok)}" if ok else "not met"
+
+    solvers = ("ipopt", "fatrop")
+    cold_ok = [s for s in solvers if med_cpu(cold[s]) <= 3.0 and max_cpu(cold[s]) <= 15.0]
+    warm_ok = [s for s in solvers if med_cpu(warm[s]) <= 0.25]
     return (f"limit-lap NLP of {n} random Table 1 frames, IPOPT and fatrop from the same starts "
             f"({cold_start} cold), one core",
             f"CPU per iteration {per_it(cold['ipopt']):.1f} ms (IPOPT), "
             f"{per_it(cold['fatrop']):.1f} ms (fatrop); cold solve {med_cpu(cold['ipopt']):.1f} / "
             f"{med_cpu(cold['fatrop']):.1f} s, warm {med_cpu(warm['ipopt']):.2f} / "
-            f"{med_cpu(warm['fatrop']):.2f} s median (targets warm ≤ 0.25 s, cold ≤ 3 s: "
-            f"{verdict})",
+            f"{med_cpu(warm['fatrop']):.2f} s median, cold max {max_cpu(cold['ipopt']):.1f} / "
+            f"{max_cpu(cold['fatrop']):.1f} s (target cold ≤ 3 s median and ≤ 15 s max: "
+            f"{verdict(cold_ok)}; warm ≤ 0.25 s median: {verdict(warm_ok)})",
             f"`python benchmarks/bench_limitlap_solvers.py --n {n} --cold-start {cold_start}`")
 
 

@@ -46,6 +46,30 @@ def console() -> list[str]:
     return [str(installed_script("casadrone"))]
 
 
+# A session of at least PRECOMPILE_FROM tests (the suite, or most of it) first compiles the solver
+# blocks its tests will need, side by side (casadrone.precompile: the quadrotor's limit-lap and
+# co-design blocks, one to four minutes of one core each). On a fresh machine with 2 cores that is
+# about 7 minutes instead of 13 spent one after the other inside the first tests that use them;
+# with the cache filled it costs seconds. A few selected tests compile only what they use.
+# CASADRONE_PRECOMPILE=0 turns it off.
+PRECOMPILE_FROM = 200
+
+
+def pytest_collection_finish(session):
+    if len(session.items) < PRECOMPILE_FROM or os.environ.get("CASADRONE_PRECOMPILE") == "0":
+        return
+    import time
+
+    from casadrone.precompile import SHIPPED, precompile
+
+    t0 = time.perf_counter()
+    precompile()
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None:
+        reporter.write_line(f"casadrone.precompile: {len(SHIPPED)} solver-block libraries ready "
+                            f"in {time.perf_counter() - t0:.1f} s")
+
+
 # A skip that can fire in CI hides a test that did not run: with CASADRONE_FORBID_SKIPS=1 (set by
 # .ci/run) every skipped test fails the session, listed by name.
 def pytest_terminal_summary(terminalreporter, exitstatus, config):

@@ -1,0 +1,118 @@
+"""Compile the solver blocks of casadrone's models for this machine, several at a time.
+
+The limit lap and co-design compile one shooting interval's derivatives as C the first time a
+model is used (:mod:`casadrone.codegen`): one to four minutes of one core each for the
+quadrotor's models, one after the other as a process comes to need them. A fresh machine that
+will use them all (a cluster node, a CI runner, the test suite) can compile them side by side
+instead, one process per library, the largest first::
+
+    python -m casadrone.precompile [--jobs N]
+
+Each library lands in the same cache, under the same name, as the first use would put it there
+(the same functions are called), so later processes find it; a library already there costs a
+fingerprint (well under a second). Nothing else is computed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from multiprocessing import get_context
+
+
+@dataclass(frozen=True)
+class Block:
+    """One compiled library: the limit lap's interval blocks and compiled step (``limit``) or
+    co-design's θ-blocks (``codesign``, ``n_dir`` design directions) of a model."""
+
+    kind: str  # "limit" or "codesign"
+    model: str  # "quadrotor", "point-mass"
+    propulsion: str = "paper"
+    lagless: bool = False
+    substeps: int = 3
+    n_dir: int = 4
+
+    @property
+    def label(self) -> str:
+        extra = "-lagless" if self.lagless else ""
+        tail = f" (d{self.n_dir})" if self.kind == "codesign" else ""
+        return f"{self.kind} {self.model}{extra} {self.propulsion} rk4x{self.substeps}{tail}"
+
+
+#: What the shipped problems compile, the largest first (CPU of one compile at -O2 -mavx2 on the
+#: project's AMD VM: codesign propeller ~4 min, limit propeller ~3.5, codesign paper ~2.5, limit
+#: paper ~2, the lag-free paper model ~1.5; the point-mass blocks take seconds).
+SHIPPED: tuple[Block, ...] = (
+    Block("codesign", "quadrotor", "propeller"),
+    Block("limit", "quadrotor", "propeller"),
+    Block("codesign", "quadrotor", "paper"),
+    Block("limit", "quadrotor", "paper"),
+    Block("limit", "quadrotor", "paper", lagless=True),
+    Block("limit", "point-mass", "paper"),
+    Block("limit", "point-mass", "propeller"),
+)
+
+
+def compile_block(block: Block) -> float:
+    """Compile (or find in the cache) ``block``'s library; returns the seconds it took."""
+    from casadrone.limit import nlp
+    from casadrone.limit.lagless import without_lag
+
+    t0 = time.perf_counter()
+    maker = {"quadrotor": nlp.quadrotor_ocp_model, "point-mass": nlp.point_mass_ocp_model}
+    model = maker[block.model](block.propulsion)
+    if block.lagless:
+        model = without_lag(model)
+    if block.kind == "codesign":
+        from casadrone.codesign.blocks import theta_blocks
+
+        theta_blocks(model, block.substeps, block.n_dir)
+    else:
+        nlp.step_block(model, block.substeps)
+        nlp.interval_blocks(model, block.substeps)
+    return time.perf_counter() - t0
+
+
+def precompile(blocks: tuple[Block, ...] = SHIPPED, jobs: int | None = None,
+               report=None) -> list[tuple[Block, float]]:
+    """Compile ``blocks`` in ``jobs`` processes (default: the CPUs this process may use), each
+    reported to ``report(block, seconds)`` as it ends. Returns (block, seconds) in finishing
+    order. A failing compile raises in the caller after the others have ended."""
+    if jobs is None:
+        jobs = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                else os.cpu_count() or 1)
+    done: list[tuple[Block, float]] = []
+    # spawn: a child starts clean (no CasADi state, no threads inherited from the parent)
+    with ProcessPoolExecutor(max_workers=max(1, min(jobs, len(blocks))),
+                             mp_context=get_context("spawn")) as pool:
+        futures = {pool.submit(compile_block, b): b for b in blocks}
+        for fut in as_completed(futures):
+            seconds = fut.result()
+            done.append((futures[fut], seconds))
+            if report is not None:
+                report(futures[fut], seconds)
+    return done
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m casadrone.precompile",
+                                     description=__doc__.split("\n\n")[0])
+    parser.add_argument("--jobs", type=int, default=None,
+                        help="compiles at a time (default: the CPUs this process may use)")
+    args = parser.parse_args(argv)
+    if args.jobs is not None and args.jobs < 1:
+        print("python -m casadrone.precompile: --jobs must be at least 1", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    precompile(jobs=args.jobs,
+               report=lambda b, s: print(f"{b.label}: {s:.1f} s", flush=True))
+    print(f"all {len(SHIPPED)} in {time.perf_counter() - t0:.1f} s", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

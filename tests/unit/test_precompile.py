@@ -1,0 +1,46 @@
+"""``python -m casadrone.precompile``: the libraries it compiles side by side are the ones the
+first use of each model would compile (same names in the same cache), so later uses find them."""
+
+from __future__ import annotations
+
+from casadrone.limit import nlp
+from casadrone.precompile import Block, main, precompile
+
+
+def test_precompile_puts_each_library_where_its_first_use_would(tmp_path, monkeypatch):
+    """Compiled in a child process by precompile into one cache, and by the limit lap's own first
+    use in this process into another: the same files. Then this process, asked again with the
+    first cache, builds no Hessian and generates no C (a cache hit by fingerprint)."""
+    import casadi as ca
+
+    pre, use = tmp_path / "pre", tmp_path / "use"
+    block = Block("limit", "point-mass")
+    monkeypatch.setenv("CASADRONE_CACHE", str(pre))
+    done = precompile((block,), jobs=1)
+    assert [b for b, _ in done] == [block]
+    monkeypatch.setenv("CASADRONE_CACHE", str(use))
+    monkeypatch.setattr(nlp, "_BLOCKS", {})
+    monkeypatch.setattr(nlp, "_STEPS", {})
+    model = nlp.point_mass_ocp_model()
+    nlp.step_block(model, 3)
+    nlp.interval_blocks(model, 3)
+    names = sorted(p.name for p in pre.glob("*.so"))
+    assert len(names) == 2  # the compiled step and the interval blocks
+    assert names == sorted(p.name for p in use.glob("*.so"))
+
+    monkeypatch.setenv("CASADRONE_CACHE", str(pre))
+    monkeypatch.setattr(nlp, "_BLOCKS", {})
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a precompiled library was not found: built or generated again")
+
+    monkeypatch.setattr(ca, "hessian", refuse)
+    monkeypatch.setattr(ca, "CodeGenerator", refuse)
+    jac, hess, rows, cols = nlp.interval_blocks(model, 3)
+    assert hess.class_name() == "External"
+
+
+def test_jobs_below_one_is_refused(capsys):
+    assert main(["--jobs", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "--jobs" in err and err.count("\n") == 1

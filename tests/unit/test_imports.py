@@ -85,6 +85,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.codesign.budget",
     "casadrone.codesign.frame",
     "casadrone.codesign.blocks",
+    "casadrone.precompile",  # compiles the limit lap's and co-design's blocks side by side
     "casadrone.codesign.derivatives",
     "casadrone.codesign.nlp",
     "casadrone.codesign.certificate",

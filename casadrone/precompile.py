@@ -19,6 +19,7 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from multiprocessing import get_context
@@ -78,10 +79,13 @@ def compile_block(block: Block) -> float:
 
 
 def precompile(blocks: tuple[Block, ...] = SHIPPED, jobs: int | None = None,
-               report=None) -> list[tuple[Block, float]]:
+               report: Callable[[Block, float], None] | None = None
+               ) -> list[tuple[Block, float]]:
     """Compile ``blocks`` in ``jobs`` processes (default: the CPUs this process may use), each
     reported to ``report(block, seconds)`` as it ends. Returns (block, seconds) in finishing
-    order. A failing compile raises in the caller after the others have ended."""
+    order. A failing compile (e.g. :class:`casadrone.codegen.NoCompiler`) raises here once the
+    compiles already running have ended. Each compile of a quadrotor block holds 1.5–3 GB of
+    memory while it runs: ``jobs`` bounds the sum."""
     if jobs is None:
         jobs = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                 else os.cpu_count() or 1)
@@ -90,11 +94,16 @@ def precompile(blocks: tuple[Block, ...] = SHIPPED, jobs: int | None = None,
     with ProcessPoolExecutor(max_workers=max(1, min(jobs, len(blocks))),
                              mp_context=get_context("spawn")) as pool:
         futures = {pool.submit(compile_block, b): b for b in blocks}
-        for fut in as_completed(futures):
-            seconds = fut.result()
-            done.append((futures[fut], seconds))
-            if report is not None:
-                report(futures[fut], seconds)
+        try:
+            for fut in as_completed(futures):
+                seconds = fut.result()
+                done.append((futures[fut], seconds))
+                if report is not None:
+                    report(futures[fut], seconds)
+        except BaseException:
+            for fut in futures:  # those not started yet; the running ones end by themselves
+                fut.cancel()
+            raise
     return done
 
 
@@ -107,9 +116,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.jobs is not None and args.jobs < 1:
         print("python -m casadrone.precompile: --jobs must be at least 1", file=sys.stderr)
         return 2
+    from casadrone.codegen import NoCompiler
+
     t0 = time.perf_counter()
-    precompile(jobs=args.jobs,
-               report=lambda b, s: print(f"{b.label}: {s:.1f} s", flush=True))
+    try:
+        precompile(jobs=args.jobs,
+                   report=lambda b, s: print(f"{b.label}: {s:.1f} s", flush=True))
+    except NoCompiler as err:
+        print(f"python -m casadrone.precompile: {err.strerror}", file=sys.stderr)
+        return 1
     print(f"all {len(SHIPPED)} in {time.perf_counter() - t0:.1f} s", flush=True)
     return 0
 

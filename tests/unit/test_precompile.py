@@ -44,3 +44,14 @@ def test_jobs_below_one_is_refused(capsys):
     assert main(["--jobs", "0"]) == 2
     err = capsys.readouterr().err
     assert "--jobs" in err and err.count("\n") == 1
+
+
+def test_without_a_compiler_it_says_so_in_one_line(tmp_path, monkeypatch, capsys):
+    """No C compiler: exit 1 and the compiler's absence named in one line, no traceback (the
+    first compile fails in its child process; the others are cancelled)."""
+    monkeypatch.setenv("CASADRONE_CACHE", str(tmp_path))
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    assert main(["--jobs", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "no C compiler" in err and "no-such-cc" in err and err.count("\n") == 1
+    assert not list(tmp_path.glob("*.so"))

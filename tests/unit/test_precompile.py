@@ -3,8 +3,12 @@ first use of each model would compile (same names in the same cache), so later u
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from casadrone.limit import nlp
-from casadrone.precompile import Block, main, precompile
+from casadrone.precompile import SHIPPED, Block, main, precompile
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_precompile_puts_each_library_where_its_first_use_would(tmp_path, monkeypatch):
@@ -55,3 +59,19 @@ def test_without_a_compiler_it_says_so_in_one_line(tmp_path, monkeypatch, capsys
     err = capsys.readouterr().err
     assert "no C compiler" in err and "no-such-cc" in err and err.count("\n") == 1
     assert not list(tmp_path.glob("*.so"))
+
+
+def test_every_shipped_codesign_problem_finds_its_theta_blocks_precompiled():
+    """The θ-blocks' library depends on the number of design variables (``n_dir``) and on the
+    airframe's propulsion kind: each shipped co-design problem's must be in SHIPPED, or the first
+    co-design run on a precompiled machine still compiles for minutes."""
+    from casadrone.codesign.checks import load_codesign_problem
+    from casadrone.config.airframe import load_airframe
+
+    paths = sorted((ROOT / "problems").glob("codesign-*.yaml"))
+    assert len(paths) >= 4
+    for path in paths:
+        problem = load_codesign_problem(path)
+        propulsion = load_airframe(problem.airframe).propulsion.model
+        want = Block("codesign", "quadrotor", propulsion, n_dir=len(problem.variables))
+        assert want in SHIPPED, (path.name, want)

@@ -50,6 +50,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.machine import cpu_time, markdown, summary_section  # noqa: E402
+from benchmarks.table1 import unit_positions  # noqa: E402
 from casadrone.airframe import TABLE1_BOUNDS, build_airframe, random_thetas, with_theta  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
@@ -359,9 +360,7 @@ def main(argv: list[str] | None = None) -> int:
     options = limit.LimitLapOptions(intervals=limit.DEFAULT_INTERVALS["paper"])
     thetas, _ = random_thetas(template, args.n, args.seed)
     keys = list(thetas[0])
-    lo = np.array([TABLE1_BOUNDS[k][0] for k in keys])
-    hi = np.array([TABLE1_BOUNDS[k][1] for k in keys])
-    unit = (np.array([[t[k] for k in keys] for t in thetas]) - lo) / (hi - lo)
+    unit = unit_positions(thetas)
     problems, cold = [], {s: [] for s in SOLVERS}
     guess_cpu: list[float] = []  # the cold guess's own CPU per frame (closed loop or point mass)
     for i, theta in enumerate(thetas):

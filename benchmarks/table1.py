@@ -1,0 +1,40 @@
+"""Random frames inside paper Table 1 for the limit-lap benchmarks, and which is nearest which.
+
+The benchmarks draw frames with :func:`casadrone.airframe.random_thetas` and warm-start each from
+its nearest other frame, by distance in Table 1's ranges scaled to the unit cube (every key
+counts alike, whatever its unit).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+
+from casadrone.airframe import TABLE1_BOUNDS, build_airframe, with_theta
+
+
+def unit_positions(thetas: list[dict[str, float]]) -> np.ndarray:
+    """Each θ (a row) in Table 1's ranges scaled to [0, 1] per key (the keys of ``thetas[0]``)."""
+    keys = list(thetas[0])
+    lo = np.array([TABLE1_BOUNDS[k][0] for k in keys])
+    hi = np.array([TABLE1_BOUNDS[k][1] for k in keys])
+    return (np.array([[t[k] for k in keys] for t in thetas]) - lo) / (hi - lo)
+
+
+def nearest(i: int, candidates: Iterable[int], unit: np.ndarray) -> list[int]:
+    """``candidates`` other than ``i``, nearest to frame ``i`` first (:func:`unit_positions`)."""
+    return sorted((j for j in candidates if j != i),
+                  key=lambda j: float(np.linalg.norm(unit[i] - unit[j])))
+
+
+def frame_problem(template, theta: dict[str, float], name: str, track, options):
+    """(frame, prepared limit-lap problem) of ``template`` at ``theta`` on ``track``, with the
+    frame's own clearance (:func:`casadrone.limit.lap.frame_clearance_m`)."""
+    from casadrone.limit import lap as limit
+    from casadrone.limit.starts import prepare
+
+    cfg = with_theta(template, theta, name=name)
+    frame = build_airframe(cfg)
+    return frame, prepare(frame, track, options,
+                          limit.frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))

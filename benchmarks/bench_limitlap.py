@@ -44,7 +44,7 @@ from scipy.stats import spearmanr  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.machine import cpu_time, markdown  # noqa: E402
-from benchmarks.table1 import unit_positions  # noqa: E402
+from benchmarks.table1 import nearest, unit_positions  # noqa: E402
 from casadrone.airframe import build_airframe, random_thetas, with_theta  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
@@ -112,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
         others = [j for j in ok if j != i]
         if not others:
             break
-        j = min(others, key=lambda j: np.linalg.norm(unit[i] - unit[j]))
+        j = nearest(i, others, unit)[0]
         wopts = replace(options, starts=(), warm_starts=(cold[j][1],), point_mass_reference=False,
                         resimulate=False, sensitivities=False)
         c0 = cpu_time()

@@ -48,14 +48,14 @@ import scipy.sparse.linalg as spla  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.machine import markdown  # noqa: E402
-from casadrone.airframe import TABLE1_BOUNDS, build_airframe, random_thetas, with_theta  # noqa: E402
+from benchmarks.table1 import frame_problem, nearest, unit_positions  # noqa: E402
+from casadrone.airframe import TABLE1_BOUNDS, random_thetas  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
 from casadrone.limit import lap as limit  # noqa: E402
 from casadrone.limit.nlp import NlpPoint, solve, start_violation  # noqa: E402
-from casadrone.limit.starts import prepare  # noqa: E402
 
 #: IPOPT's barrier parameter at convergence (tol 1e-8): the floor of a bound's gap × |λ|.
 MU_FINAL = 1e-9
@@ -100,13 +100,6 @@ def predict(nlp, point: NlpPoint, P: np.ndarray, lbx: np.ndarray, ubx: np.ndarra
                     point.lam_p)
 
 
-def _problem(template, theta, name, track, options):
-    cfg = with_theta(template, theta, name=name)
-    frame = build_airframe(cfg)
-    return prepare(frame, track, options,
-                   limit.frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
-
-
 def _measure(pb, start: NlpPoint) -> dict:
     lbx, ubx = pb.box
     before = start_violation(pb.full, np.clip(start.w, lbx, ubx), pb.P, *pb.rows)
@@ -136,11 +129,10 @@ def main(argv: list[str] | None = None) -> int:
     thetas, _ = random_thetas(template, args.n, args.seed)
     keys = list(thetas[0])
     span = np.array([TABLE1_BOUNDS[k][1] - TABLE1_BOUNDS[k][0] for k in keys])
-    lo = np.array([TABLE1_BOUNDS[k][0] for k in keys])
-    unit = (np.array([[t[k] for k in keys] for t in thetas]) - lo) / span
+    unit = unit_positions(thetas)
     problems, optima = [], []
     for i, theta in enumerate(thetas):
-        pb = _problem(template, theta, f"frame{i}", track, options)
+        _, pb = frame_problem(template, theta, f"frame{i}", track, options)
         traj = limit.closed_loop_lap(pb.frame, track, options.controller)
         w0 = limit.guess_from_trajectory(pb.full, traj, pb.x0) if traj is not None else \
             limit.straight_guess(pb.full, pb.targets.route, pb.x0)
@@ -159,10 +151,10 @@ def main(argv: list[str] | None = None) -> int:
                 sign = np.where(np.arange(len(keys)) % 2, -1.0, 1.0)
                 moved = {k: float(np.clip(theta[k] + sign[j] * m * span[j], *TABLE1_BOUNDS[k]))
                          for j, k in enumerate(keys)}
-                pb, start = _problem(template, moved, f"moved{i}", track, options), optima[i]
+                _, pb = frame_problem(template, moved, f"moved{i}", track, options)
+                start = optima[i]
             else:
-                j = min((j for j in range(args.n) if j != i),
-                        key=lambda j: float(np.linalg.norm(unit[i] - unit[j])))
+                j = nearest(i, range(args.n), unit)[0]
                 pb, start = problems[i], optima[j]
             if not start.success:
                 continue

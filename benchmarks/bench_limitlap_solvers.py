@@ -50,8 +50,8 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.machine import cpu_time, markdown, summary_section  # noqa: E402
-from benchmarks.table1 import unit_positions  # noqa: E402
-from casadrone.airframe import TABLE1_BOUNDS, build_airframe, random_thetas, with_theta  # noqa: E402
+from benchmarks.table1 import frame_problem, nearest, unit_positions  # noqa: E402
+from casadrone.airframe import TABLE1_BOUNDS, build_airframe, random_thetas  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
@@ -232,10 +232,7 @@ def near_solves(template, thetas, cold, args, track, options) -> dict[str, list]
         moved = {k: float(np.clip(v + args.near * (TABLE1_BOUNDS[k][1] - TABLE1_BOUNDS[k][0])
                                   * rng.choice([-1, 1]), *TABLE1_BOUNDS[k]))
                  for k, v in theta.items()}
-        cfg = with_theta(template, moved, name=f"near{i}")
-        frame = build_airframe(cfg)
-        pb = prepare(frame, track, options,
-                     limit.frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
+        frame, pb = frame_problem(template, moved, f"near{i}", track, options)
         for s in runs:
             own = cold["fatrop" if s == "fatrop" else "ipopt"][i]
             if own["ok"]:
@@ -364,10 +361,7 @@ def main(argv: list[str] | None = None) -> int:
     problems, cold = [], {s: [] for s in SOLVERS}
     guess_cpu: list[float] = []  # the cold guess's own CPU per frame (closed loop or point mass)
     for i, theta in enumerate(thetas):
-        cfg = with_theta(template, theta, name=f"frame{i}")
-        frame = build_airframe(cfg)
-        pb = prepare(frame, track, options,
-                     limit.frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
+        frame, pb = frame_problem(template, theta, f"frame{i}", track, options)
         c0 = cpu_time()
         if args.cold_start == "point-mass":
             w0 = pb.lifted  # the point-mass reference (three point-mass solves), lifted
@@ -392,10 +386,10 @@ def main(argv: list[str] | None = None) -> int:
     for s in warm:
         ok = [i for i, r in enumerate(cold[s]) if r["ok"]]
         for i in ok:
-            j = min((j for j in ok if j != i), key=lambda j: np.linalg.norm(unit[i] - unit[j]),
-                    default=None)
-            if j is None:
+            near = nearest(i, ok, unit)
+            if not near:
                 break
+            j = near[0]
             ws = cold[s][j]["point"]
             warm[s].append(_timed(problems[i], ws.w, s, warm=ws) | {"frame": i})
     near = near_solves(template, thetas, cold, args, track, options)

@@ -55,8 +55,8 @@ import scipy.sparse as sps  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.machine import markdown  # noqa: E402
-from benchmarks.table1 import unit_positions  # noqa: E402
-from casadrone.airframe import build_airframe, random_thetas, with_theta  # noqa: E402
+from benchmarks.table1 import frame_problem, nearest, unit_positions  # noqa: E402
+from casadrone.airframe import build_airframe, random_thetas  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
@@ -64,7 +64,6 @@ from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
 from casadrone.limit import lap as limit  # noqa: E402
 from casadrone.limit.nlp import solve, start_violation  # noqa: E402
 from casadrone.limit.stagewise import fatrop_solver, stagewise_functions  # noqa: E402
-from casadrone.limit.starts import prepare  # noqa: E402
 
 TOL = 1e-6
 SAME = 1e-4  # 0.01 % of the lap
@@ -321,10 +320,7 @@ def main(argv: list[str] | None = None) -> int:
     unit = unit_positions(thetas)
     problems, cold = [], []
     for i, theta in enumerate(thetas):
-        cfg = with_theta(template, theta, name=f"frame{i}")
-        frame = build_airframe(cfg)
-        pb = prepare(frame, track, options,
-                     limit.frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
+        frame, pb = frame_problem(template, theta, f"frame{i}", track, options)
         traj = limit.closed_loop_lap(frame, track, options.controller)
         w0 = limit.guess_from_trajectory(pb.full, traj, pb.x0) if traj is not None else \
             limit.straight_guess(pb.full, pb.targets.route, pb.x0)
@@ -340,7 +336,7 @@ def main(argv: list[str] | None = None) -> int:
     solvers = {v: StageSqp(problems[0].full, v, args.qp_iter, args.qp_tol) for v in variants}
     rows: dict[str, list[dict]] = {"ipopt": [], **{v.label: [] for v in variants}}
     for i in ok:
-        j = min((j for j in ok if j != i), key=lambda j: np.linalg.norm(unit[i] - unit[j]))
+        j = nearest(i, ok, unit)[0]
         pb, start = problems[i], cold[j].point
         v0 = start_violation(pb.full, np.clip(start.w, *pb.box), pb.P, *pb.rows)
         c = time.process_time()

@@ -12,8 +12,9 @@ move? This script removes most of the violation in two ways and counts the itera
   frame: at every node the four thrusts become those that give the new frame the neighbour's
   accelerations (collective thrust scaled by the mass ratio; body torque J'·ω̇ + ω × J'ω for the
   neighbour's angular acceleration ω̇ = J⁻¹(M − ω × Jω)), through the inverse of the new
-  frame's 4 × 4 thrust-to-wrench map (the ``paper`` model's, :func:`casadrone.model.
-  airframe_terms`); the commands K·δ alike at their interval's first node; then the box;
+  frame's 4 × 4 thrust-to-wrench map (the ``paper`` model's,
+  :attr:`casadrone.airframe.Airframe.allocation_matrix`); the commands K·δ alike at their
+  interval's first node; then the box;
 - ``least-violation``: of the ``--k`` nearest neighbours, the one whose optimum violates the
   new frame's rows least (``k`` evaluations of g, counted in its CPU).
 
@@ -51,7 +52,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.machine import cpu_time, markdown  # noqa: E402
 from benchmarks.table1 import frame_problem, nearest, unit_positions  # noqa: E402
-from casadrone.airframe import PARAM_NAMES, random_thetas  # noqa: E402
+from casadrone.airframe import Airframe, random_thetas  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
@@ -59,46 +60,32 @@ from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
 from casadrone.limit import lap as limit  # noqa: E402
 from casadrone.limit.nlp import NlpPoint, ipopt_solver, solve, start_violation  # noqa: E402
 
-_AT = {name: i for i, name in enumerate(PARAM_NAMES)}
 #: IPOPT settings measured on the neighbour's start, on top of the far warm setting.
 SETTINGS: dict[str, dict] = {"far": {}, "far, min_refinement_steps 0":
                              {"min_refinement_steps": 0}, "far, max_soc 0": {"max_soc": 0}}
 
 
-def wrench_map(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """(A, J, mass, K) of a ``paper`` airframe vector: [collective thrust; body torque] = A·T for
-    rotor thrusts T (the torque of :func:`casadrone.model.airframe_terms`: r_i × T_i e_z +
-    s_i κ T_i e_z), the inertia tensor, the mass and the thrust gain."""
-    A = np.zeros((4, 4))
-    for i in range(4):
-        rx, ry = p[_AT[f"r{i + 1}x"]], p[_AT[f"r{i + 1}y"]]
-        A[:, i] = [1.0, ry, -rx, p[_AT[f"s{i + 1}"]] * p[_AT["kappa"]]]
-    J = np.array([[p[_AT["Ixx"]], p[_AT["Ixy"]], p[_AT["Ixz"]]],
-                  [p[_AT["Ixy"]], p[_AT["Iyy"]], p[_AT["Iyz"]]],
-                  [p[_AT["Ixz"]], p[_AT["Iyz"]], p[_AT["Izz"]]]])
-    return A, J, float(p[_AT["mass"]]), float(p[_AT["K"]])
-
-
-def remix(nlp, w: np.ndarray, p_from: np.ndarray, p_to: np.ndarray,
+def remix(nlp, w: np.ndarray, old: Airframe, new: Airframe,
           box: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """The decision vector ``w`` of frame ``p_from`` with its rotor thrusts and commands re-mixed
-    for frame ``p_to`` (the module docstring), inside the box."""
+    """The decision vector ``w`` of frame ``old`` with its rotor thrusts and commands re-mixed
+    for frame ``new`` (the module docstring; the frames' :attr:`~casadrone.airframe.Airframe.
+    allocation_matrix`, the ``paper`` model's thrust-to-wrench map), inside the box."""
     T, X, U = nlp.unpack(w)
-    A0, J0, m0, K0 = wrench_map(p_from)
-    A1, J1, m1, K1 = wrench_map(p_to)
+    A0, A1 = old.allocation_matrix, new.allocation_matrix
+    J0, J1 = old.inertia, new.inertia
 
     def moved(thrusts: np.ndarray, omega: np.ndarray) -> np.ndarray:
         W = A0 @ thrusts
         omega_dot = np.linalg.solve(J0, W[1:] - np.cross(omega, J0 @ omega))
         torque = J1 @ omega_dot + np.cross(omega, J1 @ omega)
-        return np.linalg.solve(A1, np.concatenate([[W[0] * m1 / m0], torque]))
+        return np.linalg.solve(A1, np.concatenate([[W[0] * new.mass / old.mass], torque]))
 
-    rotor = nlp.model.rotor
+    rotor, rates = nlp.model.rotor, nlp.model.rates
     X2, U2 = X.copy(), U.copy()
     for k in range(len(X)):
-        X2[k, rotor] = moved(X[k, rotor], X[k, nlp.model.rates])
+        X2[k, rotor] = moved(X[k, rotor], X[k, rates])
     for k in range(len(U)):
-        U2[k] = moved(K0 * U[k], X[k, nlp.model.rates]) / K1
+        U2[k] = moved(old.thrust_gain * U[k], X[k, rates]) / new.thrust_gain
     return np.clip(nlp.pack(T, X2, U2), *box)
 
 
@@ -192,10 +179,9 @@ def main() -> None:
         j = near[0]
         nb = cold[j].point
         w_nb = np.clip(nb.w, *pb.box)
-        n_par = len(PARAM_NAMES)
         starts = {"neighbour": (w_nb, nb, 0.0)}
         c0 = cpu_time()
-        w_mix = remix(pb.full, nb.w, problems[j].P[:n_par], pb.P[:n_par], pb.box)
+        w_mix = remix(pb.full, nb.w, problems[j].frame, pb.frame, pb.box)
         starts["remixed"] = (w_mix, nb, cpu_time() - c0)
         c0 = cpu_time()
         viol = {m: start_violation(pb.full, np.clip(cold[m].point.w, *pb.box), pb.P, *pb.rows)

@@ -344,14 +344,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeat", type=int, default=1,
                     help="with --profile: solves per solver (one row each)")
     args = ap.parse_args(argv)
+    if args.ipopt_option:
+        _with_ipopt_options(args.ipopt_option)
     if args.profile:
         print("\n".join(profile(args.profile, args.repeat, tuple(
             (args.solvers or "ipopt,fatrop,ipopt-stage").split(",")))))
         return 0
     args.solvers = args.solvers or "ipopt,fatrop"
     SOLVERS = tuple(args.solvers.split(","))
-    if args.ipopt_option:
-        _with_ipopt_options(args.ipopt_option)
     template = load_airframe(args.template)
     track = load(TrackConfig, DEFAULT_TRACK)
     options = limit.LimitLapOptions(intervals=limit.DEFAULT_INTERVALS["paper"])

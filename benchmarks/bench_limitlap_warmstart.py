@@ -51,13 +51,8 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.machine import cpu_time, markdown  # noqa: E402
-from benchmarks.table1 import frame_problem, nearest, unit_positions  # noqa: E402
-from casadrone.airframe import Airframe, random_thetas  # noqa: E402
-from casadrone.config.airframe import load_airframe  # noqa: E402
-from casadrone.config.io import load  # noqa: E402
-from casadrone.config.track import TrackConfig  # noqa: E402
-from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
-from casadrone.limit import lap as limit  # noqa: E402
+from benchmarks.table1 import cold_frames, nearest  # noqa: E402
+from casadrone.airframe import Airframe  # noqa: E402
 from casadrone.limit.nlp import NlpPoint, ipopt_solver, solve, start_violation  # noqa: E402
 
 #: IPOPT settings measured on the neighbour's start, on top of the far warm setting.
@@ -152,18 +147,7 @@ def main() -> None:
     ap.add_argument("--timing", action="store_true",
                     help="IPOPT's own timers of the neighbour's warm solve instead")
     args = ap.parse_args()
-    template = load_airframe("SY250")
-    track = load(TrackConfig, DEFAULT_TRACK)
-    options = limit.LimitLapOptions(intervals=limit.DEFAULT_INTERVALS["paper"])
-    thetas, _ = random_thetas(template, args.n, args.seed)
-    unit = unit_positions(thetas)
-    problems, cold = [], []
-    for i, theta in enumerate(thetas):
-        _, pb = frame_problem(template, theta, f"frame{i}", track, options)
-        problems.append(pb)
-        cold.append(solve(pb.full, pb.lifted, pb.P, *pb.box, lbg=pb.rows[0], ubg=pb.rows[1]))
-        print(f"cold {i}: {cold[-1].return_status} {cold[-1].objective:.5f} "
-              f"{cold[-1].iterations} it", file=sys.stderr, flush=True)
+    unit, problems, cold = cold_frames(args.n, args.seed)
     ok = [i for i in range(args.n) if cold[i].success]
     if args.timing:
         pairs = [(i, nearest(i, ok, unit)[0]) for i in ok]

@@ -38,3 +38,31 @@ def frame_problem(template, theta: dict[str, float], name: str, track, options):
     frame = build_airframe(cfg)
     return frame, prepare(frame, track, options,
                           limit.frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
+
+
+def cold_frames(n: int, seed: int, template_name: str = "SY250") -> tuple[np.ndarray, list, list]:
+    """``n`` random Table 1 frames of ``template_name`` on the paper track at the default grid:
+    their unit-cube positions, prepared problems and cold IPOPT solutions from the point-mass
+    start (each reported on stderr)."""
+    import sys
+
+    from casadrone.airframe import random_thetas
+    from casadrone.config.airframe import load_airframe
+    from casadrone.config.io import load
+    from casadrone.config.track import TrackConfig
+    from casadrone.evaluate import DEFAULT_TRACK
+    from casadrone.limit import lap as limit
+    from casadrone.limit.nlp import solve
+
+    template = load_airframe(template_name)
+    track = load(TrackConfig, DEFAULT_TRACK)
+    options = limit.LimitLapOptions(intervals=limit.DEFAULT_INTERVALS["paper"])
+    thetas, _ = random_thetas(template, n, seed)
+    problems, cold = [], []
+    for i, theta in enumerate(thetas):
+        _, pb = frame_problem(template, theta, f"frame{i}", track, options)
+        problems.append(pb)
+        cold.append(solve(pb.full, pb.lifted, pb.P, *pb.box, lbg=pb.rows[0], ubg=pb.rows[1]))
+        print(f"cold {i}: {cold[-1].return_status} {cold[-1].objective:.5f} "
+              f"{cold[-1].iterations} it", file=sys.stderr, flush=True)
+    return unit_positions(thetas), problems, cold

@@ -31,7 +31,8 @@ with them the working set's KKT matrix is singular by construction, which no QP 
 have to survive. The symbolic NLP (:attr:`casadrone.limit.nlp.Nlp.problem`) is given, with the
 solvers' own derivatives (these plugins do not take IPOPT's ``jac_g``/``hess_lag`` options), so
 their time per iteration is not comparable with IPOPT's; the iterations, the status and the lap
-are. Each solve runs in a forked child given up after ``--cap`` seconds of wall time.
+are. Each solve runs in a forked child given up after ``--cap`` seconds of wall time
+(:func:`casadrone.limit.watchdog.run_guarded`).
 
 For ``--n`` random Table 1 frames (the seeds of bench_limitlap.py; SY250 template, paper track,
 40 intervals per leg, one core; CPU = process time), each frame's cold optimum from its
@@ -48,9 +49,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
-import multiprocessing as mp  # noqa: E402
 import sys  # noqa: E402
-import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import casadi as ca  # noqa: E402
@@ -62,6 +61,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from benchmarks.machine import cpu_time, markdown  # noqa: E402
 from benchmarks.table1 import cold_frames, nearest  # noqa: E402
 from casadrone.limit.nlp import solve  # noqa: E402
+from casadrone.limit.watchdog import run_guarded  # noqa: E402
 
 TOL = 1e-6
 #: plugin, options (beside the tolerances) of each solver this script knows
@@ -97,35 +97,26 @@ def reduced_nlp(problem: dict, fixed: np.ndarray, jac_sparsity: ca.Sparsity
             "g": g[np.flatnonzero(keep).tolist()]}, keep
 
 
-def _child(conn, build, args) -> None:
-    c0 = cpu_time()
-    try:
+def capped(build, args: dict, cap: float) -> dict:
+    """``build()(**args)`` in a forked child given up after ``cap`` s of wall time: the library's
+    :func:`casadrone.limit.watchdog.run_guarded`, whose stall limit is a wall-clock limit here
+    (these solvers never call its ``beat``)."""
+    def run() -> dict:
         S = build()
         out = S(**args)
         st = S.stats()
-        conn.send({"status": str(st.get("return_status", st.get("unified_return_status", "?"))),
-                   "success": bool(st.get("success", False)), "f": float(out["f"]),
-                   "it": st.get("iter_count"), "cpu": cpu_time() - c0,
-                   "moved": float(np.abs(np.array(out["x"]).ravel() - args["x0"]).max())})
-    except Exception as exc:  # noqa: BLE001 - any solver error is a measured outcome
-        text = " ".join(str(exc).split())
-        conn.send({"status": f"error: {text[-160:]}", "success": False, "f": np.nan,
-                   "it": None, "cpu": cpu_time() - c0, "moved": np.nan})
+        return {"status": str(st.get("return_status", st.get("unified_return_status", "?"))),
+                "success": bool(st.get("success", False)), "f": float(out["f"]),
+                "it": st.get("iter_count"),
+                "moved": float(np.abs(np.array(out["x"]).ravel() - args["x0"]).max())}
 
-
-def capped(build, args: dict, cap: float) -> dict:
-    """``build()(**args)`` in a forked child, given up after ``cap`` s of wall time."""
-    ctx = mp.get_context("fork")
-    parent, child = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(child, build, args))
-    t0 = time.perf_counter()
-    proc.start()
-    got = parent.poll(cap)
-    result = parent.recv() if got else {"status": f"given up after {cap:.0f} s", "success": False,
-                                        "f": np.nan, "it": None, "cpu": np.nan, "moved": np.nan}
-    proc.kill()
-    proc.join()
-    return result | {"wall": time.perf_counter() - t0}
+    g = run_guarded(run, stall_s=cap)
+    if g.outcome == "ok":
+        return g.value | {"cpu": g.cpu_s}
+    status = f"given up after {cap:.0f} s" if g.outcome == "stalled" else \
+        f"{g.outcome}: {' '.join(g.message.split())[-160:]}"
+    return {"status": status, "success": False, "f": np.nan, "it": None,
+            "cpu": g.cpu_s if g.outcome == "error" else np.nan, "moved": np.nan}
 
 
 def available(name: str) -> str | None:

@@ -153,12 +153,13 @@ def _solver_of(pb, solver: str):
 
 
 def profile(template_name: str, repeat: int = 1, solvers: tuple[str, ...] = (
-        "ipopt", "fatrop", "ipopt-stage")) -> list[str]:
+        "ipopt", "fatrop", "ipopt-stage"), ipopt_option: tuple[str, ...] = ()) -> list[str]:
     """Per-iteration CPU of ``repeat`` cold solves of the template itself (closed-loop guess) by
     each solver (a row per solve), split into the NLP's function evaluations (CasADi's
     t_proc_nlp_* statistics) and the rest (the solver's own work: factorisation, line search,
     bookkeeping). Repeats show this machine's drift; two versions of the code are compared by
-    running this alternately from their checkouts."""
+    running this alternately from their checkouts. ``ipopt_option``: the ``--ipopt-option``
+    pairs already applied by :func:`main`, named in the header's command."""
     template = load_airframe(template_name)
     track = load(TrackConfig, DEFAULT_TRACK)
     options = limit.LimitLapOptions(intervals=limit.DEFAULT_INTERVALS["paper"])
@@ -166,8 +167,10 @@ def profile(template_name: str, repeat: int = 1, solvers: tuple[str, ...] = (
     pb = prepare(frame, track, options,
                  limit.frame_clearance_m(frame, template.prop_diameter_mm / 1000))
     w0 = limit.guess_from_trajectory(pb.full, limit.closed_loop_lap(frame, track), pb.x0)
+    extra = "".join(f" --ipopt-option {o}" for o in ipopt_option)
     lines = [f"Per iteration, {template_name} cold from its closed-loop guess "
-             f"(`python benchmarks/bench_limitlap_solvers.py --profile {template_name}`):", "",
+             f"(`python benchmarks/bench_limitlap_solvers.py --profile {template_name}{extra}`):",
+             "",
              "| solver | lap (s) | iterations | CPU per iteration (ms) | of it: function "
              "evaluations (ms) | of it: the solver's own work (ms) |", "|---|---|---|---|---|---|"]
     _GUARD[0] = False  # the solver's statistics are those of this process's instance
@@ -348,7 +351,7 @@ def main(argv: list[str] | None = None) -> int:
         _with_ipopt_options(args.ipopt_option)
     if args.profile:
         print("\n".join(profile(args.profile, args.repeat, tuple(
-            (args.solvers or "ipopt,fatrop,ipopt-stage").split(",")))))
+            (args.solvers or "ipopt,fatrop,ipopt-stage").split(",")), tuple(args.ipopt_option))))
         return 0
     args.solvers = args.solvers or "ipopt,fatrop"
     SOLVERS = tuple(args.solvers.split(","))

@@ -11,8 +11,9 @@ and every NLP solver casadi 3.8 ships. This script measures the other side: the 
   IPOPT stopped after 0 and 1 iterations from there (the fixed cost of a solve: evaluations,
   MUMPS's analysis and first factorisation).
 - **moved by r**: each frame moved by ± r of the Table 1 range in every key (seeded signs, as
-  bench_limitlap_solvers.py's "near" rows) and solved from its own optimum
-  (``solve(..., near=True)``): how close a start must be for the target.
+  bench_limitlap_solvers.py's "near" rows; a move that makes an impossible frame, e.g. rotors
+  that overlap, is drawn again) and solved from its own optimum (``solve(..., near=True)``): how
+  close a start must be for the target.
 - **neighbour**: from the nearest other frame's optimum (the benchmark's warm start), with its
   distance in the same measure (the largest key's move as a fraction of its range).
 - ``--variants``: from the same neighbour, IPOPT with a limited-memory (L-BFGS) Hessian (no
@@ -63,6 +64,8 @@ NEWTON_DELTA = 1e-6
 NEWTON_EPS = 1e-9
 #: Shift of the shift-invert Lanczos iteration (the matrix itself may be singular)
 SHIFT = 1e-9
+#: Draws of a move's signs before a frame whose every move is impossible is left out
+MOVE_DRAWS = 20
 #: Eigenvalues counted as "near zero", relative to the KKT matrix's largest
 NEAR_ZERO = 1e-8
 
@@ -198,6 +201,21 @@ def moved_theta(theta: dict, r: float, rng: np.random.Generator) -> dict:
                              * rng.choice([-1, 1]), *TABLE1_BOUNDS[k])) for k, v in theta.items()}
 
 
+def moved_problem(template, theta: dict, r: float, rng: np.random.Generator, name: str, track,
+                  options):
+    """The prepared problem of ``theta`` moved by ``r`` (:func:`moved_theta`); a move that makes
+    an impossible frame (e.g. rotors that overlap) is drawn again with other signs, up to
+    :data:`MOVE_DRAWS` times (None: every draw was impossible, the frame is left out)."""
+    from casadrone.config.io import ConfigError
+
+    for _ in range(MOVE_DRAWS):
+        try:
+            return frame_problem(template, moved_theta(theta, r, rng), name, track, options)[1]
+        except ConfigError:
+            continue
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=10)
@@ -247,8 +265,9 @@ def main(argv: list[str] | None = None) -> int:
             r = _call(S, pb, own)
             record(label, r | {"rel": abs(lap(r["w"]) - ref) / ref})
         for r_ in radii:
-            _, moved = frame_problem(template, moved_theta(thetas[i], r_, rng), f"moved{i}",
-                                     track, options)
+            moved = moved_problem(template, thetas[i], r_, rng, f"moved{i}", track, options)
+            if moved is None:
+                continue
             c0 = cpu_time()
             s = solve(moved.full, own.w, moved.P, *moved.box, warm=own, lbg=moved.rows[0],
                       ubg=moved.rows[1], near=True)

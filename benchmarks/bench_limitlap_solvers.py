@@ -50,8 +50,8 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.machine import cpu_time, markdown, summary_section  # noqa: E402
-from benchmarks.table1 import frame_problem, nearest, unit_positions  # noqa: E402
-from casadrone.airframe import TABLE1_BOUNDS, build_airframe, random_thetas  # noqa: E402
+from benchmarks.table1 import frame_problem, moved_problem, nearest, unit_positions  # noqa: E402
+from casadrone.airframe import build_airframe, random_thetas  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
@@ -232,10 +232,10 @@ def near_solves(template, thetas, cold, args, track, options) -> dict[str, list]
     runs: dict[str, list] = {s: [] for s in ("ipopt", "ipopt-far", "fatrop")
                              if s.removesuffix("-far") in cold}
     for i, theta in enumerate(thetas):
-        moved = {k: float(np.clip(v + args.near * (TABLE1_BOUNDS[k][1] - TABLE1_BOUNDS[k][0])
-                                  * rng.choice([-1, 1]), *TABLE1_BOUNDS[k]))
-                 for k, v in theta.items()}
-        frame, pb = frame_problem(template, moved, f"near{i}", track, options)
+        made = moved_problem(template, theta, args.near, rng, f"near{i}", track, options)
+        if made is None:  # every move of this frame is an impossible body
+            continue
+        pb = made[1]
         for s in runs:
             own = cold["fatrop" if s == "fatrop" else "ipopt"][i]
             if own["ok"]:

@@ -54,9 +54,16 @@ import scipy.sparse.linalg as spla  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.machine import cpu_time, markdown  # noqa: E402
-from benchmarks.table1 import cold_frames, frame_problem, nearest  # noqa: E402
-from casadrone.airframe import TABLE1_BOUNDS, random_thetas  # noqa: E402
-from casadrone.limit.nlp import Nlp, NlpPoint, ipopt_options, ipopt_solver, solve  # noqa: E402
+from benchmarks.table1 import cold_frames, moved_problem, nearest  # noqa: E402
+from casadrone.airframe import random_thetas  # noqa: E402
+from casadrone.limit.nlp import (  # noqa: E402
+    Nlp,
+    NlpPoint,
+    ipopt_options,
+    ipopt_solver,
+    solve,
+    start_violation,
+)
 
 #: Regularisation of the KKT matrix's primal block in the Newton step (1/s² in the NLP's units)
 NEWTON_DELTA = 1e-6
@@ -64,14 +71,8 @@ NEWTON_DELTA = 1e-6
 NEWTON_EPS = 1e-9
 #: Shift of the shift-invert Lanczos iteration (the matrix itself may be singular)
 SHIFT = 1e-9
-#: Draws of a move's signs before a frame whose every move is impossible is left out
-MOVE_DRAWS = 20
 #: Eigenvalues counted as "near zero", relative to the KKT matrix's largest
 NEAR_ZERO = 1e-8
-
-
-def _sparse(m: ca.DM) -> sps.csc_matrix:
-    return m.sparse()
 
 
 def _call(S: ca.Function, pb, start: NlpPoint) -> dict:
@@ -139,8 +140,8 @@ def active_kkt(nlp: Nlp, pb, point: NlpPoint, c_lap: np.ndarray
     w = np.clip(point.w, lbx, ubx)
     lg, lx = point.lam_g, point.lam_x
     g, J = nlp.derivatives["jac_g"](w, pb.P)
-    g, J = np.array(g).ravel(), _sparse(J).tocsr()
-    Hu = _sparse(nlp.derivatives["hess_lag"](w, pb.P, 1.0, lg))
+    g, J = np.array(g).ravel(), J.sparse().tocsr()
+    Hu = nlp.derivatives["hess_lag"](w, pb.P, 1.0, lg).sparse()
     H = (Hu + Hu.T - sps.diags(Hu.diagonal())).tocsc()
     free = lbx < ubx
     eq = lbg == ubg
@@ -182,38 +183,11 @@ def kkt_at_optimum(nlp: Nlp, pb, point: NlpPoint, c_lap: np.ndarray, k: int = 60
     w = np.clip(point.w, lbx, ubx)
     w_new = w.copy()
     w_new[fx] += step[:nf]
-    g0 = np.array(nlp.cold.get_function("nlp_g")(w, pb.P)).ravel()
-    g1 = np.array(nlp.cold.get_function("nlp_g")(w_new, pb.P)).ravel()
-    lbg, ubg = pb.rows
-
-    def violation(g: np.ndarray) -> float:
-        return float(np.max(np.maximum(lbg - g, 0) + np.maximum(g - ubg, 0)))
-
     return {"n": K.shape[0], "smallest": float(np.min(np.abs(near))), "largest": top,
             "near_zero": int(small.sum()), "k": k, "command_share": share,
             "residual": float(np.max(np.abs(rhs))), "move": float(np.max(np.abs(step[:nf]))),
-            "violation_before": violation(g0), "violation_after": violation(g1)} | sizes
-
-
-def moved_theta(theta: dict, r: float, rng: np.random.Generator) -> dict:
-    """``theta`` with every key moved by ± r of its Table 1 range (random sign), kept inside."""
-    return {k: float(np.clip(v + r * (TABLE1_BOUNDS[k][1] - TABLE1_BOUNDS[k][0])
-                             * rng.choice([-1, 1]), *TABLE1_BOUNDS[k])) for k, v in theta.items()}
-
-
-def moved_problem(template, theta: dict, r: float, rng: np.random.Generator, name: str, track,
-                  options):
-    """The prepared problem of ``theta`` moved by ``r`` (:func:`moved_theta`); a move that makes
-    an impossible frame (e.g. rotors that overlap) is drawn again with other signs, up to
-    :data:`MOVE_DRAWS` times (None: every draw was impossible, the frame is left out)."""
-    from casadrone.config.io import ConfigError
-
-    for _ in range(MOVE_DRAWS):
-        try:
-            return frame_problem(template, moved_theta(theta, r, rng), name, track, options)[1]
-        except ConfigError:
-            continue
-    return None
+            "violation_before": start_violation(nlp, w, pb.P, *pb.rows),
+            "violation_after": start_violation(nlp, w_new, pb.P, *pb.rows)} | sizes
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -265,9 +239,10 @@ def main(argv: list[str] | None = None) -> int:
             r = _call(S, pb, own)
             record(label, r | {"rel": abs(lap(r["w"]) - ref) / ref})
         for r_ in radii:
-            moved = moved_problem(template, thetas[i], r_, rng, f"moved{i}", track, options)
-            if moved is None:
+            made = moved_problem(template, thetas[i], r_, rng, f"moved{i}", track, options)
+            if made is None:
                 continue
+            moved = made[1]
             c0 = cpu_time()
             s = solve(moved.full, own.w, moved.P, *moved.box, warm=own, lbg=moved.rows[0],
                       ubg=moved.rows[1], near=True)

@@ -40,6 +40,33 @@ def frame_problem(template, theta: dict[str, float], name: str, track, options):
                           limit.frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
 
 
+#: Draws of a move's signs (:func:`moved_problem`) before a frame whose every move is
+#: impossible is left out
+MOVE_DRAWS = 20
+
+
+def moved_theta(theta: dict[str, float], r: float, rng: np.random.Generator) -> dict[str, float]:
+    """``theta`` with every key moved by ± r of its Table 1 range (random sign), kept inside."""
+    return {k: float(np.clip(v + r * (TABLE1_BOUNDS[k][1] - TABLE1_BOUNDS[k][0])
+                             * rng.choice([-1, 1]), *TABLE1_BOUNDS[k])) for k, v in theta.items()}
+
+
+def moved_problem(template, theta: dict[str, float], r: float, rng: np.random.Generator,
+                  name: str, track, options):
+    """:func:`frame_problem` of ``theta`` moved by ``r`` (:func:`moved_theta`). A move that
+    makes an impossible frame (e.g. rotors that overlap) is drawn again with other signs, up to
+    :data:`MOVE_DRAWS` times; None: every draw was impossible, the frame is left out. A move
+    that is possible at the first draw uses the random stream as the plain move does."""
+    from casadrone.config.io import ConfigError
+
+    for _ in range(MOVE_DRAWS):
+        try:
+            return frame_problem(template, moved_theta(theta, r, rng), name, track, options)
+        except ConfigError:
+            continue
+    return None
+
+
 def cold_frames(n: int, seed: int, template_name: str = "SY250") -> tuple[np.ndarray, list, list]:
     """``n`` random Table 1 frames of ``template_name`` on the paper track at the default grid:
     their unit-cube positions, prepared problems and cold IPOPT solutions from the point-mass

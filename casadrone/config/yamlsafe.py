@@ -12,6 +12,7 @@ text is refused with a one-line reason. The ceilings are ~300 times what a confi
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
 import yaml
@@ -50,35 +51,49 @@ def check_size(n_bytes: int) -> None:
 def check_cost(text: str) -> None:
     """Refuse ``text`` when its documents expand to more than :data:`MAX_NODES` nodes or nest
     deeper than :data:`MAX_DEPTH`; one pass over the parser's events, before any construction.
+
+    A parser may stop before this pass sees the ceiling: libyaml (PyYAML ≥ 6.0.4's C parser) has
+    its own nesting limit and raises "exceeded maximum nesting depth" while scanning ahead. So a
+    text the C parser stops on is counted again with PyYAML's pure-Python parser, which has no
+    limit of its own: the refusal and its wording are casadrone's, whichever parser is installed.
     Malformed YAML passes here (the loader reports it with its line)."""
     check_size(len(text.encode("utf-8", "surrogatepass")))
+    parsers = [_EventLoader] if _EventLoader is yaml.BaseLoader else [_EventLoader, yaml.BaseLoader]
+    for parser in parsers:
+        try:
+            _count(yaml.parse(text, Loader=parser))
+            return
+        except yaml.YAMLError:
+            continue
+
+
+def _count(events: Iterator[yaml.Event]) -> None:
+    """Raise :class:`TooCostly` when ``events`` nest deeper than :data:`MAX_DEPTH` or expand to
+    more than :data:`MAX_NODES` nodes (each alias counts the whole node it repeats)."""
     sizes: dict[str, int] = {}  # anchor → expanded size of its node
     stack: list[list] = [[None, 0]]  # open collections: [anchor, expanded size so far]
-    try:
-        for event in yaml.parse(text, Loader=_EventLoader):
-            if isinstance(event, yaml.CollectionStartEvent):
-                stack.append([event.anchor, 1])
-                if len(stack) - 1 > MAX_DEPTH:
-                    raise TooCostly(f"line {_line(event)}: nested more than "
-                                    f"{MAX_DEPTH} levels deep (a config needs a few)")
-                continue
-            if isinstance(event, yaml.CollectionEndEvent):
-                anchor, size = stack.pop()
-            elif isinstance(event, yaml.ScalarEvent):
-                anchor, size = event.anchor, 1
-            elif isinstance(event, yaml.AliasEvent):
-                anchor, size = None, sizes.get(event.anchor or "", 1)
-            else:
-                continue
-            if anchor is not None:
-                sizes[anchor] = size
-            stack[-1][1] += size
-            if sum(s for _, s in stack) > MAX_NODES:
-                raise TooCostly(f"line {_line(event)}: expands to more than "
-                                f"{MAX_NODES} values (aliases repeating aliases?); a config "
-                                "needs a few hundred")
-    except yaml.YAMLError:
-        return
+    for event in events:
+        if isinstance(event, yaml.CollectionStartEvent):
+            stack.append([event.anchor, 1])
+            if len(stack) - 1 > MAX_DEPTH:
+                raise TooCostly(f"line {_line(event)}: nested more than "
+                                f"{MAX_DEPTH} levels deep (a config needs a few)")
+            continue
+        if isinstance(event, yaml.CollectionEndEvent):
+            anchor, size = stack.pop()
+        elif isinstance(event, yaml.ScalarEvent):
+            anchor, size = event.anchor, 1
+        elif isinstance(event, yaml.AliasEvent):
+            anchor, size = None, sizes.get(event.anchor or "", 1)
+        else:
+            continue
+        if anchor is not None:
+            sizes[anchor] = size
+        stack[-1][1] += size
+        if sum(s for _, s in stack) > MAX_NODES:
+            raise TooCostly(f"line {_line(event)}: expands to more than "
+                            f"{MAX_NODES} values (aliases repeating aliases?); a config "
+                            "needs a few hundred")
 
 
 def safe_load(text: str, loader: type) -> object:

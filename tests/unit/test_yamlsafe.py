@@ -101,3 +101,33 @@ def test_a_symlink_loop_is_named_as_one(tmp_path):
     os.symlink(loop.name, loop)
     with pytest.raises(ConfigError, match="symbolic link loop"):
         read_yaml(loop)
+
+
+class _ShallowParser(yaml.BaseLoader):
+    """A parser with a nesting limit of its own far below casadrone's (as libyaml's C parser has
+    from PyYAML 6.0.4 on): it stops with its own error before the event pass sees the ceiling."""
+
+    def check_event(self, *choices):
+        depth = getattr(self, "_depth", 0)
+        found = super().check_event(*choices)
+        event = self.peek_event()
+        if isinstance(event, yaml.CollectionStartEvent):
+            self._depth = depth + 1
+            if self._depth > 5:
+                raise yaml.YAMLError("exceeded maximum nesting depth")
+        elif isinstance(event, yaml.CollectionEndEvent):
+            self._depth = depth - 1
+        return found
+
+
+@pytest.mark.parametrize("parser", [yaml.BaseLoader, getattr(yaml, "CBaseLoader", yaml.BaseLoader),
+                                    _ShallowParser])
+def test_deep_nesting_is_refused_in_casadrones_words_whichever_parser_trips_first(
+        tmp_path, monkeypatch, parser):
+    monkeypatch.setattr(yamlsafe, "_EventLoader", parser)
+    path = tmp_path / "deep.yaml"
+    path.write_text("a: " + "[" * 2_000 + "1" + "]" * 2_000 + "\n")
+    with pytest.raises(ConfigError) as err:
+        read_yaml(path)
+    (line,) = err.value.lines
+    assert line.startswith(f"{path}: ") and f"nested more than {yamlsafe.MAX_DEPTH}" in line

@@ -171,10 +171,8 @@ def main() -> None:
         "coordinating process's CPU time over those steps.",
         "",
         *table(rows),
-        "",
-        machine.summary_section([summary_row(rows)]),
     ]
-    text = "\n".join(lines)
+    text = machine.with_summary("\n".join(lines), [summary_row(rows)])
     args.out.write_text(text)
     print(text)
 

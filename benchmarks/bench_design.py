@@ -35,7 +35,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from benchmarks.machine import describe, summary_section  # noqa: E402
+from benchmarks.machine import describe, with_summary  # noqa: E402
 from casadrone import airframe  # noqa: E402
 from casadrone.airframe import build_airframe, with_theta  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
@@ -178,9 +178,8 @@ Notes:
 - LQR-I (ZOH `expm` + 20-state DARE + Lyapunov certificate, scipy) dominates the path.
 - Load average (1 min) at start/end: {r["load"][0]:.2f} / {r["load"][1]:.2f} on {m["nproc"]} CPUs.
   Other jobs may share the machine: quote the medians; p90 and max include interference.
-
-{summary_section([summary_row(r)])}"""
-    path.write_text(text)
+"""
+    path.write_text(with_summary(text, [summary_row(r)]))
 
 
 def summary_row(r: dict) -> tuple[str, str, str]:

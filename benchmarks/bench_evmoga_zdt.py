@@ -199,11 +199,11 @@ def main() -> None:
         "",
     ]
     summary = summary_rows(results, args.seeds)
-    if summary:
-        from benchmarks.machine import summary_section
-
-        lines += [summary_section(summary)]
     text = "\n".join(lines)
+    if summary:
+        from benchmarks.machine import with_summary
+
+        text = with_summary(text, summary)
     print(text)
     args.out.write_text(text)
 

@@ -49,7 +49,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.machine import cpu_time, markdown, summary_section  # noqa: E402
+from benchmarks.machine import cpu_time, markdown, with_summary  # noqa: E402
 from benchmarks.table1 import frame_problem, moved_problem, nearest, unit_positions  # noqa: E402
 from casadrone.airframe import build_airframe, random_thetas  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
@@ -438,10 +438,11 @@ def main(argv: list[str] | None = None) -> int:
              if "fatrop" in cold and not cold["fatrop"][i]["ok"]]
     if fails:
         lines += ["", "fatrop cold failures: " + "; ".join(fails) + "."]
+    text = "\n".join(lines) + "\n"
     if "fatrop" in cold:  # the summary row compares the two solvers
-        lines += ["", summary_section([summary_row(cold, warm, args.n, args.cold_start)])]
-    args.out.write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+        text = with_summary(text, [summary_row(cold, warm, args.n, args.cold_start)])
+    args.out.write_text(text)
+    print(text)
     return 0
 
 

@@ -35,7 +35,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from benchmarks.machine import markdown, summary_section  # noqa: E402
+from benchmarks.machine import markdown, with_summary  # noqa: E402
 from casadrone.airframe import build_airframe, random_thetas, with_theta  # noqa: E402
 from casadrone.config import load_airframe  # noqa: E402
 from casadrone.trimstudy import StudyOptions, TrimStudy, trim_study  # noqa: E402
@@ -210,8 +210,8 @@ def main() -> None:
         part2 += rows
         print("\n".join(rows), flush=True)
 
-    text = "\n".join(["# Trim-solver study", "", f"Command: `{command}`", "", markdown(), "",
-                      *part1, "", *part2, "", summary_section([summary])])
+    text = with_summary("\n".join(["# Trim-solver study", "", f"Command: `{command}`", "",
+                                   markdown(), "", *part1, "", *part2, ""]), [summary])
     if not args.no_write:
         RESULTS.write_text(text)
         print(f"wrote {RESULTS}")

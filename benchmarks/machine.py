@@ -64,14 +64,21 @@ def describe() -> dict[str, str]:
     }
 
 
-def summary_section(rows: list[tuple[str, str, str]]) -> str:
-    """A result file's ``## Summary`` section: its rows (what, figure, command) of the
-    documentation's Performance summary, which gathers them when the site is built."""
-    lines = ["## Summary", "", "The row of this benchmark in the performance page's summary "
-             "(docs/performance.md,", "generated from this section).", "",
-             "| what | figure | command |", "|---|---|---|"]
+def summary_section(rows: list[tuple[str, str, str]], date: str | None = None) -> str:
+    """A result file's opening summary (``## Summary (YYYY-MM-DD)``, dated today in UTC unless
+    ``date`` is given): its rows (what, figure, command), which the documentation's Performance
+    page gathers when the site is built (``docs/hooks/reference.py``, ``opening_summary``)."""
+    date = date or datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d")
+    lines = [f"## Summary ({date})", "", "| what | figure | command |", "|---|---|---|"]
     return "\n".join(lines + [f"| {what} | {figure} | {command} |"
                                for what, figure, command in rows]) + "\n"
+
+
+def with_summary(text: str, rows: list[tuple[str, str, str]], date: str | None = None) -> str:
+    """``text`` (a result file, its first line the ``# title``) with its opening summary placed
+    right under the title, as every ``RESULTS-*.md`` must open."""
+    title, _, rest = text.partition("\n")
+    return f"{title}\n\n{summary_section(rows, date)}\n{rest.lstrip(chr(10))}"
 
 
 def markdown() -> str:

@@ -8,12 +8,14 @@ what the package says now:
   knows, nested sections included;
 - ``<!-- generated: cli-reference -->``: every command of the typer app, with its usage, help,
   examples, arguments and options;
-- ``<!-- generated: benchmarks -->``: the recorded benchmark results (``benchmarks/RESULTS-*.md``,
-  in the order of ``benchmarks/collect.py``);
-- ``<!-- generated: benchmark-summary -->``: one table of the rows of every result file's
-  ``## Summary`` section (what, figure, command), in the same order: the performance page's
-  summary, so its figures are never copied by hand;
-- ``<!-- generated: changelog -->``: ``CHANGELOG.md``.
+- ``<!-- generated: benchmark-summary -->``: the opening summary (what, figure, command; its
+  date) of every ``benchmarks/RESULTS-*.md``, each linked to that file's own page: the
+  performance page, so its figures are never copied by hand;
+- ``<!-- generated: changelog -->``: ``CHANGELOG.md``;
+- ``<!-- generated: api-reference -->``: the Python API page (``casadrone._API``).
+
+Each result file also becomes a page of its own (``performance/<name>.md``, :func:`on_files`);
+a result file that does not open with its dated summary fails the build.
 
 The same walk over the schemas is what ``tests/unit/test_docs_reference.py`` checks: a key without
 a description fails it.
@@ -21,6 +23,7 @@ a description fails it.
 
 from __future__ import annotations
 
+import datetime
 import importlib
 import inspect
 import json
@@ -29,6 +32,7 @@ import sys
 import types
 import typing
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -36,8 +40,24 @@ from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 
 ROOT = Path(__file__).resolve().parents[2]
-if str(ROOT) not in sys.path:  # the checkout's package and benchmarks, whatever the install
+
+
+def _import_from_checkout(name: str) -> types.ModuleType:
+    """``name`` imported from the checkout (whatever else is installed), now.
+
+    mkdocs loads a hook with the hook's folder on ``sys.path`` and restores ``sys.path`` after,
+    so a path the hook adds does not outlive its loading: what the hook needs from the checkout is
+    imported here, at load time (later imports of its submodules follow the package's own
+    ``__path__``). Nothing else the hook uses lives outside the installed packages.
+    """
     sys.path.insert(0, str(ROOT))
+    try:
+        return importlib.import_module(name)
+    finally:
+        sys.path.remove(str(ROOT))
+
+
+_import_from_checkout("casadrone")
 
 #: The unit a key's suffix names (the project's rule: units in keys), longest suffix first.
 UNIT_SUFFIXES: tuple[tuple[str, str], ...] = (
@@ -348,56 +368,119 @@ def cli_reference() -> str:
 # --------------------------------------------------------------------------------------------
 
 
-def _result_files(folder: Path) -> list[tuple[Path, str, str]]:
-    """(file, title, how to reproduce) of every ``RESULTS-*.md`` in ``folder``: those
-    ``benchmarks/collect.py`` lists first, in its order, then the others by name."""
-    from benchmarks.collect import ORDER
+#: The result files in the order of the chain (model and lap, optimiser, trim, propulsion, limit
+#: lap, co-design): a ``RESULTS-<name>.md`` not named here comes after them, by name.
+RESULTS_ORDER = ("design", "lap", "sensitivity", "geometry", "optimise", "backends", "evmoga",
+                 "identity", "coordinator", "advance", "replay", "paper-scale", "trimstudy",
+                 "trimstudy-propeller", "propulsion", "limitlap", "limitlap-issue19",
+                 "limitlap-frames", "limitlap-frames-propeller", "limitlap-solvers", "codesign")
 
-    listed = [(folder / f"RESULTS-{name}.md", title, f"Reproduce: `{command}`")
-              for name, title, command in ORDER]
-    known = {path.name for path, _, _ in listed}
-    # result files collect.py does not list yet: shown too, under their own first heading
-    for path in sorted(folder.glob("RESULTS-*.md")):
-        if path.name not in known:
-            first = next((ln.lstrip("# ") for ln in path.read_text(encoding="utf-8").splitlines()
-                          if ln.startswith("#")), path.stem)
-            listed.append((path, first, "Its command is in the file"))
-    return [item for item in listed if item[0].exists()]
+#: The opening summary's heading: ``## Summary (YYYY-MM-DD)``, the date its figures were recorded.
+SUMMARY_HEADING = re.compile(r"## Summary \((\d{4}-\d{2}-\d{2})\)")
+SUMMARY_HEADER = "| what | figure | command |"
+_RULE = re.compile(r"\|(\s*:?-+:?\s*\|){3}")
+_CELL_SPLIT = re.compile(r"(?<!\\)\|")
 
-
-SUMMARY_HEADING = "## Summary"
+#: The folder of the generated pages, one per result file (``performance/<name>.md``).
+RESULTS_PAGES = "performance"
 
 
-def _split_summary(text: str) -> tuple[str, list[str]]:
-    """A result file's text without its ``## Summary`` section, and that section's table rows
-    (``| what | figure | command |``, header and rule excluded)."""
+@dataclass(frozen=True)
+class ResultSummary:
+    """A result file's opening summary: the file's name (``<name>`` of ``RESULTS-<name>.md``),
+    its title, the date of its figures, an optional paragraph and the table rows (what, figure,
+    command)."""
+
+    name: str
+    title: str
+    date: str
+    prose: str
+    rows: tuple[str, ...]
+
+
+def result_files(folder: Path) -> list[Path]:
+    """Every ``RESULTS-*.md`` of ``folder``: those of :data:`RESULTS_ORDER` in its order, then
+    the others by name."""
+    def key(path: Path) -> tuple[int, str]:
+        name = path.stem.removeprefix("RESULTS-")
+        return (RESULTS_ORDER.index(name) if name in RESULTS_ORDER else len(RESULTS_ORDER), name)
+
+    return sorted(folder.glob("RESULTS-*.md"), key=key)
+
+
+def opening_summary(text: str, source: str) -> ResultSummary:
+    """The summary a result file opens with; the file must read::
+
+        # Title
+
+        ## Summary (YYYY-MM-DD)
+
+        An optional paragraph: what was measured.
+
+        | what | figure | command |
+        |---|---|---|
+        | ... | ... | `the command` |
+
+    and goes on with its sections. Raises ValueError naming ``source`` and what is missing."""
     lines = text.splitlines()
-    if SUMMARY_HEADING not in lines:
-        return text, []
-    at = lines.index(SUMMARY_HEADING)
-    end = next((i for i in range(at + 1, len(lines)) if re.match(r"#{1,2} ", lines[i])),
-               len(lines))
-    table = [ln for ln in lines[at + 1:end] if ln.startswith("|")]
-    return "\n".join(lines[:at] + lines[end:]), table[2:]
+    if not lines or not lines[0].startswith("# "):
+        raise ValueError(f"{source}: the first line is not its '# title'")
+    at = next((i for i in range(1, len(lines)) if lines[i].strip()), len(lines))
+    match = SUMMARY_HEADING.fullmatch(lines[at].strip()) if at < len(lines) else None
+    if match is None:
+        raise ValueError(f"{source}: the title is not followed by '## Summary (YYYY-MM-DD)'")
+    try:
+        datetime.date.fromisoformat(match.group(1))
+    except ValueError:
+        raise ValueError(f"{source}: {match.group(1)} is not a date") from None
+    end = next((i for i in range(at + 1, len(lines)) if lines[i].startswith("#")), len(lines))
+    section = lines[at + 1:end]
+    if SUMMARY_HEADER not in section:
+        raise ValueError(f"{source}: its summary has no table '{SUMMARY_HEADER}'")
+    head = section.index(SUMMARY_HEADER)
+    if head + 1 >= len(section) or not _RULE.fullmatch(section[head + 1].strip()):
+        raise ValueError(f"{source}: its summary table has no rule under its header")
+    rows: list[str] = []
+    for line in section[head + 2:]:
+        if not line.startswith("|"):
+            break
+        cells = _CELL_SPLIT.split(line.strip())[1:-1]
+        if len(cells) != 3 or not all(c.strip() for c in cells) or "`" not in cells[2]:
+            raise ValueError(f"{source}: summary row {line!r}: not three cells with the command "
+                             "in backticks")
+        rows.append(line.strip())
+    if not rows:
+        raise ValueError(f"{source}: its summary table has no row")
+    prose = " ".join(" ".join(section[:head]).split())
+    return ResultSummary(Path(source).stem.removeprefix("RESULTS-"), lines[0][2:].strip(),
+                         match.group(1), prose, tuple(rows))
+
+
+def _summary(path: Path) -> ResultSummary:
+    return opening_summary(path.read_text(encoding="utf-8"), f"benchmarks/{path.name}")
 
 
 def benchmark_summary(folder: Path = ROOT / "benchmarks") -> str:
-    """The performance page's summary table: the rows of every result file's ``## Summary``."""
-    rows = [row for path, _, _ in _result_files(folder)
-            for row in _split_summary(path.read_text(encoding="utf-8"))[1]]
-    return "\n".join(["| what | figure | command |", "|---|---|---|", *rows]) + "\n"
-
-
-def benchmark_results() -> str:
-    """The recorded benchmark results, each file's headings placed under the page's (its
-    summary rows are in the page's summary table instead)."""
+    """The performance page's body: every result file's opening summary, in the order of
+    :func:`result_files`, each linked to the page of the whole file."""
     out = []
-    for path, title, reproduce in _result_files(ROOT / "benchmarks"):
-        out += [f"### {title}", "", f"{reproduce} (file: `benchmarks/{path.name}`)", ""]
-        body = _split_summary(path.read_text(encoding="utf-8"))[0].strip().splitlines()
-        out += [("###" + ln) if re.match(r"#+ ", ln) else ln for ln in body]
-        out.append("")
+    for summary in map(_summary, result_files(folder)):
+        page = f"{RESULTS_PAGES}/{summary.name}.md"
+        out += [f"### [{summary.title}]({page})", "",
+                f"Recorded {summary.date}; the whole file: [`benchmarks/RESULTS-{summary.name}.md`]"
+                f"({page}).", ""]
+        if summary.prose:
+            out += [summary.prose, ""]
+        out += [SUMMARY_HEADER, "|---|---|---|", *summary.rows, ""]
     return "\n".join(out)
+
+
+def results_page(path: Path) -> str:
+    """The page of one result file: the file as recorded, with where it lives and a way back."""
+    _summary(path)  # a file without its opening summary fails the build
+    title, _, rest = path.read_text(encoding="utf-8").partition("\n")
+    return "\n".join([title, "", f"Recorded in `benchmarks/{path.name}`; the summaries of every "
+                       f"result file: [Performance](../performance.md).", rest])
 
 
 def changelog() -> str:
@@ -426,10 +509,21 @@ GENERATORS = {
     "api-reference": api_reference,
     "yaml-reference": yaml_reference,
     "cli-reference": cli_reference,
-    "benchmarks": benchmark_results,
     "benchmark-summary": benchmark_summary,
     "changelog": changelog,
 }
+
+
+def on_files(files: Any, config: Any) -> Any:
+    """mkdocs hook: one page per result file (``performance/<name>.md``), generated from
+    ``benchmarks/RESULTS-<name>.md``."""
+    from mkdocs.structure.files import File
+
+    for path in result_files(ROOT / "benchmarks"):
+        name = path.stem.removeprefix("RESULTS-")
+        files.append(File.generated(config, f"{RESULTS_PAGES}/{name}.md",
+                                    content=results_page(path)))
+    return files
 
 
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:

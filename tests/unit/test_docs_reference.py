@@ -5,7 +5,10 @@ own command list, read directly)."""
 
 from __future__ import annotations
 
+import datetime
 import importlib.util
+import re
+import sys
 from pathlib import Path
 
 import pytest
@@ -18,6 +21,7 @@ def reference():
     spec = importlib.util.spec_from_file_location("docs_reference",
                                                   ROOT / "docs" / "hooks" / "reference.py")
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # as mkdocs loads a hook (its dataclasses need it)
     spec.loader.exec_module(module)
     return module
 
@@ -79,38 +83,104 @@ def test_cli_page_lists_every_command_and_option(reference):
                     assert f"`{opt}`" in page, f"{name} {opt} missing"
 
 
-def test_performance_summary_is_gathered_from_the_result_files(reference, tmp_path):
-    """The summary table is the rows of the result files' ``## Summary`` sections, in the order
-    of benchmarks/collect.py (a file it does not list comes after, by name); a file without one
-    adds nothing; each file's section leaves its body on the page (it is in the summary)."""
-    rule = "| what | figure | command |\n|---|---|---|\n"
-    (tmp_path / "RESULTS-zzz.md").write_text(
-        "# later\n\nbody z\n\n## Summary\n\n" + rule + "| z | 3 s | `z` |\n")
-    (tmp_path / "RESULTS-design.md").write_text(
-        "# design\n\nbody d\n\n## Summary\n\nprose\n\n" + rule + "| d | 1 ms | `d` |\n"
-        "| d2 | 2 ms | `d2` |\n\n## Afterwards\n\nkept\n")
-    (tmp_path / "RESULTS-lap.md").write_text("# lap\n\nno summary here\n")
-    table = reference.benchmark_summary(tmp_path).splitlines()
-    assert table[2:] == ["| d | 1 ms | `d` |", "| d2 | 2 ms | `d2` |", "| z | 3 s | `z` |"]
-    body, rows = reference._split_summary((tmp_path / "RESULTS-design.md").read_text())
-    assert "## Summary" not in body and "1 ms" not in body and "kept" in body
-    assert len(rows) == 2
+def _machine():
+    """benchmarks/machine.py, loaded by path (benchmarks/ is not an installed package)."""
+    spec = importlib.util.spec_from_file_location("bench_machine",
+                                                  ROOT / "benchmarks" / "machine.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
-#: The result files that give the performance summary its rows (a re-run benchmark that writes
-#: its file afresh must write its summary again: benchmarks/README.md).
-SUMMARISED = ("design", "lap", "sensitivity", "evmoga", "limitlap", "trimstudy", "coordinator",
-              "replay", "paper-scale")
+RESULT_FILES = sorted((ROOT / "benchmarks").glob("RESULTS-*.md"))
 
 
-def test_performance_page_has_no_hand_copied_summary(reference):
-    """docs/performance.md holds the marker, not a table of figures; each summarised result
-    file gives the summary at least one row, and every row has its three cells."""
+def test_every_result_file_opens_with_a_dated_summary(reference):
+    """Each ``benchmarks/RESULTS-*.md`` opens with ``## Summary (YYYY-MM-DD)`` under its title
+    (read here with a plain look at the first lines, independently of the hook's parser) and
+    the hook reads at least one row of what, figure and command from it."""
+    assert len(RESULT_FILES) >= 21
+    for path in RESULT_FILES:
+        lines = path.read_text(encoding="utf-8").splitlines()
+        assert lines[0].startswith("# ") and lines[1] == "", path.name
+        match = re.fullmatch(r"## Summary \((\d{4})-(\d{2})-(\d{2})\)", lines[2])
+        assert match, f"{path.name}: line 3 is {lines[2]!r}"
+        datetime.date(*map(int, match.groups()))  # a real date
+        summary = reference.opening_summary("\n".join(lines), path.name)
+        assert summary.rows and summary.date == "-".join(match.groups())
+        assert summary.title == lines[0][2:]
+
+
+GOOD = "# T\n\n## Summary (2026-12-01)\n\n| what | figure | command |\n|---|---|---|\n" \
+       "| a | 1 s | `cmd` |\n\n## Details\n\nbody\n"
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ("# T\n\nbody\n\n## Summary (2026-12-01)\n\n| what | figure | command |\n|---|---|---|\n"
+     "| a | 1 s | `cmd` |\n", "not followed by"),  # the summary last, as before
+    (GOOD.replace(" (2026-12-01)", ""), "not followed by"),  # undated
+    (GOOD.replace("2026-12-01", "2026-13-01"), "not a date"),
+    (GOOD.replace("| what | figure | command |\n|---|---|---|\n| a | 1 s | `cmd` |\n", "prose\n"),
+     "no table"),
+    (GOOD.replace("| a | 1 s | `cmd` |\n", ""), "no row"),
+    (GOOD.replace("| a | 1 s | `cmd` |", "| a | 1 s |"), "three cells"),
+    (GOOD.replace("`cmd`", "cmd"), "three cells"),
+    (GOOD.replace("|---|---|---|\n", ""), "no rule"),
+    (GOOD.replace("# T\n", "T\n"), "title"),
+])
+def test_a_result_file_without_its_opening_summary_is_refused(reference, text, words):
+    with pytest.raises(ValueError, match=words) as err:
+        reference.opening_summary(text, "benchmarks/RESULTS-x.md")
+    assert str(err.value).startswith("benchmarks/RESULTS-x.md: ")
+
+
+def test_the_summary_the_benchmarks_write_is_the_one_the_page_reads(reference):
+    """benchmarks/machine.py's ``with_summary`` (what the benchmark scripts call) puts the
+    summary where the hook reads it, with the given date, keeping the body after it."""
+    machine = _machine()
+    rows = [("trim, one core", "3.4 ms", "`python benchmarks/bench_design.py`"),
+            ("lap, a pipe escaped", "2 \\| 3", "`x`")]
+    text = machine.with_summary("# Design\n\nbody line\n\n## Tables\n\nrow\n", rows,
+                                "2026-12-05")
+    summary = reference.opening_summary(text, "RESULTS-design.md")
+    assert (summary.name, summary.title, summary.date) == ("design", "Design", "2026-12-05")
+    assert summary.rows == tuple(f"| {a} | {b} | {c} |" for a, b, c in rows)
+    assert text.endswith("body line\n\n## Tables\n\nrow\n")
+    today = reference.opening_summary(machine.with_summary("# D\n", rows[:1]), "x").date
+    assert today == datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d")
+
+
+def test_performance_page_gathers_every_summary_in_order_and_links_each_file(reference,
+                                                                             tmp_path):
+    """The page is every file's opening summary, in the chain's order (a file the order does not
+    name comes after, by name), each linked to its own page; a file without its summary fails."""
+    (tmp_path / "RESULTS-zzz.md").write_text(GOOD.replace("# T", "# later").replace("`cmd`", "`z`"))
+    (tmp_path / "RESULTS-design.md").write_text(GOOD.replace("# T", "# design")
+                                                .replace("| what", "prose d\n\n| what"))
+    (tmp_path / "RESULTS-lap.md").write_text(GOOD.replace("# T", "# lap").replace("1 s", "2 s"))
+    page = reference.benchmark_summary(tmp_path)
+    headings = [ln for ln in page.splitlines() if ln.startswith("### ")]
+    assert headings == ["### [design](performance/design.md)", "### [lap](performance/lap.md)",
+                        "### [later](performance/zzz.md)"]
+    assert "prose d" in page and "| a | 2 s | `cmd` |" in page and "| a | 1 s | `z` |" in page
+    assert "body" not in page  # the details stay on each file's own page
+    (tmp_path / "RESULTS-bad.md").write_text("# bad\n\nno summary\n")
+    with pytest.raises(ValueError, match="RESULTS-bad.md"):
+        reference.benchmark_summary(tmp_path)
+
+
+def test_performance_page_is_the_summaries_not_the_files(reference):
+    """docs/performance.md holds the marker, not a table of figures; the generated page is a
+    small part of the result files (it was all of them: 225 000 px), and each file's own page
+    holds the whole file and links back."""
     page = (ROOT / "docs" / "performance.md").read_text(encoding="utf-8")
     assert "<!-- generated: benchmark-summary -->" in page
     assert "| what | figure | command |" not in page
-    for name in SUMMARISED:
-        text = (ROOT / "benchmarks" / f"RESULTS-{name}.md").read_text(encoding="utf-8")
-        rows = reference._split_summary(text)[1]
-        assert rows, f"benchmarks/RESULTS-{name}.md has no ## Summary rows"
-        assert all(row.count(" | ") == 2 for row in rows), rows
+    summary = reference.benchmark_summary()
+    whole = sum(len(p.read_text(encoding="utf-8")) for p in RESULT_FILES)
+    assert len(summary) < whole / 5
+    for path in RESULT_FILES:
+        assert f"(performance/{path.stem.removeprefix('RESULTS-')}.md)" in summary
+    own = reference.results_page(RESULT_FILES[0])
+    assert "](../performance.md)" in own
+    assert own.count("\n") >= RESULT_FILES[0].read_text(encoding="utf-8").count("\n")

@@ -266,9 +266,9 @@ class ZeroCopyCall:
             args = [np.zeros(fun.nnz_in(i)) for i in range(fun.n_in())]
             outs = [np.zeros((fun.size2_out(i), fun.size1_out(i))) for i in range(fun.n_out())]
             for i, a in enumerate(args):
-                buf.set_arg(i, memoryview(a))
+                buf.set_arg(i, memoryview(a))  # type: ignore[call-arg, arg-type]  # casadi's stub
             for i, o in enumerate(outs):
-                buf.set_res(i, memoryview(o.reshape(-1)))
+                buf.set_res(i, memoryview(o.reshape(-1)))  # type: ignore[call-arg, arg-type]
             bound = self._local.bound = (buf, trigger, args, outs)
         return bound
 

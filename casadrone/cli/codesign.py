@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from casadrone.cli.common import JsonOpt, app, bad_input, print_json, reports_config_errors
+
+if TYPE_CHECKING:  # co-design is imported when the command runs (CasADi)
+    from casadrone.codesign.driver import CodesignResult
 
 
 @app.command("codesign")
@@ -50,7 +53,7 @@ def codesign_command(
     typer.echo(text(result))
 
 
-def text(result) -> str:
+def text(result: CodesignResult) -> str:
     """The result as lines: the frame, its laps, every start, the certificate."""
     head = f"{result.problem}: co-design {result.status.upper()}"
     if result.best is None:

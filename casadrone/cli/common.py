@@ -8,18 +8,22 @@ import math
 from collections.abc import Callable, Iterable
 from functools import wraps
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from casadrone.config.io import ConfigError
+
+if TYPE_CHECKING:  # the model is imported when a command runs
+    from casadrone.airframe import Airframe
+    from casadrone.config.airframe import AirframeConfig
 
 
 class _App(typer.Typer):
     """The typer app, run so that a bad command-line option is one line too: ``COMMAND:
     message``, exit code 2 (click would print a usage block)."""
 
-    def __call__(self, *args, **kwargs):
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
         import sys
 
         # The console script, ``python -m casadrone`` and ``python -c "...app()"`` all name the
@@ -58,7 +62,7 @@ def _flags_take_no_value() -> None:
         return
     shown = option.display_type_rich
 
-    def display_type_rich(self, ctx):
+    def display_type_rich(self: Any, ctx: Any) -> Any:
         return None if self.is_flag and not self.count else shown(self, ctx)
 
     display_type_rich._casadrone = True  # type: ignore[attr-defined]
@@ -68,8 +72,9 @@ def _flags_take_no_value() -> None:
 _flags_take_no_value()
 
 # typer (>= 0.20) carries its own copy of click: its exception classes, found from typer's own.
-_USAGE_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
-_CLICK_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+# (typed Any: the copy is private to typer, so no public name types them)
+_USAGE_ERROR: Any = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
+_CLICK_ERROR: Any = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
 
 
 app = _App(
@@ -199,14 +204,14 @@ def log_traceback(exc: BaseException) -> Path | None:
         return None
 
 
-def reports_config_errors(command):
+def reports_config_errors(command: Callable[..., Any]) -> Callable[..., Any]:
     """Every way ``command`` can fail, as lines on stderr and an exit code, never a traceback:
     a ConfigError (one line per problem) or an expected failure (one line) exits 2; a signal
     exits 128 + its number (130 Ctrl-C, 143 SIGTERM) saying how to resume a run; anything else
     is a bug: one line naming a log file that holds the traceback, exit 1."""
 
     @wraps(command)
-    def wrapper(*args, **kwargs):
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
         import signal
 
         try:
@@ -259,7 +264,8 @@ def print_json(obj: Any) -> None:
     typer.echo(json.dumps(jsonable(obj), indent=2, allow_nan=False))
 
 
-def load_airframe_or_exit(airframe: str, overrides: list[str] | None):
+def load_airframe_or_exit(airframe: str, overrides: list[str] | None
+                          ) -> tuple[AirframeConfig, Airframe]:
     """(config, Airframe) of an airframe path or name with overrides; ConfigError propagates."""
     from casadrone.airframe import build_airframe
     from casadrone.config.airframe import load_airframe

@@ -6,7 +6,7 @@ import importlib
 import math
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -28,6 +28,9 @@ from casadrone.cli.common import (
 from casadrone.conditions import CONDITION_REGISTRY, CONDITIONS
 from casadrone.config.io import ConfigError
 
+if TYPE_CHECKING:
+    import numpy as np
+
 #: The trim conditions, from their one registry (:mod:`casadrone.conditions`).
 Condition = StrEnum("Condition", {name: name for name in CONDITIONS})  # type: ignore[misc]
 HOVER = Condition("hover")
@@ -45,7 +48,7 @@ class LinMethod(StrEnum):
     both = "both"
 
 
-def _matrix_text(M, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
+def _matrix_text(M: np.ndarray, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
     width = 10
     head = " " * 8 + "".join(f"{c:>{width}}" for c in cols)
     body = [

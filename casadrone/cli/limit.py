@@ -6,7 +6,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, cast
+from typing import TYPE_CHECKING, Annotated, Any, cast
 
 import typer
 
@@ -39,8 +39,11 @@ PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio"
 LIMIT_FIGURES = ("limit-top-view", "limit-3d", "limit-time-histories", "limit-thrust-airspeed")
 
 if TYPE_CHECKING:  # the limit lap is imported when the command runs (CasADi)
+    from casadrone.airframe import Airframe
+    from casadrone.config.airframe import AirframeConfig
+    from casadrone.config.track import TrackConfig
     from casadrone.limit.lap import Attitude, Solver, TiltLimit
-    from casadrone.limit.result import Resimulation, RotorStep
+    from casadrone.limit.result import LimitLap, LimitLapOptions, Resimulation, RotorStep
 
 
 @app.command("limit-lap")
@@ -181,7 +184,8 @@ def _track_path(track: str | None) -> Path:
         raise ConfigError([f"--track {line}" for line in exc.lines]) from None
 
 
-def _figures(cfg, trk, lap, folder, frame, prop, options) -> list[str]:
+def _figures(cfg: AirframeConfig, trk: TrackConfig, lap: LimitLap, folder: Path,
+             frame: Airframe, prop: Any, options: LimitLapOptions) -> list[str]:
     if not lap.completed:
         typer.echo("--plot: nothing to plot, the limit lap failed", err=True)
         return []

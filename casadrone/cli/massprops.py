@@ -16,7 +16,8 @@ from casadrone.cli.common import (
 
 @app.command()
 @reports_config_errors
-def massprops(airframe: AirframeArg, overrides: OverridesArg = None, as_json: JsonOpt = False):
+def massprops(airframe: AirframeArg, overrides: OverridesArg = None,
+              as_json: JsonOpt = False) -> None:
     """Mass (kg), centre of mass (m, from the arm hub) and inertia tensor (kg·m², about the centre
     of mass, body axes x nose, y left, z up) of an airframe: given (mass_model free) or computed
     from its parts for its geometry (mass_model components, e.g. SY250-components

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -15,6 +15,9 @@ from casadrone.cli.common import (
     print_json,
     reports_config_errors,
 )
+
+if TYPE_CHECKING:  # the schemas are imported when a command runs
+    from casadrone.config.problem import BackendConfig, ProblemConfig
 
 
 class BackendName(StrEnum):
@@ -54,8 +57,8 @@ ReferenceOpt = Annotated[
 # --------------------------------------------------------------------------------------------
 
 
-def backend_config(base, name: BackendName | None, workers: int | None,
-                   scheduler: str | None):
+def backend_config(base: BackendConfig, name: BackendName | None, workers: int | None,
+                   scheduler: str | None) -> BackendConfig:
     """The problem's backend section with the command-line choices applied (validated)."""
     from casadrone.config.io import validate_data
     from casadrone.config.problem import BackendConfig
@@ -98,7 +101,7 @@ def require_run_dir(run_dir: Path) -> None:
         raise bad_input([f"{run_dir}: not a run directory (no {', '.join(missing)})"])
 
 
-def open_problem(run_dir: Path):
+def open_problem(run_dir: Path) -> ProblemConfig:
     """The resolved problem of a run directory; an unreadable config.yaml is bad input."""
     from casadrone.optimise.store import CONFIG, RunDamaged, RunStore
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -22,6 +22,9 @@ from casadrone.cli.common import (
     save_figures,
 )
 from casadrone.config.propulsion import shipped_datasets
+
+if TYPE_CHECKING:
+    from casadrone.thruststand import PropulsionFit
 
 #: The figures ``--plot`` writes (:func:`casadrone.plots.propulsion_fit_figures`), each in each
 #: format (:data:`casadrone.cli.common.FIGURE_FORMATS`): their paths are checked before the log
@@ -64,7 +67,7 @@ def fit_propulsion_command(
         "--plot", help="save figures (PNG and SVG) into this folder (a figure casadrone wrote "
         "is replaced; any other file of a figure's name is refused, unless --force)")] = None,
     as_json: JsonOpt = False,
-):
+) -> None:
     """Fit a propulsion: section (propeller CT0/CP0, DC motor KV/R/I0, battery resistance, rotor
     inertia from step tests) from a thrust-stand log, print the fit residuals.
 
@@ -259,7 +262,7 @@ def make_folders(targets: list[tuple[str, Path]]) -> str | None:
     return None
 
 
-def section_yaml(fit, shape: str | None = None) -> str:
+def section_yaml(fit: PropulsionFit, shape: str | None = None) -> str:
     """The ``propulsion:`` section as YAML, with a comment naming its source and residuals."""
     import yaml
 
@@ -272,7 +275,7 @@ def section_yaml(fit, shape: str | None = None) -> str:
     return "\n".join(head) + "\n" + body
 
 
-def _print_text(fit) -> None:
+def _print_text(fit: PropulsionFit) -> None:
     typer.echo(f"{fit.source}: {len(fit.plateaus)} steady points from {fit.steady_source}, "
                f"{len(fit.steps)} step responses")
     zero, full = fit.esc_range

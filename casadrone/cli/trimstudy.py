@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -20,6 +20,11 @@ from casadrone.cli.common import (
     reports_config_errors,
     save_figures,
 )
+
+if TYPE_CHECKING:  # the study is imported when the command runs
+    from casadrone.airframe import Airframe
+    from casadrone.conditions import OperatingPoint
+    from casadrone.trimstudy import TrimStudy
 
 #: The option of each field of :class:`casadrone.trimstudy.StudyOptions`.
 OPTION_OF = {"starts": "--starts", "seed": "--seed", "angle_spread_deg": "--angle-spread",
@@ -80,8 +85,9 @@ def trim_study(
         typer.echo(f"wrote {path}")
 
 
-def _parse(conditions, starts, seed, angle_spread, command_spread, solvers, reference,
-           distinct_tolerance, basin_grid, plot_point):
+def _parse(conditions: str, starts: int, seed: int, angle_spread: float,
+           command_spread: float, solvers: str, reference: str,
+           distinct_tolerance: float, basin_grid: int, plot_point: str | None) -> tuple[Any, ...]:
     """(points, StudyOptions, plot point or None); exit 2 naming the option on a bad value."""
     from casadrone.conditions import envelope
     from casadrone.trimstudy import StudyOptions
@@ -109,12 +115,13 @@ def _parse(conditions, starts, seed, angle_spread, command_spread, solvers, refe
     return points, options, focus
 
 
-def _fastest_level(study):
+def _fastest_level(study: TrimStudy) -> OperatingPoint:
     level = [p.point for p in study.points if p.point.condition in ("hover", "forward")]
     return max(level or [p.point for p in study.points], key=lambda p: p.speed_mps)
 
 
-def _figures(frame, study, point, grid: int, folder: Path) -> list[str]:
+def _figures(frame: Airframe, study: TrimStudy, point: OperatingPoint, grid: int,
+             folder: Path) -> list[str]:
     """The envelope, basin and residual-history figures of a study, saved in ``folder``."""
     from casadrone.trimplots import basin_figure, envelope_figure, residual_figure
     from casadrone.trimstudy import analytic_guess, basin_slice, draw_starts, residual_history
@@ -137,7 +144,7 @@ def _figures(frame, study, point, grid: int, folder: Path) -> list[str]:
     return save_figures(figures, folder)
 
 
-def study_text(study) -> str:
+def study_text(study: TrimStudy) -> str:
     """A table per operating point: each solver's outcomes and costs."""
     o = study.options
     lines = [f"{study.airframe}: trim solvers from {o.starts} random starts and the analytic "

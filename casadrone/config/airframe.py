@@ -243,7 +243,7 @@ def _mass_model_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
 TRIANGLE_RTOL = 1e-9
 
 
-def inertia_problems(J) -> list[tuple[str, str]]:
+def inertia_problems(J: np.ndarray | list[list[float]]) -> list[tuple[str, str]]:
     """Why a 3×3 inertia tensor (kg·m², about the CoM) is no rigid body, as (key, message).
 
     A rigid body's tensor is positive definite and each principal moment is at most the sum of
@@ -315,7 +315,7 @@ def _overlaps(v: dict[str, Any]) -> list[tuple[str, str]]:
     return found
 
 
-def _positive_definite(J: list[list[float]]) -> bool:
+def _positive_definite(J: np.ndarray | list[list[float]]) -> bool:
     """Sylvester's criterion for a symmetric 3×3 matrix."""
     m1 = J[0][0]
     m2 = J[0][0] * J[1][1] - J[0][1] ** 2

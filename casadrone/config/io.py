@@ -17,6 +17,7 @@ import os
 import re
 import types
 import typing
+from collections.abc import Iterator
 from functools import cache
 from importlib import resources
 from pathlib import Path
@@ -84,7 +85,7 @@ def scalar_types(annotation: Any) -> set[Any]:
     return {annotation}
 
 
-def _scalars(value: Any):
+def _scalars(value: Any) -> Iterator[Any]:
     """Every scalar inside nested lists and tuples (dicts are models' business)."""
     if isinstance(value, list | tuple):
         for v in value:

@@ -6,11 +6,14 @@ from __future__ import annotations
 import math
 import re
 from functools import cache, lru_cache
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import Field
 
 from casadrone.config.io import Schema
+
+if TYPE_CHECKING:  # numpy is imported where it is used: the schemas load without it
+    import numpy as np
 
 PropulsionKind = Literal["paper", "propeller"]
 #: rpm/V to rad/s per V.
@@ -355,7 +358,7 @@ SHIPPED_PROPELLER = "uiuc-da4022-5x3.75-3blade"
 FIT_MIN_STATIC_RPM, FIT_SWEEP_RPM, FIT_MAX_J = 5000.0, 6034.0, 0.62
 
 
-def propeller_data(name: str = SHIPPED_PROPELLER):
+def propeller_data(name: str = SHIPPED_PROPELLER) -> np.ndarray:
     """The raw points (J, rpm, CT, CP) of a shipped propeller dataset (numpy array, 4 columns)."""
     from importlib import resources
 
@@ -366,7 +369,7 @@ def propeller_data(name: str = SHIPPED_PROPELLER):
         return np.loadtxt(fh, delimiter=",", comments="#", skiprows=7)
 
 
-def fit_points(data):
+def fit_points(data: np.ndarray) -> np.ndarray:
     """The rows of :func:`propeller_data` the shipped fit uses (see :data:`FIT_MAX_J`)."""
     J, rpm = data[:, 0], data[:, 1]
     return data[((J == 0) & (rpm >= FIT_MIN_STATIC_RPM))

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field, StrictBool, field_validator, model_validator
@@ -186,7 +186,7 @@ class TrackConfig(Schema):
 
     @model_validator(mode="before")
     @classmethod
-    def _gate_centres(cls, data):
+    def _gate_centres(cls, data: Any) -> Any:
         """With ``gates:`` and no ``waypoints_m``, the waypoints are the gate centres; an empty
         ``gates:`` list is named as such (not as missing waypoints)."""
         if isinstance(data, dict) and data.get("gates") == [] and "waypoints_m" not in data:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import io
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -139,7 +140,7 @@ def svg(src: ExportSource, options: PlateOptions | None = None) -> str:
     x0, y0, x1, y1 = _extent(p)
     W, H = x1 - x0, y1 - y0
 
-    def pt(xy) -> str:  # drawing (Y up) → SVG (Y down)
+    def pt(xy: np.ndarray | tuple[float, float]) -> str:  # drawing (Y up) → SVG (Y down)
         return f"{xy[0] + 0.0:.4f},{-xy[1] + 0.0:.4f}"
 
     d: list[str] = []
@@ -186,7 +187,7 @@ def svg(src: ExportSource, options: PlateOptions | None = None) -> str:
     return "\n".join(out) + "\n"
 
 
-def _require_ezdxf():
+def _require_ezdxf() -> Any:
     try:
         import ezdxf
     except ImportError:

@@ -90,7 +90,7 @@ def _inertial(mass: float, at: np.ndarray, J: np.ndarray, indent: str) -> list[s
             f"{indent}</inertial>"]
 
 
-def _arm(mid, yaw: float, length: float, tag: str) -> list[str]:
+def _arm(mid: np.ndarray, yaw: float, length: float, tag: str) -> list[str]:
     lines = [f"    <{tag}>",
              f'      <origin xyz="{_f(mid[0])} {_f(mid[1])} {_f(mid[2])}" rpy="0 0 {_f(yaw)}"/>',
              f'      <geometry><box size="{_f(length)} {_f(ARM_WIDTH_M)} '

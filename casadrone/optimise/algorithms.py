@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import importlib
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from math import comb
 from typing import Any, Protocol, runtime_checkable
 
@@ -48,7 +48,7 @@ REFUSED: dict[str, str] = {
 MAX_COUNT = 10_000
 
 
-def _int(lo: int, even: bool = False):
+def _int(lo: int, even: bool = False) -> Callable[[Any], str | None]:
     def check(v: Any) -> str | None:
         if isinstance(v, bool) or not isinstance(v, int):
             return f"expected a whole number, got {v!r}"
@@ -62,7 +62,8 @@ def _int(lo: int, even: bool = False):
     return check
 
 
-def _float(lo: float, hi: float = float("inf"), lo_open: bool = False):
+def _float(lo: float, hi: float = float("inf"), lo_open: bool = False
+           ) -> Callable[[Any], str | None]:
     def check(v: Any) -> str | None:
         if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v):
             return f"expected a finite number, got {v!r}"
@@ -279,10 +280,10 @@ class _SeededRandom:
     def __init__(self, generator: np.random.Generator):
         self._generator = generator
 
-    def default_rng(self, seed=None):
+    def default_rng(self, seed: Any = None) -> np.random.Generator:
         return self._generator if seed is None else np.random.default_rng(seed)
 
-    def __getattr__(self, name: str):
+    def __getattr__(self, name: str) -> Any:
         return getattr(np.random, name)
 
 
@@ -290,7 +291,7 @@ class _SeededNumpy:
     def __init__(self, generator: np.random.Generator):
         self.random = _SeededRandom(generator)
 
-    def __getattr__(self, name: str):
+    def __getattr__(self, name: str) -> Any:
         return getattr(np, name)
 
 

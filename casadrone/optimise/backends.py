@@ -12,6 +12,7 @@ import multiprocessing
 import os
 import pickle
 from concurrent.futures import ProcessPoolExecutor
+from typing import Any
 
 import numpy as np
 
@@ -157,7 +158,7 @@ class ProcessBackend:
         _forget_wakeup(manager)
 
 
-def _forget_wakeup(thread) -> None:
+def _forget_wakeup(thread: Any) -> None:
     """Let the interpreter exit quietly after a killed pool.
 
     The pool's manager thread sees the killed workers, tears the pool down and closes its wakeup
@@ -225,7 +226,7 @@ class DaskBackend:
             self.cluster.close()
 
 
-def make_backend(cfg: BackendConfig, without_main: bool = False):
+def make_backend(cfg: BackendConfig, without_main: bool = False) -> Any:
     """The backend a problem's ``backend`` section asks for (``without_main``: see
     :class:`ProcessBackend`)."""
     if cfg.name == "serial":

@@ -222,8 +222,8 @@ class EvMOGA(Algorithm):
         sigma_ini: float = 20.0,
         sigma_fin: float = 0.1,
         generations: int | None = None,
-        output=None,
-        **kwargs,
+        output: Any = None,
+        **kwargs: Any,
     ) -> None:
         if generations is not None and kwargs.get("termination") is None:
             kwargs["termination"] = ("n_gen", int(generations) + 1)
@@ -389,7 +389,7 @@ class EvMOGA(Algorithm):
 
     # ---- pymoo hooks --------------------------------------------------------------------------
 
-    def _setup(self, problem, **kwargs) -> None:
+    def _setup(self, problem: Any, **kwargs: Any) -> None:
         m = problem.n_obj
         n_div = np.broadcast_to(np.asarray(self.n_div_setting, dtype=np.int64), (m,)).copy()
         if np.any(n_div < 1):
@@ -431,7 +431,7 @@ class EvMOGA(Algorithm):
         X = xl + self.random_state.random((self.n_ind_p, self.problem.n_var)) * (xu - xl)
         return Population.new("X", X)
 
-    def advance(self, infills: Population | None = None, **kwargs) -> None:
+    def advance(self, infills: Population | None = None, **kwargs: Any) -> None:
         """pymoo's ``Algorithm.advance`` (0.6.1–0.6.2, the same steps in the same order), except
         that it returns ``None`` where pymoo returns ``self.opt`` (or ``self.result()`` after the
         last generation): either builds a population of the whole archive (~7 700 Individuals
@@ -452,7 +452,7 @@ class EvMOGA(Algorithm):
         if self.archive is not None and infills is not None:
             self.archive = self.archive.add(infills)
 
-    def _initialize_advance(self, infills=None, **kwargs) -> None:
+    def _initialize_advance(self, infills: Population | None = None, **kwargs: Any) -> None:
         rows = self._rows_of_children(infills)
         self.pop_rows = {k: rows[k].copy() for k in ROW_KEYS}
         F, cv = _violation_of_rows(rows)
@@ -489,7 +489,7 @@ class EvMOGA(Algorithm):
         X = np.clip(np.concatenate([c1, c2]), xl, xu)
         return Population.new("X", X)
 
-    def _advance(self, infills=None, **kwargs) -> None:
+    def _advance(self, infills: Population | None = None, **kwargs: Any) -> None:
         rows = self._rows_of_children(infills)
         F, cv = _violation_of_rows(rows)
         feasible = np.flatnonzero(cv <= 0.0)

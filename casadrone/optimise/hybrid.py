@@ -23,6 +23,8 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
@@ -31,11 +33,14 @@ from casadrone.optimise.problem import Study, objectives_and_constraints
 from casadrone.optimise.store import RunStore, atomic_write
 from casadrone.results import Record
 
+if TYPE_CHECKING:
+    from casadrone.config.codesign import PolishSettings
+
 #: Beside ``history.sqlite`` in a polished run: every member's polish (JSON).
 POLISH_FILE = "polish.json"
 
 
-def polish_settings(study: Study):
+def polish_settings(study: Study) -> PolishSettings | None:
     """The problem's :class:`casadrone.config.codesign.PolishSettings`, or None."""
     raw = study.problem.algorithm.settings.get("polish")
     if raw is None or study.problem.test_problem is not None:
@@ -45,13 +50,14 @@ def polish_settings(study: Study):
     return PolishSettings.model_validate(raw)
 
 
-def needs_polish(algorithm, study: Study) -> bool:
+def needs_polish(algorithm: Any, study: Study) -> bool:
     """The problem asks for a polish and this run has not stored one yet."""
     return polish_settings(study) is not None and not getattr(algorithm, "polished", False)
 
 
-def polish_front(algorithm, study: Study, evaluate, front_of, quiet: bool = False,
-                 stream=None) -> tuple[list[Record], list[dict]]:
+def polish_front(algorithm: Any, study: Study, evaluate: Callable[..., Any],
+                 front_of: Callable[..., Any], quiet: bool = False,
+                 stream: TextIO | None = None) -> tuple[list[Record], list[dict]]:
     """Polish the archive's members and offer the evaluated proposals to it (see the module
     docstring): ``evaluate(study, X)`` evaluates the proposals (the run's backend),
     ``front_of(algorithm, study)`` gives the front (X, F in the objectives' own sense). Returns
@@ -106,8 +112,8 @@ def polish_front(algorithm, study: Study, evaluate, front_of, quiet: bool = Fals
     return records, report
 
 
-def polish_stage(store: RunStore, algorithm, study: Study, front_of, quiet: bool = False,
-                 stream=None) -> list[dict]:
+def polish_stage(store: RunStore, algorithm: Any, study: Study, front_of: Callable[..., Any],
+                 quiet: bool = False, stream: TextIO | None = None) -> list[dict]:
     """:func:`polish_front` on the run's backend, stored as one more generation of the run
     (history, ``polish.json``, checkpoint). Returns the reports."""
     t0, c0 = time.perf_counter(), time.process_time()

@@ -14,9 +14,11 @@ from __future__ import annotations
 import ast
 import multiprocessing.context
 import sys
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from types import FrameType
+from typing import Any
 
 
 def _is_main_test(node: ast.expr) -> bool:
@@ -67,10 +69,11 @@ def unguarded_message(where: str, what: str) -> str:
 
 
 @contextmanager
-def main_hidden():
+def main_hidden() -> Iterator[None]:
     """While starting a process: no ``__main__`` module for the child to import."""
     main = sys.modules["__main__"]
-    saved = {k: main.__dict__[k] for k in ("__spec__", "__file__") if k in main.__dict__}
+    saved: dict[str, Any] = {k: main.__dict__[k] for k in ("__spec__", "__file__")
+                             if k in main.__dict__}
     main.__dict__["__spec__"] = None
     main.__dict__.pop("__file__", None)
     try:

@@ -12,12 +12,17 @@ from __future__ import annotations
 import hashlib
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pymoo.core.problem import Problem
 
 from casadrone.config.problem import ProblemConfig
 from casadrone.results import Record
+
+if TYPE_CHECKING:  # the chain is imported when a setup is built
+    from casadrone.config.airframe import AirframeConfig
+    from casadrone.evaluate import EvaluationSetup
 
 #: Constraint violation of a failed candidate, by the stage where it failed: earlier failures are
 #: worse, so feasibility-first selection moves the search towards candidates that fly.
@@ -66,7 +71,7 @@ class Study:
                 np.array([v.upper for v in self.problem.variables]))
 
 
-def pymoo_test_problem(cfg: ProblemConfig):
+def pymoo_test_problem(cfg: ProblemConfig) -> Any:
     """The pymoo test problem named by ``cfg.test_problem``."""
     from pymoo.problems import get_problem
 
@@ -78,10 +83,10 @@ def pymoo_test_problem(cfg: ProblemConfig):
     return get_problem(tp.name, n_var=tp.n_var)
 
 
-_SETUPS: dict[str, object] = {}
+_SETUPS: dict[str, EvaluationSetup] = {}
 
 
-def _setup(key: str, problem: ProblemConfig):
+def _setup(key: str, problem: ProblemConfig) -> EvaluationSetup:
     """The evaluation setup of a problem, built once per process (the model and compiled lap are
     cached inside the chain's modules, so the first evaluation pays for them only once)."""
     from casadrone.config.airframe import load_airframe
@@ -110,7 +115,7 @@ def _setup(key: str, problem: ProblemConfig):
     return _SETUPS[key]
 
 
-def limit_setup(problem: ProblemConfig, template) -> dict:
+def limit_setup(problem: ProblemConfig, template: AirframeConfig) -> dict:
     """Limit-lap settings of a problem that optimises or constrains a limit-lap index: the
     options, and the per-study warm-start references (the template and the centre of the
     decision-variable box), identical in every worker."""
@@ -133,7 +138,7 @@ def limit_setup(problem: ProblemConfig, template) -> dict:
             "limit_references": (template_theta, centre)}
 
 
-def study_setup(study: Study):
+def study_setup(study: Study) -> EvaluationSetup:
     """The cached evaluation setup of a study in this process."""
     return _setup(study.key, study.problem)
 
@@ -194,7 +199,7 @@ class CandidateProblem(Problem):
     run directory it resumes, so a moved or copied run never reads the original's inputs).
     """
 
-    def __init__(self, study: Study, backend=None):
+    def __init__(self, study: Study, backend: Any = None) -> None:
         xl, xu = study.bounds
         super().__init__(n_var=len(xl), n_obj=len(study.objective_names),
                          n_ieq_constr=1 + 2 * (0 if study.problem.test_problem else
@@ -204,14 +209,14 @@ class CandidateProblem(Problem):
         self.backend = backend
         self.last_records: list[Record] = []
 
-    def _evaluate(self, X, out, *args, **kwargs):
+    def _evaluate(self, X: np.ndarray, out: dict, *args: Any, **kwargs: Any) -> None:
         if self.backend is None:
             raise RuntimeError("no evaluation backend attached")
         records = self.backend.evaluate(self.study, X)
         self.last_records = list(records)
         out["F"], out["G"] = objectives_and_constraints(self.study, records)
 
-    def __getstate__(self):
+    def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         state["backend"] = None
         state["last_records"] = []

@@ -25,9 +25,11 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
+from types import FrameType
+from typing import Any, TextIO, TypeVar
 
 import numpy as np
 
@@ -42,6 +44,8 @@ from casadrone.optimise.problem import CandidateProblem, Study, objectives_and_c
 from casadrone.optimise.store import RunDamaged, RunStore, now, record_of
 from casadrone.optimise.writer import GenerationWriter
 from casadrone.results import Record
+
+T = TypeVar("T")
 
 
 class Interrupted(KeyboardInterrupt):
@@ -68,14 +72,14 @@ def raise_swallowed_signal() -> None:
 
 
 @contextlib.contextmanager
-def _signals_interrupt():
+def _signals_interrupt() -> Iterator[None]:
     """SIGTERM and SIGINT raise :class:`Interrupted` in the coordinator while the block runs
     (only the main thread can take signals; elsewhere nothing changes)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
-    def handler(signum, frame):
+    def handler(signum: int, frame: FrameType | None) -> None:
         _TAKEN.append(signum)
         raise Interrupted(signum)
 
@@ -96,7 +100,7 @@ class ReplayBackend:
 
     name = "replay"
 
-    def __init__(self, stored: list[list[Record]], live, why: str = ""):
+    def __init__(self, stored: list[list[Record]], live: Any, why: str = "") -> None:
         self.stored, self.live, self.generation = stored, live, 0
         self.why = why  # why the run is being rebuilt, for the message if it cannot be
 
@@ -158,7 +162,7 @@ class RunResult:
     generations: int
 
 
-def build_algorithm(problem: ProblemConfig, n_obj: int):
+def build_algorithm(problem: ProblemConfig, n_obj: int) -> tuple[Any, Any]:
     """The problem's algorithm and its pymoo termination (G generations after initialisation)."""
     from casadrone.optimise.algorithms import algorithm_settings, make_algorithm
 
@@ -169,7 +173,7 @@ def build_algorithm(problem: ProblemConfig, n_obj: int):
     return algorithm, ("n_gen", a.generations + 1)
 
 
-def front(algorithm, study: Study) -> tuple[np.ndarray, np.ndarray]:
+def front(algorithm: Any, study: Study) -> tuple[np.ndarray, np.ndarray]:
     """Feasible non-dominated set of the algorithm's result (objectives back in their sense)."""
     rows = front_rows(algorithm)
     if rows is None:
@@ -183,7 +187,7 @@ def front(algorithm, study: Study) -> tuple[np.ndarray, np.ndarray]:
     return X[order], F[order] * sign
 
 
-def archive_count(algorithm, study: Study) -> int:
+def archive_count(algorithm: Any, study: Study) -> int:
     """Size of the feasible non-dominated set :func:`front` returns, without building it where
     the algorithm keeps it as arrays (ev-MOGA's archive holds feasible solutions only; a pymoo
     population of a 7 000-member archive costs ~35 ms a generation)."""
@@ -191,7 +195,7 @@ def archive_count(algorithm, study: Study) -> int:
     return size if size is not None else len(front(algorithm, study)[0])
 
 
-def generation_hypervolume(study: Study, records, state: HypervolumeState | None
+def generation_hypervolume(study: Study, records: list[Record], state: HypervolumeState | None
                           ) -> tuple[HypervolumeState, float]:
     """The hypervolume shown after a generation (:mod:`casadrone.optimise.hypervolume`): its
     feasible evaluations join the set so far, measured in the run's fixed space."""
@@ -204,7 +208,8 @@ def generation_hypervolume(study: Study, records, state: HypervolumeState | None
 class Progress:
     """One line per generation (and a bar on a terminal) unless quiet."""
 
-    def __init__(self, total_generations: int, quiet: bool = False, stream=None):
+    def __init__(self, total_generations: int, quiet: bool = False,
+                 stream: TextIO | None = None) -> None:
         self.total, self.quiet = total_generations, quiet
         self.stream = stream or sys.stderr
         self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
@@ -227,7 +232,7 @@ class Progress:
         print(line, file=self.stream, flush=True)
 
 
-def _loop(store: RunStore, algorithm, study: Study, backend, elapsed0: float,
+def _loop(store: RunStore, algorithm: Any, study: Study, backend: Any, elapsed0: float,
           progress: Callable[[int, dict], None] | None, stop_after: int | None = None,
           hv: HypervolumeState | None = None) -> RunResult:
     problem = algorithm.problem
@@ -280,7 +285,7 @@ BACKGROUND_WRITES = True
 
 
 @contextlib.contextmanager
-def _long_lived_objects_frozen():
+def _long_lived_objects_frozen() -> Iterator[None]:
     """While the block runs, the garbage collector leaves alone the objects alive when it
     starts (``gc.freeze``): imported modules, the study, the backend. They live as long as the
     run anyway, and at paper scale they are ~80 000 of the ~100 000 objects that each full
@@ -296,8 +301,9 @@ def _long_lived_objects_frozen():
         gc.unfreeze()
 
 
-def _generations(store, algorithm, study, problem, elapsed0, progress, stop_after,
-                 hv) -> RunResult:
+def _generations(store: RunStore, algorithm: Any, study: Study, problem: CandidateProblem,
+                 elapsed0: float, progress: Callable[[int, dict], None] | None,
+                 stop_after: int | None, hv: HypervolumeState | None) -> RunResult:
     writer = GenerationWriter(store, background=BACKGROUND_WRITES)
     try:
         with _long_lived_objects_frozen():
@@ -319,8 +325,10 @@ def _generations(store, algorithm, study, problem, elapsed0, progress, stop_afte
     return result
 
 
-def _generation_loop(store, writer, algorithm, study, problem, elapsed0, progress, stop_after,
-                     hv) -> RunResult:
+def _generation_loop(store: RunStore, writer: GenerationWriter, algorithm: Any, study: Study,
+                     problem: CandidateProblem, elapsed0: float,
+                     progress: Callable[[int, dict], None] | None, stop_after: int | None,
+                     hv: HypervolumeState | None) -> RunResult:
     start = time.perf_counter()
     steps = 0
     while algorithm.has_next():
@@ -379,7 +387,7 @@ def _generation_loop(store, writer, algorithm, study, problem, elapsed0, progres
 
 
 @contextlib.contextmanager
-def _released_on_error(store: RunStore):
+def _released_on_error(store: RunStore) -> Iterator[None]:
     """Setting up a run or resume: on any failure or signal, release its lock (and tell an
     :class:`Interrupted` which run it stopped) before passing the exception on."""
     try:
@@ -391,7 +399,7 @@ def _released_on_error(store: RunStore):
         raise
 
 
-def _close(be, failed: bool) -> None:
+def _close(be: Any, failed: bool) -> None:
     """Close a backend; after a failure or a signal, kill its workers rather than wait."""
     if failed and hasattr(be, "terminate"):
         be.terminate()
@@ -399,12 +407,12 @@ def _close(be, failed: bool) -> None:
         be.close()
 
 
-def _interruptible(fn):
+def _interruptible(fn: Callable[..., T]) -> Callable[..., T]:
     """Signals interrupt ``fn`` (a run or resume) anywhere, not only inside the loop."""
     import functools
 
     @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
+    def wrapper(*args: Any, **kwargs: Any) -> T:
         with _signals_interrupt():
             return fn(*args, **kwargs)
 

@@ -36,13 +36,18 @@ import socket
 import sqlite3
 import subprocess
 import sys
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
 from casadrone.config.problem import ProblemConfig
 from casadrone.results import Record
+
+if TYPE_CHECKING:
+    import numpy as np
 
 CONFIG, MANIFEST, HISTORY, CHECKPOINT, PARETO = (
     "config.yaml", "manifest.json", "history.sqlite", "checkpoint.pkl", "pareto.csv")
@@ -290,7 +295,7 @@ class RunStore:
     def write_manifest(self, data: dict) -> None:
         atomic_write(self.path / MANIFEST, json.dumps(data, indent=2))
 
-    def update_manifest(self, **changes) -> None:
+    def update_manifest(self, **changes: Any) -> None:
         self.write_manifest({**self.manifest, **changes})
 
     def problem(self) -> ProblemConfig:
@@ -332,7 +337,7 @@ class RunStore:
     # -- history ----------------------------------------------------------------------------
 
     @contextlib.contextmanager
-    def database(self, doing: str):
+    def database(self, doing: str) -> Iterator[sqlite3.Connection]:
         """The history database; its errors (damaged file, disk full) name the file."""
         try:
             with contextlib.closing(self.connect()) as db, db:
@@ -448,7 +453,9 @@ class RunStore:
             raise FileNotFoundError(f"{self.path}: no checkpoint")
         raise RunDamaged(f"{self.path}: " + "; ".join(why))
 
-    def write_pareto(self, variable_names, objective_names, X, values) -> Path:
+    def write_pareto(self, variable_names: Sequence[str], objective_names: Sequence[str],
+                     X: np.ndarray | Sequence[Sequence[float]],
+                     values: np.ndarray | Sequence[Sequence[float]]) -> Path:
         """Write ``pareto.csv``: variables then objectives (in their own units and sense)."""
         out = self.path / PARETO
         buf = io.StringIO(newline="")

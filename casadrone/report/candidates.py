@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from casadrone import plots
 from casadrone.compare import Candidate
@@ -25,6 +26,9 @@ from casadrone.report.markup import (
     table,
     unit_of,
 )
+
+if TYPE_CHECKING:
+    from casadrone.config.airframe import AirframeConfig
 
 
 def evaluate_candidates(run: Run, cands: list[Candidate], limit: bool = True
@@ -199,7 +203,7 @@ def _candidate(run: Run, c: Candidate, figs: Figures) -> str:
     return "".join(out)
 
 
-def section_airframes(run: Run, cands: list[Candidate], references, figs: Figures,
+def section_airframes(run: Run, cands: list[Candidate], references: Any, figs: Figures,
                       limit: bool = True) -> str:
     """The candidates over the reference airframes, with the Eq. 21 gains of the indices
     (without ``limit``, the references' limit laps are not solved: a co-design front)."""
@@ -234,7 +238,7 @@ def section_airframes(run: Run, cands: list[Candidate], references, figs: Figure
     return "".join(parts) + _interval_gains(run, tuple(references))
 
 
-def _index_gains(run: Run, cands: list[Candidate], cfg, ref: Evaluation) -> str:
+def _index_gains(run: Run, cands: list[Candidate], cfg: AirframeConfig, ref: Evaluation) -> str:
     from casadrone.compare import gain_pct
 
     if not ref.completed:

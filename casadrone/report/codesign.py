@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,6 +22,11 @@ from casadrone import plots
 from casadrone.compare import Candidate
 from casadrone.report.analysis import Run
 from casadrone.report.markup import Figures, cell, esc, kv_table, note, num, table
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from casadrone.limit.lap import LimitLap
 
 #: The manifest's backend of a co-design front's run directory.
 BACKEND = "codesign"
@@ -46,7 +52,7 @@ def read_points(path: Path) -> tuple[dict | None, dict[str, np.ndarray]]:
     return data, arrays
 
 
-def stored_lap(arrays: dict[str, np.ndarray], row: int, track: str):
+def stored_lap(arrays: dict[str, np.ndarray], row: int, track: str) -> LimitLap | None:
     """Point ``row``'s limit lap on ``track`` as a :class:`casadrone.limit.lap.LimitLap` (None
     when not stored)."""
     from casadrone.limit.check import bang_bang_fraction
@@ -141,7 +147,7 @@ def section_codesign(run: Run, cands: list[Candidate], figs: Figures) -> str:
     return "".join(out)
 
 
-def _laps_figure(laps: dict, track: str):
+def _laps_figure(laps: dict, track: str) -> Figure:
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(10.0, 4.5), layout="constrained")

@@ -7,6 +7,7 @@ import base64
 import html
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -25,11 +26,11 @@ class Html(str):
     """Text already in HTML (not escaped again)."""
 
 
-def esc(value) -> str:
+def esc(value: object) -> str:
     return value if isinstance(value, Html) else html.escape(str(value))
 
 
-def num(value, fmt: str = ".5g") -> str:
+def num(value: Any, fmt: str = ".5g") -> str:
     """A number for a table cell: ``—`` for missing or non-finite."""
     if value is None or isinstance(value, str):
         return "—" if value is None else esc(value)
@@ -42,7 +43,7 @@ def num(value, fmt: str = ".5g") -> str:
     return text
 
 
-def cell(value, fmt: str = ".5g", exact: bool = False) -> Html:
+def cell(value: Any, fmt: str = ".5g", exact: bool = False) -> Html:
     """A numeric table cell; ``exact`` adds the full value (``repr``) as ``data-value``."""
     data = f' data-value="{float(value)!r}"' if exact and value is not None else ""
     return Html(f'<td class="num"{data}>{num(value, fmt)}</td>')
@@ -51,7 +52,7 @@ def cell(value, fmt: str = ".5g", exact: bool = False) -> Html:
 def table(head: list[str], rows: list[list], cls: str = "") -> Html:
     """A table; a cell that is an :class:`Html` ``<td>`` is inserted as is, anything else is
     escaped (numbers formatted with :func:`num`)."""
-    def td(c):
+    def td(c: object) -> str:
         if isinstance(c, Html) and c.startswith("<td"):
             return c
         if isinstance(c, int | float | np.floating | np.integer) and not isinstance(c, bool):

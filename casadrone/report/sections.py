@@ -6,12 +6,17 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from casadrone import plots
 from casadrone.indices import INDICES
+
+if TYPE_CHECKING:
+    from casadrone.evaluate import EvaluationSetup
 from casadrone.outfile import shown_path
 from casadrone.report.analysis import (
     STAGES,
@@ -221,7 +226,7 @@ STAGE_COLOURS = ("tab:pink", "tab:purple", "tab:red", "tab:orange", "tab:brown",
                  "tab:cyan", "tab:blue")
 
 
-def _outcome_figure(gen, done, ok, history) -> Figure:
+def _outcome_figure(gen: np.ndarray, done: np.ndarray, ok: np.ndarray, history: Any) -> Figure:
     gens = np.unique(gen)
     series = [("feasible", ok, "tab:green"), ("violates a constraint", done & ~ok, "tab:olive")]
     series += [(f"failed: {s}", np.array([r["status"] != "completed" and r["stage"] == s
@@ -243,7 +248,7 @@ def _outcome_figure(gen, done, ok, history) -> Figure:
     return fig
 
 
-def _trims(setup, theta: dict[str, float]) -> dict:
+def _trims(setup: EvaluationSetup, theta: dict[str, float]) -> dict:
     """Hover trims of one design: as the chain does it (analytic start) and from a cold start
     (equal thrusts, level), each compared with the allocation solution."""
     from casadrone.airframe import build_airframe, with_theta
@@ -301,7 +306,7 @@ def _hover_trims(run: Run, cands: list[Candidate], figs: Figures, sample: int) -
     if not ok:
         return note(text) + note("No trim succeeded on the sample.", "warn")
 
-    def stat(label, get, fmt=".4g"):
+    def stat(label: str, get: Callable[[dict], float], fmt: str = ".4g") -> list:
         row = [label]
         for key in ("chain", "cold"):
             v = np.array([get(r[key]) for r in ok if r[key]["ok"]], float)

@@ -770,8 +770,9 @@ def fit_propulsion(log: StandLog, diameter_m: float, air_density_kg_m3: float = 
     <casadrone.thruststand>` docstring from a stand log.
 
     Args:
-        esc_min_us, esc_max_us: the ESC signal at zero and full duty; None: the log's protocol's
+        esc_min_us: the ESC signal at zero duty; None: the low end of the log's protocol's
             range (:data:`ESC_RANGES`: 1000-2000 µs for PWM, 48-2047 for DShot).
+        esc_max_us: the ESC signal at full duty; None: the high end of that range.
 
     Raises:
         LogError: fewer than three powered steady points, a point outside the ESC range, or a

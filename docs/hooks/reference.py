@@ -12,7 +12,9 @@ what the package says now:
   date) of every ``benchmarks/RESULTS-*.md``, each linked to that file's own page: the
   performance page, so its figures are never copied by hand;
 - ``<!-- generated: changelog -->``: ``CHANGELOG.md``;
-- ``<!-- generated: api-reference -->``: the Python API page (``casadrone._API``).
+- ``<!-- generated: api-reference -->``: the Python API page (``casadrone._API``);
+- ``<!-- generated: examples -->``: the examples gallery, every ``examples/*.py`` with its
+  source and what it printed, run at every build.
 
 Each result file also becomes a page of its own (``performance/<name>.md``, :func:`on_files`);
 a result file that does not open with its dated summary fails the build.
@@ -23,7 +25,9 @@ a description fails it.
 
 from __future__ import annotations
 
+import ast
 import datetime
+import html as html_module
 import importlib
 import inspect
 import json
@@ -483,6 +487,44 @@ def results_page(path: Path) -> str:
                        f"result file: [Performance](../performance.md).", rest])
 
 
+#: Examples shown but not run when the site is built, and why.
+EXAMPLES_NOT_RUN = {
+    "dask_cluster.py": "it starts a Dask cluster of two worker processes; `tests/integration/"
+                       "test_examples.py` runs it among the slow tests",
+}
+
+_RUN_EXAMPLE = """import os, subprocess, sys
+root = {root!r}
+env = {{**os.environ, "CASADRONE_EXAMPLE_SMALL": "1",
+       "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))}}
+done = subprocess.run([sys.executable, os.path.join(root, "examples", {name!r})], cwd=root,
+                      env=env, capture_output=True, text=True, timeout=600)
+if done.returncode:
+    raise RuntimeError("examples/{name} failed: " + done.stderr[-2000:])
+print(done.stdout.rstrip())
+"""
+
+
+def examples_gallery(folder: Path = ROOT / "examples") -> str:
+    """The examples page's body: each ``examples/*.py`` with its docstring, its source and, run
+    when the site is built (markdown-exec, ``CASADRONE_EXAMPLE_SMALL=1``: tiny budgets), what it
+    printed; an example that fails fails the build."""
+    out = []
+    for path in sorted(folder.glob("*.py")):
+        source = path.read_text(encoding="utf-8")
+        doc = ast.get_docstring(ast.parse(source)) or ""
+        out += [f"## `examples/{path.name}`", "", doc, "",
+                '??? example "The source"', "", "    ```python",
+                *[f"    {line}".rstrip() for line in source.splitlines()], "    ```", ""]
+        if path.name in EXAMPLES_NOT_RUN:
+            out += [f"Not run when this page is built: {EXAMPLES_NOT_RUN[path.name]}.", ""]
+            continue
+        out += ["What it printed when this page was built:", "",
+                '```python exec="on" result="text"',
+                _RUN_EXAMPLE.format(root=str(ROOT), name=path.name).rstrip(), "```", ""]
+    return "\n".join(out)
+
+
 def changelog() -> str:
     """``CHANGELOG.md`` without its title (the page has one)."""
     text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
@@ -490,13 +532,27 @@ def changelog() -> str:
     return re.sub(r"\A# .*\n", "", text)
 
 
-def api_reference() -> str:
-    """The Python API page's body: mkdocstrings directives for the public names of ``casadrone``
-    (its ``_API`` table: module → names), one section per module, in the order of the chain."""
+def api_sections() -> dict[str, list[str]]:
+    """The Python API page's sections, module → names: ``casadrone._API`` (what ``import
+    casadrone`` re-exports) in its order, each package's own function named like the package
+    (``casadrone._PACKAGE_FUNCTIONS``: ``casadrone.export.export``) first in its package's
+    section, which comes before its modules'."""
     import casadrone
 
-    out = []
+    sections: dict[str, list[str]] = {}
     for module, names in casadrone._API.items():
+        for package, functions in casadrone._PACKAGE_FUNCTIONS.items():
+            if (module == package or module.startswith(package + ".")) and package not in sections:
+                sections[package] = list(functions)
+        sections.setdefault(module, []).extend(names)
+    return sections
+
+
+def api_reference() -> str:
+    """The Python API page's body: mkdocstrings directives for :func:`api_sections`, one section
+    per module, in the order of the chain."""
+    out = []
+    for module, names in api_sections().items():
         out += [f"## `{module}`", "", f"::: {module}", "    options:",
                 "      show_root_heading: false", "      show_root_toc_entry: false",
                 "      members:"]
@@ -511,6 +567,7 @@ GENERATORS = {
     "cli-reference": cli_reference,
     "benchmark-summary": benchmark_summary,
     "changelog": changelog,
+    "examples": examples_gallery,
 }
 
 
@@ -532,9 +589,32 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
                   markdown)
 
 
-_SPHINX_ROLE = re.compile(r":(?:mod|class|func|meth|data|attr|exc|obj):(<code[^>]*>)~?")
+_SPHINX_ROLE = re.compile(r":(?:mod|class|func|meth|data|attr|exc|obj):<code>(~?)([^<]*)</code>")
+_EXPLICIT_TITLE = re.compile(r"(.*?)\s*<([\w.]+)>", re.DOTALL)
+_DOTTED_NAME = re.compile(r"\w+(?:\.\s*\w+)*")
+
+
+def _cross_reference(match: re.Match[str]) -> str:
+    """A docstring's Sphinx role (``:func:`~casadrone.limit.lap.limit_lap```, rendered as text and
+    code) as an autorefs cross-reference: a link where the API page documents the name, plain
+    code where it does not (``optional``). ``~`` shows the last part of the name only; a role
+    with its own title (``:mod:`this module <casadrone.thruststand>```) shows the title; a name
+    broken after a dot by the docstring's wrapping is joined again. Anything else (a relative
+    name, ``.runner``) is shown as plain code."""
+    short, text = match.group(1), html_module.unescape(match.group(2))
+    titled = _EXPLICIT_TITLE.fullmatch(text)
+    if titled:
+        shown, name = titled.groups()
+    elif _DOTTED_NAME.fullmatch(text):
+        name = re.sub(r"\s+", "", text)
+        shown = name.rsplit(".", 1)[-1] if short else name
+    else:
+        return f"<code>{match.group(2)}</code>"
+    return (f'<autoref optional identifier="{name}"><code>{html_module.escape(shown)}</code>'
+            "</autoref>")
 
 
 def on_page_content(html: str, page: Any, config: Any, files: Any) -> str:
-    """mkdocs hook: the docstrings' Sphinx roles (``:func:`name```) shown as plain code."""
-    return _SPHINX_ROLE.sub(r"\1", html)
+    """mkdocs hook: the docstrings' Sphinx roles as cross-references (resolved by autorefs when
+    every page is rendered)."""
+    return _SPHINX_ROLE.sub(_cross_reference, html)

@@ -81,6 +81,10 @@ def test_the_console_script_builds_the_site_with_a_page_per_result_file(console_
         assert all(w in page.read_text(encoding="utf-8") for w in words), (path.name, words)
         whole += page.stat().st_size
     assert len(summary) < whole / 5  # the page that was every file at once
+    # the examples gallery ran its examples: what evaluate_airframe.py and quick_optimisation.py
+    # print (tests/integration/test_examples.py asserts the same lines)
+    gallery = (console_site / "examples" / "index.html").read_text(encoding="utf-8")
+    assert "lap completed" in gallery and "flies: completed" in gallery
 
 
 @pytest.fixture(scope="module")

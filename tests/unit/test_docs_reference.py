@@ -184,3 +184,25 @@ def test_performance_page_is_the_summaries_not_the_files(reference):
     own = reference.results_page(RESULT_FILES[0])
     assert "](../performance.md)" in own
     assert own.count("\n") >= RESULT_FILES[0].read_text(encoding="utf-8").count("\n")
+
+
+def test_examples_gallery_shows_and_runs_every_example(reference):
+    """Every ``examples/*.py`` has its section with its docstring and whole source; each is run
+    at build (a markdown-exec block) except those :data:`EXAMPLES_NOT_RUN` names, which say why."""
+    page = reference.examples_gallery()
+    files = sorted((ROOT / "examples").glob("*.py"))
+    assert len(files) >= 5
+    for path in files:
+        assert f"## `examples/{path.name}`" in page
+        source = path.read_text(encoding="utf-8")
+        assert source.splitlines()[-1].strip() in page
+    runs = re.findall(r'```python exec="on" result="text"\n(.*?)```', page, re.DOTALL)
+    assert len(runs) == len(files) - len(reference.EXAMPLES_NOT_RUN)
+    assert all("CASADRONE_EXAMPLE_SMALL" in run for run in runs)
+    ran = {name for name in (p.name for p in files) if any(repr(name) in run for run in runs)}
+    assert ran == {p.name for p in files} - set(reference.EXAMPLES_NOT_RUN)
+    for reason in reference.EXAMPLES_NOT_RUN.values():
+        assert reason in page
+    nav = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+    assert "examples.md" in nav
+    assert "<!-- generated: examples -->" in (ROOT / "docs" / "examples.md").read_text()

@@ -22,12 +22,15 @@ def codesign_command(
                                              "directory); must be new or empty")] = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """Co-design: the problem's decision variables become variables of the limit-lap NLP, so one
-    solve gives the frame with the fastest limit lap (on one track, or the weighted sum or the
-    worst of a season's tracks). Starts from the template's geometry and codesign.starts random
-    feasible frames (all reported), and certifies the result and every point of a front: the
-    limit lap re-solved with the frame fixed (under a front point's ε row), the reduced gradient
-    in θ with its multipliers, the CVODES re-simulation.
+    """Co-design: the frame with the fastest limit lap, found in one solve (on one track, or the
+    weighted sum or the worst of a season's tracks).
+
+    The frame's dimensions are solved for together with the lap, from the template's geometry
+    and codesign.starts random feasible frames (all reported). The result and every point of a
+    front are checked: the lap is flown again with the frame fixed and with the reference
+    integrator, and each dimension is either inside its range with no gain left or at a bound
+    that holds it; a sentence says what holds the frame (the co-design concept page explains
+    the checks).
 
     A problem with a closed-loop index (J1-J5, Jp) is refused by name (exit code 2).
     """

@@ -13,6 +13,7 @@ import typer
 from casadrone.cli.common import (
     EXIT_BAD_INPUT,
     AirframeArg,
+    ControllerOpt,
     JsonOpt,
     OverridesArg,
     PlotOpt,
@@ -317,10 +318,7 @@ LQR_FIGURES = ("eigenvalue-cloud", "disturbance-responses")
 def lqr(
     airframe: AirframeArg,
     overrides: OverridesArg = None,
-    controller: Annotated[
-        str | None,
-        typer.Option(help="controller YAML or name (default: configs/controllers/default.yaml)"),
-    ] = None,
+    controller: ControllerOpt = None,
     ensemble: Annotated[
         int | None,
         typer.Option(min=1, max=10000, help="also apply the gain to N perturbed plants"),

@@ -9,6 +9,7 @@ import typer
 
 from casadrone.cli.common import (
     AirframeArg,
+    ControllerOpt,
     JsonOpt,
     OverridesArg,
     PlotOpt,
@@ -48,10 +49,7 @@ def simulate(
     airframe: AirframeArg,
     overrides: OverridesArg = None,
     track: TrackOpt = None,
-    controller: Annotated[
-        str | None,
-        typer.Option(help="controller YAML or name (default: configs/controllers/default.yaml)"),
-    ] = None,
+    controller: ControllerOpt = None,
     integrator: IntegratorOpt = "rk4",
     as_json: JsonOpt = False,
     plot: PlotOpt = None,

@@ -50,28 +50,25 @@ def limit_lap_command(
     overrides: OverridesArg = None,
     track: TrackOpt = None,
     intervals: Annotated[int | None, typer.Option(
-        min=2, max=400, help="shooting intervals per leg, at most 400 (ten times finer than "
-        "grid refinement needs; memory grows in proportion); default 40 with the paper "
-        "propulsion model, 80 with propeller (its faster rotor dynamics)")] = None,
+        min=2, max=400, help="time steps of the lap per leg: more is finer, slower and needs "
+        "more memory; default 40 with the paper propulsion model, 80 with propeller (its rotors "
+        "change speed faster)")] = None,
     attitude: Annotated[str, typer.Option(
         help="euler (ZYX angles) or quaternion (no singularity: split-S, loops)")] = "euler",
     tilt: Annotated[str, typer.Option(
         help="tilt limit at the track's max_tilt_deg: axes (|φ|, |θ| each; euler only), cone "
              "(total tilt) or none")] = "axes",
     solver: Annotated[str, typer.Option(
-        help="NLP solver: ipopt (general sparse; the reference) or fatrop (the same NLP in "
-             "stage order, Riccati factorisation; IPOPT re-solves where it fails)")] = "ipopt",
+        help="optimiser: ipopt (the reference) or fatrop (the same problem, solved step by "
+             "step along the lap; ipopt solves again where it fails)")] = "ipopt",
     grid_rounds: Annotated[int, typer.Option(
-        min=0, max=5, help="grid-continuation rounds: a verified lap solved on the coarse "
-        "and fine grids and brought back, the first round from every verified start, later "
-        "ones from the best lap, stopping at the first round that gains less than 0.1 per "
-        "cent; 0: none (the library's default, the starts' lap)")] = COMMAND_GRID_ROUNDS,
+        min=0, max=5, help="rounds that solve the lap again on a coarser and a finer grid to "
+        "escape a slower local optimum, stopping at the first round that gains less than 0.1 "
+        "%; 0: none (the library's default)")] = COMMAND_GRID_ROUNDS,
     rotor_step: Annotated[str, typer.Option(
-        help="step of the rotor states: rk4 (classical RK4, every state) or exponential "
-             "(ETDRK4: the rotors' linear decay integrated exactly; with propeller, 40 "
-             "intervals of 4 steps cost 0.69x the default 80 x 3 RK4 per warm solve, but "
-             "not every lap on them re-simulates within 5 cm: "
-             "benchmarks/RESULTS-propulsion.md)")] = "rk4",
+        help="how the rotor speeds are stepped: rk4 (like every other state) or exponential "
+             "(their decay followed exactly, which allows coarser time steps; opt-in, see the "
+             "propulsion concept page)")] = "rk4",
     substeps: Annotated[int | None, typer.Option(
         min=1, max=MAX_SUBSTEPS, help="integration steps per shooting interval (default 3); "
         "a new combination of steps and rotor step compiles its derivative blocks once per "

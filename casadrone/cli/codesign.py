@@ -8,7 +8,14 @@ from typing import Annotated
 
 import typer
 
-from casadrone.cli.common import JsonOpt, app, bad_input, print_json, reports_config_errors
+from casadrone.cli.common import (
+    JsonOpt,
+    app,
+    bad_input,
+    cost_text,
+    print_json,
+    reports_config_errors,
+)
 
 
 @app.command("codesign")
@@ -53,19 +60,27 @@ def codesign_command(
     typer.echo(text(result))
 
 
+def objective_text(objective: float, combine: str, laps_s: dict[str, float]) -> str:
+    """The headline figure: one track's lap as the lap (the objective is that lap), a season's
+    objective beside its tracks' laps (``sum``: the weighted sum; ``worst``: the slowest)."""
+    if len(laps_s) == 1:
+        ((track, lap),) = laps_s.items()
+        return f"lap {lap:.4f} s on {track}"
+    laps = ", ".join(f"{k} {v:.4f} s" for k, v in laps_s.items())
+    return f"objective {objective:.4f} s ({combine} of {len(laps_s)} tracks; {laps})"
+
+
 def text(result) -> str:
     """The result as lines: the frame, its laps, every start, the certificate."""
     head = f"{result.problem}: co-design {result.status.upper()}"
     if result.best is None:
         return f"{head}: {result.reason}"
     b = result.best
-    laps = ", ".join(f"{k} {v:.4f} s" for k, v in b.laps_s.items())
     theta = ", ".join(f"{k} {v:.2f}" for k, v in b.theta.items())
-    lines = [f"{head}: objective {b.objective:.4f} s ({result.combine}; {laps})",
+    lines = [f"{head}: {objective_text(b.objective, result.combine, b.laps_s)}",
              f"  frame: {theta}; mass {b.mass_kg:.4f} kg, span {b.span_m:.4f} m; "
              f"{result.intervals} intervals per leg",
-             f"  CPU {result.cpu_s:.1f} s in all (build {result.build_cpu_s:.1f} s), wall "
-             f"{result.wall_time_s:.1f} s", "  starts:"]
+             f"  {cost_text(result.cpu_s, result.wall_time_s, result.build_cpu_s)}", "  starts:"]
     for s in result.starts:
         th = ", ".join(f"{v:.2f}" for v in s.theta.values())
         lines.append(f"    {s.label:<10} {s.status:<28} {s.objective:>9.4f} s  θ = ({th})  "

@@ -280,6 +280,16 @@ def jsonable(value: Any) -> Any:
     return value
 
 
+def cost_text(cpu_s: float, wall_s: float, build_cpu_s: float | None = None) -> str:
+    """What a command's work cost, as every command prints it: this process's CPU time (s; with
+    the part spent building its solver) and the wall time (s) of the same work, each named for
+    what it measures: ``CPU 12.3 s in all (build 3.1 s), wall 15.0 s``. CPU is the figure to
+    compare (wall time grows with whatever else the machine runs, and with compilers, which
+    are other processes)."""
+    build = f" in all (build {build_cpu_s:.1f} s)" if build_cpu_s is not None else ""
+    return f"CPU {cpu_s:.1f} s{build}, wall {wall_s:.1f} s"
+
+
 def print_json(obj: Any) -> None:
     typer.echo(json.dumps(jsonable(obj), indent=2, allow_nan=False))
 

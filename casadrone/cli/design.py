@@ -222,6 +222,8 @@ MAX_SPEED_MPS = 100.0
 def _trim_table(r: dict) -> str:
     import numpy as np
 
+    from casadrone.numtext import fixed
+
     pos = np.asarray(r["rotor_positions_m"]) * 1000
     rotors = zip(("FR", "FL", "RL", "RR"), pos, strict=True)
     lines = [
@@ -233,7 +235,7 @@ def _trim_table(r: dict) -> str:
         "rotors (mm, body x fwd, y left): "
         + "  ".join(f"{n}({x:.1f}, {y:.1f})" for n, (x, y, _) in rotors),
         "",
-        f"{'solver':<12}{'ok':<4}{'residual':>11}{'iter':>7}{'time (s)':>10}  {'phi (deg)':>9}  "
+        f"{'solver':<12}{'ok':<4}{'residual':>11}{'iter':>7}{'CPU (ms)':>10}  {'phi (deg)':>9}  "
         f"{'theta (deg)':>11}  {'u0 (delta1..4)':<31}{'T (N)':<27}{'max|du0|':>9}",
     ]
     ok = [res for res in r["results"] if res["success"]]
@@ -243,11 +245,17 @@ def _trim_table(r: dict) -> str:
         agree = f"{np.max(np.abs(u0 - ref)):9.1e}" if ref is not None else f"{'-':>9}"
         lines.append(
             f"{res['solver']:<12}{'yes' if res['success'] else 'NO':<4}"
-            f"{res['residual_norm']:>11.2e}{res['iterations']:>7d}{res['wall_time_s']:>10.4f}  "
-            f"{math.degrees(res['x0']['phi']):>9.4f}  {math.degrees(res['x0']['theta']):>11.4f}  "
-            + " ".join(f"{v:7.5f}" for v in u0) + "  "
-            + " ".join(f"{v:6.4f}" for v in res["thrusts_N"]) + f"{agree}"
+            f"{res['residual_norm']:>11.2e}{res['iterations']:>7d}"
+            f"{fixed(1000 * res['cpu_time_s'], '>10.2f')}  "
+            f"{fixed(math.degrees(res['x0']['phi']), '>9.4f')}  "
+            f"{fixed(math.degrees(res['x0']['theta']), '>11.4f')}  "
+            + " ".join(fixed(v, "7.5f") for v in u0) + "  "
+            + " ".join(fixed(v, "6.4f") for v in res["thrusts_N"]) + f"{agree}"
         )
+    setup = ", ".join(f"{res['solver']} {fixed(1000 * res['setup_cpu_s'], '.0f')} ms"
+                      for res in r["results"])
+    lines += ["CPU (ms): CPU time of the solve alone; the one-off set-up (building the solver, "
+              "importing scipy) apart:", f"  {setup}"]
     if ref is not None and len(r["results"]) > 1:
         lines.append(f"max|du0|: largest command difference from {ok[0]['solver']} "
                      "(the first solver that succeeded)")

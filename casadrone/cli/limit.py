@@ -19,6 +19,7 @@ from casadrone.cli.common import (
     app,
     bad_input,
     check_plot_dir,
+    cost_text,
     print_json,
     reports_config_errors,
     save_figures,
@@ -238,15 +239,18 @@ def _reference_text(seconds: float, lap_s: float) -> str:
 
 
 def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
+    from casadrone.numtext import fixed
+
+    cost = cost_text(r["cpu_time_s"], r["wall_time_s"])
     if r["status"] != "completed":
-        return f"{name} on {track}: limit lap FAILED: {r['reason']} ({r['wall_time_s']:.1f} s)"
+        return f"{name} on {track}: limit lap FAILED: {r['reason']} ({cost})"
     splits = ", ".join(f"{t:.3f}" for t in r["split_times_s"])
     lines = [
         f"{name} on {track}: limit lap {r['lap_time_s']:.3f} s "
         f"({_reference_text(r['point_mass_reference_s'], r['lap_time_s'])}; "
-        f"start {r['start']}, "
-        f"{r['certainty']}; {r['iterations']} iterations of its solve, "
-        f"{r['wall_time_s']:.1f} s wall time)",
+        f"start {r['start']}, {r['certainty']})",
+        f"  solve: the chosen start's took {r['iterations']} iterations; the whole limit lap "
+        f"(every start, check and grid round) {cost}",
         f"  split times (s): {splits}",
         f"  lap times (s): {', '.join(f'{t:.3f}' for t in r['lap_times_s'])}",
         f"  bang-bang fraction: {r['bang_bang_fraction']:.2f}; re-simulation miss: "
@@ -255,7 +259,7 @@ def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
         *_start_text(r, propulsion),
         "  sensitivity dT/dθ (s per unit):",
     ]
-    lines += [f"    {k:<14}{v:>+12.4g}" for k, v in r["sensitivities"].items()
+    lines += [f"    {k:<14}{fixed(v, '>+12.4g')}" for k, v in r["sensitivities"].items()
               if math.isfinite(v)]
     lines += [f"figure: {p}" for p in r.get("figures", [])]
     return "\n".join(lines)

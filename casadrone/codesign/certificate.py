@@ -114,7 +114,7 @@ class Certificate:
                     else f"{t.fixed_cold_lap_s:.4f}")
             lines.append(f"  {t.label}: co-design lap {t.codesign_lap_s:.4f} s, θ fixed "
                          f"{t.fixed_lap_s:.4f} s (warm {t.fixed_warm_lap_s:.4f}, cold "
-                         f"{cold}), gap {t.gap_pct:+.4f} %, re-simulation "
+                         f"{cold}), gap {fixed(t.gap_pct, '+.4f')} %, re-simulation "
                          f"miss {t.resimulation_miss_m:.4f} m")
         lines.append(f"  why: {self.why}")
         lines.append("  in numbers (reduced gradient: s per box width; bound multiplier from "
@@ -299,7 +299,7 @@ def summary_of(c: dict[str, Any], active: bool = True) -> str:
                     for v in c["variables"])
     rows = ", ".join(f"{k} {v:+.3g}" for k, v in c["active_constraints"].items()) if active \
         else ""
-    return (f"{head}: lap gap {gap:+.4f} %, CVODES miss {miss:.3g} m; why: {why}"
+    return (f"{head}: lap gap {fixed(gap, '+.4f')} %, CVODES miss {miss:.3g} m; why: {why}"
             + (f"; active: {rows}" if rows else ""))
 
 

@@ -47,10 +47,12 @@ class LinMethod(StrEnum):
 
 
 def _matrix_text(M, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
+    from casadrone.numtext import fixed
+
     width = 10
     head = " " * 8 + "".join(f"{c:>{width}}" for c in cols)
     body = [
-        f"{r:>8}" + "".join(f"{v:>{width}.4g}" for v in row)
+        f"{r:>8}" + "".join(fixed(float(v), f">{width}.4g") for v in row)
         for r, row in zip(rows, M, strict=True)
     ]
     return "\n".join([head, *body])

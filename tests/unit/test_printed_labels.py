@@ -72,6 +72,14 @@ def test_simulate_prints_no_negative_zero_and_defines_pair_thrust(cli_runner):
     assert "effort = mean roll-effort voltage" in r.stdout  # ... and both its legend lines
 
 
+@pytest.mark.parametrize("args", [["linearise", "SY250"], ["massprops", "SY250-components"]])
+def test_other_tables_print_no_negative_zero(cli_runner, args):
+    # the hover Jacobians hold exact zeros that CasADi computes as -0.0 (printed "-0" before)
+    r = cli_runner.invoke(app, args)
+    assert r.exit_code == 0, r.output
+    assert not NEGATIVE_ZERO.search(r.stdout), r.stdout
+
+
 def test_simulate_text_of_values_below_the_last_digit():
     from casadrone.cli.flight import _simulate_text
 

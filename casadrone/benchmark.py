@@ -27,7 +27,14 @@ from casadrone.config.io import load, resolve_config
 from casadrone.config.reference import MeasuredAirframe, Table4Reference, load_reference
 from casadrone.config.track import DEFAULT_TRACK, TrackConfig
 from casadrone.control import design_for
-from casadrone.indices import INDICES, Interval, compute_indices, interval_table
+from casadrone.indices import (
+    INDICES,
+    INTERVAL_LEGEND,
+    Interval,
+    compute_indices,
+    interval_table,
+)
+from casadrone.numtext import fixed
 from casadrone.results import AsDict, Status
 from casadrone.simulate import Integrator, simulate
 
@@ -156,7 +163,7 @@ def run_benchmark(
 
 
 def _f(value: float | None, digits: int) -> str:
-    return "—" if value is None or not math.isfinite(value) else f"{value:.{digits}f}"
+    return "—" if value is None or not math.isfinite(value) else fixed(value, f".{digits}f")
 
 
 def _pair(hi: float, lo: float) -> str:
@@ -175,8 +182,7 @@ def format_table(table: BenchmarkTable) -> str:
         f"  meas = {table.measured_label} [{table.reference}];",
         "         measured laps take hundreds of seconds for the 105 m lap: compare trends, "
         "not absolute times",
-        "  effort = mean roll-effort voltage, left minus right ESCs, deviation from trim (V);",
-        "  pair thrust = max/min of (T_FL + T_RL) - (T_FR + T_RR) over the interval (N)",
+        *(f"  {line}" for line in INTERVAL_LEGEND),
         "",
     ]
     for r in table.rows:

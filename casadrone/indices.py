@@ -357,6 +357,15 @@ def limit_indices(lap, names: Sequence[str] | None = None) -> dict[str, float]:
 # --------------------------------------------------------------------------------------------
 
 
+#: What the interval columns of a printed table mean (``simulate``'s table, ``benchmark``'s):
+#: printed under the table, so that "pair thrust max/min" is defined where it is read.
+INTERVAL_LEGEND = (
+    "effort = mean roll-effort voltage, left minus right ESCs, deviation from trim (V);",
+    "pair thrust = max/min over the interval of (T_FL + T_RL) - (T_FR + T_RR), left rotors' "
+    "thrust minus right rotors' (N)",
+)
+
+
 @dataclass(frozen=True)
 class Interval(AsDict):
     """One row of the paper's Table 4 for a simulated lap.

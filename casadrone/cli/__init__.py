@@ -30,10 +30,12 @@ from casadrone.cli import (  # noqa: F401 (importing registers the commands)
     propulsion,
     trimstudy,
 )
-from casadrone.cli.common import app, command_name
+from casadrone.cli.common import app, command_name, unwrapped
 from casadrone.cli.examples import epilog
 
 for _command in app.registered_commands:  # every --help ends with its examples
     _command.epilog = _command.epilog or epilog(command_name(_command))
+    if _command.help is None and _command.callback is not None and _command.callback.__doc__:
+        _command.help = unwrapped(_command.callback.__doc__)  # wrapped by the terminal's width
 
 __all__ = ["app"]

@@ -8,7 +8,14 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from casadrone.cli.common import JsonOpt, app, bad_input, print_json, reports_config_errors
+from casadrone.cli.common import (
+    JsonOpt,
+    app,
+    bad_input,
+    cost_text,
+    print_json,
+    reports_config_errors,
+)
 
 if TYPE_CHECKING:  # co-design is imported when the command runs (CasADi)
     from casadrone.codesign.driver import CodesignResult
@@ -25,12 +32,15 @@ def codesign_command(
                                              "directory); must be new or empty")] = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """Co-design: the problem's decision variables become variables of the limit-lap NLP, so one
-    solve gives the frame with the fastest limit lap (on one track, or the weighted sum or the
-    worst of a season's tracks). Starts from the template's geometry and codesign.starts random
-    feasible frames (all reported), and certifies the result and every point of a front: the
-    limit lap re-solved with the frame fixed (under a front point's ε row), the reduced gradient
-    in θ with its multipliers, the CVODES re-simulation.
+    """Co-design: the frame with the fastest limit lap, found in one solve (on one track, or the
+    weighted sum or the worst of a season's tracks).
+
+    The frame's dimensions are solved for together with the lap, from the template's geometry
+    and codesign.starts random feasible frames (all reported). The result and every point of a
+    front are checked: the lap is flown again with the frame fixed and with the reference
+    integrator, and each dimension is either inside its range with no gain left or at a bound
+    that holds it; a sentence says what holds the frame (the co-design concept page explains
+    the checks).
 
     A problem with a closed-loop index (J1-J5, Jp) is refused by name (exit code 2).
     """
@@ -53,19 +63,27 @@ def codesign_command(
     typer.echo(text(result))
 
 
+def objective_text(objective: float, combine: str, laps_s: dict[str, float]) -> str:
+    """The headline figure: one track's lap as the lap (the objective is that lap), a season's
+    objective beside its tracks' laps (``sum``: the weighted sum; ``worst``: the slowest)."""
+    if len(laps_s) == 1:
+        ((track, lap),) = laps_s.items()
+        return f"lap {lap:.4f} s on {track}"
+    laps = ", ".join(f"{k} {v:.4f} s" for k, v in laps_s.items())
+    return f"objective {objective:.4f} s ({combine} of {len(laps_s)} tracks; {laps})"
+
+
 def text(result: CodesignResult) -> str:
     """The result as lines: the frame, its laps, every start, the certificate."""
     head = f"{result.problem}: co-design {result.status.upper()}"
     if result.best is None:
         return f"{head}: {result.reason}"
     b = result.best
-    laps = ", ".join(f"{k} {v:.4f} s" for k, v in b.laps_s.items())
     theta = ", ".join(f"{k} {v:.2f}" for k, v in b.theta.items())
-    lines = [f"{head}: objective {b.objective:.4f} s ({result.combine}; {laps})",
+    lines = [f"{head}: {objective_text(b.objective, result.combine, b.laps_s)}",
              f"  frame: {theta}; mass {b.mass_kg:.4f} kg, span {b.span_m:.4f} m; "
              f"{result.intervals} intervals per leg",
-             f"  CPU {result.cpu_s:.1f} s in all (build {result.build_cpu_s:.1f} s), wall "
-             f"{result.wall_time_s:.1f} s", "  starts:"]
+             f"  {cost_text(result.cpu_s, result.wall_time_s, result.build_cpu_s)}", "  starts:"]
     for s in result.starts:
         th = ", ".join(f"{v:.2f}" for v in s.theta.values())
         lines.append(f"    {s.label:<10} {s.status:<28} {s.objective:>9.4f} s  θ = ({th})  "

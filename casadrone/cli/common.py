@@ -79,14 +79,30 @@ _CLICK_ERROR: Any = next(c for c in typer.BadParameter.__mro__ if c.__name__ == 
 
 app = _App(
     name="casadrone",
-    help="Racing-drone airframe optimisation: validate configs, trim, linearise, design LQR-I, "
-    "fly a lap, benchmark, optimise (run, resume), decide, compare and report.",
+    help="Racing-drone airframe optimisation. Check configs (validate); trim, linearise and "
+    "design the LQR-I controller (lqr) of an airframe, and its mass properties (massprops); "
+    "fly a lap (simulate, benchmark) or the fastest possible lap (limit-lap); optimise a "
+    "design problem (run, resume), choose designs on its front (decide) and compare and "
+    "report them (compare, report); find the fastest frame in one solve (codesign); compare "
+    "the trim solvers (trim-study); fit a thrust-stand log (fit-propulsion); export a design "
+    "for flight firmware or a 1:1 plate (export).",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
 )
 
 EXIT_BAD_INPUT = 2
+
+
+def unwrapped(doc: str) -> str:
+    """A docstring as help text: each paragraph on one line (blank lines between paragraphs
+    kept), so that the help formatter wraps it to the terminal. Typer's rich help keeps a
+    docstring's single line breaks, and a docstring wrapped at 100 columns read at 80 as lines
+    broken mid-sentence. A paragraph that starts with ``\\b`` keeps its lines (click's rule)."""
+    import inspect
+
+    paragraphs = inspect.cleandoc(doc).split("\n\n")
+    return "\n\n".join(p if p.startswith("\b") else " ".join(p.split()) for p in paragraphs)
 
 
 def command_name(command: typer.models.CommandInfo) -> str:
@@ -126,9 +142,18 @@ PlotOpt = Annotated[
         "--plot", help="save figures (PNG and SVG) into this folder (a figure casadrone wrote "
         "is replaced; any other file of a figure's name is refused)")
 ]
+#: The shipped names ``--track`` and ``--controller`` default to, shown whole in --help (a path
+#: was cut at 80 columns: "configs/tracks/paper-rectang…").
+DEFAULT_TRACK_NAME = "paper-rectangle"
+DEFAULT_CONTROLLER_NAME = "default"
 TrackOpt = Annotated[
     str | None,
-    typer.Option(help="track YAML or name (default: configs/tracks/paper-rectangle.yaml)"),
+    typer.Option(help=f"track YAML or shipped name (default: {DEFAULT_TRACK_NAME})"),
+]
+ControllerOpt = Annotated[
+    str | None,
+    typer.Option(
+        help=f"controller YAML or shipped name (default: {DEFAULT_CONTROLLER_NAME})"),
 ]
 
 
@@ -258,6 +283,16 @@ def jsonable(value: Any) -> Any:
     if isinstance(value, np.floating | float):
         return float(value) if math.isfinite(value) else None
     return value
+
+
+def cost_text(cpu_s: float, wall_s: float, build_cpu_s: float | None = None) -> str:
+    """What a command's work cost, as every command prints it: this process's CPU time (s; with
+    the part spent building its solver) and the wall time (s) of the same work, each named for
+    what it measures: ``CPU 12.3 s in all (build 3.1 s), wall 15.0 s``. CPU is the figure to
+    compare (wall time grows with whatever else the machine runs, and with compilers, which
+    are other processes)."""
+    build = f" in all (build {build_cpu_s:.1f} s)" if build_cpu_s is not None else ""
+    return f"CPU {cpu_s:.1f} s{build}, wall {wall_s:.1f} s"
 
 
 def print_json(obj: Any) -> None:

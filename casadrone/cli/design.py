@@ -13,6 +13,7 @@ import typer
 from casadrone.cli.common import (
     EXIT_BAD_INPUT,
     AirframeArg,
+    ControllerOpt,
     JsonOpt,
     OverridesArg,
     PlotOpt,
@@ -49,10 +50,12 @@ class LinMethod(StrEnum):
 
 
 def _matrix_text(M: np.ndarray, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
+    from casadrone.numtext import fixed
+
     width = 10
     head = " " * 8 + "".join(f"{c:>{width}}" for c in cols)
     body = [
-        f"{r:>8}" + "".join(f"{v:>{width}.4g}" for v in row)
+        f"{r:>8}" + "".join(fixed(float(v), f">{width}.4g") for v in row)
         for r, row in zip(rows, M, strict=True)
     ]
     return "\n".join([head, *body])
@@ -224,6 +227,8 @@ MAX_SPEED_MPS = 100.0
 def _trim_table(r: dict) -> str:
     import numpy as np
 
+    from casadrone.numtext import fixed
+
     pos = np.asarray(r["rotor_positions_m"]) * 1000
     rotors = zip(("FR", "FL", "RL", "RR"), pos, strict=True)
     lines = [
@@ -235,7 +240,7 @@ def _trim_table(r: dict) -> str:
         "rotors (mm, body x fwd, y left): "
         + "  ".join(f"{n}({x:.1f}, {y:.1f})" for n, (x, y, _) in rotors),
         "",
-        f"{'solver':<12}{'ok':<4}{'residual':>11}{'iter':>7}{'time (s)':>10}  {'phi (deg)':>9}  "
+        f"{'solver':<12}{'ok':<4}{'residual':>11}{'iter':>7}{'CPU (ms)':>10}  {'phi (deg)':>9}  "
         f"{'theta (deg)':>11}  {'u0 (delta1..4)':<31}{'T (N)':<27}{'max|du0|':>9}",
     ]
     ok = [res for res in r["results"] if res["success"]]
@@ -245,11 +250,17 @@ def _trim_table(r: dict) -> str:
         agree = f"{np.max(np.abs(u0 - ref)):9.1e}" if ref is not None else f"{'-':>9}"
         lines.append(
             f"{res['solver']:<12}{'yes' if res['success'] else 'NO':<4}"
-            f"{res['residual_norm']:>11.2e}{res['iterations']:>7d}{res['wall_time_s']:>10.4f}  "
-            f"{math.degrees(res['x0']['phi']):>9.4f}  {math.degrees(res['x0']['theta']):>11.4f}  "
-            + " ".join(f"{v:7.5f}" for v in u0) + "  "
-            + " ".join(f"{v:6.4f}" for v in res["thrusts_N"]) + f"{agree}"
+            f"{res['residual_norm']:>11.2e}{res['iterations']:>7d}"
+            f"{fixed(1000 * res['cpu_time_s'], '>10.2f')}  "
+            f"{fixed(math.degrees(res['x0']['phi']), '>9.4f')}  "
+            f"{fixed(math.degrees(res['x0']['theta']), '>11.4f')}  "
+            + " ".join(fixed(v, "7.5f") for v in u0) + "  "
+            + " ".join(fixed(v, "6.4f") for v in res["thrusts_N"]) + f"{agree}"
         )
+    setup = ", ".join(f"{res['solver']} {fixed(1000 * res['setup_cpu_s'], '.0f')} ms"
+                      for res in r["results"])
+    lines += ["CPU (ms): CPU time of the solve alone; the one-off set-up (building the solver, "
+              "importing scipy) apart:", f"  {setup}"]
     if ref is not None and len(r["results"]) > 1:
         lines.append(f"max|du0|: largest command difference from {ok[0]['solver']} "
                      "(the first solver that succeeded)")
@@ -320,10 +331,7 @@ LQR_FIGURES = ("eigenvalue-cloud", "disturbance-responses")
 def lqr(
     airframe: AirframeArg,
     overrides: OverridesArg = None,
-    controller: Annotated[
-        str | None,
-        typer.Option(help="controller YAML or name (default: configs/controllers/default.yaml)"),
-    ] = None,
+    controller: ControllerOpt = None,
     ensemble: Annotated[
         int | None,
         typer.Option(min=1, max=10000, help="also apply the gain to N perturbed plants"),

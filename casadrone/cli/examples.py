@@ -1,7 +1,8 @@
 """One or two examples per command, shown at the end of its ``--help`` (the command's epilog).
 
 Kept in one table, so that a command added anywhere gets its examples here (a test fails for a
-command without any, and parses every example against its command's options).
+command without any, parses every example against its command's options, and checks that each
+fits one line of an 80-column terminal). A command's docstring holds no examples of its own.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "validate": ("casadrone validate configs problems",
                  "casadrone validate my-frame.yaml --json"),
     "trim": ("casadrone trim SY250",
-             "casadrone trim HS210 --condition climb --speed 10 --climb-angle 20 --solver all"),
+             "casadrone trim HS210 --condition forward --speed 20 --solver all"),
     "linearise": ("casadrone linearise SY250 --method both",
                   "casadrone linearise SY250 alpha_deg=80 --condition forward --speed 5 --json"),
     "lqr": ("casadrone lqr SY250",
@@ -28,8 +29,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "massprops": ("casadrone massprops SY250-components",
                   "casadrone massprops SY250-components lambda_a_mm=140 --json"),
     "run": ("casadrone run quick --out runs/quick",
-            "casadrone run paper-run1 algorithm.generations=20 --out runs/p1 --backend processes "
-            "-j 8"),
+            "casadrone run paper-run1 algorithm.generations=20 --out runs/p1 -j 8"),
     "resume": ("casadrone resume runs/quick",),
     "decide": ("casadrone decide runs/quick",
                "casadrone decide runs/quick --method extreme --objective J3 --json"),
@@ -37,9 +37,9 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
                 "casadrone compare runs/quick --reference SY250 --reference HS210 --measured"),
     "report": ("casadrone report runs/quick",
                "casadrone report runs/quick --out quick.html"),
-    "fit-propulsion": ("casadrone fit-propulsion stand.csv --diameter-in 5.1",
-                       "casadrone fit-propulsion stand.csv --diameter-in 5.1 --motor-poles 14 "
-                       "--out propulsion.yaml --plot figures"),
+    "fit-propulsion": ("casadrone fit-propulsion stand.csv --diameter-in 5.1 --out prop.yaml",
+                       "casadrone fit-propulsion stand.csv --diameter-m 0.127 --motor-poles 14 "
+                       "--json"),
     "trim-study": ("casadrone trim-study SY250 --starts 5",
                    "casadrone trim-study HS210 --conditions forward:0..40/5 --json"),
 }

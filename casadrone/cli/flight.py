@@ -9,6 +9,7 @@ import typer
 
 from casadrone.cli.common import (
     AirframeArg,
+    ControllerOpt,
     JsonOpt,
     OverridesArg,
     PlotOpt,
@@ -48,10 +49,7 @@ def simulate(
     airframe: AirframeArg,
     overrides: OverridesArg = None,
     track: TrackOpt = None,
-    controller: Annotated[
-        str | None,
-        typer.Option(help="controller YAML or name (default: configs/controllers/default.yaml)"),
-    ] = None,
+    controller: ControllerOpt = None,
     integrator: IntegratorOpt = "rk4",
     as_json: JsonOpt = False,
     plot: PlotOpt = None,
@@ -104,7 +102,8 @@ def simulate(
 
 
 def _simulate_text(r: dict) -> str:
-    from casadrone.indices import INDICES
+    from casadrone.indices import INDICES, INTERVAL_LEGEND
+    from casadrone.numtext import fixed
 
     head = f"{r['airframe']}: track {r['track']}, controller {r['controller']}, {r['integrator']}"
     if r["status"] != "completed":
@@ -115,12 +114,16 @@ def _simulate_text(r: dict) -> str:
                  f"({r['wall_time_s']:.2f} s wall time)"]
         for name, value in r["indices"].items():
             index = INDICES[name]
-            lines.append(f"  {name:<4}{value:>10.4f} {index.unit:<5} {index.description}")
+            lines.append(f"  {name:<4}{fixed(value, '>10.4f')} {index.unit:<5} "
+                         f"{index.description}")
         lines.append(f"  {'interval':>8}{'split time (s)':>16}{'effort (V)':>12}"
                      f"{'pair thrust max/min (N)':>26}")
         for i in r["intervals"]:
-            lines.append(f"  {i['waypoint']:>8}{i['split_time_s']:>16.3f}{i['effort_V']:>12.4f}"
-                         f"{i['pair_thrust_max_N']:>15.3f} / {i['pair_thrust_min_N']:<8.3f}")
+            lines.append(f"  {i['waypoint']:>8}{fixed(i['split_time_s'], '>16.3f')}"
+                         f"{fixed(i['effort_V'], '>12.4f')}"
+                         f"{fixed(i['pair_thrust_max_N'], '>15.3f')} / "
+                         f"{fixed(i['pair_thrust_min_N'], '<8.3f')}".rstrip())
+        lines += [f"  {line}" for line in INTERVAL_LEGEND]
     lines += [f"figure: {p}" for p in r.get("figures", [])]
     return "\n".join(lines)
 

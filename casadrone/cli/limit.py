@@ -19,6 +19,7 @@ from casadrone.cli.common import (
     app,
     bad_input,
     check_plot_dir,
+    cost_text,
     print_json,
     reports_config_errors,
     save_figures,
@@ -53,28 +54,25 @@ def limit_lap_command(
     overrides: OverridesArg = None,
     track: TrackOpt = None,
     intervals: Annotated[int | None, typer.Option(
-        min=2, max=400, help="shooting intervals per leg, at most 400 (ten times finer than "
-        "grid refinement needs; memory grows in proportion); default 40 with the paper "
-        "propulsion model, 80 with propeller (its faster rotor dynamics)")] = None,
+        min=2, max=400, help="time steps of the lap per leg: more is finer, slower and needs "
+        "more memory; default 40 with the paper propulsion model, 80 with propeller (its rotors "
+        "change speed faster)")] = None,
     attitude: Annotated[str, typer.Option(
         help="euler (ZYX angles) or quaternion (no singularity: split-S, loops)")] = "euler",
     tilt: Annotated[str, typer.Option(
         help="tilt limit at the track's max_tilt_deg: axes (|φ|, |θ| each; euler only), cone "
              "(total tilt) or none")] = "axes",
     solver: Annotated[str, typer.Option(
-        help="NLP solver: ipopt (general sparse; the reference) or fatrop (the same NLP in "
-             "stage order, Riccati factorisation; IPOPT re-solves where it fails)")] = "ipopt",
+        help="optimiser: ipopt (the reference) or fatrop (the same problem, solved step by "
+             "step along the lap; ipopt solves again where it fails)")] = "ipopt",
     grid_rounds: Annotated[int, typer.Option(
-        min=0, max=5, help="grid-continuation rounds: a verified lap solved on the coarse "
-        "and fine grids and brought back, the first round from every verified start, later "
-        "ones from the best lap, stopping at the first round that gains less than 0.1 per "
-        "cent; 0: none (the library's default, the starts' lap)")] = COMMAND_GRID_ROUNDS,
+        min=0, max=5, help="rounds that solve the lap again on a coarser and a finer grid to "
+        "escape a slower local optimum, stopping at the first round that gains less than 0.1 "
+        "%; 0: none (the library's default)")] = COMMAND_GRID_ROUNDS,
     rotor_step: Annotated[str, typer.Option(
-        help="step of the rotor states: rk4 (classical RK4, every state) or exponential "
-             "(ETDRK4: the rotors' linear decay integrated exactly; with propeller, 40 "
-             "intervals of 4 steps cost 0.69x the default 80 x 3 RK4 per warm solve, but "
-             "not every lap on them re-simulates within 5 cm: "
-             "benchmarks/RESULTS-propulsion.md)")] = "rk4",
+        help="how the rotor speeds are stepped: rk4 (like every other state) or exponential "
+             "(their decay followed exactly, which allows coarser time steps; opt-in, see the "
+             "propulsion concept page)")] = "rk4",
     substeps: Annotated[int | None, typer.Option(
         min=1, max=MAX_SUBSTEPS, help="integration steps per shooting interval (default 3); "
         "a new combination of steps and rotor step compiles its derivative blocks once per "
@@ -245,15 +243,18 @@ def _reference_text(seconds: float, lap_s: float) -> str:
 
 
 def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
+    from casadrone.numtext import fixed
+
+    cost = cost_text(r["cpu_time_s"], r["wall_time_s"])
     if r["status"] != "completed":
-        return f"{name} on {track}: limit lap FAILED: {r['reason']} ({r['wall_time_s']:.1f} s)"
+        return f"{name} on {track}: limit lap FAILED: {r['reason']} ({cost})"
     splits = ", ".join(f"{t:.3f}" for t in r["split_times_s"])
     lines = [
         f"{name} on {track}: limit lap {r['lap_time_s']:.3f} s "
         f"({_reference_text(r['point_mass_reference_s'], r['lap_time_s'])}; "
-        f"start {r['start']}, "
-        f"{r['certainty']}; {r['iterations']} iterations of its solve, "
-        f"{r['wall_time_s']:.1f} s wall time)",
+        f"start {r['start']}, {r['certainty']})",
+        f"  solve: the chosen start's took {r['iterations']} iterations; the whole limit lap "
+        f"(every start, check and grid round) {cost}",
         f"  split times (s): {splits}",
         f"  lap times (s): {', '.join(f'{t:.3f}' for t in r['lap_times_s'])}",
         f"  bang-bang fraction: {r['bang_bang_fraction']:.2f}; re-simulation miss: "
@@ -262,7 +263,7 @@ def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
         *_start_text(r, propulsion),
         "  sensitivity dT/dθ (s per unit):",
     ]
-    lines += [f"    {k:<14}{v:>+12.4g}" for k, v in r["sensitivities"].items()
+    lines += [f"    {k:<14}{fixed(v, '>+12.4g')}" for k, v in r["sensitivities"].items()
               if math.isfinite(v)]
     lines += [f"figure: {p}" for p in r.get("figures", [])]
     return "\n".join(lines)

@@ -74,14 +74,6 @@ def fit_propulsion_command(
     Every destination (--out, the --plot figures) is checked before the log is read and its
     folder created before any file is written: a refused command writes nothing. A figure
     casadrone wrote (marked in its metadata) is replaced without --force, as by every --plot.
-
-    Examples:
-
-      casadrone fit-propulsion stand.csv --diameter-in 5.1 --out prop.yaml --plot fit/
-
-      casadrone fit-propulsion stand.csv --diameter-in 5 --shape uiuc-da4022-5x3.75-3blade
-
-      casadrone fit-propulsion stand.csv --diameter-m 0.127 --motor-poles 14 --json
     """
     from casadrone.outfile import OutputRefused, write_out
     from casadrone.thruststand import (

@@ -34,6 +34,7 @@ from casadrone.limit.lap import limit_lap, model_states, start_state
 from casadrone.limit.nlp import NlpPoint
 from casadrone.limit.starts import prepare, trajectory
 from casadrone.model import n_params
+from casadrone.numtext import fixed
 
 #: Largest relative gap between the co-design lap and the fixed-frame lap (issue: 0.05 %).
 LAP_RTOL = 5e-4
@@ -92,8 +93,13 @@ class Certificate:
 
         return {"tracks": [track(t) for t in self.tracks],
                 "variables": [asdict(v) for v in self.variables],
-                "active_constraints": dict(self.active), "passed": self.passed,
-                "reason": self.reason}
+                "active_constraints": dict(self.active), "why": self.why,
+                "passed": self.passed, "reason": self.reason}
+
+    @property
+    def why(self) -> str:
+        """What holds the frame, in one sentence (:func:`why_sentence`)."""
+        return why_sentence(self.variables, self.active)
 
     def summary(self) -> str:
         """The certificate in one line (:func:`summary_of`)."""
@@ -108,16 +114,112 @@ class Certificate:
                     else f"{t.fixed_cold_lap_s:.4f}")
             lines.append(f"  {t.label}: co-design lap {t.codesign_lap_s:.4f} s, θ fixed "
                          f"{t.fixed_lap_s:.4f} s (warm {t.fixed_warm_lap_s:.4f}, cold "
-                         f"{cold}), gap {t.gap_pct:+.4f} %, re-simulation "
+                         f"{cold}), gap {fixed(t.gap_pct, '+.4f')} %, re-simulation "
                          f"miss {t.resimulation_miss_m:.4f} m")
-        lines.append("  why (reduced gradient: s per box width; bound multiplier from IPOPT):")
+        lines.append(f"  why: {self.why}")
+        lines.append("  in numbers (reduced gradient: s per box width; bound multiplier from "
+                     "IPOPT):")
         for v in self.variables:
-            lines.append(f"    {v.key:<13} {v.value:>10.4f} {v.state:<8} dT/dθ "
-                         f"{v.dT_dtheta:>+11.4g}  reduced {v.reduced_gradient:>+10.3g}  "
-                         f"multiplier {v.bound_multiplier:>+10.3g}  {'ok' if v.passed else 'NO'}")
+            lines.append(f"    {v.key:<13} {fixed(v.value, '>10.4f')} {v.state:<8} dT/dθ "
+                         f"{fixed(v.dT_dtheta, '>+11.4g')}  reduced "
+                         f"{fixed(v.reduced_gradient, '>+10.3g')}  multiplier "
+                         f"{fixed(v.bound_multiplier, '>+10.3g')}  {'ok' if v.passed else 'NO'}")
         for name, lam in self.active.items():
             lines.append(f"    active: {name} (multiplier {lam:+.4g})")
         return "\n".join(lines)
+
+
+#: Plain words for a decision variable: (what it is, its symbol, the word for less, for more).
+_PLAIN = {"lambda_a_mm": ("the front arms", "λa", "shorter", "longer"),
+          "lambda_b_mm": ("the rear arms", "λb", "shorter", "longer"),
+          "alpha_deg": ("the front arm angle", "α", "smaller", "larger"),
+          "beta_deg": ("the rear arm angle", "β", "smaller", "larger"),
+          "ixx_kgm2": ("the roll inertia", "Ixx", "smaller", "larger"),
+          "iyy_kgm2": ("the pitch inertia", "Iyy", "smaller", "larger"),
+          "izz_kgm2": ("the yaw inertia", "Izz", "smaller", "larger")}
+#: Plain names of the propeller-gap rows (``gap A-B``, casadrone.codesign.frame).
+_GAPS = {frozenset({"RL", "RR"}): "the rear props' clearance",
+         frozenset({"FR", "FL"}): "the front props' clearance",
+         frozenset({"FL", "RL"}): "the left props' clearance",
+         frozenset({"FR", "RR"}): "the right props' clearance"}
+
+
+def _value_text(key: str, value: float) -> str:
+    """A θ value with its unit: ``100 mm``, ``78.84°``, ``0.00123 kg·m²``."""
+    if key.endswith("_mm"):
+        return f"{value:.4g} mm"
+    if key.endswith("_deg"):
+        return f"{value:.2f}°"
+    return f"{value:.3g} kg·m²"
+
+
+def _bound_clauses(variables) -> list[str]:
+    """One clause per side and bound value: ``both arms want to be shorter than the 100 mm
+    bound`` (a bound whose multiplier is below :data:`ACTIVE` holds nothing: ``rests at``)."""
+    groups: dict[tuple[str, bool, str], list[str]] = {}
+    for v in variables:
+        if v.state == "interior":
+            continue
+        pushing = abs(v.bound_multiplier) > ACTIVE
+        groups.setdefault((v.state, pushing, _value_text(v.key, v.value)), []).append(v.key)
+    clauses = []
+    for (side, pushing, value), keys in groups.items():
+        names = [_PLAIN.get(k, (k, k, "less", "more")) for k in keys]
+        arms = {"lambda_a_mm", "lambda_b_mm"} == set(keys)
+        subject = "both arms" if arms else " and ".join(n[0] for n in names)
+        plural = arms or len(keys) > 1 or subject.endswith("arms")
+        if not pushing:
+            clauses.append(f"{subject} {'rest' if plural else 'rests'} at the {value} bound")
+            continue
+        word = names[0][2] if side == "lower" else names[0][3]
+        clauses.append(f"{subject} {'want' if plural else 'wants'} to be {word} than the "
+                       f"{value} bound")
+    return clauses
+
+
+def _row_clause(name: str, interior: dict[str, float], set_keys: set[str]) -> str:
+    """A clause for one active row: what it is and which free variables it sets."""
+    from casadrone.codesign.frame import ROTOR_KEYS
+
+    if name.startswith("gap "):
+        pair = name[4:].split("-")
+        what = _GAPS.get(frozenset(pair), f"the {pair[0]}-{pair[1]} props' clearance")
+        keys = [k for k in dict.fromkeys(k for r in pair for k in ROTOR_KEYS.get(r, ()))
+                if k in interior]
+    elif name == "hover":
+        what, keys = "the hover limit (the weight four rotors can lift)", []
+    elif name.startswith("rigid body "):
+        what, keys = f"the possible-body rule {name[11:]}", []
+    elif name.startswith("ε "):
+        what, keys = f"this front point's limit on {name[2:]}", []
+    else:
+        what, keys = name, []
+    set_keys.update(keys)
+    if not keys:
+        return f"{what} is active"
+    held = " and ".join(f"{_PLAIN.get(k, (k, k))[1]} = {_value_text(k, interior[k])}"
+                        for k in keys)
+    return f"{what} sets {held}"
+
+
+def why_sentence(variables, active: dict[str, float]) -> str:
+    """What holds a co-design optimum, in one plain sentence, from its active set: the variables
+    at a bound (``both arms want to be shorter than the 100 mm bound``: the lap would be faster
+    beyond it), each active row and the free variables it sets (a propeller gap depends on the
+    keys of its two rotors, :data:`casadrone.codesign.frame.ROTOR_KEYS`: ``the rear props'
+    clearance sets β = 78.84°``), and the free variables that no row holds, set by the lap alone
+    (``the lap itself sets α = 78.95°``). ``variables``: :class:`VariableCheck` s; ``active``:
+    row name → multiplier (:func:`active_constraints`, bounds left out)."""
+    interior = {v.key: v.value for v in variables if v.state == "interior"}
+    set_keys: set[str] = set()
+    clauses = _bound_clauses(variables)
+    clauses += [_row_clause(name, interior, set_keys) for name in active
+                if not name.endswith(" bound")]
+    free = [k for k in interior if k not in set_keys]
+    if free:
+        clauses.append("the lap itself sets " + " and ".join(
+            f"{_PLAIN.get(k, (k, k))[1]} = {_value_text(k, interior[k])}" for k in free))
+    return "; ".join(clauses) + "." if clauses else "nothing holds the frame."
 
 
 def _fixed_warm(prep, point, k: int, cfg):
@@ -197,7 +299,7 @@ def summary_of(c: dict[str, Any], active: bool = True) -> str:
                     for v in c["variables"])
     rows = ", ".join(f"{k} {v:+.3g}" for k, v in c["active_constraints"].items()) if active \
         else ""
-    return (f"{head}: lap gap {gap:+.4f} %, CVODES miss {miss:.3g} m; why: {why}"
+    return (f"{head}: lap gap {fixed(gap, '+.4f')} %, CVODES miss {miss:.3g} m; why: {why}"
             + (f"; active: {rows}" if rows else ""))
 
 

@@ -41,6 +41,13 @@ def rotor_positions(la, lb, alpha_deg, beta_deg):
         ca.horzcat(-lb * cb, lb * sb, 0.0), ca.horzcat(-lb * cb, -lb * sb, 0.0))
 
 
+#: The θ keys that place each rotor (:func:`rotor_positions`): the front rotors sit on the nose
+#: arms (λa, α), the rear rotors on the tail arms (λb, β). A row of two rotors (a propeller gap)
+#: depends on the keys of both and on no other (a gap is the same from any origin).
+ROTOR_KEYS = {"FR": ("lambda_a_mm", "alpha_deg"), "FL": ("lambda_a_mm", "alpha_deg"),
+              "RL": ("lambda_b_mm", "beta_deg"), "RR": ("lambda_b_mm", "beta_deg")}
+
+
 def point_inertia(mass, r):
     """m (|r|² I − r rᵀ) (kg·m²), r a 3-vector (m)."""
     return mass * (ca.dot(r, r) * ca.DM.eye(3) - ca.mtimes(r, r.T))

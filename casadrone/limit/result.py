@@ -215,8 +215,9 @@ class LimitLap(AsDict):
     t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     x: np.ndarray = field(default_factory=lambda: np.zeros((0, NX)))
     u: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
-    iterations: int = 0
-    wall_time_s: float = 0.0
+    iterations: int = 0  # of the chosen start's solve
+    wall_time_s: float = 0.0  # of the whole limit lap: every start, check and grid round
+    cpu_time_s: float = 0.0  # this process's CPU time over the same
     bang_bang_fraction: float = math.nan
     point_mass_reference_s: float = math.nan  # best local optimum found, not a bound
     lap_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))  # time of each lap

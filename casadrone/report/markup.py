@@ -13,6 +13,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from casadrone import plots
+from casadrone.numtext import fixed
 from casadrone.report.analysis import Run
 
 PLOTS = "plots"
@@ -37,10 +38,7 @@ def num(value: Any, fmt: str = ".5g") -> str:
     v = float(value)
     if not math.isfinite(v):
         return "—"
-    text = format(v, fmt)
-    if text.startswith("-") and not any(ch in "123456789" for ch in text):  # no "-0.000"
-        text = ("+" if fmt.startswith("+") else "") + text[1:]
-    return text
+    return fixed(v, fmt)  # no "-0.000"
 
 
 def cell(value: Any, fmt: str = ".5g", exact: bool = False) -> Html:

@@ -67,6 +67,27 @@ def test_certificate_lap_gradient_and_resimulation(short_result):
             assert v.reduced_gradient == pytest.approx(-v.bound_multiplier, rel=0.2, abs=2e-4)
 
 
+def test_printed_result_reads(short_result):
+    # one track: its lap is the headline; no negative zero (a gap of -1e-7 % printed "-0.0000");
+    # the why opens with the sentence of the active set: both arm lengths at their lower bound
+    # (positive multipliers: shorter would be faster), α and β inside their box with no row on
+    # them, so the lap alone sets them
+    from casadrone.cli.codesign import text
+    from tests.unit.test_printed_labels import NEGATIVE_ZERO
+
+    r = short_result
+    out = text(r)
+    lap = r.best.laps_s["short"]
+    assert out.splitlines()[0] == f"short: co-design COMPLETED: lap {lap:.4f} s on short"
+    assert not NEGATIVE_ZERO.search(out), out
+    states = {v.key: v.state for v in r.certificate.variables}
+    assert states == {"lambda_a_mm": "lower", "lambda_b_mm": "lower", "alpha_deg": "interior",
+                      "beta_deg": "interior"} and not r.certificate.active
+    why = (f"both arms want to be shorter than the 100 mm bound; the lap itself sets α = "
+           f"{r.best.theta['alpha_deg']:.2f}° and β = {r.best.theta['beta_deg']:.2f}°.")
+    assert f"  why: {why}" in out.splitlines()
+
+
 def test_result_as_dict_is_json(short_result):
     data = json.loads(json.dumps(short_result.as_dict(), default=float))
     assert data["status"] == "completed"

@@ -19,7 +19,8 @@ from casadrone.cli import app
 from casadrone.cli.common import jsonable
 
 #: Keys whose values differ between two runs of the same thing (measured times).
-TIMES = {"wall_time_s", "wall_time_median_s", "wall_time_q25_s", "wall_time_q75_s"}
+TIMES = {"wall_time_s", "wall_time_median_s", "wall_time_q25_s", "wall_time_q75_s",
+         "cpu_time_s", "setup_cpu_s"}
 
 
 def untimed(value):

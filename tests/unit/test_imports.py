@@ -23,6 +23,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.heap",  # the process's malloc settings (the command line calls them)
     "casadrone.parentdeath",  # child processes that die with their parent
     "casadrone.results",
+    "casadrone.numtext",  # numbers as printed text (no negative zero): every table's
     "casadrone.config.yamlsafe",
     "casadrone.config.io",
     "casadrone.massprops",

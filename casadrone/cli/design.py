@@ -221,8 +221,11 @@ MAX_SPEED_MPS = 100.0
 def _trim_table(r: dict) -> str:
     import numpy as np
 
+    from casadrone.config.airframe import ROTOR_LABELS
+
     pos = np.asarray(r["rotor_positions_m"]) * 1000
-    rotors = zip(("FR", "FL", "RL", "RR"), pos, strict=True)
+    rotors = zip(ROTOR_LABELS, pos, strict=True)
+    order = " ".join(ROTOR_LABELS)
     lines = [
         f"{r['airframe']}: {r['condition']}"
         + (f" at {r['speed_mps']:g} m/s" if "speed_mps" in r else "")
@@ -233,7 +236,8 @@ def _trim_table(r: dict) -> str:
         + "  ".join(f"{n}({x:.1f}, {y:.1f})" for n, (x, y, _) in rotors),
         "",
         f"{'solver':<12}{'ok':<4}{'residual':>11}{'iter':>7}{'time (s)':>10}  {'phi (deg)':>9}  "
-        f"{'theta (deg)':>11}  {'u0 (delta1..4)':<31}{'T (N)':<27}{'max|du0|':>9}",
+        f"{'theta (deg)':>11}  {'u0 (' + order + ')':<31}{'T (N, ' + order + ')':<27}"
+        f"{'max|du0|':>9}",
     ]
     ok = [res for res in r["results"] if res["success"]]
     ref = np.asarray(ok[0]["u0"]) if ok else None
@@ -368,8 +372,11 @@ def lqr(
     verdict = "stable" if design.stable else "UNSTABLE"
     typer.echo(f"closed loop {verdict}: spectral radius {result['spectral_radius']:.6f}, "
                f"Lyapunov min eig(P) {design.lyapunov_min_eig:.4g}")
-    typer.echo("K (rows delta1..4) =\n" + _matrix_text(design.K, ("d1", "d2", "d3", "d4"),
-                                                    tuple(design.state_names)))
+    from casadrone.config.airframe import ROTOR_LABELS
+
+    typer.echo("K (rows: the ESC command of each rotor) =\n"
+               + _matrix_text(design.K, tuple(f"d {r}" for r in ROTOR_LABELS),
+                              tuple(design.state_names)))
     if ens is not None:
         typer.echo(f"ensemble: {result['ensemble_n_stable']} of {ens.n} perturbed plants stable, "
                    f"max spectral radius {ens.max_spectral_radius:.6f}")

@@ -11,6 +11,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from casadrone import plots
+from casadrone.config.airframe import ROTOR_LABELS
 from casadrone.indices import INDICES
 from casadrone.outfile import shown_path
 from casadrone.report.analysis import (
@@ -316,7 +317,7 @@ def _hover_trims(run: Run, cands: list[Candidate], figs: Figures, sample: int) -
              stat("max |T − T_allocation| (N)", lambda r: r["agree"], ".2e"),
              stat("|ΣT − m g| (N)", lambda r: r["weight"], ".2e"),
              stat("hover thrust spread, max − min (N)", lambda r: r["spread"]),
-             stat("front share (T1 + T2)/ΣT (%)", lambda r: 100 * r["share"], ".2f"),
+             stat("front share (T_FR + T_FL)/ΣT (%)", lambda r: 100 * r["share"], ".2f"),
              stat("smallest command u0 (–)", lambda r: min(r["u0"])),
              stat("largest command u0 (–)", lambda r: max(r["u0"]))]
     head = ["over the sample", "chain: min", "median", "max", "cold start: min", "median", "max"]
@@ -332,7 +333,7 @@ def _hover_trims(run: Run, cands: list[Candidate], figs: Figures, sample: int) -
                         r["cold"]["it"], "yes" if t["ok"] and r["cold"]["ok"] else "no"])
     if crows:
         parts.append("<h4>Candidates</h4>" + table(
-            ["candidate", "T1 FR (N)", "T2 FL (N)", "T3 RL (N)", "T4 RR (N)", "front share (%)",
+            ["candidate", *(f"T {r} (N)" for r in ROTOR_LABELS), "front share (%)",
              "front share, allocation (%)", "u0 min (–)", "u0 max (–)", "residual, chain (SI)",
              "residual, cold start (SI)", "iterations, cold start", "both succeeded"], crows))
     parts.append(figs.embed(_trim_figure(ok), "trim", "Hover trims of the sample: cold-start "

@@ -531,7 +531,8 @@ def _objective_label(name: str, unit: str | None) -> str:
 def pareto_front(F: np.ndarray, names: Sequence[str], highlight: Mapping[str, int] | None = None,
                  *, units: Sequence[str] | None = None, title: str | None = None,
                  colours: Mapping[str, Any] | None = None,
-                 descriptions: Mapping[str, str] | None = None) -> Figure:
+                 descriptions: Mapping[str, str] | None = None,
+                 baseline: tuple[str, Sequence[float]] | None = None) -> Figure:
     """Objective values of a front: one scatter for 2 objectives, a lower-triangular scatter
     matrix (every pair once, m(m−1)/2 panels) for more.
 
@@ -540,7 +541,9 @@ def pareto_front(F: np.ndarray, names: Sequence[str], highlight: Mapping[str, in
     row of ``F``: those points are ringed and annotated with the label. ``descriptions`` maps a
     label to its legend entry (default: the label itself, e.g. "A: closest to the utopian
     point"); ``colours`` maps a label to its ring colour (e.g. :func:`candidate_colour`), labels
-    not in it taking the default cycle after the front's own C0.
+    not in it taking the default cycle after the front's own C0. ``baseline`` (name, one value
+    per objective) draws a reference design, e.g. the airframe the run started from, as a black
+    star in every panel, labelled "<name> (baseline)".
     """
     F = np.atleast_2d(np.asarray(F, float))
     m = F.shape[1]
@@ -574,6 +577,10 @@ def pareto_front(F: np.ndarray, names: Sequence[str], highlight: Mapping[str, in
                       gid=f"highlight:{name}", label=legend.get(name, name))
             a.annotate(name, (F[k, i], F[k, j]), xytext=(5, 5), textcoords="offset points",
                        fontsize=8, color=c, fontweight="bold")
+        if baseline is not None:
+            b = baseline[1]
+            a.scatter(b[i], b[j], s=150, marker="*", color="k", zorder=4, gid="baseline",
+                      label=baseline_label(baseline[0]))
         a.grid(True, alpha=0.3)
         a.set_xlabel(labels[i], fontsize=9)
         a.set_ylabel(labels[j], fontsize=9)
@@ -583,6 +590,11 @@ def pareto_front(F: np.ndarray, names: Sequence[str], highlight: Mapping[str, in
         fig.legend(*pairs[0][0].get_legend_handles_labels(), loc="upper right", fontsize=9)
     fig.suptitle(title or f"Pareto front ({F.shape[0]} designs)")
     return fig
+
+
+def baseline_label(name: str) -> str:
+    """The legend entry of a baseline design drawn over a front or a set."""
+    return f"{name} (baseline)"
 
 
 def convergence(generations: Sequence[int], hypervolume: Sequence[float],

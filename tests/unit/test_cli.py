@@ -561,7 +561,7 @@ def test_report_calls_write_report(cli_runner, tmp_path, monkeypatch):
 
     calls = []
 
-    def write_report(run_dir, references=("SY250",), out=None):
+    def write_report(run_dir, references=None, out=None):
         calls.append((Path(run_dir), references, out))
         return Path(out or Path(run_dir) / "report.html")
 
@@ -573,7 +573,7 @@ def test_report_calls_write_report(cli_runner, tmp_path, monkeypatch):
     result = run(cli_runner, "report", d, "--reference", "SY250", "--reference", "NSY200",
                  "--out", tmp_path / "r.html")
     assert result.exit_code == 0 and result.stdout == f"{tmp_path / 'r.html'}\n"
-    assert calls == [(d, ("SY250",), None), (d, ("SY250", "NSY200"), tmp_path / "r.html")]
+    assert calls == [(d, None, None), (d, ("SY250", "NSY200"), tmp_path / "r.html")]
 
 
 def test_report_without_the_report_module_exits_1(cli_runner, tmp_path, monkeypatch):

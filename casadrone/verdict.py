@@ -141,9 +141,9 @@ def compare_to_baseline(candidate: str, baseline: str, values: Mapping[str, floa
     if missing:
         raise ValueError(f"no value of {', '.join(missing)} for {candidate} or {baseline}")
     order = list(objectives) + [n for n in senses if n not in objectives]
-    rows = tuple(compare_index(n, (units or {}).get(n, "–"), senses[n],  # type: ignore[arg-type]
-                               n in objectives, values[n], baseline_values[n],
-                               (noise or {}).get(n, math.nan))
+    rows = tuple(compare_index(n, (units or {}).get(n, "–"),
+                               "max" if senses[n] == "max" else "min", n in objectives,
+                               values[n], baseline_values[n], (noise or {}).get(n, math.nan))
                  for n in order if n in values and n in baseline_values)
     obj = [r for r in rows if r.objective]
     dominates = (all(r.direction != "worse" for r in obj)

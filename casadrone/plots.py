@@ -250,7 +250,7 @@ def limit_lap_figures(lap, closed_loop: Trajectory | None, waypoints,
     for (name, tr), c in zip(flights.items(), _colours(len(flights)), strict=True):
         ax_v.plot(tr.t, tr.speed, color=c, lw=1.2, label=_label(name, tr))
     for i in range(lap.u.shape[1]):
-        ax_u.step(lap.t[:-1], lap.u[:, i], where="post", lw=1.0, label=f"δ{i + 1}")
+        ax_u.step(lap.t[:-1], lap.u[:, i], where="post", lw=1.0, label=f"δ {ROTOR_LABELS[i]}")
     for ts in lap.split_times_s:
         for ax in (ax_v, ax_u):
             ax.axvline(ts, color="k", ls="--", lw=0.6, alpha=0.5)

@@ -45,6 +45,20 @@ class LinMethod(StrEnum):
     both = "both"
 
 
+def _by_position(names) -> tuple[str, ...]:
+    """Model names with a rotor number (T1…T4, delta1…delta4, omega1…omega4) shown by the rotor's
+    position (``T FR``, ``d FR``, ``w FR``) for the console; other names as they are."""
+    from casadrone.config.airframe import ROTOR_LABELS
+
+    short = {"T": "T", "delta": "d", "omega": "w"}
+    out = []
+    for n in names:
+        stem, digit = n.rstrip("1234"), n[len(n.rstrip("1234")):]
+        ok = stem in short and len(digit) == 1
+        out.append(f"{short[stem]} {ROTOR_LABELS[int(digit) - 1]}" if ok else n)
+    return tuple(out)
+
+
 def _matrix_text(M, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
     width = 10
     head = " " * 8 + "".join(f"{c:>{width}}" for c in cols)
@@ -296,7 +310,7 @@ def linearise(
     if as_json:
         print_json(result)
         return
-    names, inputs = tuple(lm.state_names), tuple(lm.input_names)
+    names, inputs = _by_position(lm.state_names), _by_position(lm.input_names)
     typer.echo(f"{frame.name}: {condition.value} linearisation ({first})")
     typer.echo("A =\n" + _matrix_text(lm.A, names, names))
     typer.echo("B =\n" + _matrix_text(lm.B, names, inputs))
@@ -376,7 +390,7 @@ def lqr(
 
     typer.echo("K (rows: the ESC command of each rotor) =\n"
                + _matrix_text(design.K, tuple(f"d {r}" for r in ROTOR_LABELS),
-                              tuple(design.state_names)))
+                              _by_position(design.state_names)))
     if ens is not None:
         typer.echo(f"ensemble: {result['ensemble_n_stable']} of {ens.n} perturbed plants stable, "
                    f"max spectral radius {ens.max_spectral_radius:.6f}")

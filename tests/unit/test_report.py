@@ -464,3 +464,20 @@ def test_the_impossible_bodies_share_is_counted_from_the_history(report):
     assert f"{bad} of {len(h)} evaluations ({100 * bad / len(h):.1f} %)" in text
     assert "keeps the mass fixed" in text and "problems/quick-parts.yaml" in text
     assert (ROOT / "problems" / "quick-parts.yaml").is_file()
+
+
+def test_the_airframe_figure_labels_each_rotor_by_position(report):
+    # the rotor labels of the report's own figure, at the position their drawing coordinates
+    # say (x across = right of the drone, y up = nose); no rotor numbered 1…4
+    from casadrone.config.airframe import ROTOR_LABELS, position_of
+
+    run_dir, _ = report
+    require_front(run_dir)
+    (fig,) = [f for f, paths in SAVED if paths[0].stem == "airframes-SY250"]
+    for a in fig.axes:
+        texts = [t for t in a.texts if t.get_text() in ROTOR_LABELS]
+        assert len(texts) % 4 == 0 and texts
+        for t in texts:
+            right, nose = t.xy
+            assert position_of(nose, -right) == t.get_text()
+        assert not [t for t in a.texts if t.get_text() in ("1", "2", "3", "4")]

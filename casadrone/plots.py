@@ -20,6 +20,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Circle
 
 from casadrone.airframe import Airframe
+from casadrone.config.airframe import ROTOR_LABELS
 from casadrone.control import Ensemble, LQRIDesign, disturbance_response
 from casadrone.indices import pair_thrust_difference, roll_effort_voltage
 from casadrone.model import IDX
@@ -173,8 +174,8 @@ def time_histories(trajectories: Mapping[str, Trajectory], *, title: str | None 
     Waypoint split times are dashed vertical lines in each flight's colour (``colours`` as in
     :func:`track_top_view`). Roll effort and thrust difference are the signals of the
     per-interval table (paper Table 4): :func:`casadrone.indices.roll_effort_voltage`
-    ((V2 + V3 − V1 − V4)/2 minus trim) and :func:`casadrone.indices.pair_thrust_difference`
-    ((T2 + T3) − (T1 + T4)).
+    ((V_FL + V_RL − V_FR − V_RR)/2 minus trim) and :func:`casadrone.indices.pair_thrust_difference`
+    ((T_FL + T_RL) − (T_FR + T_RR)).
     """
     fig = Figure(figsize=(10.0, 8.0), layout="constrained")
     axes = fig.subplots(4, 1, sharex=True)
@@ -249,7 +250,7 @@ def limit_lap_figures(lap, closed_loop: Trajectory | None, waypoints,
     for (name, tr), c in zip(flights.items(), _colours(len(flights)), strict=True):
         ax_v.plot(tr.t, tr.speed, color=c, lw=1.2, label=_label(name, tr))
     for i in range(lap.u.shape[1]):
-        ax_u.step(lap.t[:-1], lap.u[:, i], where="post", lw=1.0, label=f"δ{i + 1}")
+        ax_u.step(lap.t[:-1], lap.u[:, i], where="post", lw=1.0, label=f"δ {ROTOR_LABELS[i]}")
     for ts in lap.split_times_s:
         for ax in (ax_v, ax_u):
             ax.axvline(ts, color="k", ls="--", lw=0.6, alpha=0.5)
@@ -283,7 +284,7 @@ def thrust_against_airspeed(prop: dict, u: np.ndarray, static_full_n: float,
     v, T = prop["speed_m_s"], prop["thrust_n"]
     full = np.asarray(u)[: len(v)] >= 0.99
     for i in range(T.shape[1]):
-        ax.plot(v, T[:, i], ".", ms=3, alpha=0.5, label=f"rotor {i + 1}")
+        ax.plot(v, T[:, i], ".", ms=3, alpha=0.5, label=f"rotor {ROTOR_LABELS[i]}")
     ax.plot(v[:, None].repeat(T.shape[1], 1)[full], T[full], "kx", ms=4,
             label="full command (δ ≥ 0.99)")
     ax.axhline(static_full_n, color="k", ls="--", lw=0.8, label="static thrust, full command")
@@ -462,9 +463,9 @@ def _draw_airframe(ax: Axes, af: Airframe, colour, prop_mm: float, reference: bo
             gid=f"rotors:{af.name}", label=f"{af.name} ({af.family}, λ = {af.diagonal_mm:.0f} mm)"
             + (" — reference" if reference else ""))
     if not reference:
-        for i, p in enumerate(xy, start=1):
-            ax.annotate(str(i), tuple(p), ha="center", va="center", fontsize=8, fontweight="bold",
-                        zorder=z + 2, color="white")
+        for label, p in zip(ROTOR_LABELS, xy, strict=True):
+            ax.annotate(label, tuple(p), ha="center", va="center", fontsize=6.5,
+                        fontweight="bold", zorder=z + 2, color="white", gid=f"rotor:{label}")
         nose = 0.5 * float(np.min(xy[:2, 1]))
         ax.annotate("", xy=(0.0, nose), xytext=(0.0, 0.0), zorder=z + 2,
                     arrowprops=dict(arrowstyle="-|>", color="k", lw=1.5))
@@ -478,7 +479,8 @@ def airframe_top_view(airframes: Sequence[Airframe], reference: Airframe | None 
                       colours: Mapping[str, Any] | None = None) -> Figure:
     """Top view of candidate airframes, each over the reference in grey dashed (mm, nose up).
 
-    Arms from the centre of mass (+) to the rotors (numbered 1 FR, 2 FL, 3 RL, 4 RR), prop discs of
+    Arms from the centre of mass (+) to the rotors (labelled by position, FR, FL, RL, RR:
+    :data:`casadrone.config.airframe.ROTOR_LABELS`), prop discs of
     ``prop_diameter_m``, an arrow to the nose. One panel per airframe, or all in one
     (``overlay=True``, or whenever ``ax`` is given). ``colours`` maps an airframe's name to its
     colour; airframes not in it take the default colour cycle.
@@ -529,7 +531,8 @@ def _objective_label(name: str, unit: str | None) -> str:
 def pareto_front(F: np.ndarray, names: Sequence[str], highlight: Mapping[str, int] | None = None,
                  *, units: Sequence[str] | None = None, title: str | None = None,
                  colours: Mapping[str, Any] | None = None,
-                 descriptions: Mapping[str, str] | None = None) -> Figure:
+                 descriptions: Mapping[str, str] | None = None,
+                 baseline: tuple[str, Sequence[float]] | None = None) -> Figure:
     """Objective values of a front: one scatter for 2 objectives, a lower-triangular scatter
     matrix (every pair once, m(m−1)/2 panels) for more.
 
@@ -538,7 +541,9 @@ def pareto_front(F: np.ndarray, names: Sequence[str], highlight: Mapping[str, in
     row of ``F``: those points are ringed and annotated with the label. ``descriptions`` maps a
     label to its legend entry (default: the label itself, e.g. "A: closest to the utopian
     point"); ``colours`` maps a label to its ring colour (e.g. :func:`candidate_colour`), labels
-    not in it taking the default cycle after the front's own C0.
+    not in it taking the default cycle after the front's own C0. ``baseline`` (name, one value
+    per objective) draws a reference design, e.g. the airframe the run started from, as a black
+    star in every panel, labelled "<name> (baseline)".
     """
     F = np.atleast_2d(np.asarray(F, float))
     m = F.shape[1]
@@ -572,6 +577,10 @@ def pareto_front(F: np.ndarray, names: Sequence[str], highlight: Mapping[str, in
                       gid=f"highlight:{name}", label=legend.get(name, name))
             a.annotate(name, (F[k, i], F[k, j]), xytext=(5, 5), textcoords="offset points",
                        fontsize=8, color=c, fontweight="bold")
+        if baseline is not None:
+            b = baseline[1]
+            a.scatter(b[i], b[j], s=150, marker="*", color="k", zorder=4, gid="baseline",
+                      label=baseline_label(baseline[0]))
         a.grid(True, alpha=0.3)
         a.set_xlabel(labels[i], fontsize=9)
         a.set_ylabel(labels[j], fontsize=9)
@@ -581,6 +590,11 @@ def pareto_front(F: np.ndarray, names: Sequence[str], highlight: Mapping[str, in
         fig.legend(*pairs[0][0].get_legend_handles_labels(), loc="upper right", fontsize=9)
     fig.suptitle(title or f"Pareto front ({F.shape[0]} designs)")
     return fig
+
+
+def baseline_label(name: str) -> str:
+    """The legend entry of a baseline design drawn over a front or a set."""
+    return f"{name} (baseline)"
 
 
 def convergence(generations: Sequence[int], hypervolume: Sequence[float],

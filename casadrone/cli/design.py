@@ -49,6 +49,20 @@ class LinMethod(StrEnum):
     both = "both"
 
 
+def _by_position(names: tuple[str, ...] | list[str]) -> tuple[str, ...]:
+    """Model names with a rotor number (T1…T4, delta1…delta4, omega1…omega4) shown by the rotor's
+    position (``T FR``, ``d FR``, ``w FR``) for the console; other names as they are."""
+    from casadrone.config.airframe import ROTOR_LABELS
+
+    short = {"T": "T", "delta": "d", "omega": "w"}
+    out = []
+    for n in names:
+        stem, digit = n.rstrip("1234"), n[len(n.rstrip("1234")):]
+        ok = stem in short and len(digit) == 1
+        out.append(f"{short[stem]} {ROTOR_LABELS[int(digit) - 1]}" if ok else n)
+    return tuple(out)
+
+
 def _matrix_text(M: np.ndarray, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
     from casadrone.numtext import fixed
 
@@ -227,10 +241,12 @@ MAX_SPEED_MPS = 100.0
 def _trim_table(r: dict) -> str:
     import numpy as np
 
+    from casadrone.config.airframe import ROTOR_LABELS
     from casadrone.numtext import fixed
 
     pos = np.asarray(r["rotor_positions_m"]) * 1000
-    rotors = zip(("FR", "FL", "RL", "RR"), pos, strict=True)
+    rotors = zip(ROTOR_LABELS, pos, strict=True)
+    order = " ".join(ROTOR_LABELS)
     lines = [
         f"{r['airframe']}: {r['condition']}"
         + (f" at {r['speed_mps']:g} m/s" if "speed_mps" in r else "")
@@ -241,7 +257,8 @@ def _trim_table(r: dict) -> str:
         + "  ".join(f"{n}({x:.1f}, {y:.1f})" for n, (x, y, _) in rotors),
         "",
         f"{'solver':<12}{'ok':<4}{'residual':>11}{'iter':>7}{'CPU (ms)':>10}  {'phi (deg)':>9}  "
-        f"{'theta (deg)':>11}  {'u0 (delta1..4)':<31}{'T (N)':<27}{'max|du0|':>9}",
+        f"{'theta (deg)':>11}  {'u0 (' + order + ')':<31}{'T (N, ' + order + ')':<27}"
+        f"{'max|du0|':>9}",
     ]
     ok = [res for res in r["results"] if res["success"]]
     ref = np.asarray(ok[0]["u0"]) if ok else None
@@ -306,7 +323,7 @@ def linearise(
     if as_json:
         print_json(result)
         return
-    names, inputs = tuple(lm.state_names), tuple(lm.input_names)
+    names, inputs = _by_position(lm.state_names), _by_position(lm.input_names)
     typer.echo(f"{frame.name}: {condition.value} linearisation ({first})")
     typer.echo("A =\n" + _matrix_text(lm.A, names, names))
     typer.echo("B =\n" + _matrix_text(lm.B, names, inputs))
@@ -379,8 +396,11 @@ def lqr(
     verdict = "stable" if design.stable else "UNSTABLE"
     typer.echo(f"closed loop {verdict}: spectral radius {result['spectral_radius']:.6f}, "
                f"Lyapunov min eig(P) {design.lyapunov_min_eig:.4g}")
-    typer.echo("K (rows delta1..4) =\n" + _matrix_text(design.K, ("d1", "d2", "d3", "d4"),
-                                                    tuple(design.state_names)))
+    from casadrone.config.airframe import ROTOR_LABELS
+
+    typer.echo("K (rows: the ESC command of each rotor) =\n"
+               + _matrix_text(design.K, tuple(f"d {r}" for r in ROTOR_LABELS),
+                              _by_position(design.state_names)))
     if ens is not None:
         typer.echo(f"ensemble: {result['ensemble_n_stable']} of {ens.n} perturbed plants stable, "
                    f"max spectral radius {ens.max_spectral_radius:.6f}")

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
+
+if TYPE_CHECKING:  # the schema is imported when a command runs
+    from casadrone.config.airframe import AirframeConfig
 
 from casadrone.cli.common import (
     AirframeArg,
@@ -81,7 +84,7 @@ def simulate(
     ev = evaluate(theta_of(cfg), setup, keep_trajectory=True)
     result = {"airframe": cfg.name, "track": setup.track.name,
               "controller": setup.controller.name, "integrator": integrator, **ev.as_dict(),
-              "index_units": {k: INDICES[k].unit for k in ev.indices}}
+              "index_units": {k: INDICES[k].unit for k in ev.indices}, "rotors": _rotors(cfg)}
     if plot is not None:
         if ev.trajectory is None:
             typer.echo(f"--plot: nothing to plot, the evaluation failed before the lap "
@@ -99,6 +102,39 @@ def simulate(
         print_json(result)
         return
     typer.echo(_simulate_text(result))
+
+
+def _rotors(cfg: AirframeConfig) -> list[dict]:
+    """Each rotor by position, with its firmware motor numbers, place, spin and hover thrust (the
+    table that says which motor is which; empty for a frame that cannot be built)."""
+    from casadrone.airframe import build_airframe
+    from casadrone.config.airframe import MOTOR_NUMBERING, ROTOR_LABELS, ROTOR_NAMES
+    from casadrone.export.mixers import spin_word
+
+    try:
+        af = build_airframe(cfg)
+    except ValueError:
+        return []
+    hover = af.hover_thrusts()
+    return [{"position": ROTOR_LABELS[i], "name": ROTOR_NAMES[i],
+             "x_mm": 1000 * float(af.rotor_positions[i, 0]),
+             "y_mm": 1000 * float(af.rotor_positions[i, 1]), "spin": spin_word(af.rotor_spins[i]),
+             "hover_thrust_N": float(hover[i]),
+             **{f"{key}_motor": n.motor(i) for key, n in MOTOR_NUMBERING.items()}}
+            for i in range(4)]
+
+
+def _rotor_lines(rotors: list[dict]) -> list[str]:
+    from casadrone.config.airframe import MOTOR_NUMBERING
+
+    firm = "".join(f"{n.firmware + ' motor':>18}" for n in MOTOR_NUMBERING.values())
+    lines = [f"  {'rotor':<7}{'x fwd (mm)':>11}{'y left (mm)':>13}{'spin':>6}"
+             f"{'hover thrust (N)':>18}{firm}"]
+    for r in rotors:
+        lines.append(f"  {r['position']:<7}{r['x_mm']:>+11.1f}{r['y_mm']:>+13.1f}{r['spin']:>6}"
+                     f"{r['hover_thrust_N']:>18.4f}"
+                     + "".join(f"{r[f'{key}_motor']:>18d}" for key in MOTOR_NUMBERING))
+    return lines
 
 
 def _simulate_text(r: dict) -> str:
@@ -124,6 +160,8 @@ def _simulate_text(r: dict) -> str:
                          f"{fixed(i['pair_thrust_max_N'], '>15.3f')} / "
                          f"{fixed(i['pair_thrust_min_N'], '<8.3f')}".rstrip())
         lines += [f"  {line}" for line in INTERVAL_LEGEND]
+    if r.get("rotors"):
+        lines += _rotor_lines(r["rotors"])
     lines += [f"figure: {p}" for p in r.get("figures", [])]
     return "\n".join(lines)
 

@@ -17,6 +17,7 @@ from casadrone.cli.common import (
 )
 
 if TYPE_CHECKING:  # the schemas are imported when a command runs
+    from casadrone.config.airframe import AirframeConfig
     from casadrone.config.problem import BackendConfig, ProblemConfig
 
 
@@ -49,6 +50,11 @@ ReferenceOpt = Annotated[
     list[str] | None,
     typer.Option("--reference", help="reference airframe (name or YAML); repeat for several "
                  "[default: SY250]"),
+]
+BaselineOpt = Annotated[
+    list[str] | None,
+    typer.Option("--reference", help="reference airframe (name or YAML); repeat for several; "
+                 "the first is the baseline of the verdict [default: the problem's airframe]"),
 ]
 
 
@@ -271,6 +277,9 @@ def decide_command(
         typer.Option(help="one method (default: all three, A utopian, B compromise, C extreme)"),
     ] = None,
     objective: ObjectiveOpt = None,
+    reference: Annotated[str | None, typer.Option(
+        "--reference", help="baseline airframe of the verdict (name or YAML) [default: the "
+        "problem's airframe]")] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Choose designs on a finished run's front: A utopian, B compromise, C extreme.
@@ -278,11 +287,18 @@ def decide_command(
     Reads pareto.csv and the problem's objective senses. A is the design closest to the utopian
     point, B the one closest to the front's mean point, C the best on --objective (default the
     problem's first objective), all in normalised objective space.
+
+    Ends with the verdict against the baseline airframe (--reference): whether each candidate
+    dominates it, the change of each objective and whether it is within the evaluation's noise
+    (the same verdict opens the report).
     """
     from casadrone.compare import run_candidates
+    from casadrone.config.airframe import load_airframe
+    from casadrone.verdict import default_baseline
 
     require_run_dir(run_dir)
-    open_problem(run_dir)
+    problem = open_problem(run_dir)
+    baseline = load_airframe(reference or default_baseline(problem))  # bad: exit 2 before work
     try:
         candidates = run_candidates(run_dir, (method.value,) if method else None, objective)
     except (FileNotFoundError, ValueError) as exc:
@@ -302,6 +318,27 @@ def decide_command(
         typer.echo("    objectives: " + ", ".join(
             f"{k}={v:.6g}" + (f" {INDICES[k].unit}" if k in INDICES else "")
             for k, v in c.objectives.items()))
+    typer.echo(_verdict_block(run_dir, candidates, baseline), nl=False)
+
+
+def _verdict_block(run_dir: Path, candidates: list, reference: AirframeConfig) -> str:
+    """The verdict against the baseline for ``decide`` (empty for a test problem); a problem
+    with a limit-lap objective is sent to the report (the baseline's limit lap takes minutes)."""
+    from casadrone.optimise.problem import Study, study_setup
+    from casadrone.optimise.store import RunStore
+    from casadrone.verdict import format_verdicts, run_verdict
+
+    study = Study(RunStore(run_dir).problem())
+    if study.problem.test_problem is not None:
+        return ""
+    if study_setup(study).limit is not None:
+        return (f"\nVerdict against {reference.name}: a limit-lap objective needs the baseline's "
+                f"limit lap (minutes); casadrone report {run_dir} opens with it.\n")
+    rv = run_verdict(study, candidates, reference)
+    if not rv.verdicts:
+        return (f"\nVerdict against {reference.name}: none, its lap failed "
+                f"({rv.noise[0].status}).\n")
+    return "\n" + format_verdicts(rv.verdicts, rv.how)
 
 
 @app.command()
@@ -348,7 +385,7 @@ def compare(
 @reports_config_errors
 def report(
     run_dir: RunDirArg,
-    reference: ReferenceOpt = None,
+    reference: BaselineOpt = None,
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="report file (default: DIR/report.html)")
     ] = None,
@@ -371,7 +408,7 @@ def report(
         typer.echo("report: casadrone.report is not available in this installation", err=True)
         raise typer.Exit(1) from None
     try:
-        path = write_report(run_dir, references=tuple(reference or ("SY250",)), out=out)
+        path = write_report(run_dir, references=tuple(reference) if reference else None, out=out)
     except (FileNotFoundError, ValueError) as exc:
         raise run_error(run_dir, exc) from None
     typer.echo(str(path))

@@ -9,6 +9,7 @@ live in :mod:`casadrone.config.io`. Numbers carry their unit in the key when it 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -58,7 +59,64 @@ class ThrustModelConfig(Schema):
         "command at once; modelled by the limit lap only, casadrone.limit.lagless)")
 
 
+# --------------------------------------------------------------------------------------------
+# Rotor positions and the firmwares' motor numbers: the one table every figure, table and export
+# labels its rotors from
+# --------------------------------------------------------------------------------------------
+
+#: The four rotors in casadrone's order, by position: the rows of ``rotor_positions``, the columns
+#: of the allocation matrix, the model's thrusts T1…T4 and commands δ1…δ4 are in this order.
 ROTOR_LABELS = ("FR", "FL", "RL", "RR")
+#: The positions in words, in the same order.
+ROTOR_NAMES = ("front-right", "front-left", "rear-left", "rear-right")
+
+
+@dataclass(frozen=True)
+class MotorNumbering:
+    """A flight firmware's numbering of a quad-X's motors.
+
+    Attributes:
+        firmware: the firmware's name as its users write it.
+        order: the casadrone rotor index (into :data:`ROTOR_LABELS`) of the firmware's motor 1,
+            2, 3, 4 in turn.
+        source: where the firmware defines that numbering.
+    """
+
+    firmware: str
+    order: tuple[int, int, int, int]
+    source: str
+
+    def motor(self, rotor: int) -> int:
+        """The firmware's motor number (1…4) of casadrone rotor ``rotor`` (0…3)."""
+        return self.order.index(rotor) + 1
+
+
+#: The firmwares casadrone writes for (:mod:`casadrone.export.mixers`), by export format family.
+MOTOR_NUMBERING: dict[str, MotorNumbering] = {
+    "betaflight": MotorNumbering(
+        "Betaflight", (3, 0, 2, 1),
+        "QUADX in src/main/flight/mixer_init.c: motor 1 REAR_R, 2 FRONT_R, 3 REAR_L, 4 FRONT_L"),
+    "px4": MotorNumbering(
+        "PX4", (0, 2, 1, 3),
+        "the 'Quadrotor x' geometry of PX4's airframe reference: CA_ROTOR0…3 = motors 1…4, "
+        "front-right, rear-left, front-left, rear-right"),
+}
+
+
+def rotor_label(rotor: int, *firmwares: str) -> str:
+    """A rotor's label: its position (``"RR"``), and for each firmware named (keys of
+    :data:`MOTOR_NUMBERING`) that firmware's motor number, e.g. ``"RR (Betaflight motor 1)"``."""
+    numbers = [f"{MOTOR_NUMBERING[f].firmware} motor {MOTOR_NUMBERING[f].motor(rotor)}"
+               for f in firmwares]
+    return ROTOR_LABELS[rotor] + (f" ({', '.join(numbers)})" if numbers else "")
+
+
+def position_of(x: float, y: float) -> str:
+    """The position label of a rotor at body ``x`` (forward) and ``y`` (left) from the centre:
+    ``"F"`` or ``"R"`` by the sign of x, then ``"L"`` or ``"R"`` by the sign of y."""
+    return ("F" if x > 0 else "R") + ("L" if y > 0 else "R")
+
+
 #: The keys of an airframe's mass properties: given in ``mass_model: free``, computed from the
 #: ``components`` (:mod:`casadrone.massprops`) in ``mass_model: components``.
 MASS_KEYS = ("mass_kg", "ixx_kgm2", "iyy_kgm2", "izz_kgm2", "ixy_kgm2", "ixz_kgm2", "iyz_kgm2")

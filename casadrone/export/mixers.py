@@ -16,15 +16,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from casadrone.airframe import Airframe
+from casadrone.config.airframe import MOTOR_NUMBERING, ROTOR_LABELS, ROTOR_NAMES
 from casadrone.export.source import ExportSource
 
-#: Betaflight's motor numbering for a quad (QUADX, ``src/main/flight/mixer_init.c``: motor 1
-#: REAR_R, 2 FRONT_R, 3 REAR_L, 4 FRONT_L) as indices into casadrone's rotors FR, FL, RL, RR.
-BETAFLIGHT_ORDER = (3, 0, 2, 1)
-#: PX4's quadrotor-X numbering (CA_ROTOR0…3 = motors 1…4: front-right, rear-left, front-left,
-#: rear-right, the "Quadrotor x" geometry of PX4's airframe reference) as casadrone rotor indices.
-PX4_ORDER = (0, 2, 1, 3)
-LABELS = ("front-right", "front-left", "rear-left", "rear-right")
+#: Betaflight's and PX4's motor numbering as casadrone rotor indices (motor 1 first), from the
+#: one table of positions and firmware numbers (:data:`casadrone.config.airframe.MOTOR_NUMBERING`).
+BETAFLIGHT_ORDER = MOTOR_NUMBERING["betaflight"].order
+PX4_ORDER = MOTOR_NUMBERING["px4"].order
+LABELS = ROTOR_NAMES
 
 
 def spin_word(reaction_sign: float) -> str:
@@ -86,7 +85,7 @@ def betaflight(src: ExportSource) -> str:
     lines = [f"# {h}" for h in src.header_lines("Betaflight custom motor mix")]
     lines += [
         "# Paste into the Betaflight CLI. Motor order (Betaflight numbering, as QUADX):",
-        *(f"#   motor {n + 1} (mmix {n}) = {LABELS[i]} rotor, turning "
+        *(f"#   motor {n + 1} (mmix {n}) = {ROTOR_LABELS[i]} {LABELS[i]} rotor, turning "
           f"{spin_word(spins[i])} seen from above, at x={1000 * a.rotor_positions[i, 0]:+.1f} mm "
           f"forward, y={1000 * a.rotor_positions[i, 1]:+.1f} mm left of the centre of mass"
           for n, i in enumerate(BETAFLIGHT_ORDER)),
@@ -145,7 +144,8 @@ def _px4_notes(src: ExportSource) -> list[str]:
         "from above), -kappa for a CW one. CA_ROTORn_AX/AY/AZ stay at PX4's default (0, 0, -1):",
         "thrust up the body; CA_ROTORn_CT stays yours (it depends on the motor and ESC).",
         "Rotor order (PX4 quadrotor-x numbering):",
-        *(f"  CA_ROTOR{n} = motor {n + 1} = {LABELS[i]}, {spin_word(a.rotor_spins[i])}"
+        *(f"  CA_ROTOR{n} = motor {n + 1} = {ROTOR_LABELS[i]} {LABELS[i]}, "
+          f"{spin_word(a.rotor_spins[i])}"
           for n, i in enumerate(PX4_ORDER)),
     ]
 

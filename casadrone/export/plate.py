@@ -6,7 +6,8 @@ the given width from the hub to each motor centre, a round motor pad at its end.
 formats): origin at the hub (the arms' meeting point, where λa and λb are measured from), X to the
 right of the drone, Y towards the nose, so X = −y and Y = x in casadrone's body frame (SVG's Y axis
 points down the page; it is flipped so the nose is up there too). The centre of mass is marked
-(it sits off the hub when the mass properties come from components).
+(it sits off the hub when the mass properties come from components). Each motor carries its
+position label (FR, FL, RL, RR, :data:`casadrone.config.airframe.ROTOR_LABELS`).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from casadrone.config.airframe import ROTOR_LABELS
 from casadrone.export.source import ExportSource
 
 #: 22xx motor mounting patterns: hole-to-hole distances across the motor centre (mm); holes sit
@@ -132,6 +134,17 @@ def _extent(p: Plate) -> tuple[float, float, float, float]:
             float(p.motors[:, 0].max() + r), float(p.motors[:, 1].max() + r))
 
 
+def rotor_marks(p: Plate) -> list[tuple[str, float, float]]:
+    """(position label, drawing x, drawing y) of each rotor's label (mm): beside its motor pad,
+    away from the hub, inside the prop disc."""
+    out = []
+    for i, m in enumerate(p.motors):
+        out_dir = m / max(float(np.hypot(m[0], m[1])), 1e-9)
+        x, y = m + (p.options.pad_radius_mm + 6.0) * out_dir
+        out.append((ROTOR_LABELS[i], float(x), float(y)))
+    return out
+
+
 def svg(src: ExportSource, options: PlateOptions | None = None) -> str:
     """The plate as a 1:1 SVG (width and height in mm, one user unit = 1 mm)."""
     from xml.sax.saxutils import escape
@@ -170,6 +183,9 @@ def svg(src: ExportSource, options: PlateOptions | None = None) -> str:
         out.append(f'<circle class="prop" cx="{m[0]:.4f}" cy="{-m[1] + 0.0:.4f}" '
                    f'r="{p.prop_radius:.4f}" fill="none" stroke="#3366cc" stroke-width="0.2" '
                    'stroke-dasharray="4 2"/>')
+    for label, lx, ly in rotor_marks(p):
+        out.append(f'<text class="rotor-label" x="{lx:.4f}" y="{-ly + 0.0:.4f}" font-size="5" '
+                   f'text-anchor="middle" dominant-baseline="middle">{label}</text>')
     cx, cy = p.com
     out.append(f'<circle class="com" cx="{cx + 0.0:.4f}" cy="{-cy + 0.0:.4f}" r="1.5" '
                'fill="#cc3333"/>')
@@ -199,7 +215,8 @@ def _require_ezdxf() -> Any:
 def dxf(src: ExportSource, options: PlateOptions | None = None) -> str:
     """The plate as DXF R2010 text (units mm): layers OUTLINE (one closed polyline of lines and
     arcs), HOLES, MOTOR_CENTRES (a point per motor), PROPS (dashed construction circles),
-    DIMENSIONS; the header lines are custom header properties and a TEXT on NOTES."""
+    DIMENSIONS, ROTORS (each rotor's position label, FR, FL, RL, RR, beside its motor); the
+    header lines are custom header properties and a TEXT on NOTES."""
     ezdxf = _require_ezdxf()
     from ezdxf import units
 
@@ -210,7 +227,7 @@ def dxf(src: ExportSource, options: PlateOptions | None = None) -> str:
     for name, color, ltype in (("OUTLINE", 7, "CONTINUOUS"), ("HOLES", 7, "CONTINUOUS"),
                                ("MOTOR_CENTRES", 1, "CONTINUOUS"), ("PROPS", 5, "DASHED"),
                                ("DIMENSIONS", 3, "CONTINUOUS"), ("NOTES", 8, "CONTINUOUS"),
-                               ("COM", 1, "CONTINUOUS")):
+                               ("COM", 1, "CONTINUOUS"), ("ROTORS", 1, "CONTINUOUS")):
         doc.layers.add(name, color=color, linetype=ltype)
     for i, line in enumerate(src.header_lines("1:1 frame plate, top view, mm")):
         doc.header.custom_vars.append(f"casadrone_{i}", line)
@@ -232,6 +249,8 @@ def dxf(src: ExportSource, options: PlateOptions | None = None) -> str:
     for m in p.motors:
         msp.add_point((float(m[0]), float(m[1])), dxfattribs={"layer": "MOTOR_CENTRES"})
         msp.add_circle((float(m[0]), float(m[1])), p.prop_radius, dxfattribs={"layer": "PROPS"})
+    for label, lx, ly in rotor_marks(p):
+        msp.add_text(label, height=5.0, dxfattribs={"layer": "ROTORS", "insert": (lx, ly)})
     msp.add_point((float(p.com[0]), float(p.com[1])), dxfattribs={"layer": "COM"})
     for p1, p2, _ in _dimensions(p):
         msp.add_aligned_dim(p1=tuple(p1), p2=tuple(p2), distance=8.0,

@@ -23,7 +23,7 @@ from xml.sax.saxutils import escape, quoteattr
 import numpy as np
 
 from casadrone.airframe import Airframe
-from casadrone.config.airframe import ROTOR_LABELS
+from casadrone.config.airframe import ROTOR_LABELS, rotor_label
 from casadrone.export.mixers import LABELS, spin_word
 from casadrone.export.source import ExportSource
 
@@ -133,10 +133,10 @@ def urdf(src: ExportSource) -> str:
     disc_shape = (f'<geometry><cylinder radius="{_f(radius)}" length="{_f(PROP_THICKNESS_M)}"/>'
                   "</geometry>")
     for i, r in enumerate(a.rotor_positions):
-        link = f"rotor_{i + 1}_{ROTOR_LABELS[i]}"
+        link = f"rotor_{ROTOR_LABELS[i]}"
         axis = "0 0 1" if a.rotor_spins[i] < 0 else "0 0 -1"
-        out += [f"  <!-- rotor {i + 1}: {LABELS[i]}, turning {spin_word(a.rotor_spins[i])} seen "
-                "from above -->",
+        out += [f"  <!-- rotor {rotor_label(i, 'betaflight', 'px4')}: {LABELS[i]}, turning "
+                f"{spin_word(a.rotor_spins[i])} seen from above -->",
                 f'  <link name="{link}">']
         out += _inertial(ROTOR_LINK_MASS_KG, np.zeros(3), disc, "    ")
         out += ["    <visual>",

@@ -2,9 +2,12 @@
 browser.
 
 :func:`write_report` reads a run directory (``config.yaml``, ``manifest.json``,
-``history.sqlite``, ``pareto.csv``) and writes ``report.html`` with seven sections: the resolved
-problem, convergence, the Pareto front, the A/B/C candidates (re-evaluated with their
-trajectories), the candidates over the reference airframes, failures and hover-trim statistics.
+``history.sqlite``, ``pareto.csv``) and writes ``report.html``. It opens with the verdict: each
+candidate against the baseline (the first reference airframe), whether it dominates it, by how
+much per index and whether each difference is within the evaluation's noise
+(:mod:`casadrone.verdict`). Then the resolved problem, convergence, the Pareto front (with the
+baseline drawn), the A/B/C candidates (re-evaluated with their trajectories), the candidates over
+the reference airframes, failures and hover-trim statistics.
 Every figure is embedded as a base64 PNG and also saved, as PNG and SVG, under ``plots/`` next to
 the report; the page has inline CSS only: no script, font, stylesheet or image is fetched.
 
@@ -29,6 +32,7 @@ from casadrone.report.analysis import (
 )
 from casadrone.report.candidates import (
     evaluate_candidates,
+    fly_references,
     section_airframes,
     section_candidates,
 )
@@ -46,6 +50,7 @@ from casadrone.report.sections import (
     section_problem,
     section_trim,
 )
+from casadrone.report.verdict import baseline_of, baseline_verdict, section_verdict
 
 __all__ = ["Candidate", "choose_candidates", "convergence_history", "failure_groups",
            "write_report"]
@@ -75,12 +80,13 @@ pre { background: #f6f6f6; padding: 0.8em; overflow-x: auto; font-size: 0.8em; }
 .row { display: flex; flex-wrap: wrap; gap: 2em; align-items: flex-start; }
 """
 
-SECTIONS = (("problem", "Problem"), ("convergence", "Convergence"), ("pareto", "Pareto front"),
+SECTIONS = (("verdict", "Verdict against the baseline"), ("problem", "Problem"),
+            ("convergence", "Convergence"), ("pareto", "Pareto front"),
             ("codesign", "Co-design points"), ("candidates", "Candidates A, B, C"),
             ("airframes", "Airframes"), ("failures", "Failures"), ("trim", "Trim"))
 
 
-def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
+def write_report(run_dir: str | Path, references: tuple[str, ...] | None = None,
                  out: str | Path | None = None, trim_sample: int = 200,
                  trim_study_starts: int = 4) -> Path:
     """Write the self-contained HTML report of a run and return its path.
@@ -88,7 +94,9 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
     Args:
         run_dir: the run directory.
         references: reference airframes (names in ``configs/airframes/`` or paths) drawn under
-            the candidates and used for the Eq. 21 gains.
+            the candidates and used for the Eq. 21 gains; the first is the baseline of the
+            verdict and of the front figures (default: the problem's airframe,
+            :func:`casadrone.verdict.default_baseline`).
         out: the HTML file to write (default ``run_dir/report.html``); figures go to ``plots/``
             beside it, as PNG and SVG.
         trim_sample: at most this many evaluations are trimmed again for the trim section.
@@ -102,22 +110,30 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
     if path.parent.exists() and not path.parent.is_dir():
         raise ValueError(f"--out: {path.parent}: exists and is not a directory")
     run = read_run(run_dir)
+    if not references:
+        from casadrone.verdict import default_baseline
+
+        references = (str(default_baseline(run.study.problem)),)
     figs = Figures(path.parent / PLOTS)
     cands = choose_candidates(run)
     codesign = is_codesign(run)
-    if not run.test_problem:
+    flown: list = []
+    rv = None
+    if not run.test_problem and cands:
         cands = evaluate_candidates(run, cands, limit=not codesign)
+        flown = fly_references(run, tuple(references), limit=not codesign)
+        rv = baseline_verdict(run, cands, flown[0])
     body = {
+        "verdict": section_verdict(run, cands, rv),
         "problem": section_problem(run),
         "convergence": section_convergence(run, figs),
-        "pareto": section_pareto(run, cands, figs),
+        "pareto": section_pareto(run, cands, figs, baseline_of(run, rv)),
         "codesign": section_codesign(run, cands, figs) if codesign else "",
         "candidates": (section_candidates(run, cands, figs, path.parent / EXPORTS,
                                           limit=not codesign)
                        if not run.test_problem
                        else note("A pymoo test problem has no trajectories.")),
-        "airframes": section_airframes(run, cands, tuple(references), figs,
-                                       limit=not codesign),
+        "airframes": section_airframes(run, cands, tuple(references), figs, flown),
         "failures": section_failures(run, figs),
         "trim": section_trim(run, cands, figs, trim_sample, trim_study_starts),
     }

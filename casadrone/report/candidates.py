@@ -203,27 +203,39 @@ def _candidate(run: Run, c: Candidate, figs: Figures) -> str:
     return "".join(out)
 
 
-def section_airframes(run: Run, cands: list[Candidate], references: Any, figs: Figures,
-                      limit: bool = True) -> str:
-    """The candidates over the reference airframes, with the Eq. 21 gains of the indices
-    (without ``limit``, the references' limit laps are not solved: a co-design front)."""
-    if run.test_problem:
-        return note("A pymoo test problem has no airframe.")
-    if not cands:
-        return empty_front(run)
-    from casadrone.airframe import build_airframe, with_theta
+def fly_references(run: Run, references: Any, limit: bool = True) -> list[tuple[Any, Evaluation]]:
+    """(config, evaluation) of each reference airframe, flown with its own config on the run's
+    track, controller and integrator (without ``limit``, no limit lap: a co-design front)."""
     from casadrone.config.airframe import load_airframe
     from casadrone.optimise.problem import study_setup
 
     setup = study_setup(run.study)
     if not limit:
         setup = replace(setup, limit=None)
+    out = []
+    for ref in references:
+        cfg = load_airframe(ref)
+        out.append((cfg, evaluate(theta_of(cfg), replace(setup, template=cfg))))
+    return out
+
+
+def section_airframes(run: Run, cands: list[Candidate], references: Any, figs: Figures,
+                      flown: list[tuple[Any, Evaluation]]) -> str:
+    """The candidates over the reference airframes (``flown``: :func:`fly_references`), with
+    the Eq. 21 gains of the indices."""
+    if run.test_problem:
+        return note("A pymoo test problem has no airframe.")
+    if not cands:
+        return empty_front(run)
+    from casadrone.airframe import build_airframe, with_theta
+    from casadrone.optimise.problem import study_setup
+
+    setup = study_setup(run.study)
     frames = [build_airframe(with_theta(setup.template, c.theta, name=f"Candidate {c.label}"))
               for c in cands]
     colours = {f.name: plots.candidate_colour(c.label) for f, c in zip(frames, cands, strict=True)}
     parts: list[str] = []
-    for ref in references:
-        cfg = load_airframe(ref)
+    for cfg, ref_ev in flown:
         fig = plots.airframe_top_view(frames, build_airframe(cfg),
                                       setup.template.prop_diameter_mm / 1000.0,
                                       title=f"Candidates over {cfg.name} (grey, dashed)",
@@ -231,8 +243,7 @@ def section_airframes(run: Run, cands: list[Candidate], references: Any, figs: F
         parts.append(figs.embed(fig, f"airframes-{cfg.name}", f"Top view of each candidate "
                                 f"(nose up, mm) over the reference {cfg.name} (paper Figs 15, "
                                 "17, 19)."))
-        parts.append(_index_gains(run, cands, cfg, evaluate(theta_of(cfg),
-                                                            replace(setup, template=cfg))))
+        parts.append(_index_gains(run, cands, cfg, ref_ev))
     if run.front_source != PARETO:
         return "".join(parts) + note("Per-interval gains need a finished run (pareto.csv).")
     return "".join(parts) + _interval_gains(run, tuple(references))

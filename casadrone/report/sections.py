@@ -13,6 +13,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from casadrone import plots
+from casadrone.config.airframe import ROTOR_LABELS
 from casadrone.indices import INDICES
 
 if TYPE_CHECKING:
@@ -40,6 +41,7 @@ from casadrone.report.markup import (
     unit_of,
     variable_label,
 )
+from casadrone.report.verdict import Baseline
 
 
 def section_problem(run: Run) -> str:
@@ -127,7 +129,10 @@ def section_convergence(run: Run, figs: Figures) -> str:
             f"{table(head, rows)}</details>")
 
 
-def section_pareto(run: Run, cands: list[Candidate], figs: Figures) -> str:
+def section_pareto(run: Run, cands: list[Candidate], figs: Figures,
+                   baseline: Baseline | None = None) -> str:
+    """The front (every pair of objectives) and the set, the candidates ringed and ``baseline``
+    drawn on both figures, and the table of the front."""
     if len(run.F) == 0:
         return empty_front(run)
     s = run.study
@@ -138,14 +143,18 @@ def section_pareto(run: Run, cands: list[Candidate], figs: Figures) -> str:
         fig = plots.pareto_front(run.F, names, {c.label: c.row for c in cands},
                                  units=[run.unit(n) for n in names],
                                  colours={c.label: plots.candidate_colour(c.label) for c in cands},
-                                 descriptions={c.label: c.title for c in cands})
+                                 descriptions={c.label: c.title for c in cands},
+                                 baseline=(baseline.name, baseline.objectives)
+                                 if baseline else None)
         key = "; ".join(c.title for c in cands)
         parts.append(figs.embed(fig, "pareto-front", "Pareto front, every pair of objectives, "
-                                f"in their own units and sense; the candidates are ringed ({key})."
-                                ))
-    parts.append(figs.embed(_pareto_set_figure(run, cands), "pareto-set",
+                                f"in their own units and sense; the candidates are ringed ({key})"
+                                + (f"; the baseline {baseline.name} is the black star."
+                                   if baseline else ".")))
+    parts.append(figs.embed(_pareto_set_figure(run, cands, baseline), "pareto-set",
                             "Pareto set: each design's variables scaled to their bounds (0 = "
-                            "lower, 1 = upper); the candidates in colour."))
+                            "lower, 1 = upper); the candidates in colour"
+                            + (f", the baseline {baseline.name} in black." if baseline else ".")))
     senses = ", ".join(f"{n} {sn}" for n, sn in zip(names, s.senses, strict=True))
     parts.append(note(f"{len(run.F)} designs, from {run.front_source}. Senses: {senses}. "
                       + " ".join(f"{c.title} (row {c.row}, distance {num(c.distance, '.4f')} "
@@ -160,9 +169,11 @@ def section_pareto(run: Run, cands: list[Candidate], figs: Figures) -> str:
     return "".join(parts)
 
 
-def _pareto_set_figure(run: Run, cands: list[Candidate]) -> Figure:
+def _pareto_set_figure(run: Run, cands: list[Candidate],
+                       baseline: Baseline | None = None) -> Figure:
     lo, hi = run.study.bounds
-    Z = (run.X - lo) / np.where(hi > lo, hi - lo, 1.0)
+    span = np.where(hi > lo, hi - lo, 1.0)
+    Z = (run.X - lo) / span
     fig = Figure(figsize=(9.0, 3.6), layout="constrained")
     ax = fig.add_subplot()
     k = np.arange(Z.shape[1])
@@ -170,9 +181,16 @@ def _pareto_set_figure(run: Run, cands: list[Candidate]) -> Figure:
         ax.plot(k, z, color="0.7", lw=0.7)
     for c in cands:
         ax.plot(k, Z[c.row], "o-", color=plots.candidate_colour(c.label), lw=2.0, label=c.title)
+    zb = None
+    if baseline is not None and baseline.theta is not None:
+        zb = (np.asarray(baseline.theta) - lo) / span
+        ax.plot(k, zb, "*--", color="k", ms=11, lw=1.2, gid="baseline",
+                label=plots.baseline_label(baseline.name))
     ax.set_xticks(k, [variable_label(n) for n in run.study.variable_names], fontsize=9)
     ax.set_ylabel("position in bounds (–)")
-    ax.set_ylim(-0.05, 1.05)
+    low = min(-0.05, float(np.min(zb)) - 0.05) if zb is not None else -0.05
+    high = max(1.05, float(np.max(zb)) + 0.05) if zb is not None else 1.05
+    ax.set_ylim(low, high)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     ax.set_title(f"Pareto set ({len(Z)} designs)")
@@ -321,7 +339,7 @@ def _hover_trims(run: Run, cands: list[Candidate], figs: Figures, sample: int) -
              stat("max |T − T_allocation| (N)", lambda r: r["agree"], ".2e"),
              stat("|ΣT − m g| (N)", lambda r: r["weight"], ".2e"),
              stat("hover thrust spread, max − min (N)", lambda r: r["spread"]),
-             stat("front share (T1 + T2)/ΣT (%)", lambda r: 100 * r["share"], ".2f"),
+             stat("front share (T_FR + T_FL)/ΣT (%)", lambda r: 100 * r["share"], ".2f"),
              stat("smallest command u0 (–)", lambda r: min(r["u0"])),
              stat("largest command u0 (–)", lambda r: max(r["u0"]))]
     head = ["over the sample", "chain: min", "median", "max", "cold start: min", "median", "max"]
@@ -337,7 +355,7 @@ def _hover_trims(run: Run, cands: list[Candidate], figs: Figures, sample: int) -
                         r["cold"]["it"], "yes" if t["ok"] and r["cold"]["ok"] else "no"])
     if crows:
         parts.append("<h4>Candidates</h4>" + table(
-            ["candidate", "T1 FR (N)", "T2 FL (N)", "T3 RL (N)", "T4 RR (N)", "front share (%)",
+            ["candidate", *(f"T {r} (N)" for r in ROTOR_LABELS), "front share (%)",
              "front share, allocation (%)", "u0 min (–)", "u0 max (–)", "residual, chain (SI)",
              "residual, cold start (SI)", "iterations, cold start", "both succeeded"], crows))
     parts.append(figs.embed(_trim_figure(ok), "trim", "Hover trims of the sample: cold-start "

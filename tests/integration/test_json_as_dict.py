@@ -108,7 +108,8 @@ def test_simulate_json_is_the_evaluations_as_dict(sy250):
     expected = as_json(api)
     assert {k: out[k] for k in expected} == expected
     assert set(out) - set(expected) == {"airframe", "track", "controller", "integrator",
-                                         "index_units"}
+                                         "index_units", "rotors"}
+    assert [r["position"] for r in out["rotors"]] == ["FR", "FL", "RL", "RR"]
 
 
 def test_benchmark_json_is_the_tables_as_dict():

@@ -28,7 +28,7 @@ def test_report_renders_with_its_figures_and_links(tmp_path):
                             "algorithm.settings.n_ind_ga=8"])
     run(problem, tmp_path / "run", BackendConfig(name="serial"), quiet=True)
     html = write_report(tmp_path / "run").resolve()
-    with Chromium(chromium, tmp_path / "profile", width=1400, height=4000) as browser:
+    with Chromium(chromium, tmp_path / "profile", width=1400, height=6000) as browser:
         report = browser.load(html.as_uri(), PAGE_PROBE)
         shot = browser.screenshot(tmp_path / "report.png", full_page=False)
     assert not report.errors and not report.failed_requests, report
@@ -47,9 +47,10 @@ def test_report_renders_with_its_figures_and_links(tmp_path):
             assert fragment in probe["ids"], f"link to a missing anchor: #{fragment}"
 
     rgb = imread(shot)[..., :3]
-    assert rgb.shape[:2] == (4000, 1400)
+    assert rgb.shape[:2] == (6000, 1400)
     ink = np.any(rgb < 0.9, axis=2)
     assert 0.02 < ink.mean() < 0.9  # text, tables and figures, not a blank or black page
-    # the first figure (convergence, below the problem tables) is drawn: its green line shows
+    # the first figure (convergence, below the verdict and problem tables) is drawn: its green
+    # line shows
     green = np.linalg.norm(rgb - TAB_GREEN, axis=2) < 0.12
     assert green.sum() > 300

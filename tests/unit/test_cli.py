@@ -550,6 +550,22 @@ def test_decide_on_a_hand_made_front(cli_runner, tmp_path):
     assert text.exit_code == 0 and text.stdout.startswith("A utopian: pareto.csv row")
 
 
+def test_decide_ends_with_the_verdict_against_the_baseline(cli_runner, tmp_path):
+    # The hand-made front: row 0 J3 16.5 s, J4 14.0 m/s²; row 1 J3 16.6 s, J4 15.0 m/s². SY250
+    # on quick.yaml's platform (rk4): J3 16.653747 s, J4 13.635615 m/s² (its own gain equals the
+    # frozen wrench gain designed on it; benchmarks/RESULTS-sensitivity.md, rk4 column). Row 0
+    # by hand: J3 (16.5 − 16.653747)/16.653747 = −0.92 % (min: better), J4 +2.7 % (better).
+    d = make_run_dir(tmp_path / "run")
+    text = run(cli_runner, "decide", d, "--method", "extreme")
+    assert text.exit_code == 0
+    block = text.stdout.split("Verdict against SY250:\n", 1)[1].splitlines()
+    assert block[0].startswith("  C dominates SY250: yes;")
+    assert block[1] == "    J3 -0.92 % better; J4 +2.7 % better"
+    assert "noise of each value" in block[2]
+    bad = run(cli_runner, "decide", d, "--reference", "SY25")
+    assert bad.exit_code == 2 and bad.stdout == "" and "did you mean 'SY250'" in bad.stderr
+
+
 def test_compare_bad_reference_exits_2(cli_runner, tmp_path):
     d = make_run_dir(tmp_path / "run")
     result = run(cli_runner, "compare", d, "--reference", "SY25")
@@ -561,7 +577,7 @@ def test_report_calls_write_report(cli_runner, tmp_path, monkeypatch):
 
     calls = []
 
-    def write_report(run_dir, references=("SY250",), out=None):
+    def write_report(run_dir, references=None, out=None):
         calls.append((Path(run_dir), references, out))
         return Path(out or Path(run_dir) / "report.html")
 
@@ -573,7 +589,7 @@ def test_report_calls_write_report(cli_runner, tmp_path, monkeypatch):
     result = run(cli_runner, "report", d, "--reference", "SY250", "--reference", "NSY200",
                  "--out", tmp_path / "r.html")
     assert result.exit_code == 0 and result.stdout == f"{tmp_path / 'r.html'}\n"
-    assert calls == [(d, ("SY250",), None), (d, ("SY250", "NSY200"), tmp_path / "r.html")]
+    assert calls == [(d, None, None), (d, ("SY250", "NSY200"), tmp_path / "r.html")]
 
 
 def test_report_without_the_report_module_exits_1(cli_runner, tmp_path, monkeypatch):

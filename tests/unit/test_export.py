@@ -90,15 +90,15 @@ def test_sy250_betaflight_mix_is_quadx():
                                                                                  "-1.000000")
     assert "set yaw_motors_reversed = OFF" in lines
     # motor order and spin stated: motor 1 rear-right CW, 2 front-right CCW (Betaflight props in)
-    assert re.search(r"motor 1 \(mmix 0\) = rear-right rotor, turning CW", text)
-    assert re.search(r"motor 2 \(mmix 1\) = front-right rotor, turning CCW", text)
+    assert re.search(r"motor 1 \(mmix 0\) = RR rear-right rotor, turning CW", text)
+    assert re.search(r"motor 2 \(mmix 1\) = FR front-right rotor, turning CCW", text)
 
 
 def test_mirrored_spins_are_props_out_with_the_same_table():
     text = export(source_of("SY250", overrides=["rotor_spins=[1, -1, 1, -1]"]), "betaflight")
     np.testing.assert_array_equal(mmix_rows(text), QUADX)
     assert "set yaw_motors_reversed = ON" in text.splitlines()
-    assert re.search(r"motor 1 \(mmix 0\) = rear-right rotor, turning CCW", text)
+    assert re.search(r"motor 1 \(mmix 0\) = RR rear-right rotor, turning CCW", text)
 
 
 @pytest.mark.parametrize(("la", "lb", "alpha", "beta"), [(140.0, 110.0, 90.0, 90.0),
@@ -187,7 +187,7 @@ def test_urdf_parsed_by_yourdfpy_round_trips(frame, tmp_path):
     # (the links' composite inertia: test_export_consumers.test_urdf_links_sum_to_the_airframe)
     joints = {j.child: j for j in model.joints}
     for i, label in enumerate(("FR", "FL", "RL", "RR")):
-        j = joints[f"rotor_{i + 1}_{label}"]
+        j = joints[f"rotor_{label}"]
         assert j.type == "continuous" and j.parent == "base_link"
         np.testing.assert_allclose(j.origin[:3, 3], src.airframe.rotor_positions[i], atol=1e-9)
         # spin axis: +z (up) for a counter-clockwise rotor

@@ -50,7 +50,7 @@ def test_urdf_hovers_in_pybullet_at_hover_thrust(bullet, tmp_path, frame):
     masses = [p.getDynamicsInfo(body, i, physicsClientId=client)[0] for i in range(-1, n)]
     assert n == 4 and sum(masses) == pytest.approx(src.airframe.mass, rel=1e-9)
     names = [p.getJointInfo(body, i, physicsClientId=client)[12].decode() for i in range(n)]
-    assert names == ["rotor_1_FR", "rotor_2_FL", "rotor_3_RL", "rotor_4_RR"]
+    assert names == ["rotor_FR", "rotor_FL", "rotor_RL", "rotor_RR"]
     start = np.array(p.getBasePositionAndOrientation(body, physicsClientId=client)[0])
     end = fly(p, client, body, src.airframe.hover_thrusts())
     drift = np.linalg.norm(end - start)

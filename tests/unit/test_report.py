@@ -6,6 +6,7 @@ from __future__ import annotations
 import base64
 import re
 import struct
+from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +30,8 @@ from casadrone.report.analysis import (
 from casadrone.report.markup import num
 
 ROOT = Path(__file__).resolve().parents[2]
-SECTIONS = ("problem", "convergence", "pareto", "candidates", "airframes", "failures", "trim")
+SECTIONS = ("verdict", "problem", "convergence", "pareto", "candidates", "airframes", "failures",
+            "trim")
 TINY = ["algorithm.population=16", "algorithm.generations=2", "algorithm.settings.n_ind_ga=8"]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 EXTERNAL = re.compile(r'src="http|href="http|url\(|<link|<script src', re.IGNORECASE)
@@ -338,3 +340,146 @@ def test_trim_section_holds_the_solver_study(report):
         assert trim.count(f"<td>{label}</td>") == 3, label
     for name in ("trim-study-envelope", "trim-study-basins", "trim-study-residuals"):
         assert (run_dir / "plots" / f"{name}.png").is_file()
+
+
+class Page(HTMLParser):
+    """The page's sections in order (id, heading text) and every table as rows of cell texts,
+    by Python's own HTML parser."""
+
+    def __init__(self):
+        super().__init__()
+        self.sections: list[list[str]] = []
+        self.tables: list[tuple[str, list[list[str]]]] = []  # (section id, rows)
+        self._heading = self._cell = False
+        self._text = ""
+
+    def handle_starttag(self, tag, attrs):
+        if tag == "section":
+            self.sections.append([dict(attrs)["id"], ""])
+        elif tag == "h2":
+            self._heading = True
+        elif tag == "table":
+            self.tables.append((self.sections[-1][0] if self.sections else "", []))
+        elif tag == "tr":
+            self.tables[-1][1].append([])
+        elif tag in ("td", "th"):
+            self._cell, self._text = True, ""
+
+    def handle_endtag(self, tag):
+        if tag == "h2":
+            self._heading = False
+        elif tag in ("td", "th"):
+            self.tables[-1][1][-1].append(self._text.strip())
+            self._cell = False
+
+    def handle_data(self, data):
+        if self._heading:
+            self.sections[-1][1] += data
+        if self._cell:
+            self._text += data
+
+
+def parsed(html: str) -> Page:
+    page = Page()
+    page.feed(html)
+    return page
+
+
+def test_the_report_opens_with_the_verdict_against_the_baseline(report):
+    run_dir, html = report
+    require_front(run_dir)
+    page = parsed(html)
+    assert page.sections[0] == ["verdict", "1. Verdict against the baseline"]
+    text = re.sub(r"<[^>]+>", "", section(html, "verdict"))
+    for c in choose_candidates(read_run(run_dir)):
+        assert re.search(rf"{re.escape(c.label)} dominates SY250: (yes|no)", text), c.label
+
+
+def _verdict_tables(page: Page) -> dict[str, dict[str, list[str]]]:
+    """candidate → index → row of its verdict table."""
+    out = {}
+    for sec, rows in page.tables:
+        if sec == "verdict" and rows[0][:4] == ["index", "sense", "unit", "SY250"]:
+            out[rows[0][4]] = {r[0].split()[0]: r for r in rows[1:]}
+    return out
+
+
+def test_the_verdict_agrees_with_the_eq21_gains_of_the_airframes_section(report):
+    # Two code paths: the verdict (casadrone.verdict) and the Eq. 21 gains of the airframes
+    # section (casadrone.compare.gain_pct, positive = better). Same values of both designs, the
+    # same direction per index, and the verdict's "dominates" is what the gains say.
+    run_dir, html = report
+    require_front(run_dir)
+    page = parsed(html)
+    verdicts = _verdict_tables(page)
+    (gains,) = [rows for sec, rows in page.tables if sec == "airframes"
+                and rows[0][:3] == ["index", "sense", "SY250"]]
+    head = gains[0]
+    r = read_run(run_dir)
+    cands = choose_candidates(r)
+    assert sorted(verdicts) == sorted(c.label for c in cands)
+    text = re.sub(r"<[^>]+>", "", section(html, "verdict"))
+    for c in cands:
+        rows = verdicts[c.label]
+        col, gcol = head.index(c.label), head.index(f"{c.label} gain (%)")
+        better = []
+        for g in gains[1:]:
+            name = g[0].split()[0]
+            if name not in rows:  # an index the lap does not give (J3_limit: no limit lap)
+                assert g[gcol] == "—"
+                continue
+            v = rows[name]
+            assert v[3] == g[2] and v[4] == g[col]  # SY250's value and the candidate's
+            gain = float(g[gcol])
+            diff = float(v[4]) - float(v[3])
+            np.testing.assert_allclose(float(v[5]), diff, rtol=1e-3, atol=2e-4 * abs(float(v[3])))
+            if abs(gain) >= 0.05:  # the gains table shows one decimal
+                assert v[7].startswith("better" if gain > 0 else "worse"), (c.label, name)
+            if name in r.study.objective_names:
+                better.append(gain)
+        dominated = all(g >= 0 for g in better) and any(g > 0 for g in better)
+        if all(abs(g) >= 0.05 for g in better):  # the decimal shown decides every sign
+            assert f"{c.label} dominates SY250: {'yes' if dominated else 'no'}" in text
+
+
+def test_every_front_figure_draws_the_baseline(report):
+    run_dir, _ = report
+    require_front(run_dir)
+    fronts = [(fig, paths[0].stem) for fig, paths in SAVED if paths[0].stem.startswith("pareto")]
+    assert {name for _, name in fronts} == {"pareto-front", "pareto-set"}
+    for fig, name in fronts:
+        drawn = [a for a in fig.axes if a.collections or a.lines]
+        assert drawn, name
+        for a in drawn:
+            labels = [x.get_label() for x in (*a.collections, *a.lines)]
+            assert "SY250 (baseline)" in labels, (name, labels)
+
+
+def test_the_impossible_bodies_share_is_counted_from_the_history(report):
+    # the oracle: the inertias of each evaluation checked by hand against the triangle
+    # inequality (each principal moment at most the sum of the other two; diagonal tensors)
+    run_dir, html = report
+    h = RunStore(run_dir).history()
+    bad = sum(max(J) > sum(J) - max(J) for J in
+              ([r["ixx_kgm2"], r["iyy_kgm2"], r["izz_kgm2"]] for r in h))
+    text = re.sub(r"\s+", " ", re.sub(r"<[^>]+>", "", section(html, "verdict")))
+    assert f"{bad} of {len(h)} evaluations ({100 * bad / len(h):.1f} %)" in text
+    assert "keeps the mass fixed" in text and "problems/quick-parts.yaml" in text
+    assert (ROOT / "problems" / "quick-parts.yaml").is_file()
+
+
+def test_the_airframe_figure_labels_each_rotor_by_position(report):
+    # the rotor labels of the report's own figure, at the position their drawing coordinates
+    # say (x across = right of the drone, y up = nose); no rotor numbered 1…4
+    from casadrone.config.airframe import ROTOR_LABELS, position_of
+
+    run_dir, _ = report
+    require_front(run_dir)
+    (fig,) = [f for f, paths in SAVED if paths[0].stem == "airframes-SY250"]
+    for a in fig.axes:
+        texts = [t for t in a.texts if t.get_text() in ROTOR_LABELS]
+        assert len(texts) % 4 == 0 and texts
+        for t in texts:
+            right, nose = t.xy
+            assert position_of(nose, -right) == t.get_text()
+        assert not [t for t in a.texts if t.get_text() in ("1", "2", "3", "4")]

@@ -78,6 +78,9 @@ MUTANTS = (
            "        return 0.0, float(airframe.thrust_gain)\n    return 0.0, max_speed(",
            "        return 0.0, 0.9 * float(airframe.thrust_gain)\n    return 0.0, max_speed(",
            LIMIT_TESTS),
+    Mutant("gate-height-hw", "a rectangular gate's upper height row reads its half width",
+           "(up - t.hh, -np.inf, 0.0)", "(up - t.hw, -np.inf, 0.0)",
+           ("tests/unit/test_limitlap.py",)),
 )
 
 

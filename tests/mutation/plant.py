@@ -81,6 +81,10 @@ MUTANTS = (
     Mutant("gate-height-hw", "a rectangular gate's upper height row reads its half width",
            "(up - t.hh, -np.inf, 0.0)", "(up - t.hw, -np.inf, 0.0)",
            ("tests/unit/test_limitlap.py",)),
+    Mutant("stand-lbf", "the thrust stand's lbf read as the pound's mass (g_n forgotten)",
+           '"lbf": 4.4482216152605', '"lbf": 0.45359237', ("tests/unit/test_thruststand.py",)),
+    Mutant("stand-kgfcm", "the thrust stand's kgf·cm read as kgf·mm",
+           '"kgf·cm": G0 * 1e-2', '"kgf·cm": G0 * 1e-3', ("tests/unit/test_thruststand.py",)),
 )
 
 

@@ -388,3 +388,70 @@ def test_an_esc_range_upside_down_is_refused_with_the_options(tmp_path, log_file
                                 "--out", str(out), *bounds])
     assert r.exit_code == 2 and "Traceback" not in r.stderr, r.stderr
     assert "--esc-min-us" in r.stderr and "--esc-max-us" in r.stderr and not out.exists()
+
+
+# ------------------------------------------------------------------------------------------------
+# Every unit the reader accepts, against factors typed here from their definitions
+# ------------------------------------------------------------------------------------------------
+
+G_STANDARD = 9.80665  # m/s², standard gravity (3rd CGPM, 1901): kgf and gf are kg·g_n and g·g_n
+POUND_KG = 0.45359237  # kg, the international avoirdupois pound (1959): 1 lbf = lb·g_n
+#: quantity → (header name, {unit as written: factor to SI (the ESC signal to µs)}), typed here
+#: from the units' definitions, never read from casadrone.thruststand.UNITS. Speed columns: rad/s;
+#: the electrical speed column is read with motor_poles=14, its values are 7 (pole pairs) times
+#: the rotor's.
+HAND_UNITS: dict[str, tuple[str, dict[str, float]]] = {
+    "time": ("Time", {"s": 1.0, "ms": 1e-3}),
+    "esc": ("ESC signal", {"µs": 1.0, "us": 1.0, "ms": 1000.0}),
+    "thrust": ("Thrust", {"N": 1.0, "kgf": G_STANDARD, "kg": G_STANDARD,
+                          "gf": G_STANDARD / 1000, "g": G_STANDARD / 1000,
+                          "lbf": POUND_KG * G_STANDARD}),  # 4.4482216152605 N (NIST SP 811)
+    "torque": ("Torque", {"N·m": 1.0, "N-m": 1.0, "Nm": 1.0, "N.m": 1.0, "N*m": 1.0,
+                          "N·mm": 1e-3, "Nmm": 1e-3, "kgf·cm": G_STANDARD / 100}),
+    "voltage": ("Voltage", {"V": 1.0}),
+    "current": ("Current", {"A": 1.0}),
+    "optical_rpm": ("Motor Optical Speed", {"RPM": 2 * math.pi / 60, "rad/s": 1.0}),
+    "electrical_rpm": ("Motor Electrical Speed", {"RPM": 2 * math.pi / 60, "rad/s": 1.0}),
+}
+#: The log write_log writes: column of each quantity and its unit's factor to SI (typed by hand).
+BASE_COLUMNS = {"time": (0, 1.0), "esc": (1, 1.0), "torque": (2, 1.0),
+                "thrust": (3, G_STANDARD), "voltage": (4, 1.0), "current": (5, 1.0),
+                "optical_rpm": (6, 2 * math.pi / 60)}
+POLE_PAIRS = 7
+
+
+def test_the_hand_typed_units_are_every_unit_the_reader_accepts():
+    """A unit added to the reader without a test here fails (the names only are compared)."""
+    from casadrone.thruststand import UNITS
+
+    hand = {(q, u.lower()) for q, (_, units) in HAND_UNITS.items() for u in units}
+    assert hand == {(q, u) for q, units in UNITS.items() for u in units}
+
+
+@pytest.fixture(scope="module")
+def unit_base(tmp_path_factory):
+    """A small synthetic log (250 Hz) as rows, and its fit."""
+    path = write_log(tmp_path_factory.mktemp("units") / "base.csv", rate_hz=250.0)
+    return list(csv.reader(path.open(encoding="utf-8"))), fit_propulsion(read_log(path), D, RHO)
+
+
+@pytest.mark.parametrize("quantity, unit", [(q, u) for q, (_, units) in HAND_UNITS.items()
+                                            for u in units])
+def test_the_same_log_in_every_unit_gives_the_same_fit(tmp_path, unit_base, quantity, unit):
+    """The log with one column rewritten in ``unit`` (its SI value divided by the hand-typed
+    factor, 12 significant digits) fits as the log in its own units: every fitted value equal."""
+    rows, base = unit_base
+    name, units = HAND_UNITS[quantity]
+    j, base_factor = BASE_COLUMNS["optical_rpm" if quantity == "electrical_rpm" else quantity]
+    scale = base_factor / units[unit] * (POLE_PAIRS if quantity == "electrical_rpm" else 1)
+    out = [list(r) for r in rows]
+    out[0][j] = f"{name} ({unit})"
+    for r in out[1:]:
+        r[j] = f"{float(r[j]) * scale:.12g}"
+    log = read_log(_write(tmp_path / "unit.csv", out),
+                   motor_poles=2 * POLE_PAIRS if quantity == "electrical_rpm" else None)
+    fit = fit_propulsion(log, D, RHO)
+    for key in ("ct0", "cp0", "kv_rpm_per_v", "resistance_ohm", "no_load_current_a",
+                "open_circuit_voltage_v", "internal_resistance_ohm", "time_constant_s",
+                "rotor_inertia_kgm2"):
+        assert getattr(fit, key) == pytest.approx(getattr(base, key), rel=1e-6), key

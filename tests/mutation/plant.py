@@ -85,6 +85,12 @@ MUTANTS = (
            '"lbf": 4.4482216152605', '"lbf": 0.45359237', ("tests/unit/test_thruststand.py",)),
     Mutant("stand-kgfcm", "the thrust stand's kgf·cm read as kgf·mm",
            '"kgf·cm": G0 * 1e-2', '"kgf·cm": G0 * 1e-3', ("tests/unit/test_thruststand.py",)),
+    Mutant("study-unconverged-root", "the trim study counts an unconverged solve as a root",
+           "return bool(np.all(np.isfinite(tp.x0))) and tp.residual_norm <= tol",
+           "return bool(np.all(np.isfinite(tp.x0)))", ("tests/unit/test_trimstudy.py",)),
+    Mutant("study-no-wrap", "the trim study's root distance without its ±π wrap",
+           "d[:2] = np.minimum(d[:2], 2 * math.pi - d[:2])", "d[:2] = np.minimum(d[:2], d[:2])",
+           ("tests/unit/test_trimstudy.py",)),
 )
 
 

@@ -1,6 +1,6 @@
 """Mutation check: plant known one-line bugs, one at a time, and see which default tests fail.
 
-Each bug of issue 22's table is planted in a temporary copy of the checkout (the package, its
+Each bug of issues 22 and 47 is planted in a temporary copy of the checkout (the package, its
 tests and data; never the checkout itself), then the default tests relevant to it run there
 (``-m 'not slow'``, as CI runs them). A bug that no default test fails is a blind spot of the
 suite. Not run by CI (it runs the tests eight times over); run it by hand after changing the

@@ -18,6 +18,7 @@ from casadrone.cli.common import (
     figure_paths,
     foreign_figure_line,
     print_json,
+    registry_option,
     reports_config_errors,
     save_figures,
 )
@@ -29,11 +30,18 @@ from casadrone.config.propulsion import shipped_datasets
 FIGURES = ("propulsion-fit-steady", "propulsion-fit-steps")
 
 
+def _parts() -> list[str]:
+    from casadrone.thruststand import PARTS
+
+    return list(PARTS)
+
+
 @app.command("fit-propulsion")
 @reports_config_errors
 def fit_propulsion_command(
     log: Annotated[Path, typer.Argument(
-        help="thrust-stand CSV log, units in the header (e.g. 'Thrust (kgf)', 'Torque (N·m)')")],
+        help="thrust-stand CSV log, units in the header (e.g. 'Thrust (kgf)', 'Torque (N·m)'), "
+        "or a shipped log's name: example-5in (synthetic, casadrone/data/thruststand)")],
     diameter_in: Annotated[float | None, typer.Option(
         "--diameter-in", help="propeller diameter (inch), e.g. 5.1")] = None,
     diameter_m: Annotated[float | None, typer.Option(
@@ -50,6 +58,11 @@ def fit_propulsion_command(
         "(µs)', 48 for a DShot log: 'ESC signal' without a unit)")] = None,
     esc_max_us: Annotated[float | None, typer.Option(
         "--esc-max-us", help="ESC signal at full duty (default: 2000 µs; 2047 for DShot)")] = None,
+    part: Annotated[str, registry_option(
+        _parts, "part", "fit one part alone (propeller, motor, battery) or all; the motor fit "
+        "takes the ESC as lossless with its duty linear in the signal, which DShot ESCs seldom "
+        "are: --part propeller fits the propeller without it", "--part", extra=("all",))
+    ] = "all",
     shape: Annotated[str | None, typer.Option(
         "--shape", help="J-dependence of CT and CP from a shipped propeller dataset, scaled to "
         "the fitted static values (e.g. uiuc-da4022-5x3.75-3blade); default: static only")
@@ -66,7 +79,11 @@ def fit_propulsion_command(
     as_json: JsonOpt = False,
 ):
     """Fit a propulsion: section (propeller CT0/CP0, DC motor KV/R/I0, battery resistance, rotor
-    inertia from step tests) from a thrust-stand log, print the fit residuals.
+    inertia from step tests) from a thrust-stand log, print each part with its residuals.
+
+    Each part is fitted alone: one whose fit is not physical is marked refused, with the
+    reason, and left out of the section; the others are kept (exit 0). Exit 2 when every part
+    asked for is refused.
 
     Every destination (--out, the --plot figures) is checked before the log is read and its
     folder created before any file is written: a refused command writes nothing. A figure
@@ -82,6 +99,7 @@ def fit_propulsion_command(
     """
     from casadrone.outfile import OutputRefused, write_out
     from casadrone.thruststand import (
+        PARTS,
         LogError,
         check_log_file,
         fit_propulsion,
@@ -94,6 +112,7 @@ def fit_propulsion_command(
                               esc_max_us) or shape_problem(shape))
     if problem is not None:
         raise bad_input([problem])
+    log = shipped_log(log)
     try:
         check_log_file(log)
     except LogError as exc:
@@ -104,15 +123,21 @@ def fit_propulsion_command(
     D = diameter_m if diameter_m is not None else 0.0254 * (diameter_in or 0.0)
     try:
         stand = read_log(log, motor_poles)
-        fit = fit_propulsion(stand, D, air_density, esc_min_us, esc_max_us)
+        fit = fit_propulsion(stand, D, air_density, esc_min_us, esc_max_us,
+                             parts=PARTS if part == "all" else (part,))
     except LogError as exc:
         raise bad_input([str(exc)]) from None
-    problem = section_problem(fit.section(shape), air_density) if shape else None
+    if not fit.fitted:  # every part asked for refused: the reasons, and nothing written
+        if as_json:
+            print_json({**fit.as_dict(shape), "out": None, "figures": []})
+        raise bad_input([refusal_line(fit, *fit.refused[0])])
+    fitted_shape = shape if "propeller" in fit.fitted else None
+    problem = section_problem(fit.section(shape), air_density) if fitted_shape else None
     if problem is not None:  # the static section passed; the shape's J-dependence did not
         raise bad_input([f"{log.name}: with --shape {shape}: {problem}"])
     files: dict[tuple[str, Path], str | bytes] = {}
     if out is not None:
-        files["--out", out] = section_yaml(fit, shape)
+        files["--out", out] = section_yaml(fit, fitted_shape)
     if plot is not None:
         from casadrone.plots import propulsion_fit_figures
 
@@ -128,11 +153,28 @@ def fit_propulsion_command(
         raise bad_input([str(exc)]) from None
     shown_out = written.pop(0) if out is not None else None
     if as_json:
-        print_json({**fit.as_dict(shape), "out": shown_out, "figures": written})
+        print_json({**fit.as_dict(fitted_shape), "out": shown_out, "figures": written})
         return
     _print_text(fit)
     for path in ([shown_out] if shown_out else []) + written:
         typer.echo(f"wrote {path}")
+
+
+def shipped_log(log: Path) -> Path:
+    """``log`` as given when anything is there (:func:`casadrone.thruststand.check_log_file`
+    says what a folder or a FIFO is), else the shipped log of that name (the convention of
+    :func:`casadrone.config.io.resolve_config`: ``example-5in``); ConfigError naming the
+    shipped logs when there is none."""
+    from casadrone.config.io import resolve_config
+
+    if log.exists() or log.is_symlink():
+        return log
+    return resolve_config(log, "thruststand")
+
+
+def refusal_line(fit, part: str, why: str) -> str:
+    """One line saying that ``part`` of ``fit`` is refused, and why."""
+    return f"{fit.source}: {part} refused: {why}"
 
 
 def option_problem(diameter_in: float | None, diameter_m: float | None, air_density: float,
@@ -267,7 +309,9 @@ def section_yaml(fit, shape: str | None = None) -> str:
             f"# {len(fit.plateaus)} steady points ({fit.steady_source}), {len(fit.steps)} step "
             "responses; residuals:"]
     head += [f"#   {r.quantity}: rms {r.rms:.4g} {r.unit} ({100 * r.relative_rms:.2f} %), "
-             f"max {r.max_abs:.4g} {r.unit}" for r in fit.residuals]
+             f"max {r.max_abs:.4g} {r.unit}" for r in fit.residuals if r.part in fit.fitted]
+    head += [f"# {part}: not in this section: {state}; give it from its datasheet"
+             for part, state in _missing_parts(fit)]
     body = yaml.safe_dump({"propulsion": fit.section(shape)}, sort_keys=False)
     return "\n".join(head) + "\n" + body
 
@@ -282,18 +326,42 @@ def _print_text(fit) -> None:
     if fit.steady_source == "averaged rows":
         typer.echo("           (no plateau and rows seconds apart: each row taken as one "
                    "averaged steady point; no step response fitted)")
-    typer.echo(f"propeller  CT0 {fit.ct0:.5f}  CP0 {fit.cp0:.5f}  (D {fit.diameter_m:.4f} m, "
-               f"rho {fit.air_density_kg_m3:g} kg/m³)")
-    typer.echo(f"motor      KV {fit.kv_rpm_per_v:.1f} rpm/V  R {fit.resistance_ohm * 1e3:.1f} mΩ  "
-               f"I0 {fit.no_load_current_a:.3f} A")
+    why = dict(fit.refused)
+    for part in fit.parts:
+        typer.echo(f"{part:<10} {fit.status(part).upper() if part in why else 'fitted':<8} "
+                   f"{_values_text(fit, part)}")
+        for r in (r for r in fit.residuals if r.part == part):
+            typer.echo(f"           {r.quantity:<14} rms {r.rms:.4g} {r.unit} "
+                       f"({100 * r.relative_rms:.2f} %), max {r.max_abs:.4g} {r.unit}, "
+                       f"{r.points} points")
+        if part in why:
+            typer.echo(f"           why: {why[part]}")
     if fit.time_constant_s is None:
-        typer.echo("           time constant and rotor inertia not measured (no resolved step)")
+        typer.echo("rotor      time constant not measured (no resolved step)")
     else:
-        typer.echo(f"           time constant {fit.time_constant_s * 1e3:.1f} ms (median of "
-                   f"{len(fit.steps)} steps), rotor inertia {fit.rotor_inertia_kgm2:.3g} kg·m²")
-    typer.echo(f"battery    Voc {fit.open_circuit_voltage_v:.3f} V  "
-               f"R_int {fit.internal_resistance_ohm * 1e3:.1f} mΩ")
-    typer.echo("residuals:")
-    for r in fit.residuals:
-        typer.echo(f"  {r.quantity:<14} rms {r.rms:.4g} {r.unit} ({100 * r.relative_rms:.2f} %), "
-                   f"max {r.max_abs:.4g} {r.unit}, {r.points} points")
+        inertia = ("rotor inertia not worked out (it needs the fitted motor and battery)"
+                   if fit.rotor_inertia_kgm2 is None
+                   else f"rotor inertia {fit.rotor_inertia_kgm2:.3g} kg·m²")
+        typer.echo(f"rotor      time constant {fit.time_constant_s * 1e3:.1f} ms (median of "
+                   f"{len(fit.steps)} steps), {inertia}")
+    for part, state in _missing_parts(fit):
+        typer.echo(f"not in the section: {part} ({state})")
+
+
+def _values_text(fit, part: str) -> str:
+    """The fitted values of ``part`` as the console shows them."""
+    if part == "propeller":
+        return (f"CT0 {fit.ct0:.5f}  CP0 {fit.cp0:.5f}  (D {fit.diameter_m:.4f} m, "
+                f"rho {fit.air_density_kg_m3:g} kg/m³)")
+    if part == "motor":
+        return (f"KV {fit.kv_rpm_per_v:.1f} rpm/V  R {fit.resistance_ohm * 1e3:.1f} mΩ  "
+                f"I0 {fit.no_load_current_a:.3f} A")
+    return (f"Voc {fit.open_circuit_voltage_v:.3f} V  "
+            f"R_int {fit.internal_resistance_ohm * 1e3:.1f} mΩ")
+
+
+def _missing_parts(fit) -> list[tuple[str, str]]:
+    """(part, refused or not fitted) of each part the section lacks."""
+    from casadrone.thruststand import PARTS
+
+    return [(p, fit.status(p)) for p in PARTS if p not in fit.fitted]

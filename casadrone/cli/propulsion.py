@@ -18,7 +18,6 @@ from casadrone.cli.common import (
     figure_paths,
     foreign_figure_line,
     print_json,
-    registry_option,
     reports_config_errors,
     save_figures,
 )
@@ -31,9 +30,10 @@ FIGURES = ("propulsion-fit-steady", "propulsion-fit-steps")
 
 
 def _parts() -> list[str]:
+    """The ``--part`` choices: the parts of :data:`casadrone.thruststand.PARTS`, and all."""
     from casadrone.thruststand import PARTS
 
-    return list(PARTS)
+    return [*PARTS, "all"]
 
 
 @app.command("fit-propulsion")
@@ -58,11 +58,12 @@ def fit_propulsion_command(
         "(µs)', 48 for a DShot log: 'ESC signal' without a unit)")] = None,
     esc_max_us: Annotated[float | None, typer.Option(
         "--esc-max-us", help="ESC signal at full duty (default: 2000 µs; 2047 for DShot)")] = None,
-    part: Annotated[str, registry_option(
-        _parts, "part", "fit one part alone (propeller, motor, battery) or all; the motor fit "
-        "takes the ESC as lossless with its duty linear in the signal, which DShot ESCs seldom "
-        "are: --part propeller fits the propeller without it", "--part", extra=("all",))
-    ] = "all",
+    part: Annotated[list[str] | None, typer.Option(
+        "--part", metavar="PART", autocompletion=_parts,
+        help="fit only this part: propeller, motor or battery (repeat the option for two; "
+        "default all). The motor fit takes the ESC as lossless with its duty linear in the "
+        "signal, which DShot ESCs seldom are: --part propeller fits the propeller without it")
+    ] = None,
     shape: Annotated[str | None, typer.Option(
         "--shape", help="J-dependence of CT and CP from a shipped propeller dataset, scaled to "
         "the fitted static values (e.g. uiuc-da4022-5x3.75-3blade); default: static only")
@@ -82,8 +83,8 @@ def fit_propulsion_command(
     inertia from step tests) from a thrust-stand log, print each part with its residuals.
 
     Each part is fitted alone: one whose fit is not physical is marked refused, with the
-    reason, and left out of the section; the others are kept (exit 0). Exit 2 when every part
-    asked for is refused.
+    reason, and the others are kept and printed (exit 0). Exit 2, writing nothing, when every
+    part asked for is refused, or when one is and --out asks for the section.
 
     Every destination (--out, the --plot figures) is checked before the log is read and its
     folder created before any file is written: a refused command writes nothing. A figure
@@ -109,7 +110,7 @@ def fit_propulsion_command(
 
     check_plot_dir(plot)
     problem = (option_problem(diameter_in, diameter_m, air_density, motor_poles, esc_min_us,
-                              esc_max_us) or shape_problem(shape))
+                              esc_max_us) or shape_problem(shape) or part_problem(part))
     if problem is not None:
         raise bad_input([problem])
     log = shipped_log(log)
@@ -124,14 +125,17 @@ def fit_propulsion_command(
     try:
         stand = read_log(log, motor_poles)
         fit = fit_propulsion(stand, D, air_density, esc_min_us, esc_max_us,
-                             parts=PARTS if part == "all" else (part,))
+                             parts=PARTS if not part or "all" in part else tuple(part))
     except LogError as exc:
         raise bad_input([str(exc)]) from None
-    if not fit.fitted:  # every part asked for refused: the reasons, and nothing written
-        if as_json:
-            print_json({**fit.as_dict(shape), "out": None, "figures": []})
-        raise bad_input([refusal_line(fit, *fit.refused[0])])
     fitted_shape = shape if "propeller" in fit.fitted else None
+    if not fit.fitted or (out is not None and fit.refused):  # the fit shown, nothing written
+        _report(fit, fitted_shape, as_json)
+        line = refusal_line(fit, *fit.refused[0])
+        if fit.fitted:
+            line += (f"; --out not written, it would lack the {fit.refused[0][0]} (--part "
+                     "chooses the parts to write)")
+        raise bad_input([line])
     problem = section_problem(fit.section(shape), air_density) if fitted_shape else None
     if problem is not None:  # the static section passed; the shape's J-dependence did not
         raise bad_input([f"{log.name}: with --shape {shape}: {problem}"])
@@ -152,11 +156,17 @@ def fit_propulsion_command(
     except OutputRefused as exc:  # a file that appeared since the check
         raise bad_input([str(exc)]) from None
     shown_out = written.pop(0) if out is not None else None
+    _report(fit, fitted_shape, as_json, shown_out, written)
+
+
+def _report(fit, shape: str | None, as_json: bool, out: str | None = None,
+            figures: list[str] | None = None) -> None:
+    """The fit on stdout, as text or JSON, with the files written."""
     if as_json:
-        print_json({**fit.as_dict(fitted_shape), "out": shown_out, "figures": written})
+        print_json({**fit.as_dict(shape), "out": out, "figures": figures or []})
         return
     _print_text(fit)
-    for path in ([shown_out] if shown_out else []) + written:
+    for path in ([out] if out else []) + (figures or []):
         typer.echo(f"wrote {path}")
 
 
@@ -198,6 +208,14 @@ def option_problem(diameter_in: float | None, diameter_m: float | None, air_dens
     if motor_poles is not None and motor_poles % 2:
         return (f"--motor-poles: {motor_poles} is odd; a motor has an even number of poles (two "
                 "per pole pair)")
+    return None
+
+
+def part_problem(parts: list[str] | None) -> str | None:
+    """A ``--part`` naming no part, as one line; else None."""
+    unknown = [p for p in parts or [] if p not in _parts()]
+    if unknown:
+        return f"--part: {unknown[0]!r} is not a part (one of {', '.join(_parts())})"
     return None
 
 

@@ -591,3 +591,25 @@ def test_an_unknown_log_name_names_the_shipped_ones(cli_runner):
     r = cli_runner.invoke(app, ["fit-propulsion", "exampel-5in", "--diameter-in", "5"])
     assert r.exit_code == 2 and len(r.stderr.splitlines()) == 1, r.stderr
     assert "exampel-5in" in r.stderr and "did you mean 'example-5in'" in r.stderr
+
+
+def test_out_is_written_only_when_no_part_asked_for_is_refused(tmp_path, cli_runner):
+    """On the real DShot log the motor is refused: --out is not written (exit 2, one line naming
+    the part and --out; the fit still shown on stdout); the propeller and the battery asked for
+    alone are written, the motor named as missing in the file's comment."""
+    from casadrone.cli import app
+
+    out = tmp_path / "prop.yaml"
+    args = ["fit-propulsion", str(STEPS), "--diameter-in", "5.0", "--out", str(out)]
+    r = cli_runner.invoke(app, args)
+    assert r.exit_code == 2 and not out.exists()
+    lines = r.stderr.splitlines()
+    assert len(lines) == 1 and "motor refused" in lines[0] and "--out not written" in lines[0]
+    assert "propeller  fitted" in r.stdout
+    r = cli_runner.invoke(app, [*args, "--part", "propeller", "--part", "battery"])
+    assert r.exit_code == 0, r.stderr
+    text = out.read_text(encoding="utf-8")
+    assert set(yaml.safe_load(text)["propulsion"]) == {"model", "propeller", "battery"}
+    assert "# motor: not in this section: not fitted" in text
+    bad = cli_runner.invoke(app, [*args[:4], "--part", "prop"])
+    assert bad.exit_code == 2 and bad.stderr.startswith("--part: 'prop' is not a part")

@@ -63,6 +63,13 @@ What is fitted, and from which part of the log:
   used; with no resolved step the time constant and inertia are reported as not measured, never
   invented.
 
+**Parts, each alone.** The propeller, the motor and the battery (:data:`PARTS`) are fitted and
+judged apart: a part whose values fall outside :data:`PHYSICAL`, or that the airframe schema
+refuses, is reported refused with the reason and the others are kept. The motor needs the
+lossless-ESC assumption above, which DShot ESCs seldom meet (the published DShot logs give a
+negative no-load current or K_V); the propeller needs only thrust, torque and speed, and fits
+them (their authors' own k_f, k_q within 1 %). A section then holds the parts fitted only.
+
 The shape of C_T and C_P against the advance ratio J cannot be measured on a static stand: the
 section carries the static coefficients as ``ct_coefficients: [C_T0]`` and
 ``cp_coefficients: [C_P0]`` unless a propeller of the package's data is named as the shape
@@ -597,7 +604,7 @@ class PropulsionFit:
     steady_source: SteadySource = "plateaus"
     esc_protocol: str = "pwm"
     esc_range: tuple[float, float] = ESC_RANGES["pwm"]
-    parts: tuple[str, ...] = ("propeller", "motor", "battery")
+    parts: tuple[str, ...] = PARTS
     refused: tuple[tuple[str, str], ...] = ()
 
     def status(self, part: str) -> PartStatus:

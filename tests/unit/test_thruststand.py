@@ -613,3 +613,17 @@ def test_out_is_written_only_when_no_part_asked_for_is_refused(tmp_path, cli_run
     assert "# motor: not in this section: not fitted" in text
     bad = cli_runner.invoke(app, [*args[:4], "--part", "prop"])
     assert bad.exit_code == 2 and bad.stderr.startswith("--part: 'prop' is not a part")
+
+
+def test_the_readme_tour_line_runs_on_the_shipped_log(cli_runner):
+    """The README tour's fit-propulsion line names a log that ships and fits every part."""
+    import shlex
+
+    from casadrone.cli import app
+
+    readme = (Path(__file__).parents[2] / "README.md").read_text(encoding="utf-8")
+    line = next(ln for ln in readme.splitlines() if ln.startswith("casadrone fit-propulsion"))
+    argv = shlex.split(line, comments=True)[1:]
+    r = cli_runner.invoke(app, [*argv, "--json"])
+    assert r.exit_code == 0, r.stderr
+    assert [p["status"] for p in json.loads(r.stdout)["parts"]] == ["fitted"] * 3

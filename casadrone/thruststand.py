@@ -933,7 +933,7 @@ def _schema_checked(fit: PropulsionFit) -> PropulsionFit:
     import dataclasses
 
     while fit.fitted:
-        problem = _fitted_problem(fit)
+        problem = fitted_problem(fit)
         if problem is None:
             break
         part = _blamed_part(problem)
@@ -948,16 +948,17 @@ def _schema_checked(fit: PropulsionFit) -> PropulsionFit:
     return fit
 
 
-def _fitted_problem(fit: PropulsionFit) -> str | None:
-    """The first reason the airframe schema refuses the fitted parts: the whole section's
-    (:func:`section_problem`) when every part is fitted, else each part's own schema (a section
-    of some parts is not a whole ``propulsion:`` section: the user adds the others)."""
+def fitted_problem(fit: PropulsionFit, shape: str | None = None) -> str | None:
+    """The first reason the airframe schema refuses the fitted parts (their section with
+    ``shape``, :meth:`PropulsionFit.section`): the whole section's (:func:`section_problem`)
+    when every part is fitted, else each part's own schema (a section of some parts is not a
+    whole ``propulsion:`` section: the user adds the others)."""
     from pydantic import BaseModel, ValidationError
 
     from casadrone.config.io import error_pairs
     from casadrone.config.propulsion import BatteryConfig, MotorConfig, PropellerConfig
 
-    section = fit.section()
+    section = fit.section(shape)
     if fit.fitted == PARTS:
         return section_problem(section, fit.air_density_kg_m3)
     schemas: dict[str, type[BaseModel]] = {

@@ -104,8 +104,8 @@ def fit_propulsion_command(
         LogError,
         check_log_file,
         fit_propulsion,
+        fitted_problem,
         read_log,
-        section_problem,
     )
 
     check_plot_dir(plot)
@@ -136,7 +136,7 @@ def fit_propulsion_command(
             line += (f"; --out not written, it would lack the {fit.refused[0][0]} (--part "
                      "chooses the parts to write)")
         raise bad_input([line])
-    problem = section_problem(fit.section(shape), air_density) if fitted_shape else None
+    problem = fitted_problem(fit, fitted_shape) if fitted_shape else None
     if problem is not None:  # the static section passed; the shape's J-dependence did not
         raise bad_input([f"{log.name}: with --shape {shape}: {problem}"])
     files: dict[tuple[str, Path], str | bytes] = {}

@@ -565,6 +565,13 @@ def test_the_propeller_alone(tmp_path, cli_runner):
     assert set(yaml.safe_load(text)["propulsion"]) == {"model", "propeller"}
     assert "# motor: not in this section: not fitted" in text
     assert "rotor_inertia_kgm2" not in text  # worked out with the motor, which is not fitted
+    # with a shape: the propeller's own schema judges it (a section without a motor is no
+    # whole section, and is not refused for that)
+    shaped = cli_runner.invoke(app, ["fit-propulsion", "example-5in", "--diameter-in", "5",
+                                     "--part", "propeller", "--shape",
+                                     "uiuc-da4022-5x3.75-3blade", "--json"])
+    assert shaped.exit_code == 0, shaped.stderr
+    assert len(json.loads(shaped.stdout)["propulsion"]["propeller"]["ct_coefficients"]) == 3
 
 
 def test_every_part_refused_is_exit_2_with_json(tmp_path, cli_runner):

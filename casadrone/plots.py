@@ -715,6 +715,12 @@ def save_figure(fig: Figure, path_without_suffix: str | Path,
     return paths
 
 
+def _part_label(fit, part: str, text: str) -> str:
+    """The legend of a fitted law: ``text``, marked when its part is refused or not fitted."""
+    status = fit.status(part)
+    return {"fitted": text, "refused": f"{text} (refused)"}.get(status, f"{part} not fitted")
+
+
 def propulsion_fit_figures(fit, log) -> dict[str, Figure]:
     """``fit-propulsion``'s figures: the steady points against the fitted propeller, motor and
     battery laws (``steady``), and each fitted step response over the logged speed (``steps``).
@@ -732,17 +738,19 @@ def propulsion_fit_figures(fit, log) -> dict[str, Figure]:
     ax1, ax2, ax3 = steady.subplots(1, 3)
     rpm = 60 / (2 * np.pi)
     ax1.plot(w * rpm, [q.thrust_n for q in p], "o", label="steady points")
-    ax1.plot(grid * rpm, fit.ct0 * rho * ng**2 * D**4, "-", label=f"C_T0 = {fit.ct0:.4f}")
+    ax1.plot(grid * rpm, fit.ct0 * rho * ng**2 * D**4, "-",
+             label=_part_label(fit, "propeller", f"C_T0 = {fit.ct0:.4f}"))
     ax1.set(xlabel="rotor speed (rpm)", ylabel="thrust (N)", title="propeller thrust")
     ax2.plot(w * rpm, np.abs([q.torque_nm for q in p]), "o", label="steady points")
     ax2.plot(grid * rpm, fit.cp0 * rho * ng**2 * D**5 / (2 * np.pi), "-",
-             label=f"C_P0 = {fit.cp0:.4f}")
+             label=_part_label(fit, "propeller", f"C_P0 = {fit.cp0:.4f}"))
     ax2.set(xlabel="rotor speed (rpm)", ylabel="shaft torque (N·m)", title="propeller torque")
     current = np.array([q.current_a for q in p])
     ax3.plot(current, [q.voltage_v for q in p], "o", label="steady points")
     ig = np.linspace(0.0, 1.05 * float(current.max()), 50)
     ax3.plot(ig, fit.open_circuit_voltage_v - fit.internal_resistance_ohm * ig, "-",
-             label=f"R_int = {1e3 * fit.internal_resistance_ohm:.1f} mΩ")
+             label=_part_label(fit, "battery",
+                               f"R_int = {1e3 * fit.internal_resistance_ohm:.1f} mΩ"))
     ax3.set(xlabel="bus current (A)", ylabel="bus voltage (V)", title="battery sag")
     for ax in (ax1, ax2, ax3):
         ax.grid(True, alpha=0.3)

@@ -63,6 +63,13 @@ What is fitted, and from which part of the log:
   used; with no resolved step the time constant and inertia are reported as not measured, never
   invented.
 
+**Parts, each alone.** The propeller, the motor and the battery (:data:`PARTS`) are fitted and
+judged apart: a part whose values fall outside :data:`PHYSICAL`, or that the airframe schema
+refuses, is reported refused with the reason and the others are kept. The motor needs the
+lossless-ESC assumption above, which DShot ESCs seldom meet (the published DShot logs give a
+negative no-load current or K_V); the propeller needs only thrust, torque and speed, and fits
+them (their authors' own k_f, k_q within 1 %). A section then holds the parts fitted only.
+
 The shape of C_T and C_P against the advance ratio J cannot be measured on a static stand: the
 section carries the static coefficients as ``ct_coefficients: [C_T0]`` and
 ``cp_coefficients: [C_P0]`` unless a propeller of the package's data is named as the shape
@@ -125,6 +132,16 @@ ESC_RANGES: dict[str, tuple[float, float]] = {"pwm": (1000.0, 2000.0), "dshot": 
 #: Where the steady points came from (module docstring): held plateaus of a time series, or one
 #: averaged row per step.
 SteadySource = Literal["plateaus", "averaged rows"]
+#: The parts a log fits, each alone (module docstring): a part whose fit is not physical is
+#: refused and the others are kept; ``--part`` of ``casadrone fit-propulsion`` chooses among them.
+PARTS: tuple[str, ...] = ("propeller", "motor", "battery")
+PartStatus = Literal["fitted", "refused", "not fitted"]
+#: The :class:`PropulsionFit` values of each part.
+PART_VALUES: dict[str, tuple[str, ...]] = {
+    "propeller": ("ct0", "cp0"),
+    "motor": ("kv_rpm_per_v", "resistance_ohm", "no_load_current_a"),
+    "battery": ("open_circuit_voltage_v", "internal_resistance_ohm"),
+}
 
 
 class LogError(ValueError):
@@ -517,7 +534,7 @@ def steady_points(log: StandLog, min_plateau_s: float = 0.5, settled_fraction: f
 @dataclass(frozen=True)
 class Residual:
     """Goodness of one fit: RMS and largest absolute residual, in the fitted quantity's unit,
-    and the RMS relative to the data's RMS."""
+    and the RMS relative to the data's RMS; ``part``: the part of :data:`PARTS` it fits."""
 
     quantity: str
     unit: str
@@ -525,13 +542,15 @@ class Residual:
     max_abs: float
     relative_rms: float
     points: int
+    part: str = ""
 
 
-def _residual(quantity: str, unit: str, data: np.ndarray, fit: np.ndarray) -> Residual:
+def _residual(part: str, quantity: str, unit: str, data: np.ndarray, fit: np.ndarray
+              ) -> Residual:
     r = data - fit
     scale = float(np.sqrt(np.mean(data**2))) or 1.0
     rms = float(np.sqrt(np.mean(r**2)))
-    return Residual(quantity, unit, rms, float(np.max(np.abs(r))), rms / scale, len(r))
+    return Residual(quantity, unit, rms, float(np.max(np.abs(r))), rms / scale, len(r), part)
 
 
 @dataclass(frozen=True)
@@ -562,6 +581,9 @@ class PropulsionFit:
         steady_source: "plateaus" or "averaged rows" (:func:`steady_points`).
         esc_protocol, esc_range: the ESC signal's protocol and the duty range ``(zero, full)``
             used (µs for PWM, command values for DShot).
+        parts: the parts of :data:`PARTS` asked for (a part not asked for is NaN); refused:
+            (part, why) of each part asked for whose fit is refused (its values are kept, to be
+            shown, and left out of the section).
     """
 
     source: str
@@ -582,9 +604,24 @@ class PropulsionFit:
     steady_source: SteadySource = "plateaus"
     esc_protocol: str = "pwm"
     esc_range: tuple[float, float] = ESC_RANGES["pwm"]
+    parts: tuple[str, ...] = PARTS
+    refused: tuple[tuple[str, str], ...] = ()
+
+    def status(self, part: str) -> PartStatus:
+        """Whether ``part`` was fitted, refused, or not asked for."""
+        if part not in self.parts:
+            return "not fitted"
+        return "refused" if part in dict(self.refused) else "fitted"
+
+    @property
+    def fitted(self) -> tuple[str, ...]:
+        """The parts fitted and not refused (those the section holds)."""
+        return tuple(p for p in PARTS if self.status(p) == "fitted")
 
     def section(self, shape: str | None = None) -> dict[str, Any]:
-        """The airframe's ``propulsion:`` section (the keys of the propeller model).
+        """The airframe's ``propulsion:`` section (the keys of the propeller model): the parts
+        :attr:`fitted` only (a refused part, or one not asked for, is left to the user: a
+        datasheet's motor, the pack's label).
 
         Args:
             shape: a shipped propeller dataset (:func:`casadrone.propulsion.propeller_data`)
@@ -598,7 +635,7 @@ class PropulsionFit:
             "ct_coefficients": [_round(c) for c in ct],
             "cp_coefficients": [_round(c) for c in cp],
         }
-        if self.rotor_inertia_kgm2 is not None:
+        if self.rotor_inertia_kgm2 is not None and self.status("motor") == "fitted":
             propeller["rotor_inertia_kgm2"] = _round(self.rotor_inertia_kgm2)
         if shape:  # the shape holds to its data's largest J only: the limit lap keeps to it
             from casadrone.config.propulsion import data_advance_ratio
@@ -607,8 +644,7 @@ class PropulsionFit:
         propeller["data"] = (f"{source}: static values; J-dependence of {shape} scaled to them"
                              if shape else
                              f"{source}: static coefficients only (a static stand sees J = 0)")
-        return {
-            "model": "propeller",
+        parts = {
             "propeller": propeller,
             "motor": {
                 "kind": "dc",
@@ -623,15 +659,26 @@ class PropulsionFit:
                 "data": source,
             },
         }
+        return {"model": "propeller", **{p: parts[p] for p in self.fitted}}
+
+    def part_values(self, part: str) -> dict[str, float]:
+        """The fitted values of ``part`` (SI; KV in rpm/V), refused or not."""
+        return {name: getattr(self, name) for name in PART_VALUES[part]}
 
     def as_dict(self, shape: str | None = None) -> dict[str, Any]:
-        """JSON-ready summary: the section, every residual, every step."""
+        """JSON-ready summary: each part (status, why refused, values, residuals), the section
+        of the fitted parts, every residual, every step."""
+        why = dict(self.refused)
         return {
             "source": self.source,
             "plateaus": len(self.plateaus),
             "steady_points_from": self.steady_source,
             "esc": {"protocol": self.esc_protocol, "zero_duty": self.esc_range[0],
                     "full_duty": self.esc_range[1]},
+            "parts": [{"part": p, "status": self.status(p), "reason": why.get(p),
+                       "values": self.part_values(p) if p in self.parts else {},
+                       "residuals": [vars(r) for r in self.residuals if r.part == p]}
+                      for p in PARTS],
             "propulsion": self.section(shape),
             "residuals": [vars(r) for r in self.residuals],
             "steps": [vars(s) for s in self.steps],
@@ -666,8 +713,8 @@ def _fit_propeller(p: list[Plateau], D: float, rho: float) -> tuple[float, float
     xQ = rho * n**2 * D**5 / (2 * math.pi)  # Q = C_P ρ n² D⁵ / 2π
     ct0 = float(xT @ T / (xT @ xT))
     cp0 = float(xQ @ Q / (xQ @ xQ))
-    return ct0, cp0, [_residual("thrust", "N", T, ct0 * xT),
-                      _residual("torque", "N·m", Q, cp0 * xQ)]
+    return ct0, cp0, [_residual("propeller", "thrust", "N", T, ct0 * xT),
+                      _residual("propeller", "torque", "N·m", Q, cp0 * xQ)]
 
 
 def _fit_motor(p: list[Plateau], duty: np.ndarray) -> tuple[float, float, float, list[Residual]]:
@@ -680,15 +727,16 @@ def _fit_motor(p: list[Plateau], duty: np.ndarray) -> tuple[float, float, float,
     kv = 1.0 / inv_kv  # rad/s per V
     i0 = float(np.mean(Im - kv * Q))
     return (kv * 60 / (2 * math.pi), float(R), i0,
-            [_residual("motor voltage", "V", Vm, A @ np.array([inv_kv, R])),
-             _residual("motor current", "A", Im, kv * Q + i0)])
+            [_residual("motor", "motor voltage", "V", Vm, A @ np.array([inv_kv, R])),
+             _residual("motor", "motor current", "A", Im, kv * Q + i0)])
 
 
 def _fit_battery(p: list[Plateau]) -> tuple[float, float, Residual]:
     V = np.array([q.voltage_v for q in p])
     I = np.array([q.current_a for q in p])
     slope, v0 = np.polyfit(I, V, 1)
-    return float(v0), float(-slope), _residual("bus voltage", "V", V, v0 + slope * I)
+    return float(v0), float(-slope), _residual("battery", "bus voltage", "V", V,
+                                               v0 + slope * I)
 
 
 def _fit_step(log: StandLog, before: Plateau, after: Plateau) -> StepFit | None:
@@ -746,16 +794,35 @@ PHYSICAL: dict[str, tuple[str, float, float, str]] = {
 }
 
 
-def _check_physical(source: str, values: dict[str, float]) -> None:
-    for key, value in values.items():
+#: The :data:`PHYSICAL` keys of each part.
+PART_PHYSICAL: dict[str, tuple[str, ...]] = {
+    "propeller": ("ct0", "cp0"), "motor": ("kv", "R", "i0"), "battery": ("v0", "r_int")}
+#: Why a motor fit can be refused on a sound log: what its model takes of the ESC.
+MOTOR_HINT = ("; the motor fit takes the ESC as a lossless buck whose duty is linear in the ESC "
+              "signal over --esc-min-us..--esc-max-us, which DShot ESCs seldom are (their "
+              "firmware's throttle mapping and active freewheeling): the propeller fit does not "
+              "need it (--part propeller)")
+
+
+def _physical_problem(part: str, values: dict[str, float]) -> str | None:
+    """Why the fitted values of ``part`` are not physical (:data:`PHYSICAL`), or None."""
+    for key in PART_PHYSICAL[part]:
         name, lo, hi, columns = PHYSICAL[key]
+        value = values[key]
         if not lo <= value <= hi:
-            hint = ("; the motor fit takes the ESC as a lossless buck whose duty is linear in "
-                    "the ESC signal over --esc-min-us..--esc-max-us" if key in ("kv", "R", "i0")
-                    else "")
-            raise LogError(f"{source}: columns {columns}: the fitted {name} is {value:.4g}, "
-                           f"outside the physical {lo:g}-{hi:g} (check the columns' signs, "
-                           f"units and tare{hint})")
+            hint = MOTOR_HINT if part == "motor" else ""
+            return (f"columns {columns}: the fitted {name} is {value:.4g}, outside the physical "
+                    f"{lo:g}-{hi:g} (check the columns' signs, units and tare{hint})")
+    return None
+
+
+def _blamed_part(problem: str) -> str:
+    """The part a refusal of the section (``propulsion.<part>.<key>: ...``) falls on: the rotor
+    inertia is the motor's (worked out with its K_V and R), else the part named."""
+    if problem.startswith("propulsion.propeller.rotor_inertia_kgm2"):
+        return "motor"
+    named = problem.split(":")[0].split(".")
+    return named[1] if len(named) > 1 and named[1] in PARTS else "propeller"
 
 
 def _complete(p: Plateau) -> bool:
@@ -765,19 +832,28 @@ def _complete(p: Plateau) -> bool:
 
 def fit_propulsion(log: StandLog, diameter_m: float, air_density_kg_m3: float = RHO_ISA,
                    esc_min_us: float | None = None, esc_max_us: float | None = None,
-                   min_plateau_s: float = 0.5) -> PropulsionFit:
+                   min_plateau_s: float = 0.5, parts: tuple[str, ...] = PARTS) -> PropulsionFit:
     """Fit the propeller, motor, battery and motor time constant of :mod:`this module's
     <casadrone.thruststand>` docstring from a stand log.
+
+    Each part of ``parts`` is fitted alone; a part whose values fall outside :data:`PHYSICAL`, or
+    that the airframe schema would refuse (:func:`section_problem`), is reported in the result's
+    ``refused`` with the reason, and the others are kept (a DShot log's propeller fits where its
+    motor, seen through the lossless-ESC model, does not). The rotor inertia needs the motor and
+    the battery (and the propeller's torque): without them it is not worked out.
 
     Args:
         esc_min_us: the ESC signal at zero duty; None: the low end of the log's protocol's
             range (:data:`ESC_RANGES`: 1000-2000 µs for PWM, 48-2047 for DShot).
         esc_max_us: the ESC signal at full duty; None: the high end of that range.
+        parts: the parts of :data:`PARTS` to fit.
 
     Raises:
-        LogError: fewer than three powered steady points, a point outside the ESC range, or a
-            fitted value outside :data:`PHYSICAL`.
+        LogError: fewer than three powered steady points, a point outside the ESC range, an
+            option out of its range.
     """
+    if not parts or not set(parts) <= set(PARTS):
+        raise ValueError(f"parts: {parts!r}: choose among {', '.join(PARTS)}")
     if not DIAMETER_RANGE_M[0] <= diameter_m <= DIAMETER_RANGE_M[1]:
         raise LogError(f"{log.source}: propeller diameter {diameter_m} m outside 0.02-2 m")
     if not AIR_DENSITY_RANGE[0] <= air_density_kg_m3 <= AIR_DENSITY_RANGE[1]:
@@ -796,7 +872,7 @@ def fit_propulsion(log: StandLog, diameter_m: float, air_density_kg_m3: float = 
     with _quiet_numerics():
         try:
             return _fit(log, diameter_m, air_density_kg_m3, esc_min_us, esc_max_us,
-                        min_plateau_s)
+                        min_plateau_s, tuple(p for p in PARTS if p in parts))
         except np.linalg.LinAlgError as exc:
             raise LogError(f"{log.source}: the steady points determine no fit ({exc})") from None
 
@@ -812,7 +888,7 @@ def _quiet_numerics() -> Iterator[None]:
 
 
 def _fit(log: StandLog, diameter_m: float, air_density_kg_m3: float, esc_min_us: float,
-         esc_max_us: float, min_plateau_s: float) -> PropulsionFit:
+         esc_max_us: float, min_plateau_s: float, parts: tuple[str, ...]) -> PropulsionFit:
     """:func:`fit_propulsion` once its arguments are checked."""
     unit = " µs" if log.esc_protocol == "pwm" else " (DShot)"
     points, source = steady_points(log, min_plateau_s)
@@ -828,26 +904,73 @@ def _fit(log: StandLog, diameter_m: float, air_density_kg_m3: float, esc_min_us:
         raise LogError(f"{log.source}: row {bad.start + 2}, column 'ESC signal': "
                        f"{bad.esc_us:g}{unit} above the ESC range's top {esc_max_us:g}{unit} "
                        "(--esc-max-us)")
-    ct0, cp0, res_prop = _fit_propeller(powered, diameter_m, air_density_kg_m3)
-    kv, R, i0, res_motor = _fit_motor(powered, duty)
-    v0, r_int, res_batt = _fit_battery(powered)
-    _check_physical(log.source, dict(ct0=ct0, cp0=cp0, kv=kv, R=R, i0=i0, v0=v0, r_int=r_int))
+    nan = math.nan
+    ct0, cp0, res_prop = (_fit_propeller(powered, diameter_m, air_density_kg_m3)
+                          if "propeller" in parts else (nan, nan, []))
+    kv, R, i0, res_motor = _fit_motor(powered, duty) if "motor" in parts else (nan, nan, nan, [])
+    v0, r_int, res_batt = _fit_battery(powered) if "battery" in parts else (nan, nan, None)
+    values = dict(ct0=ct0, cp0=cp0, kv=kv, R=R, i0=i0, v0=v0, r_int=r_int)
+    refused = {p: why for p in parts if (why := _physical_problem(p, values)) is not None}
     # a step response needs the time series between two plateaus: none from averaged rows
     steps = tuple(s for a, b in zip(allp[:-1], allp[1:], strict=True)
                   if source == "plateaus" and b.start == a.stop
                   and (s := _fit_step(log, a, b)) is not None)
     tau = float(np.median([s.time_constant_s for s in steps])) if steps else None
-    inertia = _rotor_inertia(steps, cp0, kv, R, r_int, diameter_m, air_density_kg_m3,
-                             esc_min_us, esc_max_us)
+    inertia = (_rotor_inertia(steps, cp0, kv, R, r_int, diameter_m, air_density_kg_m3,
+                              esc_min_us, esc_max_us)
+               if set(PARTS) <= set(parts) - set(refused) else None)
+    residuals = (*res_prop, *res_motor, *([res_batt] if res_batt else []))
     fit = PropulsionFit(log.source, diameter_m, air_density_kg_m3, tuple(powered), ct0, cp0,
-                        kv, R, i0, v0, r_int, tau, inertia, steps,
-                        (*res_prop, *res_motor, res_batt), source, log.esc_protocol,
-                        (esc_min_us, esc_max_us))
-    problem = section_problem(fit.section(), air_density_kg_m3)
-    if problem is not None:
-        raise LogError(f"{log.source}: the fitted section is not a physical propulsion system, "
-                       f"{problem} (check the columns' units, signs and tare)")
+                        kv, R, i0, v0, r_int, tau, inertia, steps, residuals, source,
+                        log.esc_protocol, (esc_min_us, esc_max_us), parts,
+                        tuple(refused.items()))
+    return _schema_checked(fit)
+
+
+def _schema_checked(fit: PropulsionFit) -> PropulsionFit:
+    """``fit`` with each part the airframe schema refuses (:func:`section_problem` on the
+    section of the fitted parts) refused in turn, naming the key; the rotor inertia dropped
+    with the motor it was worked out with."""
+    import dataclasses
+
+    while fit.fitted:
+        problem = fitted_problem(fit)
+        if problem is None:
+            break
+        part = _blamed_part(problem)
+        if part not in fit.fitted:  # a problem of no part this fit can drop
+            raise LogError(f"{fit.source}: the fitted section is not a physical propulsion "
+                           f"system, {problem} (check the columns' units, signs and tare)")
+        why = (f"the fitted section is not a physical propulsion system, {problem} (check the "
+               "columns' units, signs and tare)")
+        fit = dataclasses.replace(
+            fit, refused=(*fit.refused, (part, why)),
+            rotor_inertia_kgm2=None if part == "motor" else fit.rotor_inertia_kgm2)
     return fit
+
+
+def fitted_problem(fit: PropulsionFit, shape: str | None = None) -> str | None:
+    """The first reason the airframe schema refuses the fitted parts (their section with
+    ``shape``, :meth:`PropulsionFit.section`): the whole section's (:func:`section_problem`)
+    when every part is fitted, else each part's own schema (a section of some parts is not a
+    whole ``propulsion:`` section: the user adds the others)."""
+    from pydantic import BaseModel, ValidationError
+
+    from casadrone.config.io import error_pairs
+    from casadrone.config.propulsion import BatteryConfig, MotorConfig, PropellerConfig
+
+    section = fit.section(shape)
+    if fit.fitted == PARTS:
+        return section_problem(section, fit.air_density_kg_m3)
+    schemas: dict[str, type[BaseModel]] = {
+        "propeller": PropellerConfig, "motor": MotorConfig, "battery": BatteryConfig}
+    for part in fit.fitted:
+        try:
+            schemas[part].model_validate(section[part])
+        except ValidationError as exc:
+            key, message = error_pairs(exc, schemas[part])[0]
+            return f"propulsion.{part}.{key}: {message}"
+    return None
 
 
 def section_problem(section: dict[str, Any], air_density_kg_m3: float) -> str | None:

@@ -37,9 +37,8 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
                 "casadrone compare runs/quick --reference SY250 --reference HS210 --measured"),
     "report": ("casadrone report runs/quick",
                "casadrone report runs/quick --out quick.html"),
-    "fit-propulsion": ("casadrone fit-propulsion stand.csv --diameter-in 5.1 --out prop.yaml",
-                       "casadrone fit-propulsion stand.csv --diameter-m 0.127 --motor-poles 14 "
-                       "--json"),
+    "fit-propulsion": ("casadrone fit-propulsion example-5in --diameter-in 5",
+                       "casadrone fit-propulsion stand.csv --diameter-in 5 --part propeller"),
     "trim-study": ("casadrone trim-study SY250 --starts 5",
                    "casadrone trim-study HS210 --conditions forward:0..40/5 --json"),
 }

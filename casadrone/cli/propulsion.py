@@ -32,11 +32,19 @@ if TYPE_CHECKING:
 FIGURES = ("propulsion-fit-steady", "propulsion-fit-steps")
 
 
+def _parts() -> list[str]:
+    """The ``--part`` choices: the parts of :data:`casadrone.thruststand.PARTS`, and all."""
+    from casadrone.thruststand import PARTS
+
+    return [*PARTS, "all"]
+
+
 @app.command("fit-propulsion")
 @reports_config_errors
 def fit_propulsion_command(
     log: Annotated[Path, typer.Argument(
-        help="thrust-stand CSV log, units in the header (e.g. 'Thrust (kgf)', 'Torque (N·m)')")],
+        help="thrust-stand CSV log, units in the header (e.g. 'Thrust (kgf)', 'Torque (N·m)'), "
+        "or a shipped log's name: example-5in (synthetic, casadrone/data/thruststand)")],
     diameter_in: Annotated[float | None, typer.Option(
         "--diameter-in", help="propeller diameter (inch), e.g. 5.1")] = None,
     diameter_m: Annotated[float | None, typer.Option(
@@ -53,6 +61,12 @@ def fit_propulsion_command(
         "(µs)', 48 for a DShot log: 'ESC signal' without a unit)")] = None,
     esc_max_us: Annotated[float | None, typer.Option(
         "--esc-max-us", help="ESC signal at full duty (default: 2000 µs; 2047 for DShot)")] = None,
+    part: Annotated[list[str] | None, typer.Option(
+        "--part", metavar="PART", autocompletion=_parts,
+        help="fit only this part: propeller, motor or battery (repeat the option for two; "
+        "default all). The motor fit takes the ESC as lossless with its duty linear in the "
+        "signal, which DShot ESCs seldom are: --part propeller fits the propeller without it")
+    ] = None,
     shape: Annotated[str | None, typer.Option(
         "--shape", help="J-dependence of CT and CP from a shipped propeller dataset, scaled to "
         "the fitted static values (e.g. uiuc-da4022-5x3.75-3blade); default: static only")
@@ -69,7 +83,11 @@ def fit_propulsion_command(
     as_json: JsonOpt = False,
 ) -> None:
     """Fit a propulsion: section (propeller CT0/CP0, DC motor KV/R/I0, battery resistance, rotor
-    inertia from step tests) from a thrust-stand log, print the fit residuals.
+    inertia from step tests) from a thrust-stand log, print each part with its residuals.
+
+    Each part is fitted alone: one whose fit is not physical is marked refused, with the
+    reason, and the others are kept and printed (exit 0). Exit 2, writing nothing, when every
+    part asked for is refused, or when one is and --out asks for the section.
 
     Every destination (--out, the --plot figures) is checked before the log is read and its
     folder created before any file is written: a refused command writes nothing. A figure
@@ -77,18 +95,20 @@ def fit_propulsion_command(
     """
     from casadrone.outfile import OutputRefused, write_out
     from casadrone.thruststand import (
+        PARTS,
         LogError,
         check_log_file,
         fit_propulsion,
+        fitted_problem,
         read_log,
-        section_problem,
     )
 
     check_plot_dir(plot)
     problem = (option_problem(diameter_in, diameter_m, air_density, motor_poles, esc_min_us,
-                              esc_max_us) or shape_problem(shape))
+                              esc_max_us) or shape_problem(shape) or part_problem(part))
     if problem is not None:
         raise bad_input([problem])
+    log = shipped_log(log)
     try:
         check_log_file(log)
     except LogError as exc:
@@ -99,15 +119,24 @@ def fit_propulsion_command(
     D = diameter_m if diameter_m is not None else 0.0254 * (diameter_in or 0.0)
     try:
         stand = read_log(log, motor_poles)
-        fit = fit_propulsion(stand, D, air_density, esc_min_us, esc_max_us)
+        fit = fit_propulsion(stand, D, air_density, esc_min_us, esc_max_us,
+                             parts=PARTS if not part or "all" in part else tuple(part))
     except LogError as exc:
         raise bad_input([str(exc)]) from None
-    problem = section_problem(fit.section(shape), air_density) if shape else None
+    fitted_shape = shape if "propeller" in fit.fitted else None
+    if not fit.fitted or (out is not None and fit.refused):  # the fit shown, nothing written
+        _report(fit, fitted_shape, as_json)
+        line = refusal_line(fit, *fit.refused[0])
+        if fit.fitted:
+            line += (f"; --out not written, it would lack the {fit.refused[0][0]} (--part "
+                     "chooses the parts to write)")
+        raise bad_input([line])
+    problem = fitted_problem(fit, fitted_shape) if fitted_shape else None
     if problem is not None:  # the static section passed; the shape's J-dependence did not
         raise bad_input([f"{log.name}: with --shape {shape}: {problem}"])
     files: dict[tuple[str, Path], str | bytes] = {}
     if out is not None:
-        files["--out", out] = section_yaml(fit, shape)
+        files["--out", out] = section_yaml(fit, fitted_shape)
     if plot is not None:
         from casadrone.plots import propulsion_fit_figures
 
@@ -122,12 +151,35 @@ def fit_propulsion_command(
     except OutputRefused as exc:  # a file that appeared since the check
         raise bad_input([str(exc)]) from None
     shown_out = written.pop(0) if out is not None else None
+    _report(fit, fitted_shape, as_json, shown_out, written)
+
+
+def _report(fit, shape: str | None, as_json: bool, out: str | None = None,
+            figures: list[str] | None = None) -> None:
+    """The fit on stdout, as text or JSON, with the files written."""
     if as_json:
-        print_json({**fit.as_dict(shape), "out": shown_out, "figures": written})
+        print_json({**fit.as_dict(shape), "out": out, "figures": figures or []})
         return
     _print_text(fit)
-    for path in ([shown_out] if shown_out else []) + written:
+    for path in ([out] if out else []) + (figures or []):
         typer.echo(f"wrote {path}")
+
+
+def shipped_log(log: Path) -> Path:
+    """``log`` as given when anything is there (:func:`casadrone.thruststand.check_log_file`
+    says what a folder or a FIFO is), else the shipped log of that name (the convention of
+    :func:`casadrone.config.io.resolve_config`: ``example-5in``); ConfigError naming the
+    shipped logs when there is none."""
+    from casadrone.config.io import resolve_config
+
+    if log.exists() or log.is_symlink():
+        return log
+    return resolve_config(log, "thruststand")
+
+
+def refusal_line(fit, part: str, why: str) -> str:
+    """One line saying that ``part`` of ``fit`` is refused, and why."""
+    return f"{fit.source}: {part} refused: {why}"
 
 
 def option_problem(diameter_in: float | None, diameter_m: float | None, air_density: float,
@@ -151,6 +203,14 @@ def option_problem(diameter_in: float | None, diameter_m: float | None, air_dens
     if motor_poles is not None and motor_poles % 2:
         return (f"--motor-poles: {motor_poles} is odd; a motor has an even number of poles (two "
                 "per pole pair)")
+    return None
+
+
+def part_problem(parts: list[str] | None) -> str | None:
+    """A ``--part`` naming no part, as one line; else None."""
+    unknown = [p for p in parts or [] if p not in _parts()]
+    if unknown:
+        return f"--part: {unknown[0]!r} is not a part (one of {', '.join(_parts())})"
     return None
 
 
@@ -262,7 +322,9 @@ def section_yaml(fit: PropulsionFit, shape: str | None = None) -> str:
             f"# {len(fit.plateaus)} steady points ({fit.steady_source}), {len(fit.steps)} step "
             "responses; residuals:"]
     head += [f"#   {r.quantity}: rms {r.rms:.4g} {r.unit} ({100 * r.relative_rms:.2f} %), "
-             f"max {r.max_abs:.4g} {r.unit}" for r in fit.residuals]
+             f"max {r.max_abs:.4g} {r.unit}" for r in fit.residuals if r.part in fit.fitted]
+    head += [f"# {part}: not in this section: {state}; give it from its datasheet"
+             for part, state in _missing_parts(fit)]
     body = yaml.safe_dump({"propulsion": fit.section(shape)}, sort_keys=False)
     return "\n".join(head) + "\n" + body
 
@@ -277,18 +339,42 @@ def _print_text(fit: PropulsionFit) -> None:
     if fit.steady_source == "averaged rows":
         typer.echo("           (no plateau and rows seconds apart: each row taken as one "
                    "averaged steady point; no step response fitted)")
-    typer.echo(f"propeller  CT0 {fit.ct0:.5f}  CP0 {fit.cp0:.5f}  (D {fit.diameter_m:.4f} m, "
-               f"rho {fit.air_density_kg_m3:g} kg/m³)")
-    typer.echo(f"motor      KV {fit.kv_rpm_per_v:.1f} rpm/V  R {fit.resistance_ohm * 1e3:.1f} mΩ  "
-               f"I0 {fit.no_load_current_a:.3f} A")
+    why = dict(fit.refused)
+    for part in fit.parts:
+        typer.echo(f"{part:<10} {fit.status(part).upper() if part in why else 'fitted':<8} "
+                   f"{_values_text(fit, part)}")
+        for r in (r for r in fit.residuals if r.part == part):
+            typer.echo(f"           {r.quantity:<14} rms {r.rms:.4g} {r.unit} "
+                       f"({100 * r.relative_rms:.2f} %), max {r.max_abs:.4g} {r.unit}, "
+                       f"{r.points} points")
+        if part in why:
+            typer.echo(f"           why: {why[part]}")
     if fit.time_constant_s is None:
-        typer.echo("           time constant and rotor inertia not measured (no resolved step)")
+        typer.echo("rotor      time constant not measured (no resolved step)")
     else:
-        typer.echo(f"           time constant {fit.time_constant_s * 1e3:.1f} ms (median of "
-                   f"{len(fit.steps)} steps), rotor inertia {fit.rotor_inertia_kgm2:.3g} kg·m²")
-    typer.echo(f"battery    Voc {fit.open_circuit_voltage_v:.3f} V  "
-               f"R_int {fit.internal_resistance_ohm * 1e3:.1f} mΩ")
-    typer.echo("residuals:")
-    for r in fit.residuals:
-        typer.echo(f"  {r.quantity:<14} rms {r.rms:.4g} {r.unit} ({100 * r.relative_rms:.2f} %), "
-                   f"max {r.max_abs:.4g} {r.unit}, {r.points} points")
+        inertia = ("rotor inertia not worked out (it needs the fitted motor and battery)"
+                   if fit.rotor_inertia_kgm2 is None
+                   else f"rotor inertia {fit.rotor_inertia_kgm2:.3g} kg·m²")
+        typer.echo(f"rotor      time constant {fit.time_constant_s * 1e3:.1f} ms (median of "
+                   f"{len(fit.steps)} steps), {inertia}")
+    for part, state in _missing_parts(fit):
+        typer.echo(f"not in the section: {part} ({state})")
+
+
+def _values_text(fit, part: str) -> str:
+    """The fitted values of ``part`` as the console shows them."""
+    if part == "propeller":
+        return (f"CT0 {fit.ct0:.5f}  CP0 {fit.cp0:.5f}  (D {fit.diameter_m:.4f} m, "
+                f"rho {fit.air_density_kg_m3:g} kg/m³)")
+    if part == "motor":
+        return (f"KV {fit.kv_rpm_per_v:.1f} rpm/V  R {fit.resistance_ohm * 1e3:.1f} mΩ  "
+                f"I0 {fit.no_load_current_a:.3f} A")
+    return (f"Voc {fit.open_circuit_voltage_v:.3f} V  "
+            f"R_int {fit.internal_resistance_ohm * 1e3:.1f} mΩ")
+
+
+def _missing_parts(fit) -> list[tuple[str, str]]:
+    """(part, refused or not fitted) of each part the section lacks."""
+    from casadrone.thruststand import PARTS
+
+    return [(p, fit.status(p)) for p in PARTS if p not in fit.fitted]

@@ -542,41 +542,50 @@ def other_kind(model: type[BaseModel], data: dict[str, Any]) -> str | None:
             f"give {article} {ours} here (a YAML file or a shipped name)")
 
 
+#: Kinds of shipped files that are not under ``configs/``, and their suffix: the problems, and
+#: the example thrust-stand logs of ``casadrone fit-propulsion`` (CSV).
+TOP_KINDS = {"problems": ".yaml", "thruststand": ".csv"}
+
+
 def kind_dir(kind: str) -> Path:
-    """The shipped folder of one kind of config: ``airframes`` … or ``problems``."""
-    return DATA_DIR / "problems" if kind == "problems" else CONFIG_DIR / kind
+    """The shipped folder of one kind of config: ``airframes`` … or ``problems`` (or
+    ``thruststand``, the example stand logs)."""
+    return DATA_DIR / kind if kind in TOP_KINDS else CONFIG_DIR / kind
 
 
 def resolve_config(name: str | Path, kind: str) -> Path:
     """A path as given if it exists, else the shipped ``configs/<kind>/<name>.yaml`` (e.g.
-    ``SY250``; kind ``problems`` looks in the shipped ``problems/``, e.g. ``quick``).
+    ``SY250``; kind ``problems`` looks in the shipped ``problems/``, e.g. ``quick``; kind
+    ``thruststand`` in the shipped ``thruststand/`` for ``<name>.csv``, e.g. ``example-5in``).
 
     Raises ConfigError naming the known configs when neither exists.
     """
     folder = kind_dir(kind)
-    where = "problems" if kind == "problems" else f"configs/{kind}"
+    where = kind if kind in TOP_KINDS else f"configs/{kind}"
+    suffix = TOP_KINDS.get(kind, ".yaml")
     if not str(name).strip():  # an unset shell variable: Path("") would read as "."
-        listed = ", ".join(_names_in(folder)) or "none"
+        listed = ", ".join(_names_in(folder, suffix)) or "none"
         raise ConfigError([f"{str(name)!r}: an empty name: give a YAML file or the name of a "
                            f"shipped {where} file (known: {listed})"])
     p = Path(name)
     for candidate in (p, ROOT / p, DATA_DIR / p):
         if candidate.is_file():
             return candidate
-    candidate = folder / f"{p.stem}.yaml"
-    if len(p.parts) == 1 and p.suffix in ("", ".yaml", ".yml") and candidate.is_file():
+    candidate = folder / f"{p.stem}{suffix}"
+    suffixes = ("", ".yaml", ".yml") if suffix == ".yaml" else ("", suffix)
+    if len(p.parts) == 1 and p.suffix in suffixes and candidate.is_file():
         return candidate
     # something there that is not a file (a folder in the working directory, a dangling link):
     # say what it is, not "file not found"
     if len(p.parts) > 1 or p.is_symlink() or p.exists():
         raise ConfigError([f"{name}: {not_a_file(p)}"])
-    known = _names_in(folder)
+    known = _names_in(folder, suffix)
     close = difflib.get_close_matches(p.stem, known, n=1, cutoff=0.6)
     hint = f"did you mean '{close[0]}'? " if close else ""
-    raise ConfigError([f"{name}: file not found, and no shipped {where}/{p.stem}.yaml "
+    raise ConfigError([f"{name}: file not found, and no shipped {where}/{p.stem}{suffix} "
                        f"({hint}known: {', '.join(known) or 'none'})"])
 
 
-def _names_in(folder: Path) -> list[str]:
+def _names_in(folder: Path, suffix: str = ".yaml") -> list[str]:
     """The names of the shipped configs in ``folder`` (what the refusals list)."""
-    return sorted(f.stem for f in folder.glob("*.yaml"))
+    return sorted(f.stem for f in folder.glob(f"*{suffix}"))

@@ -1,6 +1,6 @@
 """Mutation check: plant known one-line bugs, one at a time, and see which default tests fail.
 
-Each bug of issue 22's table is planted in a temporary copy of the checkout (the package, its
+Each bug of issues 22 and 47 is planted in a temporary copy of the checkout (the package, its
 tests and data; never the checkout itself), then the default tests relevant to it run there
 (``-m 'not slow'``, as CI runs them). A bug that no default test fails is a blind spot of the
 suite. Not run by CI (it runs the tests eight times over); run it by hand after changing the
@@ -78,6 +78,19 @@ MUTANTS = (
            "        return 0.0, float(airframe.thrust_gain)\n    return 0.0, max_speed(",
            "        return 0.0, 0.9 * float(airframe.thrust_gain)\n    return 0.0, max_speed(",
            LIMIT_TESTS),
+    Mutant("gate-height-hw", "a rectangular gate's upper height row reads its half width",
+           "(up - t.hh, -np.inf, 0.0)", "(up - t.hw, -np.inf, 0.0)",
+           ("tests/unit/test_limitlap.py",)),
+    Mutant("stand-lbf", "the thrust stand's lbf read as the pound's mass (g_n forgotten)",
+           '"lbf": 4.4482216152605', '"lbf": 0.45359237', ("tests/unit/test_thruststand.py",)),
+    Mutant("stand-kgfcm", "the thrust stand's kgf·cm read as kgf·mm",
+           '"kgf·cm": G0 * 1e-2', '"kgf·cm": G0 * 1e-3', ("tests/unit/test_thruststand.py",)),
+    Mutant("study-unconverged-root", "the trim study counts an unconverged solve as a root",
+           "return bool(np.all(np.isfinite(tp.x0))) and tp.residual_norm <= tol",
+           "return bool(np.all(np.isfinite(tp.x0)))", ("tests/unit/test_trimstudy.py",)),
+    Mutant("study-no-wrap", "the trim study's root distance without its ±π wrap",
+           "d[:2] = np.minimum(d[:2], 2 * math.pi - d[:2])", "d[:2] = np.minimum(d[:2], d[:2])",
+           ("tests/unit/test_trimstudy.py",)),
 )
 
 

@@ -551,9 +551,10 @@ def test_too_many_intervals_over_the_course_are_refused_before_any_solve():
     assert "6480 intervals" in why
 
 
-def _gate_lap(kind, half, edges=None):
-    """Double integrator (|a| ≤ 2 per axis) from rest at the origin through a gate at x = 5
-    (centre 6 m to the left, flown east: the sideways flight sets the time) to (10, 0, 0)."""
+def _gate_lap(kind, half, edges=None, centre=(5.0, 6.0, 0.0), half_height=None):
+    """Double integrator (|a| ≤ 2 per axis) from rest at the origin through a gate of half
+    width ``half`` and half height ``half_height`` (default ``half``) at ``centre`` (default
+    x = 5, 6 m to the left, flown east: the sideways flight sets the time) to (10, 0, 0)."""
     from casadrone.limit.gates import MAX_EDGES
 
     model = _double_integrator()
@@ -565,8 +566,8 @@ def _gate_lap(kind, half, edges=None):
     if edges is not None:
         E[0] = edges
     P = np.concatenate([[0.0], np.zeros(6), target_vector(
-        np.array([[5, 6, 0], [10, 0, 0]], float), kinds, np.zeros(L), np.array([half, 0]),
-        np.array([half, 0]), 0.0, edges=E)])
+        np.array([centre, [10, 0, 0]], float), kinds, np.zeros(L), np.array([half, 0]),
+        np.array([half if half_height is None else half_height, 0]), 0.0, edges=E)])
     lbx = nlp.pack(np.full(L, 1e-2), np.r_[np.zeros((1, 6)), np.full((M, 6), -np.inf)],
                    np.full((M, 3), -2.0))
     ubx = nlp.pack(np.full(L, 1e2), np.r_[np.zeros((1, 6)), np.full((M, 6), np.inf)],
@@ -598,6 +599,25 @@ def test_polygon_gate_equal_to_its_bounding_rectangle():
     T_circle, X_circle, _ = _gate_lap("circle", 0.5)
     assert X_circle[20, 1] >= 5.5 - 1e-6
     assert T_rect.sum() * (1 - 1e-8) <= T_circle.sum() <= T_rect.sum() * (1 + 1e-4)
+
+
+@pytest.mark.parametrize("z_gate", [2.0, -2.0])
+def test_wide_low_gate_equal_to_its_polygon_and_passed_at_its_height_edge(z_gate):
+    """A gate 2 m wide and 0.6 m tall, 2 m above (or below) the straight line: its height rows
+    bind (the lap passes at the opening's edge nearest the line, z = ±(2 − 0.3), a fact of the
+    geometry), its width rows do not, and the rectangle gives the same lap as the polygon of
+    its corners (rows built from the vertices, not from the half height). A rectangle whose
+    height rows read its half width (1 m) would pass at ±1 m and be faster."""
+    from casadrone.limit.gates import polygon_edges
+
+    centre, hw, hh = (5.0, 0.0, z_gate), 1.0, 0.3
+    T_rect, X_rect, _ = _gate_lap("gate", hw, centre=centre, half_height=hh)
+    np.testing.assert_allclose(X_rect[20, 2], np.sign(z_gate) * (abs(z_gate) - hh), atol=1e-6)
+    corners = np.array([[-hw, -hh], [hw, -hh], [hw, hh], [-hw, hh]])
+    T_poly, X_poly, _ = _gate_lap("polygon", hw, polygon_edges(corners, 0.0), centre=centre,
+                                  half_height=hh)
+    np.testing.assert_allclose(T_poly, T_rect, rtol=1e-7)
+    np.testing.assert_allclose(X_poly[20, 2], X_rect[20, 2], atol=1e-6)
 
 
 def test_certainty_counts_the_laps_on_other_grids():

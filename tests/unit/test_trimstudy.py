@@ -221,3 +221,40 @@ def test_study_of_a_propeller_frame_varies_the_shared_unknowns():
     ref = study.points[0].reference
     tp = trim(frame, "hover", solver="newton", options=TrimOptions(initial_guess=tuple(ref)))
     np.testing.assert_allclose(tp.thrusts.sum(), frame.mass * frame.gravity, rtol=2e-15)  # 2e-16
+
+
+def test_an_unconverged_solve_is_no_root(hs210):
+    """Capped at 3 iterations, both solvers reach the forward-flight trim from the analytic guess
+    (3 iterations) and from none of the 6 drawn starts (seed 0: residuals 1e-3 to 18): the
+    failed solves belong to no solution and have no distance; the one solution is a root
+    (residual by the trim's own norm) found once by each solver."""
+    capped = StudyOptions(starts=6, seed=0, solvers=FAST, trim=TrimOptions(max_iterations=3))
+    p = study_point(hs210, OperatingPoint("forward", 20.0), capped)
+    failed = [r for r in p.results if r.outcome == "failed"]
+    assert {r.outcome for r in p.results if r.start == 0} == {"converged"}
+    assert len(failed) == len(p.results) - len(FAST)  # the situation the test is about
+    assert all(r.residual_norm > 1e-9 for r in failed)
+    for r in failed:
+        assert r.solution == -1 and math.isnan(r.distance), (r.solver, r.start)
+    assert len(p.solutions) == 1 and p.solutions[0].found_by == {s: 1 for s in FAST}
+    assert residual_norm(hs210, p.solutions[0].z, "forward", 20.0) <= 1e-9
+    assert [p.summary(s).solutions for s in FAST] == [1, 1]
+
+
+@pytest.mark.parametrize("eps", [1e-6, 1e-3])
+def test_roots_either_side_of_phi_pi_are_one(eps):
+    """φ = π − ε and φ = −π + ε are 2ε apart (the angle wraps at ±π): the same root within
+    the study's tolerance, one cluster; φ = 0 against π − ε is π − ε apart. Likewise θ."""
+    from casadrone.trimstudy import _cluster, _distance
+
+    commands = np.array([-0.3, -0.3, -0.3, -0.3])
+    for angle in (0, 1):  # φ, then θ
+        a, b = np.r_[0.1, 0.1, commands], np.r_[0.1, 0.1, commands]
+        a[angle], b[angle] = math.pi - eps, -math.pi + eps
+        assert _distance(a, b) == pytest.approx(2 * eps, rel=1e-6)
+        assert _distance(b, a) == pytest.approx(2 * eps, rel=1e-6)
+        labels, reps = _cluster([a, b], tol=3 * eps)
+        assert labels == [0, 0] and len(reps) == 1
+        c = a.copy()
+        c[angle] = 0.0
+        assert _distance(c, a) == pytest.approx(math.pi - eps, rel=1e-9)

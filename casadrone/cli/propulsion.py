@@ -154,7 +154,7 @@ def fit_propulsion_command(
     _report(fit, fitted_shape, as_json, shown_out, written)
 
 
-def _report(fit, shape: str | None, as_json: bool, out: str | None = None,
+def _report(fit: PropulsionFit, shape: str | None, as_json: bool, out: str | None = None,
             figures: list[str] | None = None) -> None:
     """The fit on stdout, as text or JSON, with the files written."""
     if as_json:
@@ -177,7 +177,7 @@ def shipped_log(log: Path) -> Path:
     return resolve_config(log, "thruststand")
 
 
-def refusal_line(fit, part: str, why: str) -> str:
+def refusal_line(fit: PropulsionFit, part: str, why: str) -> str:
     """One line saying that ``part`` of ``fit`` is refused, and why."""
     return f"{fit.source}: {part} refused: {why}"
 
@@ -361,7 +361,7 @@ def _print_text(fit: PropulsionFit) -> None:
         typer.echo(f"not in the section: {part} ({state})")
 
 
-def _values_text(fit, part: str) -> str:
+def _values_text(fit: PropulsionFit, part: str) -> str:
     """The fitted values of ``part`` as the console shows them."""
     if part == "propeller":
         return (f"CT0 {fit.ct0:.5f}  CP0 {fit.cp0:.5f}  (D {fit.diameter_m:.4f} m, "
@@ -373,7 +373,7 @@ def _values_text(fit, part: str) -> str:
             f"R_int {fit.internal_resistance_ohm * 1e3:.1f} mΩ")
 
 
-def _missing_parts(fit) -> list[tuple[str, str]]:
+def _missing_parts(fit: PropulsionFit) -> list[tuple[str, str]]:
     """(part, refused or not fitted) of each part the section lacks."""
     from casadrone.thruststand import PARTS
 

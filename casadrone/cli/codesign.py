@@ -8,7 +8,15 @@ from typing import Annotated
 
 import typer
 
-from casadrone.cli.common import JsonOpt, app, bad_input, print_json, reports_config_errors
+from casadrone.cli.common import (
+    JsonOpt,
+    QuietOpt,
+    app,
+    bad_input,
+    print_json,
+    progress_lines,
+    reports_config_errors,
+)
 
 
 @app.command("codesign")
@@ -21,6 +29,7 @@ def codesign_command(
     out: Annotated[Path | None, typer.Option(help="folder for result.json (and a front's run "
                                              "directory); must be new or empty")] = None,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Co-design: the problem's decision variables become variables of the limit-lap NLP, so one
     solve gives the frame with the fastest limit lap (on one track, or the weighted sum or the
@@ -28,6 +37,9 @@ def codesign_command(
     feasible frames (all reported), and certifies the result and every point of a front: the
     limit lap re-solved with the frame fixed (under a front point's ε row), the reduced gradient
     in θ with its multipliers, the CVODES re-simulation.
+
+    Progress (each start with its objective, iterations and CPU, the certificate, each front
+    point, any compile) goes to stderr as it happens; -q silences it.
 
     A problem with a closed-loop index (J1-J5, Jp) is refused by name (exit code 2).
     """
@@ -37,7 +49,8 @@ def codesign_command(
     if out is not None and out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise bad_input([f"{out}: --out must be a new or empty folder (nothing is overwritten)"])
     cfg = load_codesign_problem(problem, overrides or [])
-    result = codesign(cfg, run_dir=out)
+    with progress_lines("codesign", quiet):
+        result = codesign(cfg, run_dir=out)
     data = result.as_dict()
     if out is not None:
         from casadrone.cli.common import jsonable

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from functools import wraps
 from pathlib import Path
 from typing import Annotated, Any
@@ -121,10 +122,23 @@ PlotOpt = Annotated[
         "--plot", help="save figures (PNG and SVG) into this folder (a figure casadrone wrote "
         "is replaced; any other file of a figure's name is refused)")
 ]
+QuietOpt = Annotated[bool, typer.Option(
+    "--quiet", "-q", help="no progress lines on stderr (errors are still printed)")]
 TrackOpt = Annotated[
     str | None,
     typer.Option(help="track YAML or name (default: configs/tracks/paper-rectangle.yaml)"),
 ]
+
+
+@contextmanager
+def progress_lines(command: str, quiet: bool) -> Iterator[None]:
+    """Run the block with the library's progress events (:mod:`casadrone.progress`) printed on
+    stderr as ``COMMAND: what [CPU c s, wall w s]``, or with none at all (compiles included)
+    under ``--quiet``; stdout stays the command's result (pure JSON with ``--json``)."""
+    from casadrone.progress import listening, printer
+
+    with listening(None if quiet else printer(command)):
+        yield
 
 
 def registry_option(names: Callable[[], Iterable[str]], what: str, help: str,

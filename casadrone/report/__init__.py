@@ -23,6 +23,7 @@ import datetime as _dt
 from pathlib import Path
 
 from casadrone.outfile import shown_path
+from casadrone.progress import emit, nested
 from casadrone.report.analysis import (
     choose_candidates,
     read_run,
@@ -106,24 +107,32 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
     cands = choose_candidates(run)
     codesign = is_codesign(run)
     if not run.test_problem:
-        cands = evaluate_candidates(run, cands, limit=not codesign)
-    body = {
-        "problem": section_problem(run),
-        "convergence": section_convergence(run, figs),
-        "pareto": section_pareto(run, cands, figs),
-        "codesign": section_codesign(run, cands, figs) if codesign else "",
-        "candidates": (section_candidates(run, cands, figs, path.parent / EXPORTS,
-                                          limit=not codesign)
-                       if not run.test_problem
-                       else note("A pymoo test problem has no trajectories.")),
-        "airframes": section_airframes(run, cands, tuple(references), figs,
-                                       limit=not codesign),
-        "failures": section_failures(run, figs),
-        "trim": section_trim(run, cands, figs, trim_sample, trim_study_starts),
+        emit("stage", f"re-evaluating candidate(s) {', '.join(c.label for c in cands)} with "
+             "their trajectories")
+        with nested():
+            cands = evaluate_candidates(run, cands, limit=not codesign)
+    builders = {
+        "problem": lambda: section_problem(run),
+        "convergence": lambda: section_convergence(run, figs),
+        "pareto": lambda: section_pareto(run, cands, figs),
+        "codesign": lambda: section_codesign(run, cands, figs),
+        "candidates": lambda: (section_candidates(run, cands, figs, path.parent / EXPORTS,
+                                                  limit=not codesign)
+                               if not run.test_problem
+                               else note("A pymoo test problem has no trajectories.")),
+        "airframes": lambda: section_airframes(run, cands, tuple(references), figs,
+                                               limit=not codesign),
+        "failures": lambda: section_failures(run, figs),
+        "trim": lambda: section_trim(run, cands, figs, trim_sample, trim_study_starts),
     }
+    shown = [(k, t) for k, t in SECTIONS if k != "codesign" or codesign]
+    body = {}
+    for i, (k, t) in enumerate(shown, start=1):  # one progress line per section, as it begins
+        emit("stage", f"section {i}/{len(shown)}: {t}")
+        with nested():
+            body[k] = builders[k]()
     m = run.manifest
     stamp = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-    shown = [(k, t) for k, t in SECTIONS if k != "codesign" or codesign]
     nav = "".join(f'<a href="#{k}">{esc(t)}</a>' for k, t in shown)
     sections = "".join(f'<section id="{k}"><h2>{i}. {esc(t)}</h2>{body[k]}</section>'
                        for i, (k, t) in enumerate(shown, start=1))

@@ -21,13 +21,13 @@ def solve_text(sol: NlpSolution) -> str:
     return f"{lap}, {sol.iterations} iterations"
 
 
-def begun(intervals: int, options: LimitLapOptions) -> None:
+def begun(options: LimitLapOptions) -> None:
     """The lap's set-up, before its NLP is built (the first use of a model compiles it)."""
     if active():
         starts = ", ".join(options.starts) or "none"
         warm = f" and {len(options.warm_starts)} warm start(s)" if options.warm_starts else ""
-        emit("stage", f"limit lap on {intervals} intervals per leg ({options.solver}): cold "
-             f"starts {starts}{warm}, grid rounds up to {options.grid_rounds}")
+        emit("stage", f"limit lap on {options.intervals} intervals per leg ({options.solver}): "
+             f"cold starts {starts}{warm}, grid rounds up to {options.grid_rounds}")
 
 
 @contextmanager
@@ -35,14 +35,13 @@ def start(name: str, intervals: int) -> Iterator[Callable[[NlpSolution], None]]:
     """Around one start: the block runs nested (a start's own lap on another grid is an inner
     call) and gets ``done(solution)``, which emits the start's lap, iterations and CPU."""
     c0 = time.process_time()
-
-    def done(sol: NlpSolution) -> None:
+    got: list[NlpSolution] = []
+    with nested():
+        yield got.append
+    for sol in got:  # at the caller's depth, not the nested block's
         cpu = time.process_time() - c0
         emit("start", f"start {name} ({intervals} intervals): {solve_text(sol)}, "
              f"{cpu:.1f} s CPU", lap_s=sol.objective, iterations=sol.iterations, cpu_s=cpu)
-
-    with nested():
-        yield done
 
 
 def solved(name: str, intervals: int, solve: Callable[[], tuple[str, NlpSolution] | None]

@@ -158,7 +158,7 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     why = refusal(frame, track, options, clearance_m)
     if why:
         return _failed(why, start)
-    events.begun(options.intervals, options)
+    events.begun(options)
     pb = prepare(frame, track, options, clearance_m)
     grid_laps: dict[int, float] = {}  # the laps the grid-continuation starts solved on theirs
 

@@ -145,8 +145,8 @@ def main(argv: list[str] | None = None) -> int:
 
     t0 = time.perf_counter()
     try:
-        precompile(jobs=args.jobs, report=None if args.quiet else ready_lines(len(SHIPPED)),
-                   quiet=args.quiet)
+        precompile(SHIPPED, jobs=args.jobs,
+                   report=None if args.quiet else ready_lines(len(SHIPPED)), quiet=args.quiet)
     except NoCompiler as err:
         print(f"python -m casadrone.precompile: {err.strerror}", file=sys.stderr)
         return 1

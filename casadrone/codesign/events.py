@@ -52,8 +52,8 @@ def certifying(what: str, objective_s: float) -> None:
 
 def certified(cert, cpu_s: float) -> None:
     """A certificate was issued (:class:`~casadrone.codesign.certificate.Certificate`)."""
-    emit("stage", f"certificate {'passed' if cert.passed else 'FAILED'}: {cert.summary()} "
-         f"({cpu_s:.1f} s CPU)", passed=float(cert.passed), cpu_s=cpu_s)
+    emit("stage", f"certificate: {cert.summary()} ({cpu_s:.1f} s CPU)",
+         passed=float(cert.passed), cpu_s=cpu_s)
 
 
 def front_point(k: int, n: int, fp, measure: str) -> None:

@@ -107,3 +107,83 @@ def test_codesign_prints_each_start_and_its_certificate_and_nothing_with_quiet(c
     assert quiet.stderr == ""
     best = json.loads(quiet.stdout)["best"]
     assert (best["objective"], best["theta"]) == (data["best"]["objective"], data["best"]["theta"])
+
+
+def test_report_says_each_section_as_it_builds_it_and_nothing_with_q(tmp_path, cli_runner):
+    """A pymoo test-problem run (seconds): one ``section k/n: TITLE`` line per section of the
+    page, in the page's order, then the path alone on stdout; ``-q``: stderr empty."""
+    import re
+
+    from casadrone.cli import app
+    from casadrone.config.problem import BackendConfig
+    from casadrone.optimise.checks import load_problem
+    from casadrone.optimise.runner import run
+
+    problem_file = tmp_path / "zdt.yaml"
+    problem_file.write_text("name: zdt\ntest_problem: {name: zdt1, n_var: 4}\n"
+                            "algorithm: {name: nsga2, population: 12, generations: 3}\n")
+    run(load_problem(problem_file), tmp_path / "zdt", BackendConfig(name="serial"), quiet=True)
+    r = cli_runner.invoke(app, ["report", str(tmp_path / "zdt")])
+    assert r.exit_code == 0, r.output
+    html = (tmp_path / "zdt" / "report.html").read_text()
+    titles = re.findall(r'<section id="[a-z]+"><h2>\d+\. ([^<]+)</h2>', html)
+    lines = _lines(r.stderr, "report")
+    n = len(titles)
+    assert [line.split(" [CPU")[0] for line in lines] == [
+        f"report: section {k}/{n}: {t}" for k, t in enumerate(titles, start=1)]
+    assert r.stdout.strip().endswith("report.html")
+
+    quiet = cli_runner.invoke(app, ["report", str(tmp_path / "zdt"), "-q"])
+    assert quiet.exit_code == 0, quiet.output
+    assert quiet.stderr == ""
+
+
+def test_trim_study_says_each_operating_point_and_nothing_with_q(cli_runner):
+    """Two operating points, two starts each (the guess and one random), Newton alone: one
+    ``point k/2`` line each, with the success rate the JSON reports for it."""
+    from casadrone.cli import app
+
+    args = ["trim-study", "SY250", "--conditions", "hover,forward:10", "--starts", "1",
+            "--solvers", "newton", "--json"]
+    r = cli_runner.invoke(app, args)
+    assert r.exit_code == 0, r.output
+    points = json.loads(r.stdout)["points"]
+    lines = _lines(r.stderr, "trim-study")
+    assert len(lines) == len(points) == 2
+    for k, (line, p) in enumerate(zip(lines, points, strict=True), start=1):
+        rate = p["summaries"][0]["success_rate"]
+        assert line.startswith(f"trim-study: point {k}/2 {p['point']['label']}: trimmed from "
+                               f"{len(p['starts'])} start(s): newton {rate:.0%};"), line
+    quiet = cli_runner.invoke(app, [*args, "-q"])
+    assert quiet.exit_code == 0 and quiet.stderr == "", quiet.output
+
+
+def _console(console: list[str], *args: str) -> tuple[dict, list[str]]:
+    """Run the console script; (its stdout as JSON, its stderr lines)."""
+    import subprocess
+
+    r = subprocess.run([*console, *args, "--json"], capture_output=True, text=True, check=False)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout), r.stderr.splitlines()
+
+
+@pytest.mark.slow
+def test_the_shipped_commands_say_each_start_on_stderr(console):
+    """What the issue ran, at the defaults (about 110 s and 75 s of CPU with the blocks
+    compiled): ``limit-lap SY250`` a line per start of its result (grid-round starts included)
+    and per grid round; ``codesign codesign-paper`` a line as each of its starts begins and
+    one as it ends."""
+    lap, err = _console(console, "limit-lap", "SY250")
+    for s in lap["starts"]:
+        assert sum(line.startswith(f"limit-lap: start {s['start']} ") for line in err) == 1, \
+            (s["start"], err)
+    assert any(line.startswith("limit-lap: grid round 1:") for line in err)
+
+    design, err = _console(console, "codesign", "codesign-paper")
+    labels = [s["label"] for s in design["starts"]]
+    assert len(labels) >= 6  # the template and codesign.starts: 5 random frames
+    for s in labels:
+        assert sum(line.startswith(f"codesign: start {s}:") for line in err) == 1, (s, err)
+    assert sum(line.startswith("codesign: start ") and "/" in line.split()[2]
+               for line in err) == len([s for s in labels if s == "template"
+                                        or s.startswith("random-")])

@@ -39,19 +39,23 @@ def start(name: str, intervals: int) -> Iterator[Callable[[NlpSolution], None]]:
     with nested():
         yield got.append
     for sol in got:  # at the caller's depth, not the nested block's
-        cpu = time.process_time() - c0
-        emit("start", f"start {name} ({intervals} intervals): {solve_text(sol)}, "
-             f"{cpu:.1f} s CPU", lap_s=sol.objective, iterations=sol.iterations, cpu_s=cpu)
+        _solved(name, intervals, sol, time.process_time() - c0)
 
 
-def solved(name: str, intervals: int, solve: Callable[[], tuple[str, NlpSolution] | None]
+def _solved(name: str, intervals: int, sol: NlpSolution, cpu_s: float) -> None:
+    emit("start", f"start {name} ({intervals} intervals): {solve_text(sol)}, {cpu_s:.1f} s "
+         "CPU", lap_s=sol.objective, iterations=sol.iterations, cpu_s=cpu_s)
+
+
+def solved(intervals: int, solve: Callable[[], tuple[str, NlpSolution] | None]
            ) -> tuple[str, NlpSolution] | None:
-    """``solve()`` (a named solve, or None when it could not run) as start ``name``, reported
-    when it ran."""
-    with start(name, intervals) as done:
+    """``solve()`` (a named solve, or None when it could not run), nested, reported under its
+    own name when it ran (the fallback start: ``reference-SY250``)."""
+    c0 = time.process_time()
+    with nested():
         out = solve()
-        if out is not None:
-            done(out[1])
+    if out is not None:
+        _solved(out[0], intervals, out[1], time.process_time() - c0)
     return out
 
 

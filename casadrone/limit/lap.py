@@ -174,7 +174,7 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     good = verified(solves, misses, options)
     events.verified(len(good), sum(s.success for _, s in solves), len(solves))
     if solves and not good and (fallback := events.solved(
-            "fallback", pb.layout.intervals, lambda: fallback_solve(pb, limit_lap))) is not None:
+            pb.layout.intervals, lambda: fallback_solve(pb, limit_lap))) is not None:
         solves.append(fallback)
         misses = resimulation_misses(pb, solves, misses)
         good = verified(solves, misses, options)

@@ -81,3 +81,28 @@ def test_silence_drops_the_events_of_this_process(capsys):
         assert capsys.readouterr().err == ""
     finally:
         progress._listener = before
+
+
+def test_the_fallback_start_is_reported_by_its_own_name_with_its_inner_lap_nested():
+    """casadrone.limit.events.solved: the fallback start's reference lap (a whole limit lap of
+    SY250) emits one level deeper; the start itself is reported at the caller's depth under the
+    name the solve returns (the result's start name), with its lap and iterations."""
+    import numpy as np
+
+    from casadrone.limit import events
+    from casadrone.limit.nlp import NlpPoint, NlpSolution
+
+    sol = NlpSolution(True, "Solve_Succeeded", 3.8795, NlpPoint(*(np.zeros(1),) * 4), 61, 0.5)
+
+    def fallback():
+        emit("start", "start closed-loop (40 intervals): the reference's own lap")
+        return "reference-SY250", sol
+
+    seen: list[Event] = []
+    with listening(seen.append):
+        assert events.solved(40, fallback) == ("reference-SY250", sol)
+        assert events.solved(40, lambda: None) is None  # no fallback: nothing reported
+    assert [(e.depth, e.text.split(":")[0]) for e in seen] == [
+        (1, "start closed-loop (40 intervals)"), (0, "start reference-SY250 (40 intervals)")]
+    assert seen[1].values["lap_s"] == 3.8795 and seen[1].values["iterations"] == 61
+    assert "lap 3.8795 s, 61 iterations" in seen[1].text

@@ -161,7 +161,6 @@ def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
     if not isinstance(problem, CodesignProblemConfig):
         problem = load_codesign_problem(problem)
     wall0, cpu0 = time.perf_counter(), time.process_time()
-    events.preparing(problem.name, len(problem.codesign.tracks) or 1, len(problem.variables))
     prep = prepare(problem)
     build_cpu = time.process_time() - cpu0
     reports, points = [], []

@@ -243,6 +243,8 @@ def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Pr
                               starts=problem.codesign.lap_starts, point_mass_reference=False,
                               gate_clearance_m=gate_clearance(template, lower, upper, keys),
                               refinements=0)
+    # the problem is read and valid (a ConfigError is raised before any progress line)
+    events.preparing(problem.name, len(tracks), len(keys))
     parts = tuple(_part(template, t, options, w) for t, w in zip(tracks, weights, strict=True))
     frame = SymbolicFrame(template, keys, lower, upper)
     nlp = _built(problem, template, keys, lower, upper, tracks, weights, parts, frame, epsilon)

@@ -107,10 +107,7 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
     cands = choose_candidates(run)
     codesign = is_codesign(run)
     if not run.test_problem:
-        emit("stage", f"re-evaluating candidate(s) {', '.join(c.label for c in cands)} with "
-             "their trajectories")
-        with nested():
-            cands = evaluate_candidates(run, cands, limit=not codesign)
+        cands = evaluate_candidates(run, cands, limit=not codesign)
     builders = {
         "problem": lambda: section_problem(run),
         "convergence": lambda: section_convergence(run, figs),

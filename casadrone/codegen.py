@@ -40,7 +40,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from casadrone.progress import emit
+from casadrone.progress import children_cpu_seconds, emit
 
 DEFAULT_FLAGS: tuple[str, ...] = ("-O2",)
 
@@ -127,7 +127,7 @@ def _build(name: str, src: str, flags: tuple[str, ...], target: Path) -> None:
     if announce:
         emit("compile", f"compiling {name} ({len(src) // 1000} kB of C from CasADi) once for "
              f"this machine, cached in {cache}; a large one takes a minute or two")
-    cpu0 = _children_cpu_s()
+    cpu0 = children_cpu_seconds()  # the compiler is a child process
     try:
         with tempfile.TemporaryDirectory(prefix=TEMP_PREFIX) as tmp:  # removed on any exit
             c_file, so_file = Path(tmp) / f"{name}.c", Path(tmp) / f"{name}.so"
@@ -136,17 +136,11 @@ def _build(name: str, src: str, flags: tuple[str, ...], target: Path) -> None:
                           "-lm"])
             _install(so_file, target, name, cache)
         if announce:
-            cpu = _children_cpu_s() - cpu0
+            cpu = children_cpu_seconds() - cpu0
             emit("compile", f"compiled {name} ({cpu:.1f} s CPU of the compiler)", cpu_s=cpu)
     except _Terminated:  # cleaned up: now end as SIGTERM would have ended the process
         _terminated_again()
         raise
-
-
-def _children_cpu_s() -> float:
-    """CPU seconds of the child processes waited for so far (the compiler's, user and system)."""
-    t = os.times()
-    return t.children_user + t.children_system
 
 
 def _install(so_file: Path, target: Path, name: str, cache: Path) -> None:

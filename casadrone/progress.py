@@ -105,7 +105,13 @@ def cpu_seconds() -> float:
     """CPU seconds of this process and of the children it has waited for (a compiler, a
     finished worker), user and system: what the command has cost so far."""
     t = os.times()
-    return t.user + t.system + t.children_user + t.children_system
+    return t.user + t.system + children_cpu_seconds()
+
+
+def children_cpu_seconds() -> float:
+    """CPU seconds, user and system, of the child processes this one has waited for."""
+    t = os.times()
+    return t.children_user + t.children_system
 
 
 def printer(prefix: str, stream: IO[str] | None = None, max_depth: int = 0) -> Listener:
@@ -122,11 +128,3 @@ def printer(prefix: str, stream: IO[str] | None = None, max_depth: int = 0) -> L
               f"{time.perf_counter() - wall0:.1f} s]", file=out, flush=True)
 
     return show
-
-
-@contextmanager
-def step_cpu() -> Iterator[Callable[[], float]]:
-    """``with step_cpu() as cpu: ...; cpu()`` → the CPU seconds of this process since the block
-    began (time.process_time: the step's own, not its children's)."""
-    c0 = time.process_time()
-    yield lambda: time.process_time() - c0

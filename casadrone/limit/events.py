@@ -43,7 +43,7 @@ def start(name: str, intervals: int) -> Iterator[Callable[[NlpSolution], None]]:
 
 
 def _solved(name: str, intervals: int, sol: NlpSolution, cpu_s: float) -> None:
-    emit("start", f"start {name} ({intervals} intervals): {solve_text(sol)}, {cpu_s:.1f} s "
+    emit("start", f"start {name} on {intervals} intervals: {solve_text(sol)}, {cpu_s:.1f} s "
          "CPU", lap_s=sol.objective, iterations=sol.iterations, cpu_s=cpu_s)
 
 

@@ -45,14 +45,14 @@ def test_quiet_drops_everything_compiles_included(capsys):
 def test_the_printer_shows_the_outermost_call_and_every_compile_with_cpu_and_wall():
     stream = io.StringIO()
     with listening(printer("limit-lap", stream)):
-        emit("start", "start closed-loop (40 intervals): lap 3.9421 s")
+        emit("start", "start closed-loop on 40 intervals: lap 3.9421 s")
         with nested():
-            emit("start", "start closed-loop (30 intervals): an inner lap")
+            emit("start", "start closed-loop on 30 intervals: an inner lap")
             emit("compile", "compiling limit_jac")
     lines = stream.getvalue().splitlines()
     assert len(lines) == 2
     pattern = r"^limit-lap: {} \[CPU \d+\.\d s, wall \d+\.\d s\]$"
-    assert re.match(pattern.format(re.escape("start closed-loop (40 intervals): lap 3.9421 s")),
+    assert re.match(pattern.format(re.escape("start closed-loop on 40 intervals: lap 3.9421 s")),
                     lines[0])
     assert re.match(pattern.format("compiling limit_jac"), lines[1])
 
@@ -95,7 +95,7 @@ def test_the_fallback_start_is_reported_by_its_own_name_with_its_inner_lap_neste
     sol = NlpSolution(True, "Solve_Succeeded", 3.8795, NlpPoint(*(np.zeros(1),) * 4), 61, 0.5)
 
     def fallback():
-        emit("start", "start closed-loop (40 intervals): the reference's own lap")
+        emit("start", "start closed-loop on 40 intervals: the reference's own lap")
         return "reference-SY250", sol
 
     seen: list[Event] = []
@@ -103,6 +103,6 @@ def test_the_fallback_start_is_reported_by_its_own_name_with_its_inner_lap_neste
         assert events.solved(40, fallback) == ("reference-SY250", sol)
         assert events.solved(40, lambda: None) is None  # no fallback: nothing reported
     assert [(e.depth, e.text.split(":")[0]) for e in seen] == [
-        (1, "start closed-loop (40 intervals)"), (0, "start reference-SY250 (40 intervals)")]
+        (1, "start closed-loop on 40 intervals"), (0, "start reference-SY250 on 40 intervals")]
     assert seen[1].values["lap_s"] == 3.8795 and seen[1].values["iterations"] == 61
     assert "lap 3.8795 s, 61 iterations" in seen[1].text

@@ -40,6 +40,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from casadrone.progress import children_cpu_seconds, emit
+
 DEFAULT_FLAGS: tuple[str, ...] = ("-O2",)
 
 
@@ -121,10 +123,11 @@ def _build(name: str, src: str, flags: tuple[str, ...], target: Path) -> None:
         raise NoCompiler(errno.ENOENT, f"no C compiler: {cc!r} is not a program on this machine "
                          "(install gcc, or set CC to a C compiler); the closed-loop lap then runs "
                          "on CasADi's virtual machine, slower, and the limit lap needs one")
-    if len(src) >= ANNOUNCE_CHARS or sys.stderr.isatty():
-        print(f"casadrone: compiling {name} ({len(src) // 1000} kB of C from CasADi) once for "
-              f"this machine, cached in {cache}; a large one takes a minute or two",
-              file=sys.stderr, flush=True)
+    announce = len(src) >= ANNOUNCE_CHARS or sys.stderr.isatty()
+    if announce:
+        emit("compile", f"compiling {name} ({len(src) // 1000} kB of C from CasADi) once for "
+             f"this machine, cached in {cache}; a large one takes a minute or two")
+    cpu0 = children_cpu_seconds()  # the compiler is a child process
     try:
         with tempfile.TemporaryDirectory(prefix=TEMP_PREFIX) as tmp:  # removed on any exit
             c_file, so_file = Path(tmp) / f"{name}.c", Path(tmp) / f"{name}.so"
@@ -132,6 +135,9 @@ def _build(name: str, src: str, flags: tuple[str, ...], target: Path) -> None:
             run_compiler([cc, *flags, "-shared", "-fPIC", str(c_file), "-o", str(so_file),
                           "-lm"])
             _install(so_file, target, name, cache)
+        if announce:
+            cpu = children_cpu_seconds() - cpu0
+            emit("compile", f"compiled {name} ({cpu:.1f} s CPU of the compiler)", cpu_s=cpu)
     except _Terminated:  # cleaned up: now end as SIGTERM would have ended the process
         _terminated_again()
         raise

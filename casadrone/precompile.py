@@ -16,6 +16,7 @@ fingerprint (well under a second). Nothing else is computed.
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import sys
 import time
@@ -23,6 +24,8 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from multiprocessing import get_context
+
+from casadrone.progress import silence
 
 
 @dataclass(frozen=True)
@@ -79,20 +82,23 @@ def compile_block(block: Block) -> float:
 
 
 def precompile(blocks: tuple[Block, ...] = SHIPPED, jobs: int | None = None,
-               report: Callable[[Block, float], None] | None = None
+               report: Callable[[Block, float], None] | None = None, quiet: bool = False
                ) -> list[tuple[Block, float]]:
     """Compile ``blocks`` in ``jobs`` processes (default: the CPUs this process may use), each
-    reported to ``report(block, seconds)`` as it ends. Returns (block, seconds) in finishing
-    order. A failing compile (e.g. :class:`casadrone.codegen.NoCompiler`) raises here once the
-    compiles already running have ended. Each compile of a quadrotor block holds 1.5–3 GB of
-    memory while it runs: ``jobs`` bounds the sum."""
+    reported to ``report(block, seconds)`` in this process as it ends (the workers' own
+    progress cannot reach this process's listener, :mod:`casadrone.progress`). Returns (block,
+    seconds) in finishing order. A failing compile (e.g. :class:`casadrone.codegen.NoCompiler`)
+    raises here once the compiles already running have ended. Each compile of a quadrotor
+    block holds 1.5–3 GB of memory while it runs: ``jobs`` bounds the sum. ``quiet``: the
+    workers do not announce their compiles on stderr either."""
     if jobs is None:
         jobs = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                 else os.cpu_count() or 1)
     done: list[tuple[Block, float]] = []
     # spawn: a child starts clean (no CasADi state, no threads inherited from the parent)
     with ProcessPoolExecutor(max_workers=max(1, min(jobs, len(blocks))),
-                             mp_context=get_context("spawn")) as pool:
+                             mp_context=get_context("spawn"),
+                             initializer=silence if quiet else None) as pool:
         futures = {pool.submit(compile_block, b): b for b in blocks}
         try:
             for fut in as_completed(futures):
@@ -107,11 +113,30 @@ def precompile(blocks: tuple[Block, ...] = SHIPPED, jobs: int | None = None,
     return done
 
 
+def ready_lines(total: int, write: Callable[[str], None] | None = None
+                ) -> Callable[[Block, float], None]:
+    """A ``report`` for :func:`precompile`: the line ``block k/total ready: LABEL (s s wall)``
+    given to ``write`` (default: printed on stderr) as each block ends."""
+    done = itertools.count(1)
+
+    def ready(block: Block, seconds: float) -> None:
+        line = f"block {next(done)}/{total} ready: {block.label} ({seconds:.1f} s wall)"
+        if write is not None:
+            write(line)
+        else:
+            print(line, file=sys.stderr, flush=True)
+
+    return ready
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m casadrone.precompile",
                                      description=__doc__.split("\n\n")[0])
     parser.add_argument("--jobs", type=int, default=None,
                         help="compiles at a time (default: the CPUs this process may use)")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="no progress lines on stderr (each compile's start, each block "
+                        "ready)")
     args = parser.parse_args(argv)
     if args.jobs is not None and args.jobs < 1:
         print("python -m casadrone.precompile: --jobs must be at least 1", file=sys.stderr)
@@ -120,8 +145,8 @@ def main(argv: list[str] | None = None) -> int:
 
     t0 = time.perf_counter()
     try:
-        precompile(jobs=args.jobs,
-                   report=lambda b, s: print(f"{b.label}: {s:.1f} s", flush=True))
+        precompile(SHIPPED, jobs=args.jobs,
+                   report=None if args.quiet else ready_lines(len(SHIPPED)), quiet=args.quiet)
     except NoCompiler as err:
         print(f"python -m casadrone.precompile: {err.strerror}", file=sys.stderr)
         return 1

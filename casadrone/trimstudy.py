@@ -38,6 +38,7 @@ import numpy as np
 
 from casadrone.airframe import Airframe
 from casadrone.conditions import OperatingPoint, envelope
+from casadrone.progress import emit
 from casadrone.results import AsDict
 from casadrone.trim import (
     SOLVERS,
@@ -395,8 +396,19 @@ def trim_study(
     o = options or StudyOptions()
     pts = envelope(points) if isinstance(points, str) else tuple(points)
     start = time.perf_counter()
-    studies = tuple(study_point(frame, p, o) for p in pts)
-    return TrimStudy(frame.name, o, studies, UNKNOWN_NAMES, time.perf_counter() - start)
+    studies: list[PointStudy] = []
+    for k, p in enumerate(pts, start=1):
+        c0 = time.process_time()
+        studies.append(study_point(frame, p, o))
+        _point_done(k, len(pts), studies[-1], time.process_time() - c0)
+    return TrimStudy(frame.name, o, tuple(studies), UNKNOWN_NAMES, time.perf_counter() - start)
+
+
+def _point_done(k: int, n: int, study: PointStudy, cpu_s: float) -> None:
+    """Progress (:mod:`casadrone.progress`): operating point ``k`` of ``n`` studied."""
+    rates = ", ".join(f"{s.solver} {s.success_rate:.0%}" for s in study.summaries)
+    emit("stage", f"point {k}/{n} {study.point.label}: trimmed from {len(study.starts)} "
+         f"start(s): {rates}; {cpu_s:.1f} s CPU", cpu_s=cpu_s)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -448,6 +460,7 @@ def basin_slice(frame: Airframe, point: OperatingPoint, options: StudyOptions | 
                 out[i, j] = OUTCOMES.index(outcome_of(tp, d, o))
                 its[i, j] = tp.iterations
         outcomes[solver], iterations[solver] = out, its
+        emit("stage", f"basin slice of {point.label}: {solver} from {grid} x {grid} starts")
     return BasinSlice(point, offsets, offsets.copy(), outcomes, iterations)
 
 

@@ -10,10 +10,12 @@ import typer
 
 from casadrone.cli.common import (
     JsonOpt,
+    QuietOpt,
     app,
     bad_input,
     cost_text,
     print_json,
+    progress_lines,
     reports_config_errors,
 )
 
@@ -31,6 +33,7 @@ def codesign_command(
     out: Annotated[Path | None, typer.Option(help="folder for result.json (and a front's run "
                                              "directory); must be new or empty")] = None,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Co-design: the frame with the fastest limit lap, found in one solve (on one track, or the
     weighted sum or the worst of a season's tracks).
@@ -42,6 +45,9 @@ def codesign_command(
     that holds it; a sentence says what holds the frame (the co-design concept page explains
     the checks).
 
+    Progress (each start with its objective, iterations and CPU, the certificate, each front
+    point, any compile) goes to stderr as it happens; -q silences it.
+
     A problem with a closed-loop index (J1-J5, Jp) is refused by name (exit code 2).
     """
     from casadrone.codesign.checks import load_codesign_problem
@@ -50,7 +56,8 @@ def codesign_command(
     if out is not None and out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise bad_input([f"{out}: --out must be a new or empty folder (nothing is overwritten)"])
     cfg = load_codesign_problem(problem, overrides or [])
-    result = codesign(cfg, run_dir=out)
+    with progress_lines("codesign", quiet):
+        result = codesign(cfg, run_dir=out)
     data = result.as_dict()
     if out is not None:
         from casadrone.cli.common import jsonable

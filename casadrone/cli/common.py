@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from functools import wraps
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -146,6 +147,8 @@ PlotOpt = Annotated[
 #: was cut at 80 columns: "configs/tracks/paper-rectang…").
 DEFAULT_TRACK_NAME = "paper-rectangle"
 DEFAULT_CONTROLLER_NAME = "default"
+QuietOpt = Annotated[bool, typer.Option(
+    "--quiet", "-q", help="no progress lines on stderr (errors are still printed)")]
 TrackOpt = Annotated[
     str | None,
     typer.Option(help=f"track YAML or shipped name (default: {DEFAULT_TRACK_NAME})"),
@@ -155,6 +158,17 @@ ControllerOpt = Annotated[
     typer.Option(
         help=f"controller YAML or shipped name (default: {DEFAULT_CONTROLLER_NAME})"),
 ]
+
+
+@contextmanager
+def progress_lines(command: str, quiet: bool) -> Iterator[None]:
+    """Run the block with the library's progress events (:mod:`casadrone.progress`) printed on
+    stderr as ``COMMAND: what [CPU c s, wall w s]``, or with none at all (compiles included)
+    under ``--quiet``; stdout stays the command's result (pure JSON with ``--json``)."""
+    from casadrone.progress import listening, printer
+
+    with listening(None if quiet else printer(command)):
+        yield
 
 
 def registry_option(names: Callable[[], Iterable[str]], what: str, help: str,

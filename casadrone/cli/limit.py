@@ -15,12 +15,14 @@ from casadrone.cli.common import (
     JsonOpt,
     OverridesArg,
     PlotOpt,
+    QuietOpt,
     TrackOpt,
     app,
     bad_input,
     check_plot_dir,
     cost_text,
     print_json,
+    progress_lines,
     reports_config_errors,
     save_figures,
 )
@@ -83,6 +85,7 @@ def limit_lap_command(
              "accepts an accurate lap that drifts open loop)")] = "lap",
     as_json: JsonOpt = False,
     plot: PlotOpt = None,
+    quiet: QuietOpt = False,
 ) -> None:
     """Fly the limit lap: the minimum-time lap of the airframe through the track's waypoints
     (or gates), with ESC commands in [0, 1], thrust lag and the track's tilt limit.
@@ -94,6 +97,9 @@ def limit_lap_command(
     lap the solver cannot find (no convergence) is a result with status "failed" and a reason,
     exit code 0; a bad config (a malformed track, a frame too heavy to hover, a gate narrower
     than twice the frame's clearance) is bad input, exit code 2.
+
+    Progress (the set-up, each start and grid round with its lap, iterations and CPU, any
+    compile) goes to stderr as it happens; -q silences it.
 
     --plot DIR saves the limit lap beside the closed-loop lap (top view, 3-D) and its speed and
     commands over time.
@@ -138,7 +144,8 @@ def limit_lap_command(
                                                                cfg.prop_diameter_mm / 1000))
     if impossible:  # known before any solve: bad input, not a failed lap
         raise bad_input([f"{track_path}: {impossible} (refused before any solve)"])
-    lap = limit_lap(cfg, trk, options)
+    with progress_lines("limit-lap", quiet):
+        lap = limit_lap(cfg, trk, options)
     result = lap.as_dict()
     from casadrone.airframe import build_airframe
     from casadrone.limit.check import lap_propulsion

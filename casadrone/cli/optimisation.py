@@ -10,9 +10,11 @@ import typer
 
 from casadrone.cli.common import (
     JsonOpt,
+    QuietOpt,
     app,
     bad_input,
     print_json,
+    progress_lines,
     reports_config_errors,
 )
 
@@ -45,7 +47,6 @@ SchedulerOpt = Annotated[
     str | None,
     typer.Option("--scheduler", help="Dask scheduler address (implies --backend dask)"),
 ]
-QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="no progress lines")]
 ReferenceOpt = Annotated[
     list[str] | None,
     typer.Option("--reference", help="reference airframe (name or YAML); repeat for several "
@@ -392,8 +393,13 @@ def report(
     force: Annotated[bool, typer.Option(
         "--force", help="replace an existing --out file (the run's own report.html is always "
         "rewritten)")] = False,
+    quiet: QuietOpt = False,
 ) -> None:
-    """Write the HTML report of a run (front, candidates, gains over the references)."""
+    """Write the HTML report of a run (front, candidates, gains over the references).
+
+    Progress (the candidates' re-evaluation, then each section as it is built) goes to stderr;
+    -q silences it. The report's path goes to stdout.
+    """
     if out is not None and not force and (out.is_file() or out.is_symlink()) \
             and out.resolve() != (run_dir / "report.html").resolve():
         raise bad_input([f"--out: {out}: exists and was left untouched; choose another --out "
@@ -408,7 +414,9 @@ def report(
         typer.echo("report: casadrone.report is not available in this installation", err=True)
         raise typer.Exit(1) from None
     try:
-        path = write_report(run_dir, references=tuple(reference) if reference else None, out=out)
+        with progress_lines("report", quiet):
+            path = write_report(run_dir, references=tuple(reference) if reference else None,
+                                out=out)
     except (FileNotFoundError, ValueError) as exc:
         raise run_error(run_dir, exc) from None
     typer.echo(str(path))

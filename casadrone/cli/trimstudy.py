@@ -12,11 +12,13 @@ from casadrone.cli.common import (
     JsonOpt,
     OverridesArg,
     PlotOpt,
+    QuietOpt,
     app,
     bad_input,
     check_plot_dir,
     load_airframe_or_exit,
     print_json,
+    progress_lines,
     reports_config_errors,
     save_figures,
 )
@@ -65,18 +67,23 @@ def trim_study(
         "--conditions; default the study's fastest level point)")] = None,
     as_json: JsonOpt = False,
     plot: PlotOpt = None,
+    quiet: QuietOpt = False,
 ) -> None:
     """Compare the trim solvers from many starts at operating points across the envelope:
-    success rate, iterations, wall time, residual, distance from the reference, distinct roots."""
+    success rate, iterations, wall time, residual, distance from the reference, distinct roots.
+
+    Progress (each operating point as it is studied, each basin slice of --plot) goes to
+    stderr; -q silences it."""
     check_plot_dir(plot, TRIM_STUDY_FIGURES)
     points, options, focus = _parse(conditions, starts, seed, angle_spread, command_spread,
                                     solvers, reference, distinct_tolerance, basin_grid, plot_point)
     _, frame = load_airframe_or_exit(airframe, overrides)
     from casadrone.trimstudy import trim_study as run_study
 
-    study = run_study(frame, points, options)
-    written = _figures(frame, study, focus or _fastest_level(study), basin_grid, plot) \
-        if plot else []
+    with progress_lines("trim-study", quiet):
+        study = run_study(frame, points, options)
+        written = _figures(frame, study, focus or _fastest_level(study), basin_grid, plot) \
+            if plot else []
     if as_json:
         print_json(study.as_dict() | ({"figures": written} if plot else {}))
         return

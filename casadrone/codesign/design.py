@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from casadrone.codesign import events
 from casadrone.codesign.certificate import certify as make_certificate
 from casadrone.codesign.checks import load_codesign_problem
 from casadrone.codesign.driver import (
@@ -29,6 +30,7 @@ from casadrone.codesign.driver import (
 from casadrone.codesign.front import design_front, write_run
 from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
 from casadrone.limit.lap import refined_intervals
+from casadrone.progress import nested
 
 #: Co-design restarts from the certificate's faster fixed-frame lap (at most this many): where
 #: the limit lap's own cold starts find a faster lap of the returned frame than the co-design's
@@ -72,6 +74,7 @@ def _restart(prep, best, cert, reports: list):
     ok, status, pt = solve_from(prep, vector_of(prep, best.theta, cold_ws))
     reports.append(StartReport("restart-from-certificate", best.theta, status, ok,
                                pt.objective, pt.theta, pt.iterations, time.process_time() - c0))
+    events.start_done(reports[-1])
     return pt if ok and pt.objective < best.objective else None
 
 
@@ -84,15 +87,18 @@ def _refine(prep, best, reports: list):
         return None
     c0 = time.process_time()
     fine = refined(prep, finer)
-    z0 = resampled(prep, best, fine)
+    with nested():
+        z0 = resampled(prep, best, fine)
     if z0 is None:
         reports.append(StartReport(f"refined-{finer}", best.theta, "the frame's limit lap on "
                                    "the finer grid failed", False, math.nan, best.theta, 0,
                                    time.process_time() - c0))
+        events.start_done(reports[-1])
         return None
     ok, status, pt = solve_from(fine, z0)
     reports.append(StartReport(f"refined-{finer}", best.theta, status, ok, pt.objective,
                                pt.theta, pt.iterations, time.process_time() - c0))
+    events.start_done(reports[-1])
     return (fine, pt) if ok else None
 
 
@@ -104,7 +110,7 @@ def certified(prep, points: list, reports: list, certify: bool = True):
     ``reports``. Optima of a coarser grid are kept among the distinct ones, after the best."""
     distinct = distinct_optima(points)
     best = distinct[0]
-    cert = make_certificate(prep, best) if certify else None
+    cert = _certificate(prep, best) if certify else None
     others: list = []  # optima of a coarser grid, after a refinement
     restarts = refinements = 0
     while cert is not None and not cert.passed:
@@ -131,8 +137,19 @@ def certified(prep, points: list, reports: list, certify: bool = True):
             break
         distinct = distinct_optima(points) + others
         best = distinct[0]
-        cert = make_certificate(prep, best)
+        cert = _certificate(prep, best)
     return prep, best, distinct, cert
+
+
+def _certificate(prep, best):
+    """The certificate of ``best`` (:func:`casadrone.codesign.certificate.certify`), its stage
+    reported (the limit laps it solves run nested)."""
+    events.certifying("the best point", best.objective)
+    c0 = time.process_time()
+    with nested():
+        cert = make_certificate(prep, best)
+    events.certified(cert, time.process_time() - c0)
+    return cert
 
 
 def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
@@ -147,16 +164,21 @@ def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
     prep = prepare(problem)
     build_cpu = time.process_time() - cpu0
     reports, points = [], []
-    for label, theta in start_points(prep):
+    starts = start_points(prep)
+    for k, (label, theta) in enumerate(starts, start=1):
+        events.start_begun(label, k, len(starts), theta)
         c0 = time.process_time()
-        z0 = initial_vector(prep, theta)
+        with nested():
+            z0 = initial_vector(prep, theta)
         if z0 is None:
             reports.append(StartReport(label, theta, "start frame has no limit lap", False,
                                        math.nan, theta, 0, time.process_time() - c0))
+            events.start_done(reports[-1])
             continue
         ok, status, pt = solve_from(prep, z0)
         reports.append(StartReport(label, theta, status, ok, pt.objective, pt.theta,
                                    pt.iterations, time.process_time() - c0))
+        events.start_done(reports[-1])
         if ok:
             points.append(pt)
     names = tuple(prep.labels)

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from casadrone.airframe import build_airframe, random_thetas, with_theta
+from casadrone.codesign import events
 from casadrone.codesign.budget import STOPPED
 from casadrone.codesign.frame import CODESIGN_KEYS, SymbolicFrame
 from casadrone.codesign.nlp import CodesignNlp, TrackPart, build_codesign_nlp
@@ -35,6 +36,7 @@ from casadrone.config.track import TrackConfig
 from casadrone.limit.lap import DEFAULT_INTERVALS, LimitLap, LimitLapOptions, limit_lap
 from casadrone.limit.result import Start
 from casadrone.limit.starts import prepare as prepare_lap
+from casadrone.progress import nested
 from casadrone.propulsion import rotor_state_bounds
 from casadrone.results import Status
 
@@ -241,10 +243,14 @@ def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Pr
                               starts=problem.codesign.lap_starts, point_mass_reference=False,
                               gate_clearance_m=gate_clearance(template, lower, upper, keys),
                               refinements=0)
+    # the problem is read and valid (a ConfigError is raised before any progress line)
+    events.preparing(problem.name, len(tracks), len(keys))
     parts = tuple(_part(template, t, options, w) for t, w in zip(tracks, weights, strict=True))
     frame = SymbolicFrame(template, keys, lower, upper)
     nlp = _built(problem, template, keys, lower, upper, tracks, weights, parts, frame, epsilon)
-    laps = tuple(template_lap(template, t, options) for t in tracks)
+    with nested():  # the template's limit laps, reported as one line each
+        laps = tuple(template_lap(template, t, options) for t in tracks)
+    events.template_laps(labels, laps)
     return Prepared(problem, template, keys, lower, upper, labels, tracks, weights, options,
                     nlp, laps)
 

@@ -21,8 +21,10 @@ from typing import Any
 
 import numpy as np
 
+from casadrone.codesign import events
 from casadrone.codesign.driver import CodesignPoint, Prepared, constrained, solve_from
 from casadrone.codesign.nlp import STEP_CPU_FACTOR, STEP_MIN_CPU_S, epsilon_rows
+from casadrone.progress import nested
 
 
 @dataclass(frozen=True)
@@ -91,15 +93,20 @@ def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points:
         if not certify:
             return fp
         t0 = time.process_time()
-        fp = certified_point(prep, fp, first)
+        with nested():
+            fp = certified_point(prep, fp, first)
         cert_cpu += time.process_time() - t0
         return fp
+
+    def reached(fp: FrontPoint) -> None:
+        events.front_point(len(out), points, fp, measure)
+        if on_point is not None:
+            on_point(fp)
 
     top = measure_value(prep, best, measure)
     prev = replace(best, lam_g=np.concatenate([best.lam_g, np.zeros(epsilon_rows(measure))]))
     out = [certified(FrontPoint(prev, top, math.inf, "fastest frame", True))]
-    if on_point is not None:
-        on_point(out[-1])
+    reached(out[-1])
     stopped = ""
     last = top
     step_cpu = [best.cpu_s]  # the CPU of each converged solve: the fastest frame's, each step's
@@ -108,11 +115,11 @@ def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points:
                                    budget_s=step_budget(step_cpu))
         if not ok:
             stopped = f"ε = {eps:.6g}: {status}"
+            events.front_stopped(stopped)
             break
         out.append(certified(FrontPoint(pt, measure_value(prep, pt, measure), float(eps),
                                         status, ok)))
-        if on_point is not None:
-            on_point(out[-1])
+        reached(out[-1])
         prev, last = pt, float(eps)
         step_cpu.append(pt.cpu_s)
     return Front(measure, tuple(out), time.process_time() - c0, stopped, prep, cert_cpu)

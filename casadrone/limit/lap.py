@@ -59,6 +59,7 @@ import numpy as np
 from casadrone.airframe import Airframe
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.track import TrackConfig
+from casadrone.limit import events
 from casadrone.limit.choose import (
     CERTAIN_REL,
     best,
@@ -166,6 +167,7 @@ def _limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     why = refusal(frame, track, options, clearance_m)
     if why:
         return _failed(why, start)
+    events.begun(options)
     pb = prepare(frame, track, options, clearance_m)
     grid_laps: dict[int, float] = {}  # the laps the grid-continuation starts solved on theirs
 
@@ -179,7 +181,9 @@ def _limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     solves = run_starts(pb, lap_on_grid)
     misses = resimulation_misses(pb, solves)
     good = verified(solves, misses, options)
-    if solves and not good and (fallback := fallback_solve(pb, limit_lap)) is not None:
+    events.verified(len(good), sum(s.success for _, s in solves), len(solves))
+    if solves and not good and (fallback := events.solved(
+            pb.layout.intervals, lambda: fallback_solve(pb, limit_lap))) is not None:
         solves.append(fallback)
         misses = resimulation_misses(pb, solves, misses)
         good = verified(solves, misses, options)
@@ -220,6 +224,7 @@ def grid_rounds(airframe, track: TrackConfig, options: LimitLapOptions, pb: Prob
     n = pb.layout.intervals
     grids = sorted({coarse_intervals(n), fine_intervals(n)} - {n})
     for r in range(1, options.grid_rounds + 1):
+        cpu0, count = time.process_time(), len(solves)
         good = verified(solves, misses, options)
         before = best(good)[1].objective
         sources = _distinct(good) if r == 1 else [best(good)]
@@ -227,13 +232,16 @@ def grid_rounds(airframe, track: TrackConfig, options: LimitLapOptions, pb: Prob
             here = assemble_lap(pb, [(name, sol)], solves, misses)
             tag = f"round-{r}-{name}" if r == 1 else f"round-{r}"
             for g in grids:
-                other = lap_on_grid(airframe, track, inner_options(
-                    options, intervals=g, starts=(), warm_starts=(here,)))
-                if other.completed:
-                    solves.append((f"grid-{g}-{tag}",
-                                   pb.solve(guess_from_lap(pb.full, other, pb.x0))))
+                with events.start(f"grid-{g}-{tag}", n) as done:
+                    other = lap_on_grid(airframe, track, inner_options(
+                        options, intervals=g, starts=(), warm_starts=(here,)))
+                    if other.completed:
+                        solves.append((f"grid-{g}-{tag}",
+                                       pb.solve(guess_from_lap(pb.full, other, pb.x0))))
+                        done(solves[-1][1])
         misses = resimulation_misses(pb, solves, misses)
         after = best(verified(solves, misses, options))[1].objective
+        events.round_done(r, before, after, len(solves) - count, time.process_time() - cpu0)
         if after > (1 - CERTAIN_REL) * before:
             break
     return misses
@@ -273,6 +281,7 @@ def refined(airframe, track: TrackConfig, options: LimitLapOptions, pb: Problem,
     if not converged or options.refinements <= 0 or fine <= n:
         return None
     _, sol = best(converged)
+    events.refining(fine)
     T, X, U = pb.full.unpack(sol.point.w)
     coarse = LimitLap(status="failed", reason="re-simulation missed: a start only",
                       leg_times_s=T, t=node_times(T, n), x=X, u=U,

@@ -19,6 +19,7 @@ import numpy as np
 from casadrone.airframe import Airframe
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.track import TrackConfig
+from casadrone.limit import events
 from casadrone.limit.guesses import (
     closed_loop_lap,
     guess_from_lap,
@@ -295,8 +296,11 @@ def run_starts(pb: Problem, lap_of: LapOf) -> list[StartSolve]:
     solves: list[StartSolve] = []
     for name, start in COLD_STARTS.items():
         if name in pb.options.starts:
-            sol = start(pb, lap_of)
-            solves.append((name, sol if sol is not None else not_run(pb, name)))
+            with events.start(name, pb.layout.intervals) as done:  # progress, its lap and CPU
+                sol = start(pb, lap_of)
+                sol = sol if sol is not None else not_run(pb, name)
+                done(sol)
+            solves.append((name, sol))
     return solves + warm_solves(pb)
 
 

@@ -26,6 +26,7 @@ import datetime as _dt
 from pathlib import Path
 
 from casadrone.outfile import shown_path
+from casadrone.progress import emit, nested
 from casadrone.report.analysis import (
     choose_candidates,
     read_run,
@@ -123,23 +124,28 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] | None = None,
         cands = evaluate_candidates(run, cands, limit=not codesign)
         flown = fly_references(run, tuple(references), limit=not codesign)
         rv = baseline_verdict(run, cands, flown[0])
-    body = {
-        "verdict": section_verdict(run, cands, rv),
-        "problem": section_problem(run),
-        "convergence": section_convergence(run, figs),
-        "pareto": section_pareto(run, cands, figs, baseline_of(run, rv)),
-        "codesign": section_codesign(run, cands, figs) if codesign else "",
-        "candidates": (section_candidates(run, cands, figs, path.parent / EXPORTS,
-                                          limit=not codesign)
-                       if not run.test_problem
-                       else note("A pymoo test problem has no trajectories.")),
-        "airframes": section_airframes(run, cands, tuple(references), figs, flown),
-        "failures": section_failures(run, figs),
-        "trim": section_trim(run, cands, figs, trim_sample, trim_study_starts),
+    builders = {
+        "verdict": lambda: section_verdict(run, cands, rv),
+        "problem": lambda: section_problem(run),
+        "convergence": lambda: section_convergence(run, figs),
+        "pareto": lambda: section_pareto(run, cands, figs, baseline_of(run, rv)),
+        "codesign": lambda: section_codesign(run, cands, figs),
+        "candidates": lambda: (section_candidates(run, cands, figs, path.parent / EXPORTS,
+                                                  limit=not codesign)
+                               if not run.test_problem
+                               else note("A pymoo test problem has no trajectories.")),
+        "airframes": lambda: section_airframes(run, cands, tuple(references), figs, flown),
+        "failures": lambda: section_failures(run, figs),
+        "trim": lambda: section_trim(run, cands, figs, trim_sample, trim_study_starts),
     }
+    shown = [(k, t) for k, t in SECTIONS if k != "codesign" or codesign]
+    body = {}
+    for i, (k, t) in enumerate(shown, start=1):  # one progress line per section, as it begins
+        emit("stage", f"section {i}/{len(shown)}: {t}")
+        with nested():
+            body[k] = builders[k]()
     m = run.manifest
     stamp = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-    shown = [(k, t) for k, t in SECTIONS if k != "codesign" or codesign]
     nav = "".join(f'<a href="#{k}">{esc(t)}</a>' for k, t in shown)
     sections = "".join(f'<section id="{k}"><h2>{i}. {esc(t)}</h2>{body[k]}</section>'
                        for i, (k, t) in enumerate(shown, start=1))

@@ -12,6 +12,7 @@ from casadrone.compare import Candidate
 from casadrone.evaluate import Evaluation, evaluate, theta_of
 from casadrone.indices import INDICES
 from casadrone.optimise.store import PARETO, git_revision
+from casadrone.progress import emit, nested
 from casadrone.report.analysis import Run
 from casadrone.report.markup import (
     SYMBOL,
@@ -40,7 +41,13 @@ def evaluate_candidates(run: Run, cands: list[Candidate], limit: bool = True
     setup = study_setup(run.study)
     if not limit:
         setup = replace(setup, limit=None)
-    return [replace(c, evaluation=evaluate(c.theta, setup, keep_trajectory=True)) for c in cands]
+    out = []
+    for k, c in enumerate(cands, start=1):  # progress: a limit lap takes seconds to minutes
+        emit("stage", f"re-evaluating candidate {c.label} ({k}/{len(cands)}) with its "
+             "trajectory" + (" and limit lap" if setup.limit is not None else ""))
+        with nested():
+            out.append(replace(c, evaluation=evaluate(c.theta, setup, keep_trajectory=True)))
+    return out
 
 
 def _reproduction(run: Run, cands: list[Candidate]) -> Html:

@@ -74,6 +74,7 @@ def test_a_large_first_compile_says_what_it_does(tmp_path, monkeypatch, capsys):
     target = codegen.compile_source("big", src)
     err = capsys.readouterr().err
     assert "compiling big" in err and "once for this machine" in err
+    assert "compiled big (" in err.splitlines()[-1]  # and when it is done, with its CPU
     assert codegen.compile_source("big", src) == target  # cached: silent the second time
     assert capsys.readouterr().err == ""
 

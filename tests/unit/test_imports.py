@@ -19,6 +19,7 @@ PACKAGE = Path(__file__).resolve().parents[2] / "casadrone"
 #: listed.
 STAGES: tuple[str, ...] = (
     "casadrone.data",
+    "casadrone.progress",  # the progress events every stage may emit (the CLI shows them)
     "casadrone.codegen",
     "casadrone.heap",  # the process's malloc settings (the command line calls them)
     "casadrone.parentdeath",  # child processes that die with their parent
@@ -61,6 +62,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.limit.problem",
     "casadrone.limit.guesses",
     "casadrone.limit.pointmass",
+    "casadrone.limit.events",  # what the starts and the lap say while they run
     "casadrone.limit.starts",
     "casadrone.limit.choose",
     "casadrone.limit.lap",
@@ -84,6 +86,7 @@ STAGES: tuple[str, ...] = (
     "casadrone.optimise.timings",
     "casadrone.optimise.writer",
     "casadrone.codesign.budget",
+    "casadrone.codesign.events",  # what co-design says while it runs
     "casadrone.codesign.frame",
     "casadrone.codesign.blocks",
     "casadrone.precompile",  # compiles the limit lap's and co-design's blocks side by side

@@ -75,3 +75,35 @@ def test_every_shipped_codesign_problem_finds_its_theta_blocks_precompiled():
         propulsion = load_airframe(problem.airframe).propulsion.model
         want = Block("codesign", "quadrotor", propulsion, n_dir=len(problem.variables))
         assert want in SHIPPED, (path.name, want)
+
+
+def test_each_block_is_reported_ready_with_its_count_and_time():
+    """``block k/n ready`` as each compile ends: k counts the blocks done so far."""
+    from casadrone.precompile import ready_lines
+
+    lines: list[str] = []
+    ready = ready_lines(3, lines.append)
+    ready(Block("limit", "point-mass"), 1.3)
+    ready(Block("codesign", "quadrotor", "propeller"), 241.0)
+    assert lines == ["block 1/3 ready: limit point-mass paper rk4x3 (1.3 s wall)",
+                     "block 2/3 ready: codesign quadrotor propeller rk4x3 (d4) (241.0 s wall)"]
+
+
+def test_main_says_each_block_ready_on_stderr_and_nothing_with_quiet(tmp_path, monkeypatch,
+                                                                     capsys):
+    """A point-mass block (seconds) into an empty cache: nothing on stderr with -q; without it
+    one ``block 1/1 ready`` line on stderr, the total on stdout."""
+    import re
+
+    import casadrone.precompile as pre
+
+    monkeypatch.setenv("CASADRONE_CACHE", str(tmp_path))
+    monkeypatch.setattr(pre, "SHIPPED", (Block("limit", "point-mass"),))
+    assert main(["--jobs", "1", "-q"]) == 0
+    assert capsys.readouterr().err == ""
+    assert len(list(tmp_path.glob("*.so"))) == 2  # it did compile
+    assert main(["--jobs", "1"]) == 0
+    loud = capsys.readouterr()
+    assert re.fullmatch(r"block 1/1 ready: limit point-mass paper rk4x3 \(\d+\.\d s wall\)\n",
+                        loud.err)
+    assert loud.out.startswith("all 1 in ")

@@ -61,10 +61,30 @@ def report(tmp_path_factory) -> tuple[Path, str]:
         SAVED.append((fig, paths))
         return paths
 
-    with pytest.MonkeyPatch.context() as mp:
+    from casadrone.progress import listening
+
+    with pytest.MonkeyPatch.context() as mp, listening(EVENTS.append):
         mp.setattr(plots, "save_figure", recording)
         path = write_report(run_dir)
     return run_dir, path.read_text(encoding="utf-8")
+
+
+#: the progress events of the report fixture's write_report (casadrone.progress)
+EVENTS: list = []
+
+
+def test_each_candidate_and_section_is_said_as_it_begins(report):
+    """Progress of a report: one event per candidate re-evaluated (the decisions' labels, in
+    order), then one per section of the page, in the page's order (its own headings)."""
+    run_dir, html = report
+    outer = [e.text for e in EVENTS if e.depth == 0]
+    labels = [c.label for c in choose_candidates(read_run(run_dir))]
+    n = len(labels)
+    assert [t.split(" with ")[0] for t in outer[:n]] == [
+        f"re-evaluating candidate {label} ({k}/{n})" for k, label in enumerate(labels, start=1)]
+    titles = re.findall(r'<section id="[a-z]+"><h2>\d+\. ([^<]+)</h2>', html)
+    assert outer[n:] == [f"section {k}/{len(titles)}: {t}"
+                         for k, t in enumerate(titles, start=1)]
 
 
 def require_front(run_dir: Path) -> None:

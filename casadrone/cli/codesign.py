@@ -8,7 +8,14 @@ from typing import Annotated
 
 import typer
 
-from casadrone.cli.common import JsonOpt, app, bad_input, print_json, reports_config_errors
+from casadrone.cli.common import (
+    EXIT_FAILED,
+    JsonOpt,
+    app,
+    check_out_folder,
+    print_json,
+    reports_config_errors,
+)
 
 
 @app.command("codesign")
@@ -29,14 +36,18 @@ def codesign_command(
     limit lap re-solved with the frame fixed (under a front point's ε row), the reduced gradient
     in θ with its multipliers, the CVODES re-simulation.
 
-    A problem with a closed-loop index (J1-J5, Jp) is refused by name (exit code 2).
+    Exit codes: 0 for a co-design that converged; 2 for bad input, refused before any solve
+    (one line naming the file and key: a closed-loop index (J1-J5, Jp), an objective with
+    sense: max, a gate no frame of the box can pass, an --out that cannot be a new folder);
+    3 (EXIT_FAILED) when no start converged: the result, status "failed" with its reason, is
+    still printed and written to --out.
     """
     from casadrone.codesign.checks import load_codesign_problem
+
+    check_out_folder(out)
+    cfg = load_codesign_problem(problem, overrides or [])
     from casadrone.codesign.design import codesign
 
-    if out is not None and out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise bad_input([f"{out}: --out must be a new or empty folder (nothing is overwritten)"])
-    cfg = load_codesign_problem(problem, overrides or [])
     result = codesign(cfg, run_dir=out)
     data = result.as_dict()
     if out is not None:
@@ -46,8 +57,10 @@ def codesign_command(
         (out / "result.json").write_text(json.dumps(jsonable(data), indent=2) + "\n")
     if as_json:
         print_json(data)
-        return
-    typer.echo(text(result))
+    else:
+        typer.echo(text(result))
+    if result.status != "completed":
+        raise typer.Exit(EXIT_FAILED)
 
 
 def text(result) -> str:

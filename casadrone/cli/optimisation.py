@@ -12,6 +12,7 @@ from casadrone.cli.common import (
     JsonOpt,
     app,
     bad_input,
+    folder_creation_problem,
     print_json,
     reports_config_errors,
 )
@@ -187,12 +188,15 @@ def run_command(
 
     if quiet and verbose:
         raise bad_input(["--quiet and --verbose: choose one"])
-    cfg = load_problem(problem, overrides or [])
-    be = backend_config(cfg.backend, backend, workers, scheduler)
     try:
         check_new_run_dir(out)
     except NotARunDirectory as exc:
         raise bad_input([f"--out: {exc}"]) from None
+    unmakeable = folder_creation_problem(out)
+    if unmakeable:
+        raise bad_input([f"--out: {out}: {unmakeable}"])
+    cfg = load_problem(problem, overrides or [])
+    be = backend_config(cfg.backend, backend, workers, scheduler)
     if verbose:
         a = cfg.algorithm
         objectives = ", ".join(f"{o.index} ({o.sense or 'default'})" for o in cfg.objectives)
@@ -358,6 +362,10 @@ def report(
             and out.resolve() != (run_dir / "report.html").resolve():
         raise bad_input([f"--out: {out}: exists and was left untouched; choose another --out "
                          "or pass --force to replace it"])
+    why = out is not None and ("is a folder; name a file" if out.is_dir() else
+                               folder_creation_problem(out.parent))
+    if why:
+        raise bad_input([f"--out: {out}: {why}"])
     require_run_dir(run_dir)
     open_problem(run_dir)
     try:

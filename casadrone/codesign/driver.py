@@ -149,7 +149,8 @@ class CodesignResult:
 # --------------------------------------------------------------------------------------------
 
 
-def _template(problem: CodesignProblemConfig) -> AirframeConfig:
+def template_of(problem: CodesignProblemConfig) -> AirframeConfig:
+    """The problem's airframe with its ``fixed:`` values."""
     assert problem.airframe is not None  # the schema requires it
     cfg = load_airframe(problem.airframe)
     if problem.fixed:
@@ -222,7 +223,7 @@ _BUILT: dict[tuple, CodesignNlp] = {}
 
 def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Prepared:
     """The template, the variables, the tracks and the co-design NLP (cached per shape)."""
-    template = _template(problem)
+    template = template_of(problem)
     keys = tuple(v.name for v in problem.variables)
     bad = [k for k in keys if k not in CODESIGN_KEYS]
     if bad:

@@ -344,3 +344,21 @@ def test_a_failed_codesign_exits_3_with_its_result(tmp_path, monkeypatch):
     assert "co-design FAILED: no start converged" in result.stdout
     assert json.loads((out / "result.json").read_text())["status"] == "failed"
     assert cli("codesign", CODESIGN_SHORT, "--json", "--out", tmp_path / "o2").exit_code == 3
+
+
+@pytest.mark.parametrize("command", ["lqr", "simulate"])
+def test_a_reference_airframe_that_is_a_controller_names_the_key(tmp_path, command):
+    """``reference_airframe`` naming a controller said "FILE: this is a controller, not an
+    airframe" of the referenced file only, which read as if --controller were wrong."""
+    shipped = DATA_DIR / "configs" / "controllers"
+    text = (shipped / "frozen-wrench-sy250-components.yaml").read_text()
+    wrong = shipped / "default.yaml"
+    assert "reference_airframe: configs/airframes/SY250-components.yaml" in text
+    path = tmp_path / "ctrl.yaml"
+    path.write_text(text.replace("configs/airframes/SY250-components.yaml", str(wrong)))
+    result = cli(command, "SY250", "--controller", path, "--plot", tmp_path / "figs")
+    line = one_line_exit_2(result)
+    assert result.stderr.splitlines() == [line]
+    assert line.startswith(f"{path}: reference_airframe: {wrong}: this is a controller, not an "
+                           "airframe"), line
+    assert sorted(tmp_path.iterdir()) == [path]

@@ -66,6 +66,7 @@ def trim_study(
     check_plot_dir(plot, TRIM_STUDY_FIGURES)
     points, options, focus = _parse(conditions, starts, seed, angle_spread, command_spread,
                                     solvers, reference, distinct_tolerance, basin_grid, plot_point)
+    check_size(len(points), options, basin_grid if plot else 0)
     _, frame = load_airframe_or_exit(airframe, overrides)
     from casadrone.trimstudy import trim_study as run_study
 
@@ -107,6 +108,21 @@ def _parse(conditions, starts, seed, angle_spread, command_spread, solvers, refe
         field, _, message = str(exc).partition(": ")
         raise bad_input([f"{OPTION_OF.get(field, field)}: {message}"]) from None
     return points, options, focus
+
+
+def check_size(points: int, options, basin_grid: int) -> None:
+    """Exit 2 naming the options when the study asks for more than
+    :data:`casadrone.trimstudy.MAX_SOLVES` trim solves."""
+    from casadrone.trimstudy import MAX_SOLVES, solve_count
+
+    n = solve_count(points, options, basin_grid)
+    if n > MAX_SOLVES:
+        basin = f" + {basin_grid}² --basin-grid starts" if basin_grid else ""
+        raise bad_input([
+            f"--conditions, --starts, --solvers: ({points} point(s) x {options.starts + 1} "
+            f"start(s){basin}) x {len(options.solvers)} solver(s) = {n} trim solves, more "
+            f"than the {MAX_SOLVES} a study may ask for (the default study is 819 solves, 16 s "
+            "of CPU): fewer points, starts or solvers"])
 
 
 def _fastest_level(study):

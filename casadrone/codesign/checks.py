@@ -12,6 +12,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
+from casadrone.config.airframe import AirframeConfig, load_airframe
 from casadrone.config.codesign import FRONT_MEASURES, LAP_INDEX, CodesignProblemConfig
 from casadrone.config.io import ConfigError, load, problem_lines, resolve_config
 
@@ -43,15 +46,44 @@ def codesign_index_problems(objectives, constraints) -> list[tuple[str, str]]:
     return found
 
 
+def template_of(problem: CodesignProblemConfig) -> AirframeConfig:
+    """The problem's airframe with its ``fixed:`` values."""
+    assert problem.airframe is not None  # the schema requires it
+    cfg = load_airframe(problem.airframe)
+    if problem.fixed:
+        cfg = AirframeConfig.model_validate({**cfg.model_dump(), **problem.fixed})
+    return cfg
+
+
+def gate_clearance(template: AirframeConfig, lower: np.ndarray, upper: np.ndarray,
+                   keys: tuple[str, ...]) -> float:
+    """The gate clearance (m) every frame of the box is posed with: the largest of the limit
+    lap's own clearances (the frame's size, :func:`casadrone.limit.lap.frame_clearance_m`) over
+    the box's valid corners, where the farthest rotor is farthest. One clearance for every frame
+    keeps the targets independent of θ (they are NLP parameters); the fixed-frame checks use the
+    same, so a frame is never compared on a different track."""
+    import itertools
+
+    from casadrone.airframe import build_airframe, with_theta
+    from casadrone.limit.lap import frame_clearance_m
+
+    sizes = []
+    for corner in itertools.product(*zip(lower, upper, strict=True)):
+        try:
+            frame = build_airframe(with_theta(template, dict(zip(keys, corner, strict=True))))
+        except ConfigError:
+            continue
+        sizes.append(frame_clearance_m(frame, template.prop_diameter_mm / 1000))
+    return max(sizes, default=frame_clearance_m(build_airframe(template),
+                                                template.prop_diameter_mm / 1000))
+
+
 def codesign_track_problems(problem: CodesignProblemConfig) -> list[tuple[str, str]]:
     """Each track no frame of the box can fly, as (key, message): a gate narrower than twice
     the clearance the co-design NLP poses every frame with (the largest over the box's corners,
-    :func:`casadrone.codesign.driver.gate_clearance`), or more intervals than a limit lap takes
+    :func:`gate_clearance`), or more intervals than a limit lap takes
     (:func:`casadrone.limit.problem.check_inputs`, the check of ``limit-lap``). Found before any
     solve: co-design only learnt it when every start failed ("start frame has no limit lap")."""
-    import numpy as np
-
-    from casadrone.codesign.driver import gate_clearance, template_of
     from casadrone.config.track import TrackConfig
     from casadrone.limit.problem import check_inputs
     from casadrone.limit.result import DEFAULT_INTERVALS, LimitLapOptions

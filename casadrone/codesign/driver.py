@@ -26,9 +26,10 @@ import numpy as np
 
 from casadrone.airframe import build_airframe, random_thetas, with_theta
 from casadrone.codesign.budget import STOPPED
+from casadrone.codesign.checks import gate_clearance, template_of
 from casadrone.codesign.frame import CODESIGN_KEYS, SymbolicFrame
 from casadrone.codesign.nlp import CodesignNlp, TrackPart, build_codesign_nlp
-from casadrone.config.airframe import AirframeConfig, load_airframe
+from casadrone.config.airframe import AirframeConfig
 from casadrone.config.codesign import DEFAULT_LAP_STARTS, FRONT_MEASURES, CodesignProblemConfig
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
@@ -149,15 +150,6 @@ class CodesignResult:
 # --------------------------------------------------------------------------------------------
 
 
-def template_of(problem: CodesignProblemConfig) -> AirframeConfig:
-    """The problem's airframe with its ``fixed:`` values."""
-    assert problem.airframe is not None  # the schema requires it
-    cfg = load_airframe(problem.airframe)
-    if problem.fixed:
-        cfg = AirframeConfig.model_validate({**cfg.model_dump(), **problem.fixed})
-    return cfg
-
-
 def _tracks(problem: CodesignProblemConfig) -> tuple[tuple[str, ...], tuple[TrackConfig, ...],
                                                       tuple[float, ...]]:
     if problem.codesign.tracks:
@@ -179,28 +171,6 @@ def _part(template: AirframeConfig, track: TrackConfig, options: LimitLapOptions
                      hover_start=options.start_state is None,
                      thrust_max=rotor_state_bounds(frame)[1],
                      first_timed=pb.targets.first_timed, propulsion=frame.propulsion)
-
-
-def gate_clearance(template: AirframeConfig, lower: np.ndarray, upper: np.ndarray,
-                   keys: tuple[str, ...]) -> float:
-    """The gate clearance (m) every frame of the box is posed with: the largest of the limit
-    lap's own clearances (the frame's size, :func:`casadrone.limit.lap.frame_clearance_m`) over
-    the box's valid corners, where the farthest rotor is farthest. One clearance for every frame
-    keeps the targets independent of θ (they are NLP parameters); the fixed-frame checks use the
-    same, so a frame is never compared on a different track."""
-    import itertools
-
-    from casadrone.limit.lap import frame_clearance_m
-
-    sizes = []
-    for corner in itertools.product(*zip(lower, upper, strict=True)):
-        try:
-            frame = build_airframe(with_theta(template, dict(zip(keys, corner, strict=True))))
-        except ConfigError:
-            continue
-        sizes.append(frame_clearance_m(frame, template.prop_diameter_mm / 1000))
-    return max(sizes, default=frame_clearance_m(build_airframe(template),
-                                                template.prop_diameter_mm / 1000))
 
 
 def template_lap(template: AirframeConfig, track: TrackConfig,

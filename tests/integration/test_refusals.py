@@ -362,3 +362,75 @@ def test_a_reference_airframe_that_is_a_controller_names_the_key(tmp_path, comma
     assert line.startswith(f"{path}: reference_airframe: {wrong}: this is a controller, not an "
                            "airframe"), line
     assert sorted(tmp_path.iterdir()) == [path]
+
+
+# --------------------------------------------------------------------------------------------
+# issue 47, point 5: operating points within the tracks' physical limits; a ceiling on solves
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("args, start", [
+    # overflow warnings, CasADi "NaN detected", then "no reference; 0 distinct roots", exit 0
+    (["--conditions", "forward:1e300"], "--conditions: 'forward:1e300': speed_mps: 1e+300 m/s "
+     "is beyond 102.9 m/s (Mach 0.3"),
+    (["--conditions", "turn:10:1e300"], "--conditions: 'turn:10:1e300': turn_rate_dps: 1e+300 "
+     "deg/s is beyond 2000 deg/s"),
+    (["--conditions", "hover,climb:200:10"], "--conditions: 'climb:200:10': speed_mps: 200 m/s"),
+    (["--plot-point", "forward:-150"], "--plot-point: 'forward:-150': speed_mps: -150 m/s"),
+    # 13 default points x 100001 starts x 3 solvers: days of solves
+    (["--starts", "100000"], "--conditions, --starts, --solvers: (13 point(s) x 100001 start(s)"
+     " + 21² --basin-grid starts) x 3 solver(s) = 3901362 trim solves, more than the 50000"),
+    (["--basin-grid", "201", "--conditions", "hover"], "--conditions, --starts, --solvers: (1 "
+     "point(s) x 21 start(s) + 201² --basin-grid starts) x 3 solver(s) = 121266 trim solves"),
+])
+def test_trim_study_refuses_absurd_envelopes_before_any_solve(tmp_path, monkeypatch, args, start):
+    import casadrone.trimstudy as trimstudy
+
+    def tripwire(*a, **k):
+        raise AssertionError("a solve started before the envelope was checked")
+
+    monkeypatch.setattr(trimstudy, "trim_study", tripwire)
+    figures = tmp_path / "figures"
+    line = one_line_exit_2(cli("trim-study", "SY250", *args, "--plot", figures))
+    assert line.startswith(start), line
+    assert not figures.exists()
+
+
+def test_the_solve_ceiling_admits_the_default_study():
+    from casadrone.conditions import envelope
+    from casadrone.trimstudy import MAX_SOLVES, StudyOptions, solve_count
+
+    default = solve_count(len(envelope()), StudyOptions(), 21)
+    assert default == (13 * 21 + 21 * 21) * 3 <= MAX_SOLVES  # counted by hand: 13 points
+
+
+@pytest.mark.parametrize("args, start", [
+    (["--condition", "forward", "--speed", "1e300"], "--speed: forward flight needs 0 < speed "
+     "<= 102.9 m/s"),
+    (["--condition", "turn", "--speed", "10", "--turn-rate", "1e300"], "--turn-rate: 1e+300 "
+     "deg/s is beyond 2000 deg/s"),
+    (["--condition", "turn", "--speed", "10", "--turn-rate", "-2500"], "--turn-rate: -2500"),
+])
+@pytest.mark.parametrize("command", ["trim", "linearise"])
+def test_trim_and_linearise_take_the_same_limits(command, args, start):
+    assert one_line_exit_2(cli(command, "SY250", *args)).startswith(start)
+
+
+def test_mach_0_3_and_2000_deg_s_are_still_trimmed():
+    """The limits are the edges, not below them: 102 m/s (Mach 0.297) and 2000 deg/s are posed
+    (whether SY250 can fly them is the trim's answer, not bad input)."""
+    from casadrone.conditions import OperatingPoint
+
+    OperatingPoint("forward", 102.0)
+    OperatingPoint("turn", 10.0, turn_rate_dps=-2000.0)
+    assert cli("trim", "SY250", "--condition", "forward", "--speed", "102").exit_code == 0
+
+
+@pytest.mark.parametrize("width", ["1e300", "inf", "28"])
+def test_export_refuses_an_arm_no_plate_can_hold_naming_the_option(tmp_path, width):
+    """It said "SY250: the arm must be narrower ...", naming the airframe, not --arm-width."""
+    out = tmp_path / "plate.svg"
+    line = one_line_exit_2(cli("export", "SY250", "--format", "svg", "--arm-width", width,
+                               "--out", out))
+    assert line.startswith("--arm-width: arm width") and "below 28 mm" in line, line
+    assert not out.exists()

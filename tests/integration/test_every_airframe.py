@@ -31,6 +31,7 @@ TABLE1 = GEOMETRY + ["ixx_kgm2", "iyy_kgm2", "izz_kgm2"]
 
 #: The cheap commands, each with the fewest options it needs; run for every airframe.
 CHEAP = {
+    "validate": ["validate"],
     "massprops": ["massprops"],
     "trim-hover": ["trim"],
     "trim-all-turn": ["trim", "--condition", "turn", "--speed", "8", "--turn-rate", "30",

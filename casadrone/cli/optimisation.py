@@ -362,10 +362,6 @@ def report(
             and out.resolve() != (run_dir / "report.html").resolve():
         raise bad_input([f"--out: {out}: exists and was left untouched; choose another --out "
                          "or pass --force to replace it"])
-    why = out is not None and ("is a folder; name a file" if out.is_dir() else
-                               folder_creation_problem(out.parent))
-    if why:
-        raise bad_input([f"--out: {out}: {why}"])
     require_run_dir(run_dir)
     open_problem(run_dir)
     try:

@@ -307,21 +307,25 @@ def test_an_out_folder_under_a_file_is_refused_before_any_work(tmp_path, monkeyp
     assert afile.read_text() == "mine\n" and sorted(tmp_path.iterdir()) == [afile]
 
 
-def test_report_out_under_a_file_is_refused_before_the_report(tmp_path, monkeypatch):
+@pytest.mark.parametrize("below", ["r.html", "sub/r.html"])
+def test_report_out_under_a_file_is_refused_before_the_run_is_read(tmp_path, monkeypatch,
+                                                                   below):
+    """``--out afile/sub/r.html``: the report checked the file's own folder only, so one folder
+    deeper it read and evaluated the run first and failed when it wrote."""
     import casadrone.report as report
     from tests.unit.test_cli import make_run_dir
 
     def tripwire(*args, **kwargs):
-        raise AssertionError("the report was written before --out was checked")
+        raise AssertionError("the run was read before --out was checked")
 
-    monkeypatch.setattr(report, "write_report", tripwire)
     run = make_run_dir(tmp_path / "run")
+    monkeypatch.setattr(report, "read_run", tripwire)
     afile = tmp_path / "afile"
     afile.write_text("mine\n")
-    line = one_line_exit_2(cli("report", run, "--out", afile / "r.html"))
-    assert line == f"--out: {afile / 'r.html'}: cannot be made: {afile} is a file, not a folder"
-    line = one_line_exit_2(cli("report", run, "--out", tmp_path))
-    assert line == f"--out: {tmp_path}: is a folder; name a file"
+    line = one_line_exit_2(cli("report", run, "--out", afile / below))
+    assert line == (f"{run}: --out: {afile / below}: cannot be made: {afile} is a file, not a "
+                    "folder")
+    assert afile.read_text() == "mine\n"
 
 
 def test_a_failed_codesign_exits_3_with_its_result(tmp_path, monkeypatch):

@@ -323,8 +323,7 @@ def folder_creation_problem(folder: Path) -> str:
     import os
 
     if folder.exists():
-        return "" if folder.is_dir() else (f"cannot be made: {folder.absolute()} is a file, "
-                                           "not a folder")
+        return ""
     ancestor = next((a for a in folder.absolute().parents if a.exists()), None)
     if ancestor is None:
         return ""

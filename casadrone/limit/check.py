@@ -113,17 +113,19 @@ def theta_sensitivities(
     (so a mass model that derives mass and inertia from θ is included). Central differences of
     that cheap map (no re-solve); one-sided where a side leaves the valid configs (a bound).
 
-    ``keys`` default to the airframe's decision variables (:func:`casadrone.airframe.
-    decision_keys`): the seven of paper Table 1 with ``mass_model: free``, the four geometry
-    keys with ``components``, whose inertia is derived from the geometry and the parts (not a
-    key of the config, so not a variable: its effect is inside each geometry key's dT/dθ).
-    A key the config does not give (a derived one) raises ValueError naming it."""
+    ``keys`` default to the airframe's decision variables
+    (:func:`casadrone.airframe.decision_keys`): the seven of paper Table 1 with ``mass_model:
+    free``, the four geometry keys with ``components``, whose mass and inertia are derived from
+    the geometry and the parts (not keys of the config, so not variables: their effect is inside
+    each geometry key's dT/dθ). A key the config does not give (a derived one) raises ValueError
+    naming it."""
     keys = decision_keys(cfg) if keys is None else keys
     derived = [k for k in keys if getattr(cfg, k, None) is None]
     if derived:
         raise ValueError(f"{', '.join(derived)}: not given by airframe {cfg.name} (derived "
                          f"from its parts); its decision variables are "
                          f"{', '.join(decision_keys(cfg))}")
+
     def params(key: str, value: float) -> np.ndarray | None:
         try:
             frame = build_airframe(with_theta(cfg, {key: value}))

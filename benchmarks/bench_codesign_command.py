@@ -99,7 +99,7 @@ def template_laps(problem: str, starts: list[str], keep: bool = False) -> None:
         print(f"keep_heap: {keep_heap()}")
 
     cfg = load_codesign_problem(problem)
-    template = driver._template(cfg)
+    template = driver.template_of(cfg)
     keys = tuple(v.name for v in cfg.variables)
     lower = np.array([v.lower for v in cfg.variables])
     upper = np.array([v.upper for v in cfg.variables])

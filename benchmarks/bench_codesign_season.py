@@ -96,7 +96,7 @@ def cross(path: Path, intervals: int) -> None:
 
     result = json.loads(path.read_text())
     cfg = load_codesign_problem("codesign-season")
-    template = driver._template(cfg)
+    template = driver.template_of(cfg)
     keys = tuple(v.name for v in cfg.variables)
     lower = np.array([v.lower for v in cfg.variables])
     upper = np.array([v.upper for v in cfg.variables])

@@ -9,12 +9,14 @@ name carries the hash of its source, compiler flags and CasADi version.
 
 A compile ends with its command: the compiler runs in a process group of its own, killed whole
 (driver, ``cc1``, assembler) on any exit Python sees (an error, Ctrl-C, and SIGTERM, which is
-turned into a cleanup and then re-delivered when nothing else handles it); the kernel also kills
-the driver if casadrone dies by SIGKILL. The temporary directory is removed on every such exit; one
-that a SIGKILLed process left behind, and a staged file in the cache, are removed by a later
-compile once an hour old. The first compile of a large source says what it does on stderr (the
-limit lap's Hessian block takes about a minute). Without a C compiler :class:`NoCompiler` says
-so; the closed-loop lap then runs on CasADi's virtual machine (slower), the limit lap needs one.
+turned into a cleanup and then re-delivered when nothing else handles it). When casadrone dies by
+SIGKILL, which it cannot see, the kernel signals the group's leader, a small shell that kills its
+whole process group (:data:`GROUP_LEADER`): no ``cc1`` runs on alone. The temporary directory is
+removed on every such exit; one that a SIGKILLed process left behind, and a staged file in the
+cache, are removed by a later compile once an hour old. The first compile of a large source
+says what it does on stderr (the limit lap's Hessian block takes about a minute). Without a C
+compiler :class:`NoCompiler` says so; the closed-loop lap then runs on CasADi's virtual machine
+(slower), the limit lap needs one.
 """
 
 from __future__ import annotations
@@ -159,10 +161,19 @@ class _Terminated(BaseException):
     """SIGTERM arrived while the compiler ran (re-delivered after the cleanup)."""
 
 
+#: The compiler's process-group leader: a POSIX shell that runs the compiler command (its
+#: arguments) and, on SIGTERM, SIGKILLs its whole group (itself, the gcc driver, ``cc1``, ``as``).
+#: The kernel sends it SIGTERM when casadrone dies (prctl PR_SET_PDEATHSIG, which reaches only
+#: the process that asked, never the driver's own children: with the signal on the driver alone,
+#: ``cc1`` ran on after a SIGKILL of casadrone). Its exit status is the compiler's.
+GROUP_LEADER = ("/bin/sh", "-c", 'trap "kill -s KILL 0" TERM; "$@" & wait $!', "casadrone-cc")
+
+
 def _death_signal_setter():
-    """A function for ``preexec_fn`` that asks Linux to SIGKILL the compiler when casadrone
-    dies (prctl PR_SET_PDEATHSIG), prepared before the fork (nothing is imported in the child);
-    None elsewhere."""
+    """A function for ``preexec_fn`` that asks Linux to send SIGTERM to the compiler's group
+    leader (:data:`GROUP_LEADER`) when casadrone dies (prctl PR_SET_PDEATHSIG), prepared before
+    the fork (nothing is imported in the child); a child whose parent died before the request
+    exits at once. None elsewhere."""
     if not sys.platform.startswith("linux"):
         return None
     try:
@@ -171,12 +182,20 @@ def _death_signal_setter():
         prctl = ctypes.CDLL(None, use_errno=True).prctl
     except (OSError, AttributeError):
         return None
-    return lambda: prctl(1, signal.SIGKILL, 0, 0, 0)
+    parent = os.getpid()
+
+    def set_death_signal() -> None:
+        prctl(1, signal.SIGTERM, 0, 0, 0)
+        if os.getppid() != parent:  # casadrone died before the request: nothing would signal
+            os._exit(1)
+
+    return set_death_signal
 
 
 def run_compiler(command: list[str]) -> None:
-    """Run a compiler command in a process group of its own; on any exception or signal kill
-    the whole group (driver and its cc1/as children) and wait for it, then pass it on.
+    """Run a compiler command in a process group of its own, led by :data:`GROUP_LEADER`; on any
+    exception or signal kill the whole group (driver and its cc1/as children) and wait for it,
+    then pass it on; if casadrone dies unseen (SIGKILL), the leader kills the group.
 
     Raises CalledProcessError (with the compiler's output) when the compiler fails.
     """
@@ -189,8 +208,9 @@ def run_compiler(command: list[str]) -> None:
         signal.signal(signal.SIGTERM, handler)
     proc = None
     try:
-        proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                start_new_session=True, preexec_fn=_death_signal_setter())
+        proc = subprocess.Popen([*GROUP_LEADER, *command], stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, start_new_session=True,
+                                preexec_fn=_death_signal_setter())
         out, _ = proc.communicate()
         if proc.returncode:
             raise subprocess.CalledProcessError(proc.returncode, command, out)

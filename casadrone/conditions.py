@@ -14,6 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: Fastest turn trimmed (deg/s): Betaflight's largest configurable rate (rate-mode "max rate",
+#: about 2000 deg/s); a racing quadrotor's heading turns no faster.
+MAX_TURN_RATE_DPS = 2000.0
+
 
 @dataclass(frozen=True)
 class TrimCondition:
@@ -45,7 +49,8 @@ def operating_vector(
 ) -> np.ndarray:
     """(V m/s, γ rad, Ω rad/s) of a condition; ValueError naming the parameter when a value is
     not finite, belongs to another condition, or is out of range (|γ| ≤ 90°, V ≥ 0 outside
-    ``forward``)."""
+    ``forward``, |V| within the tracks' Mach 0.3 (:data:`casadrone.config.track.MAX_SPEED_MPS`),
+    |Ω| ≤ :data:`MAX_TURN_RATE_DPS`)."""
     if condition not in CONDITION_REGISTRY:
         raise ValueError(f"unknown condition '{condition}'; choose one of {', '.join(CONDITIONS)}")
     values = dict(zip(_OP_PARAMETERS, (speed_mps, climb_angle_deg, turn_rate_dps), strict=True))
@@ -59,6 +64,15 @@ def operating_vector(
         raise ValueError(f"climb_angle_deg must lie in [-90, 90] (got {climb_angle_deg:g})")
     if speed_mps < 0 and condition != "forward":
         raise ValueError(f"{condition}: speed_mps must be >= 0 (got {speed_mps:g})")
+    from casadrone.config.track import MAX_SPEED_MPS  # the tracks' (Mach 0.3); pydantic: lazily
+
+    if abs(speed_mps) > MAX_SPEED_MPS:
+        raise ValueError(f"speed_mps: {speed_mps:g} m/s is beyond {MAX_SPEED_MPS:.4g} m/s (Mach "
+                         "0.3, the tracks' limit: the models' incompressible aerodynamics)")
+    if abs(turn_rate_dps) > MAX_TURN_RATE_DPS:
+        raise ValueError(f"turn_rate_dps: {turn_rate_dps:g} deg/s is beyond "
+                         f"{MAX_TURN_RATE_DPS:g} deg/s (the fastest rate a racing flight "
+                         "controller is set to)")
     return np.array([float(speed_mps), math.radians(climb_angle_deg), math.radians(turn_rate_dps)])
 
 

@@ -44,7 +44,7 @@ def run_dir_holding(path: Path) -> Path | None:
     return None
 
 
-def _file_above(path: Path) -> Path | None:
+def file_above(path: Path) -> Path | None:
     """The first existing ancestor of ``path`` that is not a folder, or None."""
     for folder in reversed(Path(os.path.abspath(path)).parents):
         if folder.exists() and not folder.is_dir():
@@ -60,7 +60,7 @@ def check_out(path: str | Path, force: bool = False) -> Path:
         raise OutputRefused(f"{path}: inside the run directory {run_dir}, whose files are the "
                             "run's own; write the export somewhere else (--force does not "
                             "apply here)")
-    blocker = _file_above(path)
+    blocker = file_above(path)
     if blocker is not None:
         raise OutputRefused(f"{path}: {blocker} is a file, not a folder; choose another --out")
     if path.is_dir():

@@ -95,6 +95,20 @@ class StudyOptions(AsDict):
                                  f"({_RANGES[name]})")
 
 
+#: Most trim solves one study may ask for (points × (starts + 1) × solvers, and a --plot basin's
+#: grid² × solvers): the default study is 819 solves and 16 s of CPU (SY250, ~20 ms a solve
+#: over the three solvers' mix), so this is about 16 minutes; more is a typo (``--starts
+#: 100000``), not a study.
+MAX_SOLVES = 50_000
+
+
+def solve_count(points: int, options: StudyOptions, basin_grid: int = 0) -> int:
+    """The trim solves a study of ``points`` operating points asks for (the analytic guess and
+    ``options.starts`` random starts per point and solver), a basin slice of ``basin_grid``²
+    starts per solver added."""
+    return (points * (options.starts + 1) + basin_grid ** 2) * len(options.solvers)
+
+
 _RANGES = {
     "starts": "0 to 100000", "angle_spread_deg": "0 to 80 deg", "command_spread": "0 to < 1",
     "solvers": f"distinct names of {', '.join(SOLVERS)}", "reference_solver": ", ".join(SOLVERS),

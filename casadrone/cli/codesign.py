@@ -9,10 +9,11 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from casadrone.cli.common import (
+    EXIT_FAILED,
     JsonOpt,
     QuietOpt,
     app,
-    bad_input,
+    check_out_folder,
     cost_text,
     print_json,
     progress_lines,
@@ -48,14 +49,18 @@ def codesign_command(
     Progress (each start with its objective, iterations and CPU, the certificate, each front
     point, any compile) goes to stderr as it happens; -q silences it.
 
-    A problem with a closed-loop index (J1-J5, Jp) is refused by name (exit code 2).
+    Exit codes: 0 for a co-design that converged; 2 for bad input, refused before any solve
+    (one line naming the file and key: a closed-loop index (J1-J5, Jp), an objective with
+    sense: max, a gate no frame of the box can pass, an --out that cannot be a new folder);
+    3 (EXIT_FAILED) when no start converged: the result, status "failed" with its reason, is
+    still printed and written to --out.
     """
     from casadrone.codesign.checks import load_codesign_problem
+
+    check_out_folder(out)
+    cfg = load_codesign_problem(problem, overrides or [])
     from casadrone.codesign.design import codesign
 
-    if out is not None and out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise bad_input([f"{out}: --out must be a new or empty folder (nothing is overwritten)"])
-    cfg = load_codesign_problem(problem, overrides or [])
     with progress_lines("codesign", quiet):
         result = codesign(cfg, run_dir=out)
     data = result.as_dict()
@@ -66,8 +71,10 @@ def codesign_command(
         (out / "result.json").write_text(json.dumps(jsonable(data), indent=2) + "\n")
     if as_json:
         print_json(data)
-        return
-    typer.echo(text(result))
+    else:
+        typer.echo(text(result))
+    if result.status != "completed":
+        raise typer.Exit(EXIT_FAILED)
 
 
 def objective_text(objective: float, combine: str, laps_s: dict[str, float]) -> str:

@@ -93,6 +93,9 @@ app = _App(
 )
 
 EXIT_BAD_INPUT = 2
+#: A command that ran and found no result (``codesign``: no start converged); its result, with
+#: status "failed" and the reason, is still printed and written.
+EXIT_FAILED = 3
 
 
 def unwrapped(doc: str) -> str:
@@ -384,6 +387,22 @@ def folder_creation_problem(folder: Path) -> str:
     if not os.access(ancestor, os.W_OK | os.X_OK):
         return f"cannot be made: {ancestor} is not writable"
     return ""
+
+
+def check_out_folder(folder: Path | None, flag: str = "--out") -> None:
+    """Exit 2 before any work when ``folder`` (a command's output folder) holds something or
+    cannot be made (a file on the way, a folder that cannot be written): one line naming the
+    option. Nothing is overwritten."""
+    if folder is None:
+        return
+    if folder.exists() or folder.is_symlink():
+        if not folder.is_dir() or any(folder.iterdir()):
+            raise bad_input([f"{flag}: {folder}: must be a new or empty folder (nothing is "
+                             "overwritten)"])
+        return
+    problem = folder_creation_problem(folder)
+    if problem:
+        raise bad_input([f"{flag}: {folder}: {problem}"])
 
 
 def save_figures(figures: dict, folder: Path) -> list[str]:

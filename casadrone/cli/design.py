@@ -26,7 +26,7 @@ from casadrone.cli.common import (
     reports_config_errors,
     save_figures,
 )
-from casadrone.conditions import CONDITION_REGISTRY, CONDITIONS
+from casadrone.conditions import CONDITION_REGISTRY, CONDITIONS, OperatingPoint
 from casadrone.config.io import ConfigError
 
 if TYPE_CHECKING:
@@ -222,20 +222,21 @@ def operating_point_options(condition: str, speed: float | None, climb_angle: fl
             raise bad_input([f"{option}: {condition} has no {option[2:]} (got {value:g}){hint}"])
         if key in wanted and value is None:
             raise bad_input([f"{option}: required with --condition {condition}"])
+    from casadrone.config.track import MAX_SPEED_MPS
+
     point = {key: float(given[key] or 0.0) for key in wanted}
     v = point.get("speed_mps", 0.0)
     moving = condition == "forward"  # level flight at no speed is hover; a turn on the spot is not
-    if not (0.0 < v if moving else 0.0 <= v) or v > MAX_SPEED_MPS:
+    if not (0.0 < v if moving else 0.0 <= v) or v > MAX_SPEED_MPS:  # the tracks' (Mach 0.3)
         what = "forward flight needs 0 <" if moving else f"{condition} needs 0 <="
         raise bad_input([f"--speed: {what} speed <= {MAX_SPEED_MPS:g} m/s (got {v:g})"])
-    if abs(point.get("climb_angle_deg", 0.0)) > 90:
-        raise bad_input([f"--climb-angle: must lie in [-90, 90] deg (got {climb_angle:g})"])
+    try:  # the physical ranges, one place for every consumer (casadrone.conditions)
+        OperatingPoint(condition, **point)
+    except ValueError as exc:
+        key = next((k for k in _OPTION_OF if str(exc).startswith(k)), "")
+        message = str(exc).removeprefix(key).removeprefix(": ").removeprefix(" ")
+        raise bad_input([f"{_OPTION_OF.get(key, '--' + condition)}: {message}"]) from None
     return point
-
-
-#: Fastest flight trimmed (m/s): racing quadrotors fly below about 60 m/s; beyond this the
-#: quadratic drag model and the small-angle controller are meaningless.
-MAX_SPEED_MPS = 100.0
 
 
 def _trim_table(r: dict) -> str:

@@ -53,10 +53,13 @@ def export_command(
     SVG/DXF. Every file names the casadrone version, the airframe or run and the candidate.
     """
     from casadrone.export import export, write_export
-    from casadrone.export.plate import PlateOptions
+    from casadrone.export.plate import PlateOptions, arm_width_problem
     from casadrone.export.source import source_of
     from casadrone.outfile import OutputRefused, check_out
 
+    options = PlateOptions(arm_width_mm=arm_width, pattern=pattern.value)
+    if arm_width_problem(options):
+        raise bad_input([f"--arm-width: {arm_width_problem(options)}"])
     if out is not None:
         try:
             check_out(out, force)  # before reading anything
@@ -66,7 +69,6 @@ def export_command(
         src = source_of(source, candidate, overrides)
     except (FileNotFoundError, ValueError) as exc:
         raise bad_input([f"{source}: {exc}" if str(source) not in str(exc) else str(exc)]) from None
-    options = PlateOptions(arm_width_mm=arm_width, pattern=pattern.value)
     try:
         if out is None:
             typer.echo(export(src, fmt, options), nl=False)

@@ -13,6 +13,7 @@ from casadrone.cli.common import (
     QuietOpt,
     app,
     bad_input,
+    folder_creation_problem,
     print_json,
     progress_lines,
     reports_config_errors,
@@ -197,12 +198,15 @@ def run_command(
 
     if quiet and verbose:
         raise bad_input(["--quiet and --verbose: choose one"])
-    cfg = load_problem(problem, overrides or [])
-    be = backend_config(cfg.backend, backend, workers, scheduler)
     try:
         check_new_run_dir(out)
     except NotARunDirectory as exc:
         raise bad_input([f"--out: {exc}"]) from None
+    unmakeable = folder_creation_problem(out)
+    if unmakeable:
+        raise bad_input([f"--out: {out}: {unmakeable}"])
+    cfg = load_problem(problem, overrides or [])
+    be = backend_config(cfg.backend, backend, workers, scheduler)
     if verbose:
         a = cfg.algorithm
         objectives = ", ".join(f"{o.index} ({o.sense or 'default'})" for o in cfg.objectives)

@@ -26,7 +26,7 @@ from casadrone.cli.common import (
 if TYPE_CHECKING:  # the study is imported when the command runs
     from casadrone.airframe import Airframe
     from casadrone.conditions import OperatingPoint
-    from casadrone.trimstudy import TrimStudy
+    from casadrone.trimstudy import StudyOptions, TrimStudy
 
 #: The option of each field of :class:`casadrone.trimstudy.StudyOptions`.
 OPTION_OF = {"starts": "--starts", "seed": "--seed", "angle_spread_deg": "--angle-spread",
@@ -77,6 +77,7 @@ def trim_study(
     check_plot_dir(plot, TRIM_STUDY_FIGURES)
     points, options, focus = _parse(conditions, starts, seed, angle_spread, command_spread,
                                     solvers, reference, distinct_tolerance, basin_grid, plot_point)
+    check_size(len(points), options, basin_grid if plot else 0)
     _, frame = load_airframe_or_exit(airframe, overrides)
     from casadrone.trimstudy import trim_study as run_study
 
@@ -120,6 +121,21 @@ def _parse(conditions: str, starts: int, seed: int, angle_spread: float,
         field, _, message = str(exc).partition(": ")
         raise bad_input([f"{OPTION_OF.get(field, field)}: {message}"]) from None
     return points, options, focus
+
+
+def check_size(points: int, options: StudyOptions, basin_grid: int) -> None:
+    """Exit 2 naming the options when the study asks for more than
+    :data:`casadrone.trimstudy.MAX_SOLVES` trim solves."""
+    from casadrone.trimstudy import MAX_SOLVES, solve_count
+
+    n = solve_count(points, options, basin_grid)
+    if n > MAX_SOLVES:
+        basin = f" + {basin_grid}² --basin-grid starts" if basin_grid else ""
+        raise bad_input([
+            f"--conditions, --starts, --solvers: ({points} point(s) x {options.starts + 1} "
+            f"start(s){basin}) x {len(options.solvers)} solver(s) = {n} trim solves, more "
+            f"than the {MAX_SOLVES} a study may ask for (the default study is 819 solves, 16 s "
+            "of CPU): fewer points, starts or solvers"])
 
 
 def _fastest_level(study: TrimStudy) -> OperatingPoint:

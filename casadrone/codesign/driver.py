@@ -27,9 +27,10 @@ import numpy as np
 from casadrone.airframe import build_airframe, random_thetas, with_theta
 from casadrone.codesign import events
 from casadrone.codesign.budget import STOPPED
+from casadrone.codesign.checks import gate_clearance, template_of
 from casadrone.codesign.frame import CODESIGN_KEYS, SymbolicFrame
 from casadrone.codesign.nlp import CodesignNlp, TrackPart, build_codesign_nlp
-from casadrone.config.airframe import AirframeConfig, load_airframe
+from casadrone.config.airframe import AirframeConfig
 from casadrone.config.codesign import DEFAULT_LAP_STARTS, FRONT_MEASURES, CodesignProblemConfig
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
@@ -151,14 +152,6 @@ class CodesignResult:
 # --------------------------------------------------------------------------------------------
 
 
-def _template(problem: CodesignProblemConfig) -> AirframeConfig:
-    assert problem.airframe is not None  # the schema requires it
-    cfg = load_airframe(problem.airframe)
-    if problem.fixed:
-        cfg = AirframeConfig.model_validate({**cfg.model_dump(), **problem.fixed})
-    return cfg
-
-
 def _tracks(problem: CodesignProblemConfig) -> tuple[tuple[str, ...], tuple[TrackConfig, ...],
                                                       tuple[float, ...]]:
     if problem.codesign.tracks:
@@ -182,28 +175,6 @@ def _part(template: AirframeConfig, track: TrackConfig, options: LimitLapOptions
                      first_timed=pb.targets.first_timed, propulsion=frame.propulsion)
 
 
-def gate_clearance(template: AirframeConfig, lower: np.ndarray, upper: np.ndarray,
-                   keys: tuple[str, ...]) -> float:
-    """The gate clearance (m) every frame of the box is posed with: the largest of the limit
-    lap's own clearances (the frame's size, :func:`casadrone.limit.lap.frame_clearance_m`) over
-    the box's valid corners, where the farthest rotor is farthest. One clearance for every frame
-    keeps the targets independent of θ (they are NLP parameters); the fixed-frame checks use the
-    same, so a frame is never compared on a different track."""
-    import itertools
-
-    from casadrone.limit.lap import frame_clearance_m
-
-    sizes = []
-    for corner in itertools.product(*zip(lower, upper, strict=True)):
-        try:
-            frame = build_airframe(with_theta(template, dict(zip(keys, corner, strict=True))))
-        except ConfigError:
-            continue
-        sizes.append(frame_clearance_m(frame, template.prop_diameter_mm / 1000))
-    return max(sizes, default=frame_clearance_m(build_airframe(template),
-                                                template.prop_diameter_mm / 1000))
-
-
 def template_lap(template: AirframeConfig, track: TrackConfig,
                  options: LimitLapOptions) -> LimitLap:
     """The template's limit lap, the co-design's first start and every other frame's warm
@@ -224,7 +195,7 @@ _BUILT: dict[tuple, CodesignNlp] = {}
 
 def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Prepared:
     """The template, the variables, the tracks and the co-design NLP (cached per shape)."""
-    template = _template(problem)
+    template = template_of(problem)
     keys = tuple(v.name for v in problem.variables)
     bad = [k for k in keys if k not in CODESIGN_KEYS]
     if bad:

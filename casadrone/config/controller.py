@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator
 
-from casadrone.config.io import Schema, load, resolve_config
+from casadrone.config.io import ConfigError, Schema, first_line, load, resolve_config
 
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
@@ -122,5 +122,18 @@ class ControllerConfig(Schema):
 def load_controller(
     path: str | Path | None = None, overrides: list[str] | None = None
 ) -> ControllerConfig:
-    """Load a controller YAML or name; ``None`` gives ``configs/controllers/default.yaml``."""
-    return load(ControllerConfig, resolve_config(path or "default", "controllers"), overrides)
+    """Load a controller YAML or name; ``None`` gives ``configs/controllers/default.yaml``.
+
+    Its ``reference_airframe`` is loaded too: a file that is no valid airframe (a controller, a
+    track) is one line naming the controller and the key (ConfigError), not the referenced
+    file's own line, which read as if the option given (``--controller``) were wrong."""
+    from casadrone.config.airframe import load_airframe
+
+    source = resolve_config(path or "default", "controllers")
+    ctrl = load(ControllerConfig, source, overrides)
+    if ctrl.reference_airframe is not None:
+        try:
+            load_airframe(ctrl.reference_airframe)
+        except ConfigError as exc:
+            raise ConfigError([f"{source}: reference_airframe: {first_line(exc)}"]) from None
+    return ctrl

@@ -468,6 +468,13 @@ def check_paths(data: dict[str, Any], base: Path, source: str) -> tuple[dict, li
     return walk(data, ""), errors
 
 
+def first_line(exc: Exception) -> str:
+    """The first line of a ConfigError (the others counted), or the exception's text: a
+    referenced file's problems said in one line of the file that references it."""
+    lines = getattr(exc, "lines", None) or [str(exc)]
+    return lines[0] + (f" (and {len(lines) - 1} more)" if len(lines) > 1 else "")
+
+
 def problem_lines(pairs: list[tuple[str, str]], source: str,
                   overrides: list[str] | None = None) -> list[str]:
     """``FILE: dotted.key: message`` per (key, message); a key set by a ``key=value`` override

@@ -24,6 +24,7 @@ from casadrone.config.io import (
     Schema,
     error_pairs,
     field_adapter,
+    first_line,
     has_keys,
     load,
     read_yaml,
@@ -228,11 +229,6 @@ class ProblemConfig(Schema):
         return found
 
 
-def _first(exc: Exception) -> str:
-    lines = getattr(exc, "lines", None) or [str(exc)]
-    return lines[0] + (f" (and {len(lines) - 1} more)" if len(lines) > 1 else "")
-
-
 def _input_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
     """The referenced airframe, track and controller valid, ``fixed:`` values valid on the
     template, and the search box able to produce an airframe: every bound a possible value on
@@ -242,7 +238,7 @@ def _input_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
     try:
         template = load_airframe(v["airframe"])
     except ConfigError as exc:
-        return [("airframe", f"referenced file is invalid: {_first(exc)}")]
+        return [("airframe", f"referenced file is invalid: {first_line(exc)}")]
     for key in ("controller", "track"):
         if v.get(key) is not None:
             try:
@@ -253,7 +249,7 @@ def _input_problems(v: dict[str, Any]) -> list[tuple[str, str]]:
                 if reference is not None:
                     load_airframe(reference)
             except ConfigError as exc:
-                found.append((key, f"referenced file is invalid: {_first(exc)}"))
+                found.append((key, f"referenced file is invalid: {first_line(exc)}"))
     base = template.model_dump()
     if v.get("fixed"):
         try:

@@ -40,6 +40,16 @@ class PlateOptions:
     stack_spacing_mm: float = 30.5
 
 
+def arm_width_problem(o: PlateOptions) -> str:
+    """Why the plate cannot be drawn with ``o.arm_width_mm`` (empty when it can): an arm as
+    wide as the hub or a motor pad leaves no outline."""
+    widest = 2 * min(o.hub_radius_mm, o.pad_radius_mm)
+    if o.arm_width_mm < widest:
+        return ""
+    return (f"arm width {o.arm_width_mm:g} mm: the arm must be narrower than the hub and the "
+            f"motor pads (below {widest:g} mm)")
+
+
 @dataclass(frozen=True)
 class Arc:
     centre: tuple[float, float]
@@ -79,8 +89,8 @@ def plate(src: ExportSource, options: PlateOptions | None = None) -> Plate:
     a = src.airframe
     motors = drawing_xy(a.rotor_positions + a.com)  # rotor positions are from the CoM
     w2, R, rp = o.arm_width_mm / 2, o.hub_radius_mm, o.pad_radius_mm
-    if not (w2 < rp and w2 < R):
-        raise ValueError("the arm must be narrower than the hub and the motor pads")
+    if arm_width_problem(o):
+        raise ValueError(arm_width_problem(o))
     order = np.argsort(np.arctan2(motors[:, 1], motors[:, 0]))
     phis = np.arctan2(motors[order, 1], motors[order, 0])
     lengths = np.hypot(motors[order, 0], motors[order, 1])

@@ -11,7 +11,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
+from casadrone.airframe import Airframe, build_airframe, decision_keys, with_theta
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.io import ConfigError
 from casadrone.limit.gates import TARGET_SIZE, target_miss  # noqa: F401 (re-exported)
@@ -105,13 +105,27 @@ def theta_sensitivities(
     dT_dp: np.ndarray,
     dT_dx0: np.ndarray,
     start: Callable[[Airframe], np.ndarray],
-    keys: tuple[str, ...] = THETA_KEYS,
+    keys: tuple[str, ...] | None = None,
     rel_step: float = 1e-5,
 ) -> dict[str, float]:
     """dT/dθ (s per unit of each key): the NLP's dT/dp and dT/dx_start chained with dp/dθ and
     dx_start/dθ, differentiated through the same config → airframe build as the evaluation
     (so a mass model that derives mass and inertia from θ is included). Central differences of
-    that cheap map (no re-solve); one-sided where a side leaves the valid configs (a bound)."""
+    that cheap map (no re-solve); one-sided where a side leaves the valid configs (a bound).
+
+    ``keys`` default to the airframe's decision variables
+    (:func:`casadrone.airframe.decision_keys`): the seven of paper Table 1 with ``mass_model:
+    free``, the four geometry keys with ``components``, whose mass and inertia are derived from
+    the geometry and the parts (not keys of the config, so not variables: their effect is inside
+    each geometry key's dT/dθ). A key the config does not give (a derived one) raises ValueError
+    naming it."""
+    keys = decision_keys(cfg) if keys is None else keys
+    derived = [k for k in keys if getattr(cfg, k, None) is None]
+    if derived:
+        raise ValueError(f"{', '.join(derived)}: not given by airframe {cfg.name} (derived "
+                         f"from its parts); its decision variables are "
+                         f"{', '.join(decision_keys(cfg))}")
+
     def params(key: str, value: float) -> np.ndarray | None:
         try:
             frame = build_airframe(with_theta(cfg, {key: value}))

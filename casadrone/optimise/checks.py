@@ -211,9 +211,10 @@ def check_problem(problem: ProblemConfig, source: str | Path,
     from casadrone.config.codesign import CodesignProblemConfig
 
     if isinstance(problem, CodesignProblemConfig):
-        from casadrone.codesign.checks import codesign_index_problems
+        from casadrone.codesign.checks import codesign_index_problems, codesign_track_problems
 
         found = codesign_index_problems(problem.objectives, problem.constraints)
+        found = found or codesign_track_problems(problem)
     else:
         found = problem_problems(problem)
     if found:

@@ -25,7 +25,7 @@ from __future__ import annotations
 import datetime as _dt
 from pathlib import Path
 
-from casadrone.outfile import shown_path
+from casadrone.outfile import file_above, shown_path
 from casadrone.progress import emit, nested
 from casadrone.report.analysis import (
     choose_candidates,
@@ -108,8 +108,9 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] | None = None,
     if path.is_dir() or (path.exists() and not path.is_file()):
         raise ValueError(f"--out: {path}: is a directory; give the report's file name "
                          f"(e.g. {path / REPORT})")
-    if path.parent.exists() and not path.parent.is_dir():
-        raise ValueError(f"--out: {path.parent}: exists and is not a directory")
+    blocker = file_above(path)  # afile/sub/report.html: found before the run is read
+    if blocker is not None:
+        raise ValueError(f"--out: {path}: cannot be made: {blocker} is a file, not a folder")
     run = read_run(run_dir)
     if not references:
         from casadrone.verdict import default_baseline

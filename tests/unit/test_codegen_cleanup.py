@@ -5,7 +5,9 @@ a long-lived child, as gcc forks cc1) stands in for gcc, so the test takes secon
 
 from __future__ import annotations
 
+import contextlib
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -131,3 +133,66 @@ def test_a_stopped_runs_compiling_worker_leaves_no_compiler_and_no_folder(tmp_pa
         time.sleep(0.05)
     assert not alive(driver) and not alive(grandchild)
     assert list((tmp_path / "tmp").iterdir()) == []
+
+
+def descendants(pid: int) -> dict[int, str]:
+    """Every process below ``pid`` (pid → command name), read from /proc."""
+    parent_of, name_of = {}, {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                head, tail = (entry / "stat").read_text().rsplit(")", 1)
+            except (FileNotFoundError, ProcessLookupError):
+                continue
+            parent_of[int(entry.name)] = int(tail.split()[1])
+            name_of[int(entry.name)] = head.partition("(")[2]
+    found, frontier = {}, [pid]
+    while frontier:
+        here = frontier.pop()
+        for child, parent in parent_of.items():
+            if parent == here and child not in found:
+                found[child] = name_of[child]
+                frontier.append(child)
+    return found
+
+
+def slow_c_source(statements: int = 20000) -> str:
+    """One function of ``statements`` dependent floating-point updates: gcc -O2 spends minutes
+    in cc1 on it (measured: over 120 s for 20000), so cc1 is surely running when it is killed."""
+    body = [f"  s += x[{i % 97}] * x[{i * 7 % 89}] / (1.0 + x[{i * 13 % 83}] * s);"
+            for i in range(statements)]
+    return "\n".join(["double f(double *x) {", "  double s = 0.0;", *body, "  return s;", "}"])
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or shutil.which("gcc") is None,
+                    reason="reads /proc; needs gcc")
+def test_sigkill_during_a_real_compile_leaves_no_cc1(tmp_path, env):
+    """SIGKILL (no cleanup can run) of a process compiling with gcc: the gcc driver died with it
+    but cc1 ran on alone for minutes (the parent-death signal reached the driver only). The
+    compiler's group leader now kills the whole group."""
+    source = tmp_path / "slow.c"
+    source.write_text(slow_c_source())
+    child = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from pathlib import Path; from casadrone.codegen "
+         "import compile_source; compile_source('slow', Path(sys.argv[1]).read_text())",
+         str(source)], env={**env, "CC": "gcc"}, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        tree = descendants(child.pid)
+        while "cc1" not in tree.values():
+            assert child.poll() is None and time.monotonic() < deadline, "cc1 never started"
+            time.sleep(0.05)
+            tree = descendants(child.pid)
+    finally:
+        child.kill()  # SIGKILL
+        child.wait()
+    assert {"gcc", "cc1"} <= set(tree.values()), tree
+    deadline = time.monotonic() + 5
+    while any(alive(p) for p in tree) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    left = {p: name for p, name in tree.items() if alive(p)}
+    for p in left:  # not to leave a compiler running when the test fails
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(p, signal.SIGKILL)
+    assert left == {}, f"the compiler outlived casadrone: {left}"
+    assert not list((Path(env["CASADRONE_CACHE"])).glob("slow_*.so"))

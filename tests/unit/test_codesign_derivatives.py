@@ -18,7 +18,7 @@ import pytest
 import casadrone.codesign.derivatives as cdd
 from casadrone.airframe import build_airframe, with_theta
 from casadrone.codesign.blocks import theta_block_functions
-from casadrone.codesign.driver import _part, _template
+from casadrone.codesign.driver import _part, template_of
 from casadrone.codesign.frame import SymbolicFrame
 from casadrone.codesign.nlp import build_codesign_nlp
 from casadrone.config.codesign import CodesignProblemConfig
@@ -39,7 +39,7 @@ def _built(airframe: str, epsilon: tuple[str, ...], intervals: int = 4):
         "track": str(SHORT), "objectives": [{"index": "J3_limit"}],
         "variables": [{"name": k, "lower": lo, "upper": hi} for k, lo, hi in BOX],
         "codesign": {"starts": 0, "intervals": intervals}})
-    template = _template(problem)
+    template = template_of(problem)
     options = LimitLapOptions(intervals=intervals, sensitivities=False, gate_clearance_m=0.3)
     track = load(TrackConfig, SHORT)
     part = _part(template, track, options, 1.0)
@@ -107,7 +107,7 @@ def test_block_derivatives_equal_casadi_ad_propeller(monkeypatch):
 def test_propeller_hover_states_are_the_limit_laps_start():
     """The symbolic hover rotor speeds of p(θ) equal the limit lap's own start (numeric:
     casadrone.propulsion.hover_rotors of the built airframe) at random frames."""
-    cfg = _template(CodesignProblemConfig.model_validate({
+    cfg = template_of(CodesignProblemConfig.model_validate({
         "name": "h", "airframe": str(ROOT / "configs/airframes/SY250-components-propeller.yaml"),
         "track": str(SHORT), "objectives": [{"index": "J3_limit"}],
         "variables": [{"name": k, "lower": lo, "upper": hi} for k, lo, hi in BOX]}))

@@ -131,7 +131,7 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
     (r_i − c), which is where the model's moments are taken.
     """
     from casadrone.massprops import mass_properties
-    from casadrone.propulsion import advance_ratio_limit, propeller_params
+    from casadrone.propulsion import advance_ratio_limit, propulsion_model
 
     mp = mass_properties(cfg)
     r = np.array(rotor_positions_mm(cfg.lambda_a_mm, cfg.lambda_b_mm, cfg.alpha_deg, cfg.beta_deg))
@@ -164,8 +164,8 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
         gravity=cfg.gravity_mps2,
         com=mp.com_m,
         propulsion=cfg.propulsion.model,
-        propulsion_params=(tuple(propeller_params(cfg.propulsion, cfg.air_density_kgm3))
-                           if cfg.propulsion.model == "propeller" else ()),
+        propulsion_params=tuple(propulsion_model(cfg.propulsion.model).pack(
+            cfg.propulsion, cfg.air_density_kgm3)),
         max_advance_ratio=advance_ratio_limit(cfg.propulsion),
     )
 

@@ -39,6 +39,7 @@ from typing import Literal
 
 import numpy as np
 
+from casadrone.propulsion import DEFAULT_MODEL, propulsion_model
 from casadrone.results import AsDict
 from casadrone.simulate import Trajectory, row_norm
 
@@ -233,8 +234,8 @@ def limit_lap_thrusts(lap) -> np.ndarray:
     axial inflow at the node, by the model's thrust (:func:`casadrone.model.rotor_thrusts`) on
     the airframe vector the lap was flown with (:attr:`LimitLap.params`)."""
     x = np.asarray(lap.x_euler, float)
-    kind = getattr(lap, "propulsion", "paper")
-    if kind == "paper":
+    kind = getattr(lap, "propulsion", DEFAULT_MODEL)
+    if propulsion_model(kind).thrust_is_state:
         return x[:, 12:16]
     p = np.asarray(getattr(lap, "params", np.zeros(0)), float)
     if p.size == 0:

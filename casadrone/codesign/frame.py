@@ -26,6 +26,7 @@ import numpy as np
 
 from casadrone.airframe import PARAM_NAMES, THETA_KEYS, build_airframe
 from casadrone.config.airframe import ROTOR_LABELS, AirframeConfig
+from casadrone.propulsion import propulsion_model
 
 #: θ keys co-design can vary: the geometry and (``free`` mass model) the principal inertias.
 CODESIGN_KEYS = THETA_KEYS
@@ -118,12 +119,9 @@ def hover_rotor_states(p, propulsion: str = "paper"):
     (``propeller``: :func:`casadrone.propulsion.speed_for_thrust`, the limit lap's own start,
     :func:`casadrone.propulsion.hover_rotors`)."""
     T = hover_thrusts(p)
-    if propulsion == "paper":
-        return T
     from casadrone.model import named
 
-    q = named(p, propulsion)
-    return 2 * np.pi * ca.sqrt(T / (q["rho"] * q["ct0"] * q["prop_D"] ** 4))
+    return propulsion_model(propulsion).static_rotors(T, named(p, propulsion))
 
 
 @dataclass(frozen=True)

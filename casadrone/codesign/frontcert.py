@@ -63,6 +63,7 @@ from casadrone.config.io import ConfigError
 from casadrone.limit.check import resimulation_miss
 from casadrone.limit.starts import prepare, trajectory
 from casadrone.model import n_params
+from casadrone.propulsion import propulsion_model
 
 #: Errors of a certificate's solves and re-simulation that fail the certificate (reported)
 #: instead of the front.
@@ -123,7 +124,8 @@ def track_dT_dP(prep: Prepared, point: CodesignPoint, k: int, P: np.ndarray) -> 
     w = point.z[cd.offsets[k]:cd.offsets[k + 1]]
     lam = point.lam_g[cd.row_offsets[k]:cd.row_offsets[k + 1]]
     grad = np.asarray(_lagrangian_p(part)(w, P, lam), float).ravel()
-    if "effort" in cd.epsilon and part.propulsion != "paper":  # paper: q has no p
+    if "effort" in cd.epsilon and not propulsion_model(part.propulsion).thrust_is_state:
+        # rotor states that are thrusts (paper): q has no p
         first = sum(q.nlp.layout.n_intervals for q in cd.parts[:k])
         nu = point.lam_g[len(cd.lbg) - cd.n_lift:][first:first + part.nlp.layout.n_intervals]
         n_p = n_params(part.propulsion)

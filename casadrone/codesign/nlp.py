@@ -26,6 +26,7 @@ from casadrone.codesign.derivatives import codesign_derivatives, uses_blocks
 from casadrone.codesign.frame import SymbolicFrame
 from casadrone.indices import EFFORT_SMOOTHING_N  # one δ for the index and the NLP
 from casadrone.limit.nlp import Nlp, ipopt_options
+from casadrone.propulsion import propulsion_model
 
 Combine = Literal["sum", "worst"]
 #: Lower bound of the frame's feasibility rows (each scaled to order one): IPOPT meets a row to
@@ -84,7 +85,7 @@ def effort_terms(part: TrackPart, w, p=None):
     zero_u = np.zeros((M, nlp.model.nu))
     X = np.zeros((M + 1, nlp.model.nx))
     h = w[np.flatnonzero(nlp.pack(np.ones(L), X, zero_u)).tolist()] / N
-    if part.propulsion == "paper":
+    if propulsion_model(part.propulsion).thrust_is_state:
         X[:M, nlp.model.rotor] = 1.0
         at_t = np.flatnonzero(nlp.pack(np.zeros(L), X, zero_u))
         T = ca.reshape(w[at_t.tolist()], -1, M)  # rotors × intervals

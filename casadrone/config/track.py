@@ -14,8 +14,8 @@ import numpy as np
 from pydantic import Field, StrictBool, field_validator, model_validator
 
 from casadrone.config.io import CONFIG_DIR, MAX_MAGNITUDE, Schema, load, resolve_config
-from casadrone.config.propulsion import SPEED_OF_SOUND_M_S
 from casadrone.limit.targets import TARGET_KINDS, gate_shapes, kind_of_shape
+from casadrone.propulsion.data import SPEED_OF_SOUND_M_S
 
 #: The paper's rectangular track (Fig. 7), flown when no track is named.
 DEFAULT_TRACK = CONFIG_DIR / "tracks" / "paper-rectangle.yaml"

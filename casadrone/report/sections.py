@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 from casadrone import plots
 from casadrone.indices import INDICES
 from casadrone.outfile import shown_path
+from casadrone.propulsion import propulsion_model
 from casadrone.report.analysis import (
     STAGES,
     Candidate,
@@ -252,7 +253,7 @@ def _trims(setup, theta: dict[str, float]) -> dict:
     af = build_airframe(with_theta(setup.template, theta))
     Ta = af.hover_thrusts()
     d = af.mass * af.gravity / (4 * af.thrust_gain)
-    if af.propulsion != "paper":  # the command of a quarter of the weight per rotor
+    if not propulsion_model(af.propulsion).command_linear:  # a quarter of the weight per rotor
         from casadrone.propulsion import hover_rotors
 
         d = float(np.mean(hover_rotors(af, np.full(4, af.mass * af.gravity / 4))[1]))

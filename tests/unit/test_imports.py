@@ -23,11 +23,11 @@ STAGES: tuple[str, ...] = (
     "casadrone.heap",  # the process's malloc settings (the command line calls them)
     "casadrone.parentdeath",  # child processes that die with their parent
     "casadrone.results",
+    "casadrone.propulsion",  # the propulsion models: the airframe schema reads their kinds
     "casadrone.config.yamlsafe",
     "casadrone.config.io",
     "casadrone.massprops",
     "casadrone.config.propulsion",
-    "casadrone.propulsion",
     "casadrone.config.airframe",
     "casadrone.config.controller",
     "casadrone.limit.targets",  # the target kinds: the track schema reads their gate shapes

@@ -47,7 +47,7 @@ _API = {
     "casadrone.evaluate": ["evaluate", "default_setup", "theta_of", "Evaluation",
                            "EvaluationSetup"],
     "casadrone.optimise.runner": ["run", "resume", "RunResult"],
-    "casadrone.optimise.store": ["RunStore"],
+    "casadrone.rundir.store": ["RunStore"],
     "casadrone.decide": ["decide", "Decision"],
     "casadrone.benchmark": ["run_benchmark"],
     "casadrone.compare": ["gain_pct"],

@@ -144,7 +144,7 @@ def run_candidates(
     """
     from casadrone.decide import METHODS, decide
     from casadrone.optimise.problem import Study
-    from casadrone.optimise.store import CONFIG, PARETO, RunStore
+    from casadrone.rundir.store import CONFIG, PARETO, RunStore
 
     store = RunStore(Path(run_dir))
     if not (store.path / CONFIG).is_file():
@@ -288,7 +288,7 @@ def compare_run(
 
     from casadrone.evaluate import evaluate, theta_of
     from casadrone.optimise.problem import Study, study_setup
-    from casadrone.optimise.store import RunStore
+    from casadrone.rundir.store import RunStore
 
     candidates = run_candidates(run_dir, objective=objective)
     problem = RunStore(Path(run_dir)).problem()

@@ -11,7 +11,7 @@ import errno
 import os
 from pathlib import Path
 
-#: The two files every run directory holds (:mod:`casadrone.optimise.store`).
+#: The two files every run directory holds (:mod:`casadrone.rundir.store`).
 _RUN_MARKERS = ("manifest.json", "config.yaml")
 
 

@@ -229,8 +229,8 @@ def limit_lap_trajectory(lap, waypoints) -> Trajectory:
 def target_outlines(targets) -> list[np.ndarray]:
     """The boundary (k × 3, m) of every target of a limit lap's track (a
     :class:`casadrone.limit.problem.Targets`), each drawn as its kind draws it
-    (:func:`casadrone.limit.targets.target_outline`)."""
-    from casadrone.limit.targets import TARGET_SIZE, target_outline
+    (:func:`casadrone.targets.target_outline`)."""
+    from casadrone.targets import TARGET_SIZE, target_outline
 
     vec = np.asarray(targets.vector, float).reshape(len(targets.kinds), TARGET_SIZE)
     return [target_outline(tp, kind) for tp, kind in zip(vec, targets.kinds, strict=True)]

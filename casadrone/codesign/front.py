@@ -9,7 +9,7 @@ from the fastest frame's measure down to ``lowest`` of it; the sweep stops at th
 NLP cannot meet (reported).
 
 The front is written as a run directory (:func:`write_run`) with ``pareto.csv``,
-``config.yaml`` and ``manifest.json`` as :mod:`casadrone.optimise.store` writes them.
+``config.yaml`` and ``manifest.json`` as :mod:`casadrone.rundir.store` writes them.
 """
 
 from __future__ import annotations
@@ -204,8 +204,8 @@ def write_run(path, prep: Prepared, front: Front, n_solves: int):
 
     prep = front.prepared or prep  # the ε-constrained NLP the points were solved in
     from casadrone.config.problem import ProblemConfig
-    from casadrone.optimise.store import RunStore, atomic_write, now
     from casadrone.results import Record
+    from casadrone.rundir.store import RunStore, atomic_write, now
 
     data = prep.problem.model_dump(exclude={"codesign"})
     data["objectives"] = [{"index": "J3_limit", "sense": "min"},

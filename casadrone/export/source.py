@@ -69,8 +69,8 @@ def run_source(run_dir: str | Path, candidate: str) -> ExportSource:
     """
     from casadrone.compare import run_candidates
     from casadrone.optimise.problem import Study, study_setup
-    from casadrone.optimise.store import PARETO, RunStore
     from casadrone.outfile import shown_path
+    from casadrone.rundir.store import PARETO, RunStore
 
     run_dir = Path(run_dir)
     store = RunStore(run_dir)

@@ -13,7 +13,7 @@ receives and what the re-simulation integrates.
 Phases: one per leg (route segment), each with its own free duration T_k and ``intervals``
 uniform intervals of length T_k / N. The end node of leg k must lie in target k: a **ball**
 (|p − c| ≤ r) or a **gate** (rectangle, circle or polygon of any orientation: on its plane,
-inside its opening shrunk by a clearance, crossing it forwards; :mod:`casadrone.limit.targets`).
+inside its opening shrunk by a clearance, crossing it forwards; :mod:`casadrone.targets`).
 Objective: Σ T_k.
 
 Everything that varies between airframes or track geometries is an NLP *parameter*

@@ -26,10 +26,10 @@ import time
 
 import numpy as np
 
-from casadrone.optimise.checkpoint import dumps
 from casadrone.optimise.problem import Study, objectives_and_constraints
-from casadrone.optimise.store import RunStore, atomic_write
 from casadrone.results import Record
+from casadrone.rundir.checkpoint import dumps
+from casadrone.rundir.store import RunStore, atomic_write
 
 #: Beside ``history.sqlite`` in a polished run: every member's polish (JSON).
 POLISH_FILE = "polish.json"

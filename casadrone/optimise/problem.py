@@ -92,7 +92,7 @@ def _setup(key: str, problem: ProblemConfig):
 
     if key in _SETUPS:
         return _SETUPS[key]
-    from casadrone.optimise.checks import import_plugin
+    from casadrone.rundir.plugins import import_plugin
 
     for plugin in problem.plugins:  # workers start fresh: register custom indices here too
         import_plugin(plugin)

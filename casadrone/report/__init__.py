@@ -135,7 +135,7 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] = ("SY250",),
             f" · status {esc(m.get('status'))} · {len(run.history)} evaluations · "
             f"{len(run.F)} designs on the front · report written {esc(stamp)}</p>"
             f"<nav>{nav}</nav></header>{sections}</body></html>")
-    from casadrone.optimise.store import atomic_write
+    from casadrone.rundir.store import atomic_write
 
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(path, page)

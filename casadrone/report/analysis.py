@@ -16,8 +16,8 @@ from casadrone.compare import CANDIDATE_LABELS, DECISION_TEXT, Candidate
 from casadrone.indices import INDICES
 from casadrone.optimise.hypervolume import non_dominated
 from casadrone.optimise.problem import FAILURE_CV, Study, objectives_and_constraints
-from casadrone.optimise.store import PARETO, RunStore
 from casadrone.results import Record
+from casadrone.rundir.store import PARETO, RunStore
 
 #: Decision methods in label order (paper: A utopian, B trade-off, C extreme).
 LABELS = tuple((CANDIDATE_LABELS[m], m, text) for m, text in DECISION_TEXT.items())

@@ -10,7 +10,6 @@ from casadrone import plots
 from casadrone.compare import Candidate
 from casadrone.evaluate import Evaluation, evaluate, theta_of
 from casadrone.indices import INDICES
-from casadrone.optimise.store import PARETO, git_revision
 from casadrone.report.analysis import Run
 from casadrone.report.markup import (
     SYMBOL,
@@ -25,6 +24,7 @@ from casadrone.report.markup import (
     table,
     unit_of,
 )
+from casadrone.rundir.store import PARETO, git_revision
 
 
 def evaluate_candidates(run: Run, cands: list[Candidate], limit: bool = True
@@ -65,8 +65,8 @@ def _exports(run: Run, c: Candidate, folder: Path) -> str:
     from casadrone.export import FORMATS, export
     from casadrone.export.source import candidate_source
     from casadrone.optimise.problem import study_setup
-    from casadrone.optimise.store import atomic_write
     from casadrone.outfile import shown_path
+    from casadrone.rundir.store import atomic_write
 
     template = study_setup(run.study).template
     tag = c.label.replace("=", "")  # "A=C" (one design, two decisions) → "AC"

@@ -1,4 +1,4 @@
-"""The import graph of casadrone/: no circle, and no module imports from a later stage of the chain.
+"""The import graph of casadrone/: no circle, and no module imports from a later floor of the chain.
 
 The graph is read from the source with :mod:`ast` (every ``import`` and ``from … import``, at module
 level or inside a function: a lazy import that closes a circle is still a circle), so the test
@@ -14,28 +14,18 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[2] / "casadrone"
 
-#: The chain, earliest first (docs/architecture.md#layers). A module may import only from its own
-#: stage or an earlier one; a subpackage's modules share the stage given for their prefix unless
-#: listed.
-STAGES: tuple[str, ...] = (
+#: The floors of the chain, earliest first (docs/architecture.md#layers): each a folder (a
+#: subpackage, all its modules) or a top-level module, never interleaved. A module imports only from
+#: its own floor or an earlier one; within a floor, only the absence of circles orders it.
+FLOORS: tuple[str, ...] = (
     "casadrone.data",
     "casadrone.codegen",
     "casadrone.heap",  # the process's malloc settings (the command line calls them)
     "casadrone.parentdeath",  # child processes that die with their parent
     "casadrone.results",
-    "casadrone.propulsion",  # the propulsion models: the airframe schema reads their kinds
-    "casadrone.config.yamlsafe",
-    "casadrone.config.io",
     "casadrone.massprops",
-    "casadrone.config.propulsion",
-    "casadrone.config.airframe",
-    "casadrone.config.controller",
-    "casadrone.limit.targets",  # the target kinds: the track schema reads their gate shapes
-    "casadrone.config.track",
-    "casadrone.config.reference",
-    "casadrone.config.problem",
-    "casadrone.config.codesign",
-    "casadrone.config.validation",
+    "casadrone.propulsion",  # the propulsion models: the airframe schema reads their kinds
+    "casadrone.targets",  # the limit lap's target kinds: the track schema reads their shapes
     "casadrone.config",
     "casadrone.outfile",
     "casadrone.thruststand",
@@ -49,55 +39,14 @@ STAGES: tuple[str, ...] = (
     "casadrone.guidance",
     "casadrone.lapdriver",
     "casadrone.simulate",
-    "casadrone.limit.attitude",
-    "casadrone.limit.gates",
-    "casadrone.limit.watchdog",  # the forked, guarded solve that stagewise beats for
-    "casadrone.limit.stagewise",  # the stage-ordered NLP solve (fatrop) that nlp calls
-    "casadrone.limit.nlp",
-    "casadrone.limit.lagless",
-    "casadrone.limit.check",
-    "casadrone.limit.result",
-    "casadrone.limit.problem",
-    "casadrone.limit.guesses",
-    "casadrone.limit.pointmass",
-    "casadrone.limit.starts",
-    "casadrone.limit.choose",
-    "casadrone.limit.lap",
     "casadrone.limit",
     "casadrone.indices",
     "casadrone.evaluate",
     "casadrone.decide",
-    "casadrone.optimise.bitsets",
-    "casadrone.optimise.boxarchive",
-    "casadrone.optimise.evmoga",
-    "casadrone.optimise.algorithms",
-    "casadrone.codesign.checks",
-    "casadrone.optimise.checks",
-    "casadrone.optimise.mainguard",
-    "casadrone.optimise.problem",
-    "casadrone.optimise.lifeline",
-    "casadrone.optimise.hypervolume",
-    "casadrone.optimise.backends",
-    "casadrone.optimise.checkpoint",
-    "casadrone.optimise.store",
-    "casadrone.optimise.timings",
-    "casadrone.optimise.writer",
-    "casadrone.codesign.budget",
-    "casadrone.codesign.frame",
-    "casadrone.codesign.blocks",
-    "casadrone.precompile",  # compiles the limit lap's and co-design's blocks side by side
-    "casadrone.codesign.derivatives",
-    "casadrone.codesign.nlp",
-    "casadrone.codesign.certificate",
-    "casadrone.codesign.driver",
-    "casadrone.codesign.frontcert",
-    "casadrone.codesign.front",
-    "casadrone.codesign.polish",
-    "casadrone.codesign.design",
+    "casadrone.rundir",  # the run directory: optimise, codesign, compare, report, export read it
     "casadrone.codesign",
-    "casadrone.optimise.hybrid",  # ev-MOGA's polish: the co-design NLP after the generations
-    "casadrone.optimise.runner",
-    "casadrone.optimise",
+    "casadrone.precompile",  # compiles the limit lap's and co-design's blocks side by side
+    "casadrone.optimise",  # ev-MOGA's polish (optimise.hybrid) is the co-design NLP
     "casadrone.benchmark",
     "casadrone.compare",
     "casadrone.plots",
@@ -190,15 +139,11 @@ def cycles(graph: dict[str, dict]) -> list[list[str]]:
     return found
 
 
-def stage(mod: str) -> int:
-    best = None
-    for i, prefix in enumerate(STAGES):
-        if (mod == prefix or mod.startswith(prefix + ".")) and (
-                best is None or len(prefix) > len(STAGES[best])):
-            best = i
-    if best is None:
-        raise AssertionError(f"{mod} is in no stage of STAGES: add it where it belongs")
-    return best
+def floor(mod: str) -> int:
+    for i, prefix in enumerate(FLOORS):
+        if mod == prefix or mod.startswith(prefix + "."):
+            return i
+    raise AssertionError(f"{mod} is on no floor of FLOORS: add it where it belongs")
 
 
 def test_cycle_finder_finds_a_planted_circle():
@@ -210,12 +155,23 @@ def test_cycle_finder_finds_a_planted_circle():
 def test_graph_sees_lazy_and_relative_imports():
     graph = import_graph()
     assert "casadrone.config.airframe" in graph["casadrone.airframe"]  # module-level
-    assert "casadrone.optimise.checks" in graph["casadrone.optimise.store"]  # inside a function
+    assert "casadrone.rundir.plugins" in graph["casadrone.optimise.problem"]  # inside a function
     assert "casadrone.cli.common" in graph["casadrone.cli"]
 
 
 def test_no_import_circle():
     assert cycles(import_graph()) == []
+
+
+def test_floors_are_folders_and_top_level_modules_in_chain_order():
+    """Every floor is a subpackage or a top-level module (no floor is a module inside a folder,
+    so no folder's modules are interleaved with another floor's), each listed once, and every
+    module is on one."""
+    mods = modules()
+    assert len(set(FLOORS)) == len(FLOORS)
+    for name in FLOORS:
+        assert name in mods and name.count(".") == 1, name
+    assert all(floor(m) >= 0 for m in mods if m != FACADE)
 
 
 def test_no_module_imports_from_a_later_stage():
@@ -228,8 +184,8 @@ def test_no_module_imports_from_a_later_stage():
                 if set(names) != {"__version__"}:
                     wrong.append(f"{mod}:{line} takes {names} from the package facade")
                 continue
-            if stage(dest) > stage(mod):
-                wrong.append(f"{mod}:{line} imports the later stage {dest}")
+            if floor(dest) > floor(mod):
+                wrong.append(f"{mod}:{line} imports {dest}, on a higher floor")
     assert wrong == []
 
 
@@ -279,3 +235,4 @@ def test_the_config_package_imports_no_solver(code):
                          text=True, cwd=root, timeout=120, env=env)
     assert run.returncode == 0, run.stderr
     assert run.stdout.strip() == ""
+

@@ -15,6 +15,7 @@ import numpy as np
 
 from casadrone.airframe import Airframe
 from casadrone.codegen import ZeroCopyCall
+from casadrone.config.io import ConfigError
 from casadrone.model import INPUT_NAMES, NU, NX, STATE_NAMES, quadrotor_model, state_names
 from casadrone.propulsion import propulsion_model
 from casadrone.results import AsDict
@@ -70,8 +71,6 @@ def linearise(airframe: Airframe, trim_point, method: Method = "exact") -> Linea
     if method not in ("exact", "fd"):
         raise ValueError(f"unknown linearisation method {method!r}; use 'exact' or 'fd'")
     if propulsion_model(airframe.propulsion).lagless and airframe.thrust_time_constant == 0:
-        from casadrone.config.io import ConfigError
-
         raise ConfigError([f"{airframe.name}: thrust.time_constant_s: 0 (no thrust lag) is an "
                            "idealisation of the limit lap only; the closed loop (linearisation, "
                            "LQR, simulation) needs a lag > 0"])

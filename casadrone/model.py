@@ -19,7 +19,7 @@ from typing import Any
 import casadi as ca
 
 from casadrone.airframe import PARAM_NAMES
-from casadrone.propulsion import RotorStates, propulsion_model
+from casadrone.propulsion import RotorStates, motor_currents, propulsion_model
 from casadrone.propulsion.propeller import propeller_terms
 
 STATE_NAMES = (
@@ -236,8 +236,6 @@ def propeller_outputs() -> ca.Function:
     """``rotor_outputs(x, u, p) -> (thrust (4, N), inflow (4, m/s), advance_ratio (4),
     battery_voltage (V), battery_current (A))`` of the ``propeller`` kind: what a lap reports
     (the effective axial inflow v_a that enters CT and CP, J = v_a / (n D))."""
-    from casadrone.propulsion import motor_currents
-
     x, u = ca.SX.sym("x", NX), ca.SX.sym("u", NU)
     p = ca.SX.sym("p", n_params("propeller"))
     w = x[THR]

@@ -477,7 +477,6 @@ def beyond_data_note(airframe: Airframe, x0: np.ndarray, u0: np.ndarray) -> str:
     refuse."""
     if airframe.max_advance_ratio is None:  # paper: none
         return ""
-    from casadrone.model import propeller_outputs
 
     J = float(np.max(np.asarray(propeller_outputs()(x0, u0, airframe.p)[2])))
     if not J > airframe.max_advance_ratio:

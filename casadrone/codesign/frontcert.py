@@ -53,6 +53,7 @@ from casadrone.codesign.certificate import (
     Certificate,
     TrackCheck,
     appended_rows,
+    certify,
     frame_terms,
     theta_gradient,
     verdict,
@@ -181,8 +182,6 @@ def certified_point(prep: Prepared, fp, first: Certificate | None = None):
     (:func:`casadrone.codesign.design.certified`'s), else
     :func:`casadrone.codesign.certificate.certify`'s; an ε-point's from
     :func:`certify_epsilon_point`. A failed certificate is kept on its point; nothing raises."""
-    from casadrone.codesign.certificate import certify
-
     if not math.isinf(fp.epsilon):
         return replace(fp, certificate=certify_epsilon_point(prep, fp.point))
     cert = first

@@ -26,6 +26,7 @@ import time
 
 import numpy as np
 
+from casadrone.config.codesign import PolishSettings
 from casadrone.optimise.problem import Study, objectives_and_constraints
 from casadrone.results import Record
 from casadrone.rundir.checkpoint import dumps
@@ -40,7 +41,6 @@ def polish_settings(study: Study):
     raw = study.problem.algorithm.settings.get("polish")
     if raw is None or study.problem.test_problem is not None:
         return None
-    from casadrone.config.codesign import PolishSettings
 
     return PolishSettings.model_validate(raw)
 

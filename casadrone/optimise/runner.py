@@ -32,7 +32,13 @@ from pathlib import Path
 import numpy as np
 
 from casadrone.config.problem import BackendConfig, ProblemConfig
-from casadrone.optimise.algorithms import front_rows, front_size, seeded_defaults
+from casadrone.optimise.algorithms import (
+    algorithm_settings,
+    front_rows,
+    front_size,
+    make_algorithm,
+    seeded_defaults,
+)
 from casadrone.optimise.backends import make_backend
 from casadrone.optimise.hybrid import needs_polish, polish_stage
 from casadrone.optimise.hypervolume import HypervolumeState, advance
@@ -160,8 +166,6 @@ class RunResult:
 
 def build_algorithm(problem: ProblemConfig, n_obj: int):
     """The problem's algorithm and its pymoo termination (G generations after initialisation)."""
-    from casadrone.optimise.algorithms import algorithm_settings, make_algorithm
-
     a = problem.algorithm
     algorithm = make_algorithm(a.name, algorithm_settings(a.settings), pop_size=a.population,
                                n_obj=n_obj,

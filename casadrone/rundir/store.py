@@ -41,10 +41,11 @@ from pathlib import Path
 
 import yaml
 
-from casadrone.config.io import CONFIG_DIR, read_yaml, resolve_config
+from casadrone.config.io import CONFIG_DIR, load, read_yaml, resolve_config
 from casadrone.config.problem import ProblemConfig
 from casadrone.outfile import shown_path
 from casadrone.results import Record
+from casadrone.rundir.checkpoint import dumps, loads
 from casadrone.rundir.plugins import import_plugin
 
 CONFIG, MANIFEST, HISTORY, CHECKPOINT, PARETO = (
@@ -182,8 +183,6 @@ def resolved_yaml(problem: ProblemConfig) -> str:
 
 
 def _checkpoint_state(raw: bytes) -> dict:
-    from casadrone.rundir.checkpoint import loads
-
     state = loads(raw)
     if not isinstance(state, dict) or not {"algorithm", "elapsed_s", "generation"} <= set(state):
         raise ValueError("not a casadrone checkpoint")
@@ -292,8 +291,6 @@ class RunStore:
     def problem(self) -> ProblemConfig:
         """The resolved problem of this run (its input files from the run's own ``inputs/``),
         after :meth:`check_inputs`."""
-        from casadrone.config.io import load
-
         try:
             self.check_inputs()
         except InputsChanged:
@@ -410,8 +407,6 @@ class RunStore:
     def save_checkpoint(self, state: dict) -> None:
         """Pickle the run state and replace the checkpoint atomically, keeping the one before
         as ``checkpoint.prev.pkl``."""
-        from casadrone.rundir.checkpoint import dumps
-
         self.write_checkpoint(dumps(state))
 
     def write_checkpoint(self, data: bytes) -> None:

@@ -28,12 +28,22 @@ from casadrone.propulsion import (
 from casadrone.trim import trim
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "plugins" / "thrust_curve.py"
-runpy.run_path(str(EXAMPLE))  # registers "thrust-curve" (once per process: the module checks)
 
 #: An airframe of each model: the shipped reference where there is one, else SY250 with the
 #: model named (a model that reads no section needs nothing more).
 SHIPPED = {"paper": "SY250", "propeller": "SY250-propeller"}
-MODELS = sorted(PROPULSION_MODELS)
+MODELS = sorted({*PROPULSION_MODELS, "thrust-curve"})  # the built-ins and the example
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _example_registered():
+    """The example's model, registered by running the plugin, and unregistered after these
+    tests (as the other registries' examples are, tests/unit/test_registries.py)."""
+    saved = dict(PROPULSION_MODELS)
+    runpy.run_path(str(EXAMPLE))
+    yield
+    PROPULSION_MODELS.clear()
+    PROPULSION_MODELS.update(saved)
 
 
 def frame_of(name: str):

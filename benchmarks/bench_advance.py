@@ -39,7 +39,7 @@ sys.path.insert(0, str(HERE))
 
 def late_state(run: Path, generation: int) -> bytes:
     from casadrone.optimise.problem import Study, objectives_and_constraints
-    from casadrone.optimise.store import RunStore, record_of
+    from casadrone.rundir.store import RunStore, record_of
 
     store = RunStore(run)
     alg = store.load_checkpoint()["algorithm"]

@@ -188,7 +188,7 @@ def reevaluate(run: Path, ga: Path) -> dict:
     import tempfile
 
     from casadrone.optimise.problem import Study, evaluate_rows
-    from casadrone.optimise.store import RunStore
+    from casadrone.rundir.store import RunStore
 
     with open(run / "pareto.csv", newline="") as fh:
         header, *rows = list(csv.reader(fh))

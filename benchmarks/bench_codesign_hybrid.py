@@ -100,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     from casadrone.optimise.hybrid import polish_front
     from casadrone.optimise.problem import evaluate_rows
     from casadrone.optimise.runner import front
-    from casadrone.optimise.store import RunStore
+    from casadrone.rundir.store import RunStore
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ga", type=Path, required=True, help="a finished plain ev-MOGA run")

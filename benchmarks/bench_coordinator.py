@@ -62,7 +62,7 @@ def problem(generations: int):
 def measure(run_dir: Path, archive: int, generations: int) -> tuple[list[dict], float]:
     import casadrone.optimise.runner as runner
     from casadrone.optimise.runner import run
-    from casadrone.optimise.timings import read_timings
+    from casadrone.rundir.timings import read_timings
 
     runner.BACKGROUND_WRITES = False  # see the module docstring
     from casadrone.config.problem import BackendConfig

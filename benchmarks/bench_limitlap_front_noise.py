@@ -37,7 +37,7 @@ from benchmarks.machine import markdown  # noqa: E402
 from casadrone.airframe import with_theta  # noqa: E402
 from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
 from casadrone.optimise.problem import Study, study_setup  # noqa: E402
-from casadrone.optimise.store import RunStore  # noqa: E402
+from casadrone.rundir.store import RunStore  # noqa: E402
 
 
 def main() -> None:

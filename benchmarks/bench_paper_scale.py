@@ -2,7 +2,7 @@
 
 Each problem (850 + 350 × 850 = 298 350 evaluations) runs with ``casadrone run`` into
 ``RUN_ROOT/<problem>``; per generation the runner writes ``timings.csv`` in the run directory
-(evaluation time, the coordinator's steps, archive size; see ``casadrone/optimise/timings.py``),
+(evaluation time, the coordinator's steps, archive size; see ``casadrone/rundir/timings.py``),
 so a stopped run that is resumed keeps the record of its earlier generations. The script then
 writes ``benchmarks/RESULTS-paper-scale.md`` from the run directories: per run the total wall
 time, evaluation and coordinator time, the coordinator's share at the end of the run, and a
@@ -28,7 +28,7 @@ While a run goes, the machine's 1-minute load average is sampled every 10 s into
 ``RUN_DIR/load.csv`` (the coordinator shares its 2 cores with the workers and with anyone else:
 a load above 2 means the measured times are inflated), and the report gives its range.
 The history, checkpoint and timings row of each generation are written in the background behind
-the next generation's evaluation (``casadrone/optimise/writer.py``): the coordinator's
+the next generation's evaluation (``casadrone/rundir/writer.py``): the coordinator's
 "history" step is its wait for them, and the seconds the writes took are reported apart.
 """
 
@@ -103,8 +103,8 @@ def load_range(run_dir: Path) -> str:
 
 def summary(run_dir: Path) -> list[str]:
     """The results section of one run directory."""
-    from casadrone.optimise.store import RunStore
-    from casadrone.optimise.timings import read_timings
+    from casadrone.rundir.store import RunStore
+    from casadrone.rundir.timings import read_timings
 
     store = RunStore(run_dir)
     m, problem = store.manifest, store.problem()

@@ -64,7 +64,7 @@ VARIANTS: dict[str, tuple[str, str]] = {
 _PROBE = """
 import casadi as ca
 import casadrone.model as M
-import casadrone.propulsion as PR
+import casadrone.propulsion.propeller as PR
 from casadrone.limit import nlp as N
 {patch}
 model = N.quadrotor_ocp_model({kind!r})

@@ -50,7 +50,7 @@ class StoredGenerations:
     called before generation ``g`` is read."""
 
     def __init__(self, run: Path, on_read=None):
-        from casadrone.optimise.store import RunStore
+        from casadrone.rundir.store import RunStore
 
         self.store = RunStore(run)
         self.manifest = self.store.manifest
@@ -61,7 +61,7 @@ class StoredGenerations:
         return self.n
 
     def __getitem__(self, generation: int) -> list:
-        from casadrone.optimise.store import record_of
+        from casadrone.rundir.store import record_of
 
         if self.on_read is not None:
             self.on_read(generation)
@@ -91,7 +91,7 @@ def main() -> None:
     args = ap.parse_args()
 
     from casadrone.optimise import runner
-    from casadrone.optimise.store import RunStore
+    from casadrone.rundir.store import RunStore
 
     problem = RunStore(args.run).problem()
     stored = StoredGenerations(args.run)

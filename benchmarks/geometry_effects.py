@@ -226,7 +226,7 @@ def run_summary(run_dir: Path) -> tuple[list, str]:
     impossible bodies (Izz > Ixx + Iyy or a sibling inequality)."""
     from casadrone.compare import run_candidates
     from casadrone.config.io import read_yaml
-    from casadrone.optimise.store import RunStore
+    from casadrone.rundir.store import RunStore
 
     def impossible(ixx, iyy, izz):
         return izz > ixx + iyy or ixx > iyy + izz or iyy > ixx + izz

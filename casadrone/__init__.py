@@ -54,7 +54,7 @@ _API = {
     "casadrone.limit.lap": ["limit_lap"],
     "casadrone.limit.result": ["LimitLap", "LimitLapOptions"],
     "casadrone.optimise.runner": ["run", "resume", "RunResult"],
-    "casadrone.optimise.store": ["RunStore"],
+    "casadrone.rundir.store": ["RunStore"],
     "casadrone.decide": ["decide", "Decision"],
     "casadrone.benchmark": ["run_benchmark"],
     "casadrone.compare": ["gain_pct"],

@@ -14,8 +14,9 @@ from typing import Literal
 import numpy as np
 
 from casadrone.config.airframe import TABLE1_BOUNDS, AirframeConfig
-from casadrone.config.io import ConfigError
-from casadrone.massprops import rotor_positions_mm
+from casadrone.config.io import ConfigError, field_adapter, format_errors
+from casadrone.massprops import mass_properties, rotor_positions_mm
+from casadrone.propulsion import advance_ratio_limit, propulsion_model
 
 #: Names and order of the decision vector θ (paper Table 1) and their config keys.
 THETA_NAMES = ("lambda_a", "lambda_b", "alpha", "beta", "Ixx", "Iyy", "Izz")
@@ -130,9 +131,6 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
     or computed from the parts); the rotor positions are referred to the centre of mass
     (r_i − c), which is where the model's moments are taken.
     """
-    from casadrone.massprops import mass_properties
-    from casadrone.propulsion import advance_ratio_limit, propeller_params
-
     mp = mass_properties(cfg)
     r = np.array(rotor_positions_mm(cfg.lambda_a_mm, cfg.lambda_b_mm, cfg.alpha_deg, cfg.beta_deg))
     J = mp.inertia_kgm2
@@ -164,8 +162,8 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
         gravity=cfg.gravity_mps2,
         com=mp.com_m,
         propulsion=cfg.propulsion.model,
-        propulsion_params=(tuple(propeller_params(cfg.propulsion, cfg.air_density_kgm3))
-                           if cfg.propulsion.model == "propeller" else ()),
+        propulsion_params=tuple(propulsion_model(cfg.propulsion.model).pack(
+            cfg.propulsion, cfg.air_density_kgm3)),
         max_advance_ratio=advance_ratio_limit(cfg.propulsion),
     )
 
@@ -183,8 +181,6 @@ def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = 
     ``cfg.model_dump()`` if the caller already has it (an optimiser keeps it per study)."""
     from pydantic import ValidationError
 
-    from casadrone.config.io import format_errors
-
     fast = _replace_valid(cfg, theta, name)
     if fast is not None:
         return fast
@@ -201,8 +197,6 @@ def with_theta(cfg: AirframeConfig, theta: dict[str, float], name: str | None = 
 @cache
 def _field_validator(key: str):
     """The strict validator of one airframe field (built once per key)."""
-    from casadrone.config.io import field_adapter
-
     return field_adapter(AirframeConfig, key)
 
 

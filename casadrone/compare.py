@@ -19,9 +19,11 @@ import numpy as np
 from casadrone.benchmark import _f
 from casadrone.config.airframe import load_airframe
 from casadrone.config.reference import Table4Reference, load_reference
+from casadrone.decide import METHODS, decide
 from casadrone.evaluate import Evaluation
 from casadrone.indices import Interval
 from casadrone.results import AsDict
+from casadrone.rundir.store import CONFIG, PARETO, RunStore
 
 # --------------------------------------------------------------------------------------------
 # Eq. 21
@@ -142,9 +144,7 @@ def run_candidates(
         FileNotFoundError: not a run directory, or the run has no ``pareto.csv`` (not finished).
         ValueError: an empty front, or an unknown objective.
     """
-    from casadrone.decide import METHODS, decide
     from casadrone.optimise.problem import Study
-    from casadrone.optimise.store import CONFIG, PARETO, RunStore
 
     store = RunStore(Path(run_dir))
     if not (store.path / CONFIG).is_file():
@@ -288,7 +288,6 @@ def compare_run(
 
     from casadrone.evaluate import evaluate, theta_of
     from casadrone.optimise.problem import Study, study_setup
-    from casadrone.optimise.store import RunStore
 
     candidates = run_candidates(run_dir, objective=objective)
     problem = RunStore(Path(run_dir)).problem()

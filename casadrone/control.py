@@ -19,7 +19,7 @@ from casadrone.airframe import Airframe
 from casadrone.config.controller import ControllerConfig
 from casadrone.linearise import LinearModel, linearise
 from casadrone.model import IDX, NX, STATE_NAMES, THR
-from casadrone.propulsion import hover_rotors
+from casadrone.propulsion import hover_rotors, propulsion_model
 from casadrone.results import AsDict
 
 INTEGRATED = ("x", "y", "z", "psi")
@@ -240,10 +240,12 @@ def frozen_wrench_gain(K_ref: np.ndarray, reference: Airframe, airframe: Airfram
     after the mixer, so there the arms matter). Cost per candidate: two 4×4 solves and a 4×20
     product.
     """
-    if "propeller" in (airframe.propulsion, reference.propulsion):
+    other = [k for k in (airframe.propulsion, reference.propulsion)
+             if not propulsion_model(k).command_linear]
+    if other:
         raise ValueError("frozen-wrench gain policy: defined for the paper propulsion model only "
                          "(its rotor states are thrusts, K maps command to thrust); use "
-                         "gain_policy redesign with propulsion model propeller")
+                         f"gain_policy redesign with propulsion model {other[0]}")
     A_ref, A = reference.allocation_matrix, airframe.allocation_matrix
     K = np.array(K_ref, float)
     K[:, THR] = K[:, THR] @ np.linalg.solve(A_ref, A)

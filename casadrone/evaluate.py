@@ -23,6 +23,7 @@ from casadrone.config.controller import ControllerConfig, load_controller
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import DEFAULT_TRACK, TrackConfig
 from casadrone.control import design_for
+from casadrone.indices import compute_indices, interval_table, limit_indices
 from casadrone.results import Record
 from casadrone.simulate import SimOptions, Trajectory, simulate
 from casadrone.trim import trim
@@ -140,8 +141,6 @@ def evaluate(
             (it would fly that airframe's geometry with the template's mass and drag); pass
             ``dict(theta)`` to mean exactly that.
     """
-    from casadrone.indices import compute_indices, interval_table, limit_indices
-
     source = getattr(theta, "airframe", None)
     if source is not None and source != setup.template.name:
         raise ValueError(

@@ -39,6 +39,8 @@ from typing import Literal
 
 import numpy as np
 
+from casadrone.model import rotor_thrust_function
+from casadrone.propulsion import DEFAULT_MODEL, propulsion_model
 from casadrone.results import AsDict
 from casadrone.simulate import Trajectory, row_norm
 
@@ -233,13 +235,12 @@ def limit_lap_thrusts(lap) -> np.ndarray:
     axial inflow at the node, by the model's thrust (:func:`casadrone.model.rotor_thrusts`) on
     the airframe vector the lap was flown with (:attr:`LimitLap.params`)."""
     x = np.asarray(lap.x_euler, float)
-    kind = getattr(lap, "propulsion", "paper")
-    if kind == "paper":
+    kind = getattr(lap, "propulsion", DEFAULT_MODEL)
+    if propulsion_model(kind).thrust_is_state:
         return x[:, 12:16]
     p = np.asarray(getattr(lap, "params", np.zeros(0)), float)
     if p.size == 0:
         raise ValueError(f"the limit lap's thrusts need its airframe vector ({kind} propulsion)")
-    from casadrone.model import rotor_thrust_function
 
     f = rotor_thrust_function(kind)  # called with one column per node: CasADi maps it
     return np.asarray(f(x[:, 3:6].T, x[:, 6:9].T, x[:, 12:16].T, p), float).T

@@ -15,7 +15,9 @@ import numpy as np
 
 from casadrone.airframe import Airframe
 from casadrone.codegen import ZeroCopyCall
+from casadrone.config.io import ConfigError
 from casadrone.model import INPUT_NAMES, NU, NX, STATE_NAMES, quadrotor_model, state_names
+from casadrone.propulsion import propulsion_model
 from casadrone.results import AsDict
 
 Method = Literal["exact", "fd"]
@@ -68,9 +70,7 @@ def linearise(airframe: Airframe, trim_point, method: Method = "exact") -> Linea
     """Linearise about ``trim_point`` (anything with ``x0`` and ``u0``)."""
     if method not in ("exact", "fd"):
         raise ValueError(f"unknown linearisation method {method!r}; use 'exact' or 'fd'")
-    if airframe.propulsion == "paper" and airframe.thrust_time_constant == 0:
-        from casadrone.config.io import ConfigError
-
+    if propulsion_model(airframe.propulsion).lagless and airframe.thrust_time_constant == 0:
         raise ConfigError([f"{airframe.name}: thrust.time_constant_s: 0 (no thrust lag) is an "
                            "idealisation of the limit lap only; the closed loop (linearisation, "
                            "LQR, simulation) needs a lag > 0"])

@@ -3,8 +3,8 @@
 State (16): position x, y, z (world, m); body velocity u, v, w (m/s); body rates p, q, r
 (rad/s); ZYX Euler angles φ, θ, ψ (rad; positive θ is nose-down); four rotor states: the thrusts
 T1…T4 (N) with the ``paper`` propulsion model, the rotor speeds ω1…ω4 (rad/s) with ``propeller``
-(:mod:`casadrone.propulsion`). Input (4): normalised ESC commands δ1…δ4 ∈ [0, 1]. Rotors FR, FL,
-RL, RR.
+(what the airframe's propulsion model says they are: :mod:`casadrone.propulsion`). Input (4):
+normalised ESC commands δ1…δ4 ∈ [0, 1]. Rotors FR, FL, RL, RR.
 
 The model is built once per process and propulsion kind (:func:`quadrotor_model`); every airframe
 is only a value of p, so evaluating a thousand airframes never rebuilds an expression.
@@ -19,7 +19,8 @@ from typing import Any
 import casadi as ca
 
 from casadrone.airframe import PARAM_NAMES
-from casadrone.propulsion import KINDS, PROPELLER_PARAM_NAMES, propeller_terms
+from casadrone.propulsion import RotorStates, motor_currents, propulsion_model
+from casadrone.propulsion.propeller import propeller_terms
 
 STATE_NAMES = (
     "x", "y", "z", "u", "v", "w", "p", "q", "r", "phi", "theta", "psi", "T1", "T2", "T3", "T4",
@@ -30,27 +31,17 @@ IDX = {name: i for i, name in enumerate(STATE_NAMES)}
 POS, VEL, RATE, EUL, THR = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 16)
 
 
-@dataclass(frozen=True)
-class RotorStates:
-    """What the four rotor states are with one propulsion kind: their names, what they are
-    (for text) and their unit."""
-
-    names: tuple[str, ...]
-    what: str
-    unit: str
-
-
-#: The rotor states by propulsion kind: thrusts (N) with ``paper``, rotor speeds (rad/s) with
-#: ``propeller`` (two quantities 10³ apart), so that no output labels a rotor speed a thrust.
-ROTOR_STATES = {"paper": RotorStates(("T1", "T2", "T3", "T4"), "rotor thrusts", "N"),
-                "propeller": RotorStates(("omega1", "omega2", "omega3", "omega4"),
-                                         "rotor speeds", "rad/s")}
+def rotor_states(propulsion: str = "paper") -> RotorStates:
+    """What the four rotor states of propulsion kind ``propulsion`` are (names, what, unit): thrusts
+    (N) with ``paper``, rotor speeds (rad/s) with ``propeller`` (two quantities 10³ apart), so that
+    no output labels a rotor speed a thrust."""
+    return propulsion_model(propulsion).rotor_states
 
 
 def state_names(propulsion: str = "paper") -> tuple[str, ...]:
     """The 16 state names of propulsion kind ``propulsion`` (:data:`STATE_NAMES` with the rotor
-    states named by :data:`ROTOR_STATES`); the state's layout is the same for every kind."""
-    return STATE_NAMES[:12] + ROTOR_STATES[propulsion].names
+    states named by :func:`rotor_states`); the state's layout is the same for every kind."""
+    return STATE_NAMES[:12] + rotor_states(propulsion).names
 
 
 def rotation_matrix(phi, theta, psi):
@@ -133,12 +124,9 @@ class AirframeTerms:
 
 
 def param_names(kind: str = "paper") -> tuple[str, ...]:
-    """The names of the parameter vector p of propulsion ``kind`` (the paper's first)."""
-    if kind == "paper":
-        return PARAM_NAMES
-    if kind == "propeller":
-        return PARAM_NAMES + PROPELLER_PARAM_NAMES
-    raise ValueError(f"unknown propulsion model '{kind}'; choose one of {', '.join(KINDS)}")
+    """The names of the parameter vector p of propulsion ``kind`` (the paper's first, then the
+    model's own)."""
+    return PARAM_NAMES + propulsion_model(kind).param_names
 
 
 def named(p, kind: str = "propeller") -> dict[str, Any]:
@@ -156,31 +144,16 @@ def airframe_terms(vel, omega, rotor, rotor_dot, u, p, propulsion: str = "paper"
     """:class:`AirframeTerms` at body velocity ``vel`` (m/s), body rates ``omega`` (rad/s), rotor
     states ``rotor`` and their derivative ``rotor_dot``, ESC commands ``u`` and airframe vector
     ``p`` (in the layout of ``propulsion``, :func:`param_names`). Every
-    attitude representation (the Euler model below, the limit lap's) is built on it; with
-    ``paper`` the arithmetic is kept in the order of the paper model's residual so results stay
-    bit-equal.
+    attitude representation (the Euler model below, the limit lap's) is built on it; the rotor
+    force, torque and residual are the propulsion model's
+    (:meth:`casadrone.propulsion.base.PropulsionModel.terms`), the drag the airframe's.
     """
-    if propulsion == "propeller":
-        g, _, r, s, cda = unpack_params(p)
-        force, torque, residual, _, _ = propeller_terms(vel, omega, rotor, rotor_dot, u,
-                                                        named(p), r, s)
-        return AirframeTerms(thrust=force, drag=-0.5 * g["rho"] * cda * ca.fabs(vel) * vel,
-                             torque=torque, rotor_residual=residual)
-    if propulsion != "paper":
-        param_names(propulsion)  # raises: unknown kind
+    model = propulsion_model(propulsion)
     g, _, r, s, cda = unpack_params(p)
-    kappa, rho, K, tau = g["kappa"], g["rho"], g["K"], g["tau"]
-    T = rotor
-    ez = ca.DM([0, 0, 1])
-    return AirframeTerms(
-        thrust=ca.sum1(T) * ez,
-        drag=-0.5 * rho * cda * ca.fabs(vel) * vel,
-        torque=sum(
-            (ca.cross(r[i], T[i] * ez) + s[i] * kappa * T[i] * ez for i in range(4)),
-            ca.DM.zeros(3),
-        ),
-        rotor_residual=tau * rotor_dot + T - K * u,
-    )
+    force, torque, residual = model.terms(vel, omega, rotor, rotor_dot, u, named(p, propulsion),
+                                          r, s)
+    return AirframeTerms(thrust=force, drag=-0.5 * g["rho"] * cda * ca.fabs(vel) * vel,
+                         torque=torque, rotor_residual=residual)
 
 
 def rotor_thrusts(vel, omega, rotor, p, propulsion: str = "paper"):
@@ -189,11 +162,8 @@ def rotor_thrusts(vel, omega, rotor, p, propulsion: str = "paper"):
     the thrusts); with ``propeller`` T_i = CT(J_i) ρ n_i² D⁴ at the rotor's own axial inflow, the
     thrust :func:`casadrone.propulsion.propeller_terms` gives the model (the same expression, not
     a second copy; commands and rotor accelerations do not enter it)."""
-    if propulsion == "paper":
-        return rotor
     _, _, r, s, _ = unpack_params(p)
-    zero = ca.DM.zeros(4)
-    return propeller_terms(vel, omega, rotor, zero, zero, named(p), r, s)[3]
+    return propulsion_model(propulsion).thrusts(vel, omega, rotor, named(p, propulsion), r, s)
 
 
 @lru_cache(maxsize=2)
@@ -266,8 +236,6 @@ def propeller_outputs() -> ca.Function:
     """``rotor_outputs(x, u, p) -> (thrust (4, N), inflow (4, m/s), advance_ratio (4),
     battery_voltage (V), battery_current (A))`` of the ``propeller`` kind: what a lap reports
     (the effective axial inflow v_a that enters CT and CP, J = v_a / (n D))."""
-    from casadrone.propulsion import motor_currents
-
     x, u = ca.SX.sym("x", NX), ca.SX.sym("u", NU)
     p = ca.SX.sym("p", n_params("propeller"))
     w = x[THR]

@@ -11,7 +11,9 @@ import errno
 import os
 from pathlib import Path
 
-#: The two files every run directory holds (:mod:`casadrone.optimise.store`).
+from casadrone.config.io import DATA_DIR
+
+#: The two files every run directory holds (:mod:`casadrone.rundir.store`).
 _RUN_MARKERS = ("manifest.json", "config.yaml")
 
 
@@ -23,8 +25,6 @@ def shown_path(path: str | Path) -> str:
     """How exported files and reports name a file: never a machine's absolute path (the files
     are shared), but ``shipped configs/…`` for the package's own data, the path relative to the
     working folder for a file below it, else the file's name."""
-    from casadrone.config.io import DATA_DIR
-
     full = Path(os.path.abspath(path))
     for base, prefix in ((DATA_DIR, "shipped "), (Path.cwd(), "")):
         try:

@@ -25,6 +25,7 @@ from casadrone.control import Ensemble, LQRIDesign, disturbance_response
 from casadrone.indices import pair_thrust_difference, roll_effort_voltage
 from casadrone.model import IDX
 from casadrone.simulate import Trajectory
+from casadrone.targets import TARGET_SIZE, target_outline
 
 NOMINAL = "tab:blue"
 ENSEMBLE = "0.6"
@@ -230,9 +231,7 @@ def limit_lap_trajectory(lap, waypoints) -> Trajectory:
 def target_outlines(targets) -> list[np.ndarray]:
     """The boundary (k × 3, m) of every target of a limit lap's track (a
     :class:`casadrone.limit.problem.Targets`), each drawn as its kind draws it
-    (:func:`casadrone.limit.targets.target_outline`)."""
-    from casadrone.limit.targets import TARGET_SIZE, target_outline
-
+    (:func:`casadrone.targets.target_outline`)."""
     vec = np.asarray(targets.vector, float).reshape(len(targets.kinds), TARGET_SIZE)
     return [target_outline(tp, kind) for tp, kind in zip(vec, targets.kinds, strict=True)]
 

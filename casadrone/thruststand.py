@@ -93,6 +93,10 @@ from typing import Any, Literal
 
 import numpy as np
 
+from casadrone.config.io import error_pairs
+from casadrone.config.propulsion import PropulsionConfig, data_advance_ratio
+from casadrone.propulsion import airframe_problems, fit_coefficients, fit_points, propeller_data
+
 #: Standard gravity (m/s²): the stands' kgf and gf are kilogram- and gram-force.
 G0 = 9.80665
 #: International Standard Atmosphere sea-level air density (kg/m³): the default of ``air_density``.
@@ -638,8 +642,6 @@ class PropulsionFit:
         if self.rotor_inertia_kgm2 is not None and self.status("motor") == "fitted":
             propeller["rotor_inertia_kgm2"] = _round(self.rotor_inertia_kgm2)
         if shape:  # the shape holds to its data's largest J only: the limit lap keeps to it
-            from casadrone.config.propulsion import data_advance_ratio
-
             propeller["max_advance_ratio"] = _round(data_advance_ratio(shape))
         propeller["data"] = (f"{source}: static values; J-dependence of {shape} scaled to them"
                              if shape else
@@ -693,7 +695,6 @@ def shaped_coefficients(ct0: float, cp0: float, shape: str | None
     power with the advance ratio in the same proportion as the dataset's."""
     if shape is None:
         return [ct0], [cp0]
-    from casadrone.propulsion import fit_coefficients, fit_points, propeller_data
 
     points = fit_points(propeller_data(shape))
     J, ct, cp = points[:, 0], points[:, 2], points[:, 3]
@@ -981,10 +982,6 @@ def section_problem(section: dict[str, Any], air_density_kg_m3: float) -> str | 
     below the speed of sound), so a section passing :data:`PHYSICAL` can still be impossible: a
     torque column read low gives a C_P0 inside its range but a rotor above the ideal."""
     from pydantic import ValidationError
-
-    from casadrone.config.io import error_pairs
-    from casadrone.config.propulsion import PropulsionConfig
-    from casadrone.propulsion import airframe_problems
 
     try:
         cfg = PropulsionConfig.model_validate(section)

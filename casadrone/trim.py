@@ -55,7 +55,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from casadrone.airframe import PARAM_NAMES, Airframe
+from casadrone.airframe import Airframe
 from casadrone.codegen import ZeroCopyCall
 from casadrone.conditions import CONDITION_REGISTRY, CONDITIONS, operating_vector
 from casadrone.model import (
@@ -68,18 +68,18 @@ from casadrone.model import (
     THR,
     VEL,
     n_params,
+    named,
     propeller_outputs,
     quadrotor_model,
     rotation_matrix,
     state_names,
 )
-from casadrone.propulsion import hover_rotors
+from casadrone.propulsion import hover_rotors, model_of_length, propulsion_model
 from casadrone.results import AsDict
 
 #: A trim condition's name: a key of :data:`casadrone.conditions.CONDITION_REGISTRY`.
 Condition = str
 UNKNOWN_NAMES = ("phi", "theta", "delta1", "delta2", "delta3", "delta4")
-_K = PARAM_NAMES.index("K")
 _PSI_ROW = STATE_NAMES.index("psi")
 __all__ = ["CONDITION_REGISTRY", "CONDITIONS", "SOLVERS", "TRIM_SOLVERS", "TrimOptions",
            "TrimPoint", "initial_guess", "operating_vector", "residual_norm", "trim", "trim_all",
@@ -195,12 +195,14 @@ class _TrimFunctions:
     point: ZeroCopyCall  # point(z, p, op) -> (x, u, residual norm) in one zero-copy call
 
 
-def _state_expr(z, p, op, level: bool):
+def _state_expr(z, p, op, level: bool, propulsion: str = "paper"):
     """(x, u, steady ẋ) of the unknowns Z at the operating point op = (V, γ, Ω) (symbolic).
     ``level``: γ = Ω = 0 as constants, so level flight keeps the expression graph (and the
     results, bit for bit) of the level-only formulation this generalises."""
     phi, theta, delta = z[0], z[1], z[2:6]
-    rotor = p[_K] * delta if z.numel() == 6 else z[6:10]  # propeller: the rotor speeds
+    rotor = propulsion_model(propulsion).steady_rotors(delta, named(p, propulsion))
+    if rotor is None:  # not explicit: unknowns of the trim (propeller: the rotor speeds)
+        rotor = z[6:10]
     V, gamma, Omega = (op[0], 0, 0) if level else (op[0], op[1], op[2])
     R = rotation_matrix(phi, theta, 0)
     omega = Omega * ca.vertcat(-ca.sin(theta), ca.sin(phi) * ca.cos(theta),
@@ -217,12 +219,12 @@ def n_unknowns(propulsion: str = "paper") -> int:
     """Unknowns of a trim: Z = (φ, θ, δ1…δ4) with ``paper`` (T = K δ at rest), with the four
     rotor speeds appended for ``propeller`` (their steady state is not explicit); the residual
     then gains the four rotor rows, so the system stays square."""
-    return 6 if propulsion == "paper" else 10
+    return propulsion_model(propulsion).trim_unknowns
 
 
 def _kind(p) -> str:
     """The propulsion kind of a parameter vector (its length tells)."""
-    return "paper" if len(p) == NP else "propeller"
+    return model_of_length(len(p) - NP)
 
 
 @lru_cache(maxsize=4)
@@ -232,10 +234,10 @@ def _functions(level: bool, propulsion: str = "paper") -> _TrimFunctions:
     nz = n_unknowns(propulsion)
     z, p, op = ca.SX.sym("z", nz), ca.SX.sym("p", n_params(propulsion)), ca.SX.sym("op", 3)
     h = ca.SX.sym("h", nz)
-    x, u, steady = _state_expr(z, p, op, level)
+    x, u, steady = _state_expr(z, p, op, level, propulsion)
     xdot = f(x, u, p)
     Q = ca.vertcat(xdot[VEL], xdot[RATE])
-    if propulsion != "paper":
+    if nz > 6:  # the rotor states are unknowns: their steady rows too
         Q = ca.vertcat(Q, xdot[THR])
     names = ["z", "p", "op"]
     return _TrimFunctions(
@@ -429,10 +431,10 @@ def initial_guess(
     theta = math.atan2(fx, fz)
     phi = 0.0 - math.atan2(fy, math.hypot(fx, fz))  # 0.0 - : no negative zero in level flight
     delta = a.hover_thrusts() / (math.cos(theta) * math.cos(phi)) * (fz / weight)
-    if a.propulsion != "paper":  # the static rotor speeds and commands of those thrusts
-        rotors, commands = hover_rotors(a, delta)
+    rotors, commands = hover_rotors(a, delta)  # the static rotor states and commands
+    if n_unknowns(a.propulsion) > 6:  # the rotor states are unknowns too
         return np.concatenate([[phi, theta], commands, rotors])
-    return np.concatenate([[phi, theta], delta / a.thrust_gain])
+    return np.concatenate([[phi, theta], commands])
 
 
 def trim(
@@ -478,7 +480,7 @@ def trim(
     x, u, norm = fn.point(z, p, op)
     x0, u0, residual = x.ravel().copy(), u.ravel().copy(), float(norm[0, 0])
     wall, cpu = time.perf_counter() - start, time.process_time() - cpu
-    rotor_speeds = x0[THR] if airframe.propulsion == "propeller" else None
+    rotor_speeds = None if propulsion_model(airframe.propulsion).thrust_is_state else x0[THR]
     success, message = _verdict(solver, o, z, u0, residual, status, error, rotor_speeds)
     if success:
         message += beyond_data_note(airframe, x0, u0)
@@ -509,9 +511,8 @@ def beyond_data_note(airframe: Airframe, x0: np.ndarray, u0: np.ndarray) -> str:
     extrapolated. Empty with ``paper``, without a range, or inside it. The trim solves the
     model as it is (docs/concepts/propulsion.md, "Beyond the data"): it says so, it does not
     refuse."""
-    if airframe.propulsion != "propeller" or airframe.max_advance_ratio is None:
+    if airframe.max_advance_ratio is None:  # paper: none
         return ""
-    from casadrone.model import propeller_outputs
 
     J = float(np.max(np.asarray(propeller_outputs()(x0, u0, airframe.p)[2])))
     if not J > airframe.max_advance_ratio:
@@ -592,6 +593,6 @@ def trim_all(
 def rotor_thrusts(airframe: Airframe, x, u) -> np.ndarray:
     """Each rotor's thrust (N) in state x under commands u: the rotor states with ``paper``, the
     propeller model's thrust at the rotor's own inflow with ``propeller``."""
-    if airframe.propulsion == "paper":
+    if propulsion_model(airframe.propulsion).thrust_is_state:
         return np.asarray(x, float)[THR].copy()
     return np.asarray(propeller_outputs()(x, u, airframe.p)[0], float).ravel()

@@ -207,7 +207,7 @@ def _expected() -> tuple[type[BaseException], ...]:
 
     import yaml
 
-    from casadrone.optimise.store import NotARunDirectory, RunDamaged, RunInProgress
+    from casadrone.rundir.store import NotARunDirectory, RunDamaged, RunInProgress
 
     return (OSError, sqlite3.Error, pickle.PickleError, EOFError, UnicodeDecodeError,
             yaml.YAMLError, FloatingPointError, OverflowError, RunDamaged, RunInProgress,

@@ -227,10 +227,10 @@ def _start_text(r: dict, propulsion: str = "paper") -> list[str]:
     def vec(v: list[float], fmt: str) -> str:
         return "(" + ", ".join(format(c, fmt) for c in v) + ")"
 
-    from casadrone.model import ROTOR_STATES
+    from casadrone.model import rotor_states
 
     eul = [math.degrees(a) for a in x[9:12]]
-    rotors = ROTOR_STATES[propulsion]
+    rotors = rotor_states(propulsion)
     return [f"  start state: position {vec(x[0:3], '.3f')} m, velocity {vec(x[3:6], '.3f')} m/s, "
             f"body rates {vec(x[6:9], '.3f')} rad/s, roll/pitch/yaw {vec(eul, '.2f')} deg, "
             f"{rotors.what} {vec(x[12:16], '.4g')} {rotors.unit}"]

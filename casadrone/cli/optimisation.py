@@ -95,7 +95,7 @@ def backend_config(base: BackendConfig, name: BackendName | None, workers: int |
 
 def require_run_dir(run_dir: Path) -> None:
     """Exit 2 unless ``run_dir`` is a run directory (it has config.yaml and manifest.json)."""
-    from casadrone.optimise.store import CONFIG, MANIFEST, interrupted_creation
+    from casadrone.rundir.store import CONFIG, MANIFEST, interrupted_creation
 
     if not run_dir.exists():
         raise bad_input([f"{run_dir}: no such run directory"])
@@ -111,7 +111,7 @@ def require_run_dir(run_dir: Path) -> None:
 
 def open_problem(run_dir: Path) -> ProblemConfig:
     """The resolved problem of a run directory; an unreadable config.yaml is bad input."""
-    from casadrone.optimise.store import CONFIG, RunDamaged, RunStore
+    from casadrone.rundir.store import CONFIG, RunDamaged, RunStore
 
     try:
         return RunStore(run_dir).problem()
@@ -126,7 +126,7 @@ def run_summary(run_dir: Path) -> list[str]:
     """The run directory and a short summary of its front (from pareto.csv)."""
     from casadrone.indices import INDICES
     from casadrone.optimise.problem import Study
-    from casadrone.optimise.store import RunDamaged, RunStore
+    from casadrone.rundir.store import RunDamaged, RunStore
 
     store = RunStore(run_dir)
     m = store.manifest
@@ -156,7 +156,7 @@ def run_summary(run_dir: Path) -> list[str]:
 def _failure_summary(run_dir: Path) -> list[str]:
     from collections import Counter
 
-    from casadrone.optimise.store import RunStore
+    from casadrone.rundir.store import RunStore
 
     hist = RunStore(run_dir).history()
     failed = [r for r in hist if r["status"] != "completed"]
@@ -194,7 +194,7 @@ def run_command(
     """
     from casadrone.optimise import runner
     from casadrone.optimise.checks import load_problem
-    from casadrone.optimise.store import NotARunDirectory, check_new_run_dir
+    from casadrone.rundir.store import NotARunDirectory, check_new_run_dir
 
     if quiet and verbose:
         raise bad_input(["--quiet and --verbose: choose one"])
@@ -241,7 +241,7 @@ def resume(
     complete (exit code 0): resuming is idempotent, so scripts may call it unconditionally.
     """
     from casadrone.optimise import runner
-    from casadrone.optimise.store import PARETO, RunStore
+    from casadrone.rundir.store import PARETO, RunStore
 
     require_run_dir(run_dir)
     problem = open_problem(run_dir)
@@ -330,7 +330,7 @@ def _verdict_block(run_dir: Path, candidates: list, reference: AirframeConfig) -
     """The verdict against the baseline for ``decide`` (empty for a test problem); a problem
     with a limit-lap objective is sent to the report (the baseline's limit lap takes minutes)."""
     from casadrone.optimise.problem import Study, study_setup
-    from casadrone.optimise.store import RunStore
+    from casadrone.rundir.store import RunStore
     from casadrone.verdict import format_verdicts, run_verdict
 
     study = Study(RunStore(run_dir).problem())

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import casadi as ca
 
+from casadrone.codegen import compile_recipe, recipe_fingerprint
 from casadrone.limit.nlp import BLOCK_FLAGS, OcpModel, rk4_step
 
 _THETA_BLOCKS: dict[tuple, tuple[ca.Function, ca.Function]] = {}
@@ -73,8 +74,6 @@ def theta_blocks(model: OcpModel, substeps: int, n_dir: int) -> tuple[ca.Functio
     in memory)."""
     key = (model.name, model.scale, substeps, n_dir)
     if key not in _THETA_BLOCKS:
-        from casadrone.codegen import compile_recipe, recipe_fingerprint
-
         tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
         jac, hess = compile_recipe(
             (f"codesign_jac_{tag}", f"codesign_hess_{tag}"),

@@ -28,13 +28,14 @@ import casadi as ca
 import numpy as np
 
 from casadrone.codesign.blocks import theta_blocks
+from casadrone.propulsion import PAPER, PROPELLER
 
 #: Propulsion kinds whose co-design NLP takes its derivatives from the compiled θ-blocks: both.
 #: Generated C and compile (measured at -O1 on the shared 2-core machine, load ~7; now
 #: casadrone.limit.nlp.BLOCK_FLAGS): ``paper`` 2.3 MB (Hessian) + 0.7 MB (Jacobian), 100 s of
 #: CPU; ``propeller`` 6.7 MB + 1.7 MB, 105 s of CPU.
 #: A kind left out is differentiated by CasADi's AD of the composed graph (the same values).
-COMPILED_KINDS: tuple[str, ...] = ("paper", "propeller")
+COMPILED_KINDS: tuple[str, ...] = (PAPER.name, PROPELLER.name)
 
 
 def uses_blocks(propulsion: str, parts) -> bool:

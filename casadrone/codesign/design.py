@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from casadrone.codesign import events
+from casadrone.codesign.certificate import LAP_RTOL
 from casadrone.codesign.certificate import certify as make_certificate
 from casadrone.codesign.checks import load_codesign_problem
 from casadrone.codesign.driver import (
@@ -52,8 +53,6 @@ REFINEMENTS = 2
 def _faster_fixed_lap(cert) -> bool:
     """Whether a failed certificate's cold fixed-frame lap beat the co-design lap by more than
     the certificate's tolerance on some track."""
-    from casadrone.codesign.certificate import LAP_RTOL
-
     return not cert.passed and any(
         t.fixed_cold_lap_s < t.codesign_lap_s * (1 - LAP_RTOL) for t in cert.tracks)
 

@@ -34,9 +34,16 @@ from casadrone.config.airframe import AirframeConfig
 from casadrone.config.codesign import DEFAULT_LAP_STARTS, FRONT_MEASURES, CodesignProblemConfig
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
-from casadrone.limit.lap import DEFAULT_INTERVALS, LimitLap, LimitLapOptions, limit_lap
+from casadrone.limit.lap import (
+    DEFAULT_INTERVALS,
+    LimitLap,
+    LimitLapOptions,
+    limit_lap,
+)
+from casadrone.limit.nlp import NlpPoint
 from casadrone.limit.result import Start
 from casadrone.limit.starts import prepare as prepare_lap
+from casadrone.limit.starts import trajectory
 from casadrone.progress import nested
 from casadrone.propulsion import rotor_state_bounds
 from casadrone.results import Status
@@ -258,9 +265,6 @@ def resampled(prep: Prepared, point: CodesignPoint, to: Prepared) -> np.ndarray 
     resampled onto it (the limit lap's ``resampled`` warm start: same leg durations, states
     interpolated, commands held) and verified as the limit lap verifies any lap; with its θ,
     a consistent start as :func:`initial_vector`'s. None when a lap fails."""
-    from casadrone.limit.nlp import NlpPoint
-    from casadrone.limit.starts import trajectory
-
     cfg = to.config(point.theta)
     ws, _ = prep.nlp.split(point.z)
     out = []

@@ -26,6 +26,8 @@ import numpy as np
 
 from casadrone.airframe import PARAM_NAMES, THETA_KEYS, build_airframe
 from casadrone.config.airframe import ROTOR_LABELS, AirframeConfig
+from casadrone.model import named
+from casadrone.propulsion import max_static_thrust, propulsion_model
 
 #: θ keys co-design can vary: the geometry and (``free`` mass model) the principal inertias.
 CODESIGN_KEYS = THETA_KEYS
@@ -125,12 +127,8 @@ def hover_rotor_states(p, propulsion: str = "paper"):
     (``propeller``: :func:`casadrone.propulsion.speed_for_thrust`, the limit lap's own start,
     :func:`casadrone.propulsion.hover_rotors`)."""
     T = hover_thrusts(p)
-    if propulsion == "paper":
-        return T
-    from casadrone.model import named
 
-    q = named(p, propulsion)
-    return 2 * np.pi * ca.sqrt(T / (q["rho"] * q["ct0"] * q["prop_D"] ** 4))
+    return propulsion_model(propulsion).static_rotors(T, named(p, propulsion))
 
 
 @dataclass(frozen=True)
@@ -153,8 +151,6 @@ def feasibility_rows(cfg: AirframeConfig, theta: Mapping[str, Any]) -> list[Feas
       T_max one rotor's full-command static thrust (:func:`casadrone.propulsion.
       max_static_thrust`: K with ``paper``; it does not depend on θ).
     """
-    from casadrone.propulsion import max_static_thrust
-
     mass, J, _, r_mm = mass_and_layout(cfg, theta)
     d2 = cfg.prop_diameter_mm ** 2
     rows = [FeasibilityRow(f"gap {ROTOR_LABELS[i]}-{ROTOR_LABELS[j]}",

@@ -9,7 +9,7 @@ from the fastest frame's measure down to ``lowest`` of it; the sweep stops at th
 NLP cannot meet (reported).
 
 The front is written as a run directory (:func:`write_run`) with ``pareto.csv``,
-``config.yaml`` and ``manifest.json`` as :mod:`casadrone.optimise.store` writes them.
+``config.yaml`` and ``manifest.json`` as :mod:`casadrone.rundir.store` writes them.
 """
 
 from __future__ import annotations
@@ -22,9 +22,15 @@ from typing import Any
 import numpy as np
 
 from casadrone.codesign import events
+from casadrone.codesign.certificate import active_constraints
 from casadrone.codesign.driver import CodesignPoint, Prepared, constrained, solve_from
-from casadrone.codesign.nlp import STEP_CPU_FACTOR, STEP_MIN_CPU_S, epsilon_rows
+from casadrone.codesign.frontcert import certified_point
+from casadrone.codesign.nlp import STEP_CPU_FACTOR, STEP_MIN_CPU_S, effort, epsilon_rows
+from casadrone.config.problem import ProblemConfig
+from casadrone.limit.starts import trajectory
 from casadrone.progress import nested
+from casadrone.results import Record
+from casadrone.rundir.store import RunStore, atomic_write, now
 
 
 @dataclass(frozen=True)
@@ -66,8 +72,6 @@ def track_efforts(prep: Prepared, point: CodesignPoint) -> dict[str, float]:
     """Each track's limit-lap effort at a point (N^1.5·s), by track label."""
     import casadi as ca
 
-    from casadrone.codesign.nlp import effort
-
     ws, s = prep.nlp.split(point.z)
     p = ca.DM(prep.nlp.frame.function(np.clip(s, 0.0, 1.0))[0])  # the airframe vector p(θ)
     return {label: float(ca.evalf(effort(part, ca.DM(w), p)))
@@ -82,8 +86,6 @@ def design_front(prep_free: Prepared, best: CodesignPoint, measure: str, points:
     progress, kept by the caller). ``certify``: each point is certified as it converges, before
     ``on_point`` sees it (:func:`casadrone.codesign.frontcert.certified_point`; ``first``, the
     fastest frame's certificate where already issued)."""
-    from casadrone.codesign.frontcert import certified_point
-
     prep = constrained(prep_free, (measure,))
     c0 = time.process_time()
     cert_cpu = 0.0
@@ -173,8 +175,6 @@ LAPS_FILE = "codesign-laps.npz"
 def point_laps(prep: Prepared, point: CodesignPoint) -> dict[str, dict[str, np.ndarray]]:
     """Each track's limit lap of a co-design point: node times (s), node states with Euler
     angles (16 columns), commands held on each interval, and the split times (s)."""
-    from casadrone.limit.starts import trajectory
-
     ws, _ = prep.nlp.split(point.z)
     out = {}
     for label, part, w in zip(prep.labels, prep.nlp.parts, ws, strict=True):
@@ -187,8 +187,6 @@ def point_laps(prep: Prepared, point: CodesignPoint) -> dict[str, dict[str, np.n
 
 def point_record(prep: Prepared, fp: FrontPoint, measure: str) -> dict:
     """One front point as plain data for :data:`POINTS_FILE`."""
-    from casadrone.codesign.certificate import active_constraints
-
     p = fp.point
     efforts = track_efforts(prep, p)
     return {"theta": p.theta, "objective_s": p.objective, "laps_s": p.laps_s,
@@ -210,9 +208,6 @@ def write_run(path, prep: Prepared, front: Front, n_solves: int):
     import json
 
     prep = front.prepared or prep  # the ε-constrained NLP the points were solved in
-    from casadrone.config.problem import ProblemConfig
-    from casadrone.optimise.store import RunStore, atomic_write, now
-    from casadrone.results import Record
 
     data = prep.problem.model_dump(exclude={"codesign"})
     data["objectives"] = [{"index": "J3_limit", "sense": "min"},

@@ -53,6 +53,7 @@ from casadrone.codesign.certificate import (
     Certificate,
     TrackCheck,
     appended_rows,
+    certify,
     frame_terms,
     theta_gradient,
     verdict,
@@ -63,6 +64,7 @@ from casadrone.config.io import ConfigError
 from casadrone.limit.check import resimulation_miss
 from casadrone.limit.starts import prepare, trajectory
 from casadrone.model import n_params
+from casadrone.propulsion import propulsion_model
 
 #: Errors of a certificate's solves and re-simulation that fail the certificate (reported)
 #: instead of the front.
@@ -123,7 +125,8 @@ def track_dT_dP(prep: Prepared, point: CodesignPoint, k: int, P: np.ndarray) -> 
     w = point.z[cd.offsets[k]:cd.offsets[k + 1]]
     lam = point.lam_g[cd.row_offsets[k]:cd.row_offsets[k + 1]]
     grad = np.asarray(_lagrangian_p(part)(w, P, lam), float).ravel()
-    if "effort" in cd.epsilon and part.propulsion != "paper":  # paper: q has no p
+    if "effort" in cd.epsilon and not propulsion_model(part.propulsion).thrust_is_state:
+        # rotor states that are thrusts (paper): q has no p
         first = sum(q.nlp.layout.n_intervals for q in cd.parts[:k])
         nu = point.lam_g[len(cd.lbg) - cd.n_lift:][first:first + part.nlp.layout.n_intervals]
         n_p = n_params(part.propulsion)
@@ -179,8 +182,6 @@ def certified_point(prep: Prepared, fp, first: Certificate | None = None):
     (:func:`casadrone.codesign.design.certified`'s), else
     :func:`casadrone.codesign.certificate.certify`'s; an ε-point's from
     :func:`certify_epsilon_point`. A failed certificate is kept on its point; nothing raises."""
-    from casadrone.codesign.certificate import certify
-
     if not math.isinf(fp.epsilon):
         return replace(fp, certificate=certify_epsilon_point(prep, fp.point))
     cert = first

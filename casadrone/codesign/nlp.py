@@ -26,6 +26,8 @@ from casadrone.codesign.derivatives import codesign_derivatives, uses_blocks
 from casadrone.codesign.frame import SymbolicFrame
 from casadrone.indices import EFFORT_SMOOTHING_N  # one δ for the index and the NLP
 from casadrone.limit.nlp import Nlp, ipopt_options
+from casadrone.model import rotor_thrust_function
+from casadrone.propulsion import propulsion_model
 
 Combine = Literal["sum", "worst"]
 #: Lower bound of the frame's feasibility rows (each scaled to order one): IPOPT meets a row to
@@ -84,7 +86,7 @@ def effort_terms(part: TrackPart, w, p=None):
     zero_u = np.zeros((M, nlp.model.nu))
     X = np.zeros((M + 1, nlp.model.nx))
     h = w[np.flatnonzero(nlp.pack(np.ones(L), X, zero_u)).tolist()] / N
-    if part.propulsion == "paper":
+    if propulsion_model(part.propulsion).thrust_is_state:
         X[:M, nlp.model.rotor] = 1.0
         at_t = np.flatnonzero(nlp.pack(np.zeros(L), X, zero_u))
         T = ca.reshape(w[at_t.tolist()], -1, M)  # rotors × intervals
@@ -97,8 +99,6 @@ def effort_terms(part: TrackPart, w, p=None):
 def _node_thrusts(part: TrackPart, w, p):
     """The rotor thrusts (N, rotors × intervals) at the start node of every interval, from the
     node states in w (the NLP's units, :attr:`casadrone.limit.nlp.OcpModel.scale`) and p."""
-    from casadrone.model import rotor_thrust_function
-
     nlp, model = part.nlp, part.nlp.model
     if p is None or model.velocity is None or model.rates is None or model.rotor is None:
         raise ValueError(f"the effort of {model.name} needs p and the velocity, rates and "

@@ -26,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from casadrone.config.codesign import FRONT_MEASURES, LAP_INDEX
+from casadrone.config.airframe import load_airframe
+from casadrone.config.codesign import FRONT_MEASURES, LAP_INDEX, CodesignProblemConfig
 
 
 @dataclass(frozen=True)
@@ -60,8 +61,6 @@ def polish_problem(problem, intervals: int | None = None):
     objectives, posed on ``intervals`` per leg (None: the limit lap's default for the
     template's propulsion, the grid the evaluation chain's limit lap uses), no random starts,
     the template's lap from the closed-loop start."""
-    from casadrone.config.airframe import load_airframe
-    from casadrone.config.codesign import CodesignProblemConfig
     from casadrone.limit.result import DEFAULT_INTERVALS
 
     if intervals is None:

@@ -19,6 +19,7 @@ from pydantic import Field
 from casadrone.config.io import Schema, has_keys, load, resolve_config
 from casadrone.config.propulsion import PropulsionConfig
 from casadrone.massprops import inertia_tensor, mass_properties_of, rotor_positions_mm
+from casadrone.propulsion import PROPULSION_MODELS, airframe_problems
 
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
@@ -247,26 +248,24 @@ class AirframeConfig(Schema):
             found += inertia_problems(inertia_tensor(v))
         prop = v.get("propulsion")
         if prop is not None:  # the section against the vehicle's mass, air and prop diameter
-            from casadrone.propulsion import airframe_problems
-
             found += airframe_problems(
                 prop, mass_kg=mass, rho=v.get("air_density_kgm3"),
                 prop_diameter_mm=v.get("prop_diameter_mm"),
                 mass_key="mass_kg" if v.get("mass_model") == "free" else "components")
         thrust = v.get("thrust")
         if (thrust is not None and thrust.time_constant_s == 0 and prop is not None
-                and prop.model != "paper"):
+                and not PROPULSION_MODELS[prop.model].lagless):
             found.append(("thrust.time_constant_s", "0 (no thrust lag) is an idealisation of "
-                          "the paper's thrust model; the propeller model's lag is its motor's"))
+                          f"the paper's thrust model; the {prop.model} model's lag is its "
+                          "motor's"))
         if mass is not None and has_keys(v, "gravity_mps2", "thrust"):
             weight, full = mass * v["gravity_mps2"], 4 * v["thrust"].gain_n
             what = "4 × thrust.gain_n"
             prop = v.get("propulsion")
-            if (prop is not None and prop.model == "propeller" and None not in (
-                    prop.propeller, prop.motor, prop.battery) and "air_density_kgm3" in v):
-                from casadrone.propulsion import full_static_thrust
-
-                full, what = 4 * full_static_thrust(prop, v["air_density_kgm3"]), "propulsion"
+            own = (PROPULSION_MODELS[prop.model].full_static_thrust(prop, v["air_density_kgm3"])
+                   if prop is not None and "air_density_kgm3" in v else None)
+            if own is not None:  # the model's own full thrust, not K
+                full, what = 4 * own, "propulsion"
             if weight >= full:
                 key = "mass_kg" if v.get("mass_model") == "free" else "components"
                 found.append((key, f"cannot hover: weight {weight:.2f} N is not below the "

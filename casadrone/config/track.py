@@ -14,8 +14,8 @@ import numpy as np
 from pydantic import Field, StrictBool, field_validator, model_validator
 
 from casadrone.config.io import CONFIG_DIR, MAX_MAGNITUDE, Schema, load, resolve_config
-from casadrone.config.propulsion import SPEED_OF_SOUND_M_S
-from casadrone.limit.targets import TARGET_KINDS, gate_shapes, kind_of_shape
+from casadrone.propulsion.data import SPEED_OF_SOUND_M_S
+from casadrone.targets import TARGET_KINDS, gate_shapes, kind_of_shape
 
 #: The paper's rectangular track (Fig. 7), flown when no track is named.
 DEFAULT_TRACK = CONFIG_DIR / "tracks" / "paper-rectangle.yaml"
@@ -59,7 +59,7 @@ class GateConfig(Schema):
                                  "instead of heading_deg ([0, 0, h] is heading h; pitch 90 is "
                                  "a horizontal gate flown downwards)")
     shape: str = Field("rectangle", description="the opening, a gate shape of the target-kind "
-                       "registry (casadrone.limit.targets): " + "; ".join(
+                       "registry (casadrone.targets): " + "; ".join(
                            f"{k.shape}: {k.description}" for k in TARGET_KINDS.values()
                            if k.shape is not None),
                        json_schema_extra={"enum": list(gate_shapes())})  # the shipped kinds

@@ -20,6 +20,7 @@ from casadrone.config.controller import ControllerConfig
 from casadrone.config.io import (
     PATH_KEYS,
     ConfigError,
+    apply_overrides,
     check_paths,
     load,
     read_yaml,
@@ -82,8 +83,6 @@ class FileReport(AsDict):
 def check_config_file(path: str | Path, overrides: list[str] | None = None) -> BaseModel:
     """Validate any known config file (with ``key=value`` overrides applied), and the config
     files it references; ConfigError lists every problem."""
-    from casadrone.config.io import apply_overrides
-
     path = Path(path)
     data = apply_overrides(read_yaml(path), overrides, str(path))
     model = detect_schema(path, data)

@@ -16,6 +16,7 @@ from casadrone.export.mixers import betaflight, px4, px4_shell
 from casadrone.export.plate import PlateOptions, dxf, svg
 from casadrone.export.source import ExportSource
 from casadrone.export.urdf import urdf
+from casadrone.outfile import check_out, write_out
 
 
 @dataclass(frozen=True)
@@ -69,8 +70,6 @@ def write_export(src: ExportSource, fmt: str, out: str | Path,
         casadrone.outfile.OutputRefused: ``out`` must not be written (a ValueError).
         OSError: the write failed (a full disk), naming ``out``.
     """
-    from casadrone.outfile import check_out, write_out
-
     check_out(out, force)  # before any work
     return write_out(out, export(src, fmt, plate_options), force)
 

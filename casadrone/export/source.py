@@ -10,6 +10,9 @@ from pathlib import Path
 
 from casadrone.airframe import THETA_KEYS, Airframe, build_airframe, with_theta
 from casadrone.config.airframe import AirframeConfig, load_airframe
+from casadrone.config.io import resolve_config
+from casadrone.outfile import shown_path
+from casadrone.rundir.store import PARETO, RunStore
 
 #: Decision letters of ``casadrone decide`` and the methods they name.
 LETTERS = {"A": "utopian", "B": "compromise", "C": "extreme"}
@@ -48,9 +51,6 @@ def airframe_source(airframe: str | Path, overrides: list[str] | None = None) ->
     Raises:
         ConfigError: a missing or invalid file, or a bad override.
     """
-    from casadrone.config.io import resolve_config
-    from casadrone.outfile import shown_path
-
     path = resolve_config(airframe, "airframes")
     cfg = load_airframe(path, overrides or [])
     extra = f", overrides {' '.join(overrides)}" if overrides else ""
@@ -69,8 +69,6 @@ def run_source(run_dir: str | Path, candidate: str) -> ExportSource:
     """
     from casadrone.compare import run_candidates
     from casadrone.optimise.problem import Study, study_setup
-    from casadrone.optimise.store import PARETO, RunStore
-    from casadrone.outfile import shown_path
 
     run_dir = Path(run_dir)
     store = RunStore(run_dir)

@@ -1,8 +1,9 @@
 """The limit lap: the physically fastest lap of an airframe, a minimum-time optimal-control problem.
 
 - :mod:`casadrone.limit.nlp` builds the NLP once per track layout (the airframe is a parameter);
-- :mod:`casadrone.limit.targets` is the registry of target kinds (waypoint balls, gate openings),
-  :mod:`casadrone.limit.gates` packs a track's targets into the NLP's parameter;
+- :mod:`casadrone.targets` is the registry of target kinds (waypoint balls, gate openings; below
+  the configuration, whose track schema reads it), :mod:`casadrone.limit.gates` packs a track's
+  targets into the NLP's parameter;
 - :mod:`casadrone.limit.attitude` is the quaternion model (no attitude singularity);
 - :mod:`casadrone.limit.check` analyses a solution (re-simulation, sensitivities);
 - :mod:`casadrone.limit.result`: the options and the :class:`~casadrone.limit.result.LimitLap`;

@@ -16,7 +16,7 @@ from casadrone.config.airframe import AirframeConfig
 from casadrone.config.io import ConfigError
 from casadrone.limit.gates import TARGET_SIZE, target_miss  # noqa: F401 (re-exported)
 from casadrone.model import NU, n_params, propeller_outputs, quadrotor_model
-from casadrone.propulsion import airframe_values
+from casadrone.propulsion import airframe_values, propulsion_model
 
 
 def bang_bang_fraction(u: np.ndarray, tol: float) -> float:
@@ -155,7 +155,7 @@ def thrust_ratios(airframe, J):
     """CT(J)/CT(0) of advance ratios ``J`` (array): 1 with ``paper``; with ``propeller`` the
     shipped quadratic at J, or at max(J, 0) with positive inflow (:func:`lap_propulsion`)."""
     J = np.asarray(J, float)
-    if airframe.propulsion == "paper":
+    if propulsion_model(airframe.propulsion).thrust_is_state:
         return np.ones_like(J)
     q = airframe_values(airframe)
     if q["inflow_positive"] > 0.5:
@@ -194,7 +194,7 @@ def lap_propulsion(airframe, x, u) -> dict[str, Any]:
     speed_all = np.linalg.norm(x[:, 3:6], axis=1)
     if n == 0:  # a failed lap: nothing flown
         thrust_all, J_all = np.zeros((0, 4)), np.zeros((0, 4))
-    elif airframe.propulsion == "paper":
+    elif propulsion_model(airframe.propulsion).thrust_is_state:
         thrust_all, J_all = x[:, 12:16].copy(), np.full((m, 4), np.nan)
     else:
         out = propeller_outputs().map(m)(x.T, u.T, np.repeat(airframe.p[:, None], m, axis=1))

@@ -1,6 +1,6 @@
 """Packing a track's targets into the limit-lap NLP's parameter P: the gate frames and the
 ``TARGET_SIZE`` numbers of each leg's target (the layout and what each kind of target means:
-:mod:`casadrone.limit.targets`, the registry of target kinds).
+:mod:`casadrone.targets`, the registry of target kinds).
 
 The gate frame is R(roll, pitch, yaw) of the track's ``rpy_deg`` (ZYX,
 :func:`casadrone.model.rotation_matrix`): yaw alone is a vertical gate flown along that heading,
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from casadrone.limit.targets import (  # noqa: F401 (re-exported: where they were read before)
+from casadrone.targets import (  # noqa: F401 (re-exported: where they were read before)
     MAX_EDGES,
     TARGET_SIZE,
     polygon_edges,
@@ -19,7 +19,7 @@ from casadrone.limit.targets import (  # noqa: F401 (re-exported: where they wer
     target_rows,
 )
 
-#: A target kind's name: a key of :data:`casadrone.limit.targets.TARGET_KINDS`.
+#: A target kind's name: a key of :data:`casadrone.targets.TARGET_KINDS`.
 TargetKind = str
 
 

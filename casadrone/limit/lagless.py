@@ -20,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 from casadrone.model import PARAM_NAMES
+from casadrone.propulsion import propulsion_model
 
 #: Index of the thrust gain K in p (paper layout, the propeller's starts with it).
 K_INDEX = PARAM_NAMES.index("K")
@@ -59,7 +60,8 @@ GUESS_LAG_S = 0.060538
 
 def is_lagless(airframe) -> bool:
     """Whether ``airframe`` asks for the thrust-lag-off idealisation (paper model, τ = 0)."""
-    return airframe.propulsion == "paper" and airframe.thrust_time_constant == 0
+    return (propulsion_model(airframe.propulsion).lagless
+            and airframe.thrust_time_constant == 0)
 
 
 def without_lag(model):

@@ -122,7 +122,7 @@ from casadrone.limit.starts import (
     prepare,
     run_starts,
 )
-from casadrone.propulsion import max_static_thrust
+from casadrone.propulsion import max_static_thrust, propulsion_model
 
 #: The limit lap's names, wherever their step lives (``from casadrone.limit.lap import ...``).
 __all__ = [
@@ -328,9 +328,9 @@ def param_sensitivity(pb: Problem, point: NlpPoint) -> np.ndarray:
 
     out = -point.lam_p[:len(pb.frame.p)].copy()
     names = param_names(pb.frame.propulsion)
-    # paper propulsion: the rotor-state bounds are [0, K] (propulsion.rotor_state_bounds), linear
-    # in K, so their slope is one difference (a propeller's rotor-speed bound has no K)
-    if pb.frame.propulsion == "paper" and "K" in names:
+    # rotor states that are thrusts: their bounds are [0, K] (propulsion.rotor_state_bounds),
+    # linear in K, so their slope is one difference (a propeller's rotor-speed bound has no K)
+    if propulsion_model(pb.frame.propulsion).thrust_is_state and "K" in names:
         lo0, hi0 = pb.box
         lo1, hi1 = bounds(pb.full, replace(pb.frame, thrust_gain=pb.frame.thrust_gain + 1.0),
                           pb.track, pb.options, point_mass=False)

@@ -13,7 +13,7 @@ receives and what the re-simulation integrates.
 Phases: one per leg (route segment), each with its own free duration T_k and ``intervals``
 uniform intervals of length T_k / N. The end node of leg k must lie in target k: a **ball**
 (|p − c| ≤ r) or a **gate** (rectangle, circle or polygon of any orientation: on its plane,
-inside its opening shrunk by a clearance, crossing it forwards; :mod:`casadrone.limit.targets`).
+inside its opening shrunk by a clearance, crossing it forwards; :mod:`casadrone.targets`).
 Objective: Σ T_k.
 
 Everything that varies between airframes or track geometries is an NLP *parameter*
@@ -40,6 +40,7 @@ from casadrone.limit.gates import (  # noqa: F401 (re-exported: the NLP's target
     target_vector,
 )
 from casadrone.model import EUL, n_params, quadrotor_model, rotation_matrix, unpack_params
+from casadrone.propulsion import propulsion_model
 
 
 @dataclass(frozen=True)
@@ -90,23 +91,16 @@ class OcpModel:
         return self.f.size1_in(2)
 
 
-#: The unit of the ``propeller`` kind's rotor states in the NLP (rad/s): krad/s. In rad/s the
-#: rotor speeds (~2·10³) and their rates (~10⁵ rad/s² in a full-command step) are three to five
-#: orders above the other states (m, m/s, rad, rad/s ~ 1–50); IPOPT scales constraints by their
-#: gradients but never the variables, so its steps, bound pushes and restoration phase then act
-#: on badly scaled unknowns. Measured (benchmarks/RESULTS-propulsion.md): unscaled, SY250-propeller
-#: on the paper track ended in Restoration_Failed from both starts.
-ROTOR_SPEED_UNIT_RAD_S = 1000.0
-
-
 def state_scale(nx: int, rotor: slice, propulsion: str) -> tuple[float, ...] | None:
     """The NLP unit of each of ``nx`` states (:attr:`OcpModel.scale`): None (the model's own
-    units, every state) with ``paper``, whose rotor states are thrusts of a few newtons; with
-    ``propeller`` the rotor speeds in :data:`ROTOR_SPEED_UNIT_RAD_S`."""
-    if propulsion == "paper":
+    units, every state) with ``paper``, whose rotor states are thrusts of a few newtons; else the
+    rotor states in the propulsion model's ``rotor_scale`` (``propeller``: krad/s,
+    :data:`casadrone.propulsion.propeller.ROTOR_SPEED_UNIT_RAD_S`)."""
+    unit = propulsion_model(propulsion).rotor_scale
+    if unit is None:
         return None
     scale = np.ones(nx)
-    scale[rotor] = ROTOR_SPEED_UNIT_RAD_S
+    scale[rotor] = unit
     return tuple(float(s) for s in scale)
 
 
@@ -117,7 +111,7 @@ def quadrotor_ocp_model(propulsion: str = "paper") -> OcpModel:
     def vw(x):
         return rotation_matrix(x[9], x[10], x[11]) @ x[3:6]
 
-    name = "quadrotor" if propulsion == "paper" else f"quadrotor-{propulsion}"
+    name = "quadrotor" + propulsion_model(propulsion).suffix
     return OcpModel(name, quadrotor_model(propulsion).f, vw, rates=slice(6, 9),
                     rotor=slice(12, 16), up_z=lambda x: ca.cos(x[9]) * ca.cos(x[10]),
                     attitude="euler", scale=state_scale(16, slice(12, 16), propulsion),
@@ -132,7 +126,7 @@ def quaternion_ocp_model(propulsion: str = "paper") -> OcpModel:
         q = x[QUAT]
         return (q[0] ** 2 + q[3] ** 2 - q[1] ** 2 - q[2] ** 2) / ca.sumsqr(q)
 
-    name = "quadrotor-quat" if propulsion == "paper" else f"quadrotor-quat-{propulsion}"
+    name = "quadrotor-quat" + propulsion_model(propulsion).suffix
     return OcpModel(name, quaternion_f(propulsion), lambda x: quat_rotation(x[QUAT]) @ x[3:6],
                     rates=slice(6, 9), rotor=slice(13, 17), up_z=up_z, attitude="quaternion",
                     scale=state_scale(17, slice(13, 17), propulsion), velocity=slice(3, 6),
@@ -171,7 +165,7 @@ def point_mass_ocp_model(propulsion: str = "paper") -> OcpModel:
     acc = R @ (ca.vertcat(0, 0, u[3]) + drag_b) / g["mass"] - ca.vertcat(0, 0, g["g"])
     f = ca.Function("f_point_mass", [x, u, p], [ca.vertcat(x[3:6], acc)],
                     ["x", "u", "p"], ["xdot"])
-    name = "point-mass" if propulsion == "paper" else f"point-mass-{propulsion}"
+    name = "point-mass" + propulsion_model(propulsion).suffix
     return OcpModel(name, f, lambda s: s[3:6])
 
 
@@ -399,15 +393,14 @@ def etdrk4_step(model: OcpModel, substeps: int) -> ca.Function:
 
 def exponential_rotor(model: OcpModel) -> OcpModel:
     """``model`` with its rotor states stepped by ETDRK4 (:func:`etdrk4_step`) at the rotor
-    decay rate of its propulsion kind (:func:`casadrone.propulsion.rotor_decay_rate`), under its
-    own name (its own NLP and compiled blocks)."""
+    decay rate of its propulsion model
+    (:meth:`casadrone.propulsion.base.PropulsionModel.decay_rate`), under its own name (its own
+    NLP and compiled blocks)."""
     propulsion = model.propulsion
-    from casadrone.model import named, unpack_params
-    from casadrone.propulsion import rotor_decay_rate
+    from casadrone.model import named
 
     def rate(p):
-        g = unpack_params(p)[0] if propulsion == "paper" else named(p)
-        return rotor_decay_rate(g, propulsion)
+        return propulsion_model(propulsion).decay_rate(named(p, propulsion))
 
     return replace(model, name=f"{model.name}-etd", rotor_rate=rate)
 
@@ -555,7 +548,7 @@ def ipopt_options(tol: float, max_iter: int, warm: bool, near: bool = False,
                   propulsion: str = "paper") -> dict:
     """IPOPT settings (MUMPS, exact Hessian, quiet); ``warm`` adds primal-dual warm start, for a
     start far from the optimum (a neighbouring frame's lap), with the settings of the
-    ``propulsion`` kind (:data:`WARM_SETTINGS`); ``near`` one for a start close to it
+    ``propulsion`` kind (its ``warm_ipopt``); ``near`` one for a start close to it
     (:data:`NEAR_VIOLATION`)."""
     ipopt = {"tol": tol, "acceptable_tol": 1e3 * tol, "max_iter": max_iter, "print_level": 0,
              "linear_solver": "mumps", "sb": "yes", "mu_strategy": "adaptive",
@@ -586,7 +579,7 @@ def ipopt_options(tol: float, max_iter: int, warm: bool, near: bool = False,
         ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-4,
                       "warm_start_mult_bound_push": 1e-4, "warm_start_slack_bound_push": 1e-4,
                       "mu_init": 1e-2})
-        ipopt.update(WARM_SETTINGS.get(propulsion, {}))
+        ipopt.update(propulsion_model(propulsion).warm_ipopt)
     # show_eval_warnings off: a trial step that overflows the model (Inf/NaN in g) is IPOPT's
     # to handle (it shortens the step); CasADi would print a warning line for each.
     return {"ipopt": ipopt, "print_time": False, "error_on_fail": False,
@@ -601,21 +594,6 @@ def ipopt_options(tol: float, max_iter: int, warm: bool, near: bool = False,
 #: solve, 0.02–0.04 s at 10 %, the same iterates and lap to the last bit
 #: (benchmarks/RESULTS-limitlap-solvers.md, "MUMPS's working space").
 MUMPS_MEM_PERCENT = 20
-
-#: IPOPT settings of the far warm start by propulsion kind, on top of the common ones (absent:
-#: none). ``propeller``: ``sigma_min``, the smallest centring parameter of IPOPT's adaptive μ
-#: (μ = σ × the average complementarity; IPOPT's default 1e-6). Why: from a neighbouring frame's
-#: lap the adaptive μ fell at the first iteration to 10^-9.2 (``paper``: 10^-5.4), and with so
-#: small a barrier the Newton steps ran into the commands' and the tilt bounds (fraction to the
-#: boundary) for 40 iterations before the first full step. Measured on SY250-propeller's two
-#: neighbours of bench_propulsion_warm (80 intervals; benchmarks/RESULTS-propulsion.md, "Closing
-#: the warm gap"): σ_min 1e-3 35 and 26 iterations instead of 66 and 67 (four neighbours: 26–35
-#: against 41–67), the
-#: same laps to 8 digits (it changes the path, not the convergence test); 1e-4 42 and 33, 1e-2
-#: 32 and 49. A floor on μ instead (``mu_min`` 1e-7) took 25 and 15 but stops on the barrier's
-#: bias (laps 0.003 % slower; 3e-7: 0.009 %). ``paper`` keeps IPOPT's default: its results stay
-#: bit-identical.
-WARM_SETTINGS: dict[str, dict[str, float]] = {"propeller": {"sigma_min": 1e-3}}
 
 #: A warm start whose largest constraint violation (the NLP's units: m, m/s, rad, rad/s, N)
 #: is at most this is solved with the ``near`` setting of :func:`ipopt_options`, any other with

@@ -23,9 +23,9 @@ from casadrone.limit.result import (
     LimitLapOptions,
     model_states,
 )
-from casadrone.limit.targets import kind_of_shape
 from casadrone.model import NX
 from casadrone.propulsion import hover_rotors, rotor_state_bounds, rotor_thrust_bound
+from casadrone.targets import kind_of_shape
 
 
 @dataclass(frozen=True)
@@ -86,7 +86,7 @@ def track_targets(track: TrackConfig, options: LimitLapOptions,
     for k, j in enumerate(items):
         if track.gates:
             gate, leg = track.gates[j], first + k
-            kind = kind_of_shape(gate.shape)  # its packing: casadrone.limit.targets
+            kind = kind_of_shape(gate.shape)  # its packing: casadrone.targets
             packed = kind.pack(gate, clear)
             kinds[leg] = kind.name
             frames[leg] = gate_frame(*gate.rpy_rad)

@@ -5,6 +5,7 @@ model's states and the 16 Euler-model states."""
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Literal, get_args
 
@@ -13,6 +14,7 @@ import numpy as np
 from casadrone.config.controller import ControllerConfig
 from casadrone.limit.nlp import Layout, NlpPoint
 from casadrone.model import NX
+from casadrone.propulsion import PROPULSION_MODELS
 from casadrone.results import AsDict, Status
 
 Start = Literal["closed-loop", "point-mass", "coarse-grid", "fine-grid", "relaxed-tolerance"]
@@ -48,13 +50,23 @@ def model_states(attitude: str, X: np.ndarray) -> np.ndarray:
     return np.atleast_2d(np.asarray(X, float))
 
 
-#: Intervals per leg by propulsion kind (LimitLapOptions.intervals None). ``propeller``: the
-#: rotor speed's time constant (~20 ms with the DC motor and rotor inertia) is shorter than the
-#: paper's thrust lag (61 ms), and RK4 steps of ~14 ms (40 intervals, 3 steps each, a 4.3 s lap
-#: over 5 legs) follow it badly: SY250-propeller's paper-track lap re-simulated 0.30 m off on 40
-#: intervals and 2.1 cm off on 80, the lap itself the same to 0.01 % (4.3094 / 4.3090 s;
-#: benchmarks/RESULTS-propulsion.md).
-DEFAULT_INTERVALS: dict[str, int] = {"paper": 40, "propeller": 80}
+class _DefaultIntervals(Mapping[str, int]):
+    """The registered propulsion models' ``default_intervals``, read when asked (a model
+    registered later is in it)."""
+
+    def __getitem__(self, kind: str) -> int:
+        return PROPULSION_MODELS[kind].default_intervals
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(PROPULSION_MODELS)
+
+    def __len__(self) -> int:
+        return len(PROPULSION_MODELS)
+
+
+#: Intervals per leg by propulsion kind (LimitLapOptions.intervals None): each model's own
+#: (:attr:`casadrone.propulsion.base.PropulsionModel.default_intervals`; paper 40, propeller 80).
+DEFAULT_INTERVALS: Mapping[str, int] = _DefaultIntervals()
 #: Grid rounds of ``casadrone limit-lap`` unless ``--grid-rounds`` says otherwise: the command
 #: answers one frame's question, so it pays 1.2-2.9x the CPU (median 1.8x) for the best optimum
 #: it can reach. Measured on the five reference frames over the paper, gate and split-S tracks

@@ -49,7 +49,7 @@ from casadrone.limit.result import (
     model_states,
     node_times,
 )
-from casadrone.propulsion import hover_rotors
+from casadrone.propulsion import hover_rotors, propulsion_model
 
 #: Share of the intervals of the coarse grid of the "coarse-grid" start (40 -> 30).
 COARSE_SHARE = 0.75
@@ -129,8 +129,7 @@ def prepare(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
     layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
                     options.substeps, end_at_rest=track.end in ("rest", "velocity"),
                     tilt_cone=options.tilt_limit == "cone", periodic=track.end == "periodic",
-                    max_advance_ratio=frame.max_advance_ratio
-                    if frame.propulsion == "propeller" else None)
+                    max_advance_ratio=frame.max_advance_ratio)  # None: the model has none
     model = ATTITUDE_MODELS[options.attitude](frame.propulsion)
     if is_lagless(frame):  # thrust.time_constant_s: 0, the lag-off idealisation
         model = without_lag(model)
@@ -168,8 +167,8 @@ def closed_loop_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
         guess = guess_from_trajectory(full, traj, x0)
     if guess is None:
         guess = straight_guess(full, pb.targets.route, x0, hover_command=None if
-                               pb.frame.propulsion == "paper" else float(np.mean(
-                                   hover_rotors(pb.frame, pb.frame.hover_thrusts())[1])))
+                               propulsion_model(pb.frame.propulsion).command_linear else float(
+                                   np.mean(hover_rotors(pb.frame, pb.frame.hover_thrusts())[1])))
     return pb.solve(guess)
 
 
@@ -333,7 +332,8 @@ def fallback_name(name: str | None, propulsion: str) -> str | None:
     ``propulsion``: ``name`` itself with the paper model, ``name-propeller`` (SY250-propeller)
     with the propeller model, None when that airframe is not shipped or has another kind (its
     rotor states would mean something else)."""
-    if name is None or propulsion == "paper":
+    suffix = propulsion_model(propulsion).suffix
+    if name is None or not suffix:
         return name
     from casadrone.config.airframe import load_airframe
     from casadrone.config.io import ConfigError

@@ -15,6 +15,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from pymoo.core.algorithm import Algorithm
 
+from casadrone.config.codesign import PolishSettings
 from casadrone.optimise.evmoga import EvMOGA
 
 __all__ = ["ALGORITHM_NAMES", "REFUSED", "make_algorithm", "reference_directions",
@@ -81,8 +82,6 @@ def _bool(v: Any) -> str | None:
 def _polish(v: Any) -> str | None:
     """The polish settings (:class:`casadrone.config.codesign.PolishSettings`), as one line."""
     from pydantic import ValidationError
-
-    from casadrone.config.codesign import PolishSettings
 
     if not isinstance(v, dict):
         return f"expected a mapping such as {{members: 5}}, got {v!r}"

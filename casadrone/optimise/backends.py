@@ -19,7 +19,7 @@ import numpy as np
 from casadrone.config.problem import BackendConfig
 from casadrone.optimise.lifeline import worker_init
 from casadrone.optimise.mainguard import SpawnWithoutMainContext
-from casadrone.optimise.problem import Study, evaluate_rows
+from casadrone.optimise.problem import Study, evaluate_rows, study_setup
 from casadrone.results import Record
 
 
@@ -77,8 +77,6 @@ def _warm(study: Study, linger_s: float = 0.0) -> int:
     keeps a fast worker busy so that the others take the remaining warm-up tasks."""
     import os
     import time
-
-    from casadrone.optimise.problem import study_setup
 
     if study.problem.test_problem is None:
         study_setup(study)

@@ -12,50 +12,26 @@ run``) and :func:`validate_file` (``cd.validate_file``, ``casadrone validate``) 
 from __future__ import annotations
 
 import difflib
-import importlib
-import importlib.util
 from collections.abc import Iterable
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 from pydantic import BaseModel
 
-from casadrone.config.io import ROOT, ConfigError, problem_lines, resolve_config
+from casadrone.airframe import THETA_KEYS as CODESIGN_KEYS  # co-design's variables
+from casadrone.airframe import build_airframe, with_theta
+from casadrone.codesign.checks import codesign_index_problems, codesign_track_problems
+from casadrone.config.airframe import AirframeConfig, load_airframe
+from casadrone.config.codesign import POLISH_INDICES, CodesignProblemConfig
+from casadrone.config.io import CONFIG_DIR, ConfigError, load, problem_lines, resolve_config
 from casadrone.config.problem import ProblemConfig, read_problem
+from casadrone.config.track import TrackConfig
 from casadrone.config.validation import check_config_file
-from casadrone.indices import INDICES
+from casadrone.indices import INDICES, limit_index_names
+from casadrone.limit.lap import LimitLapOptions, check_inputs, frame_clearance_m
 from casadrone.optimise.algorithms import ALGORITHM_NAMES, REFUSED, settings_problems
+from casadrone.rundir.plugins import import_plugin
 from casadrone.simulate import INTEGRATORS
-
-_PLUGINS: dict[str, ModuleType] = {}
-
-
-def import_plugin(plugin: str) -> ModuleType:
-    """Import a plugin once per process: a module name, or a path to a ``.py`` file (relative
-    paths from the working directory, then the project root)."""
-    if plugin in _PLUGINS:
-        return _PLUGINS[plugin]
-    if plugin.endswith(".py"):
-        path = Path(plugin)
-        if not path.is_file():
-            path = ROOT / plugin
-        if not path.is_file():
-            raise FileNotFoundError(f"no such file: {plugin}")
-        name = f"casadrone_plugin_{path.stem}"
-        spec = importlib.util.spec_from_file_location(name, path)
-        if spec is None or spec.loader is None:
-            raise ImportError(f"cannot load {plugin} as a Python module")
-        module = importlib.util.module_from_spec(spec)
-        _PLUGINS[plugin] = module  # before exec: a failing plugin is not imported twice
-        try:
-            spec.loader.exec_module(module)
-        except Exception:
-            del _PLUGINS[plugin]
-            raise
-    else:
-        _PLUGINS[plugin] = importlib.import_module(plugin)
-    return _PLUGINS[plugin]
 
 
 def problem_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
@@ -95,15 +71,10 @@ def _limit_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
     limit lap's clearance, :func:`casadrone.limit.lap.check_inputs`): a problem optimising or
     constraining one could only fill its budget with failed evaluations, so it is refused at
     load, like a bad value."""
-    from casadrone.indices import limit_index_names
-
     names = [o.index for o in problem.objectives] + [c.index for c in problem.constraints]
     used = limit_index_names(names)
     if not used:
         return []
-    from casadrone.config.io import CONFIG_DIR, load
-    from casadrone.config.track import TrackConfig
-    from casadrone.limit.lap import LimitLapOptions, check_inputs
 
     try:
         track = load(TrackConfig, problem.track or CONFIG_DIR / "tracks" / "paper-rectangle.yaml")
@@ -121,10 +92,6 @@ def smallest_frame_clearance(problem: ProblemConfig) -> float | None:
     search box's centre and corners (a frame grows with its arms, so its smallest is at a
     corner); None when no such point is a valid airframe."""
     import itertools
-
-    from casadrone.airframe import build_airframe, with_theta
-    from casadrone.config.airframe import AirframeConfig, load_airframe
-    from casadrone.limit.lap import frame_clearance_m
 
     if problem.airframe is None:
         return None
@@ -174,9 +141,6 @@ def polish_problems(problem: ProblemConfig) -> list[tuple[str, str]]:
     (``algorithm.settings.polish``, :mod:`casadrone.codesign.polish`): an objective or constraint
     on an index it cannot hold (a closed-loop J1–J5, Jp), no limit lap to minimise, a variable
     it does not vary. Each under the polish key."""
-    from casadrone.airframe import THETA_KEYS as CODESIGN_KEYS  # co-design's variables
-    from casadrone.config.codesign import POLISH_INDICES
-
     key = "algorithm.settings.polish"
     if problem.test_problem is not None:
         return [(key, "polish needs an airframe problem with the limit lap, not a test problem")]
@@ -208,11 +172,7 @@ def check_problem(problem: ProblemConfig, source: str | Path,
     """``problem`` when the optimiser can run it; else ConfigError, one ``FILE: key: message``
     line per problem (``source`` names the file). A co-design problem is checked against what
     the co-design NLP can hold (:func:`casadrone.codesign.checks.codesign_index_problems`)."""
-    from casadrone.config.codesign import CodesignProblemConfig
-
     if isinstance(problem, CodesignProblemConfig):
-        from casadrone.codesign.checks import codesign_index_problems, codesign_track_problems
-
         found = codesign_index_problems(problem.objectives, problem.constraints)
         found = found or codesign_track_problems(problem)
     else:
@@ -235,11 +195,8 @@ def validate_file(path: str | Path) -> BaseModel:
     (:func:`casadrone.config.validation.check_config_file`), and a problem also against the
     optimiser; ConfigError lists every problem."""
     config = check_config_file(path)
-    from casadrone.config.codesign import CodesignProblemConfig
 
     if isinstance(config, CodesignProblemConfig):  # checked against what co-design can hold
-        from casadrone.codesign.checks import codesign_index_problems
-
         found = codesign_index_problems(config.objectives, config.constraints)
         if found:
             raise ConfigError(problem_lines(found, str(path)))

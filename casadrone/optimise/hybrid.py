@@ -28,10 +28,11 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
-from casadrone.optimise.checkpoint import dumps
+from casadrone.config.codesign import PolishSettings
 from casadrone.optimise.problem import Study, objectives_and_constraints
-from casadrone.optimise.store import RunStore, atomic_write
 from casadrone.results import Record
+from casadrone.rundir.checkpoint import dumps
+from casadrone.rundir.store import RunStore, atomic_write
 
 if TYPE_CHECKING:
     from casadrone.config.codesign import PolishSettings
@@ -45,7 +46,6 @@ def polish_settings(study: Study) -> PolishSettings | None:
     raw = study.problem.algorithm.settings.get("polish")
     if raw is None or study.problem.test_problem is not None:
         return None
-    from casadrone.config.codesign import PolishSettings
 
     return PolishSettings.model_validate(raw)
 

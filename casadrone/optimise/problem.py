@@ -17,8 +17,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pymoo.core.problem import Problem
 
+from casadrone.config.airframe import load_airframe
+from casadrone.config.controller import load_controller
+from casadrone.config.io import load
 from casadrone.config.problem import ProblemConfig
+from casadrone.config.track import TrackConfig
 from casadrone.results import Record
+from casadrone.rundir.plugins import import_plugin
 
 if TYPE_CHECKING:  # the chain is imported when a setup is built
     from casadrone.config.airframe import AirframeConfig
@@ -89,15 +94,10 @@ _SETUPS: dict[str, EvaluationSetup] = {}
 def _setup(key: str, problem: ProblemConfig) -> EvaluationSetup:
     """The evaluation setup of a problem, built once per process (the model and compiled lap are
     cached inside the chain's modules, so the first evaluation pays for them only once)."""
-    from casadrone.config.airframe import load_airframe
-    from casadrone.config.controller import load_controller
-    from casadrone.config.io import load
-    from casadrone.config.track import TrackConfig
     from casadrone.evaluate import DEFAULT_TRACK, EvaluationSetup
 
     if key in _SETUPS:
         return _SETUPS[key]
-    from casadrone.optimise.checks import import_plugin
 
     for plugin in problem.plugins:  # workers start fresh: register custom indices here too
         import_plugin(plugin)

@@ -4,7 +4,7 @@ The loop is pymoo's own ``Algorithm.next()`` (ask → evaluate the whole generat
 → tell), one generation at a time; after each generation the coordinator pickles the algorithm
 (random state included) and hands its evaluations and that checkpoint to a background writer,
 which stores the evaluations and then the checkpoint while the next generation is evaluated
-(:mod:`casadrone.optimise.writer`). Resuming loads the checkpoint, re-attaches a backend and
+(:mod:`casadrone.rundir.writer`). Resuming loads the checkpoint, re-attaches a backend and
 continues: the run ends exactly as an uninterrupted one would.
 
 When no checkpoint is usable (killed before the first one, or both damaged), resuming rebuilds
@@ -13,7 +13,7 @@ generation is served from the history instead of being evaluated (a replay, chec
 against what the algorithm asks for), then the run continues live. SIGTERM (``timeout``, batch
 schedulers, ``docker stop``) and SIGINT (Ctrl-C) stop a run the same way: the manifest records
 ``interrupted`` and :class:`Interrupted` carries the signal to the caller.
-Each step is timed into the run's ``timings.csv`` (:mod:`casadrone.optimise.timings`); the
+Each step is timed into the run's ``timings.csv`` (:mod:`casadrone.rundir.timings`); the
 progress hypervolume stays cheap as the set grows (:mod:`casadrone.optimise.hypervolume`).
 """
 
@@ -34,16 +34,22 @@ from typing import Any, TextIO, TypeVar
 import numpy as np
 
 from casadrone.config.problem import BackendConfig, ProblemConfig
-from casadrone.optimise.algorithms import front_rows, front_size, seeded_defaults
+from casadrone.optimise.algorithms import (
+    algorithm_settings,
+    front_rows,
+    front_size,
+    make_algorithm,
+    seeded_defaults,
+)
 from casadrone.optimise.backends import make_backend
-from casadrone.optimise.checkpoint import dumps
 from casadrone.optimise.hybrid import needs_polish, polish_stage
 from casadrone.optimise.hypervolume import HypervolumeState, advance
 from casadrone.optimise.mainguard import unguarded_main_call, unguarded_message
 from casadrone.optimise.problem import CandidateProblem, Study, objectives_and_constraints
-from casadrone.optimise.store import RunDamaged, RunStore, now, record_of
-from casadrone.optimise.writer import GenerationWriter
 from casadrone.results import Record
+from casadrone.rundir.checkpoint import dumps
+from casadrone.rundir.store import RunDamaged, RunStore, now, record_of
+from casadrone.rundir.writer import GenerationWriter
 
 T = TypeVar("T")
 
@@ -164,8 +170,6 @@ class RunResult:
 
 def build_algorithm(problem: ProblemConfig, n_obj: int) -> tuple[Any, Any]:
     """The problem's algorithm and its pymoo termination (G generations after initialisation)."""
-    from casadrone.optimise.algorithms import algorithm_settings, make_algorithm
-
     a = problem.algorithm
     algorithm = make_algorithm(a.name, algorithm_settings(a.settings), pop_size=a.population,
                                n_obj=n_obj,
@@ -280,7 +284,7 @@ def _marker(t: list[float], cpu: list[float]) -> Callable[[], None]:
 
 
 #: Write each generation's history, checkpoint and timings row in the background, behind the next
-#: generation's evaluation (:mod:`casadrone.optimise.writer`); False writes them in turn.
+#: generation's evaluation (:mod:`casadrone.rundir.writer`); False writes them in turn.
 BACKGROUND_WRITES = True
 
 

@@ -52,6 +52,7 @@ from casadrone.report.sections import (
     section_trim,
 )
 from casadrone.report.verdict import baseline_of, baseline_verdict, section_verdict
+from casadrone.rundir.store import atomic_write
 
 __all__ = ["Candidate", "choose_candidates", "convergence_history", "failure_groups",
            "write_report"]
@@ -158,7 +159,6 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] | None = None,
             f" · status {esc(m.get('status'))} · {len(run.history)} evaluations · "
             f"{len(run.F)} designs on the front · report written {esc(stamp)}</p>"
             f"<nav>{nav}</nav></header>{sections}</body></html>")
-    from casadrone.optimise.store import atomic_write
 
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(path, page)

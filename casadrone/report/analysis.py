@@ -13,11 +13,12 @@ from pathlib import Path
 import numpy as np
 
 from casadrone.compare import CANDIDATE_LABELS, DECISION_TEXT, Candidate
+from casadrone.decide import decide
 from casadrone.indices import INDICES
-from casadrone.optimise.hypervolume import non_dominated
+from casadrone.optimise.hypervolume import HypervolumeSpace, non_dominated
 from casadrone.optimise.problem import FAILURE_CV, Study, objectives_and_constraints
-from casadrone.optimise.store import PARETO, RunStore
 from casadrone.results import Record
+from casadrone.rundir.store import PARETO, RunStore
 
 #: Decision methods in label order (paper: A utopian, B trade-off, C extreme).
 LABELS = tuple((CANDIDATE_LABELS[m], m, text) for m, text in DECISION_TEXT.items())
@@ -102,8 +103,6 @@ def choose_candidates(run: Run) -> list[Candidate]:
     :func:`casadrone.compare.run_candidates` chooses them (which needs ``pareto.csv``; this
     also works on the front of an unfinished run), one entry per distinct design. Empty for an
     empty front."""
-    from casadrone.decide import decide
-
     if len(run.F) == 0:
         return []
     names = run.study.objective_names
@@ -144,8 +143,6 @@ def convergence_history(run: Run, max_points: int = 60) -> ConvergenceHistory:
     archive in five objectives) is computed at no more than ``max_points`` evenly spaced
     generations, the last always included, and is NaN at the others.
     """
-    from casadrone.optimise.hypervolume import HypervolumeSpace, non_dominated
-
     gen, F, ok = feasible_front(run.study, run.history)
     gens = np.array(sorted({g["generation"] for g in run.generations} | set(gen.tolist())), int)
     m = F.shape[1]

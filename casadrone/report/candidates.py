@@ -8,10 +8,17 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from casadrone import plots
-from casadrone.compare import Candidate
-from casadrone.evaluate import Evaluation, evaluate, theta_of
+from casadrone.airframe import build_airframe, family, with_theta
+from casadrone.compare import Candidate, compare_run, gain_pct
+from casadrone.config.airframe import load_airframe
+from casadrone.config.io import ConfigError
+from casadrone.evaluate import Evaluation, evaluate, evaluate_limit, theta_of
+from casadrone.export import FORMATS, export
+from casadrone.export.source import candidate_source
 from casadrone.indices import INDICES
-from casadrone.optimise.store import PARETO, git_revision
+from casadrone.massprops import mass_properties
+from casadrone.optimise.problem import study_setup
+from casadrone.outfile import shown_path
 from casadrone.progress import emit, nested
 from casadrone.report.analysis import Run
 from casadrone.report.markup import (
@@ -27,6 +34,7 @@ from casadrone.report.markup import (
     table,
     unit_of,
 )
+from casadrone.rundir.store import PARETO, atomic_write, git_revision
 
 if TYPE_CHECKING:
     from casadrone.config.airframe import AirframeConfig
@@ -36,8 +44,6 @@ def evaluate_candidates(run: Run, cands: list[Candidate], limit: bool = True
                         ) -> list[Candidate]:
     """Fly each candidate again, keeping its trajectory (the chain is deterministic); without
     ``limit`` the closed-loop lap only (a co-design point's limit lap is stored with it)."""
-    from casadrone.optimise.problem import study_setup
-
     setup = study_setup(run.study)
     if not limit:
         setup = replace(setup, limit=None)
@@ -72,13 +78,6 @@ def _reproduction(run: Run, cands: list[Candidate]) -> Html:
 def _exports(run: Run, c: Candidate, folder: Path) -> str:
     """Write the candidate's exports under ``folder`` (beside report.html) and link them; the
     page stays self-contained, the files are optional extras."""
-    from casadrone.config.io import ConfigError
-    from casadrone.export import FORMATS, export
-    from casadrone.export.source import candidate_source
-    from casadrone.optimise.problem import study_setup
-    from casadrone.optimise.store import atomic_write
-    from casadrone.outfile import shown_path
-
     template = study_setup(run.study).template
     tag = c.label.replace("=", "")  # "A=C" (one design, two decisions) → "AC"
     try:
@@ -133,10 +132,6 @@ def section_candidates(run: Run, cands: list[Candidate], figs: Figures,
 def _limit_lap(run: Run, c: Candidate, figs: Figures) -> str:
     """The candidate's limit lap beside its closed-loop lap, when the problem uses a limit-lap
     index (J3_limit)."""
-    from casadrone.airframe import with_theta
-    from casadrone.evaluate import evaluate_limit
-    from casadrone.optimise.problem import study_setup
-
     setup = study_setup(run.study)
     if setup.limit is None or run.test_problem:
         return ""
@@ -156,8 +151,6 @@ def _limit_lap(run: Run, c: Candidate, figs: Figures) -> str:
 
 
 def _candidate(run: Run, c: Candidate, figs: Figures) -> str:
-    from casadrone.airframe import family
-
     s, ev = run.study, c.flown
     lo, hi = s.bounds
     geo = [[SYMBOL.get(n, n), n, unit_of(n), cell(c.theta[n], exact=True), a, b]
@@ -168,10 +161,6 @@ def _candidate(run: Run, c: Candidate, figs: Figures) -> str:
            table(["symbol", "variable", "unit", "value", "lower", "upper"], geo, "theta"),
            ]
     if not run.test_problem:
-        from casadrone.airframe import with_theta
-        from casadrone.massprops import mass_properties
-        from casadrone.optimise.problem import study_setup
-
         cfg = with_theta(study_setup(s).template, c.theta)
         mp = mass_properties(cfg)
         source = "fixed" if mp.mass_model == "free" else "from the parts"
@@ -213,9 +202,6 @@ def _candidate(run: Run, c: Candidate, figs: Figures) -> str:
 def fly_references(run: Run, references: Any, limit: bool = True) -> list[tuple[Any, Evaluation]]:
     """(config, evaluation) of each reference airframe, flown with its own config on the run's
     track, controller and integrator (without ``limit``, no limit lap: a co-design front)."""
-    from casadrone.config.airframe import load_airframe
-    from casadrone.optimise.problem import study_setup
-
     setup = study_setup(run.study)
     if not limit:
         setup = replace(setup, limit=None)
@@ -234,7 +220,7 @@ def section_airframes(run: Run, cands: list[Candidate], references: Any, figs: F
         return note("A pymoo test problem has no airframe.")
     if not cands:
         return empty_front(run)
-    from casadrone.airframe import build_airframe, with_theta
+    from casadrone.airframe import with_theta
     from casadrone.optimise.problem import study_setup
 
     setup = study_setup(run.study)
@@ -257,8 +243,6 @@ def section_airframes(run: Run, cands: list[Candidate], references: Any, figs: F
 
 
 def _index_gains(run: Run, cands: list[Candidate], cfg: AirframeConfig, ref: Evaluation) -> str:
-    from casadrone.compare import gain_pct
-
     if not ref.completed:
         return note(f"{cfg.name} does not complete the lap ({ref.reason}): no gains.", "warn")
     senses = dict(zip(run.study.objective_names, run.study.senses, strict=True))
@@ -281,8 +265,6 @@ def _index_gains(run: Run, cands: list[Candidate], cfg: AirframeConfig, ref: Eva
 
 
 def _interval_gains(run: Run, references: tuple) -> str:
-    from casadrone.compare import compare_run
-
     gains = compare_run(run.store.path, references)
     head = ["candidate", "reference", "to waypoint", "split time gain (%)", "roll effort gain (%)",
             "pair thrust max gain (%)", "pair thrust min gain (%)"]

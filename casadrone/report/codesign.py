@@ -19,7 +19,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from casadrone import plots
+from casadrone.codesign.certificate import summary_of
+from casadrone.codesign.front import LAPS_FILE, POINTS_FILE
 from casadrone.compare import Candidate
+from casadrone.limit.check import bang_bang_fraction
+from casadrone.limit.lap import BANG_BANG_TOL, LimitLap
+from casadrone.optimise.problem import study_setup
 from casadrone.report.analysis import Run
 from casadrone.report.markup import Figures, cell, esc, kv_table, note, num, table
 
@@ -40,8 +45,6 @@ def is_codesign(run: Run) -> bool:
 def read_points(path: Path) -> tuple[dict | None, dict[str, np.ndarray]]:
     """The front's point records and limit-lap arrays (None, {} for a run written before they
     were stored)."""
-    from casadrone.codesign.front import LAPS_FILE, POINTS_FILE
-
     if not (path / POINTS_FILE).is_file():
         return None, {}
     data = json.loads((path / POINTS_FILE).read_text(encoding="utf-8"))
@@ -55,9 +58,6 @@ def read_points(path: Path) -> tuple[dict | None, dict[str, np.ndarray]]:
 def stored_lap(arrays: dict[str, np.ndarray], row: int, track: str) -> LimitLap | None:
     """Point ``row``'s limit lap on ``track`` as a :class:`casadrone.limit.lap.LimitLap` (None
     when not stored)."""
-    from casadrone.limit.check import bang_bang_fraction
-    from casadrone.limit.lap import BANG_BANG_TOL, LimitLap
-
     key = f"{row}/{track}/"
     if key + "t" not in arrays:
         return None
@@ -75,8 +75,6 @@ def _active(point: dict) -> str:
 def _certificate(point: dict) -> str:
     """A point's stored certificate in one cell (its one-line summary without the active rows,
     which have their own column)."""
-    from casadrone.codesign.certificate import summary_of
-
     c = point.get("certificate")
     # the active rows have their own column
     return "not certified" if c is None else summary_of(c, active=False)
@@ -122,7 +120,6 @@ def section_codesign(run: Run, cands: list[Candidate], figs: Figures) -> str:
             out.append(figs.embed(_laps_figure(laps, track), f"codesign-laps-{track}",
                                   f"Track {track}: every front point's limit lap, top view and "
                                   "total rotor thrust over time (fastest frame darkest)."))
-    from casadrone.optimise.problem import study_setup
 
     waypoints = study_setup(run.study).track.waypoints_m
     for c in cands:

@@ -13,12 +13,15 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from casadrone import plots
+from casadrone.airframe import build_airframe, with_theta
 from casadrone.config.airframe import ROTOR_LABELS
 from casadrone.indices import INDICES
+from casadrone.optimise.problem import study_setup
 
 if TYPE_CHECKING:
     from casadrone.evaluate import EvaluationSetup
 from casadrone.outfile import shown_path
+from casadrone.propulsion import hover_rotors, propulsion_model
 from casadrone.report.analysis import (
     STAGES,
     Candidate,
@@ -41,7 +44,9 @@ from casadrone.report.markup import (
     unit_of,
     variable_label,
 )
+from casadrone.report.trimstudy import trim_study_part
 from casadrone.report.verdict import Baseline
+from casadrone.trim import TrimOptions, trim
 
 
 def section_problem(run: Run) -> str:
@@ -269,15 +274,10 @@ def _outcome_figure(gen: np.ndarray, done: np.ndarray, ok: np.ndarray, history: 
 def _trims(setup: EvaluationSetup, theta: dict[str, float]) -> dict:
     """Hover trims of one design: as the chain does it (analytic start) and from a cold start
     (equal thrusts, level), each compared with the allocation solution."""
-    from casadrone.airframe import build_airframe, with_theta
-    from casadrone.trim import TrimOptions, trim
-
     af = build_airframe(with_theta(setup.template, theta))
     Ta = af.hover_thrusts()
     d = af.mass * af.gravity / (4 * af.thrust_gain)
-    if af.propulsion != "paper":  # the command of a quarter of the weight per rotor
-        from casadrone.propulsion import hover_rotors
-
+    if not propulsion_model(af.propulsion).command_linear:  # a quarter of the weight per rotor
         d = float(np.mean(hover_rotors(af, np.full(4, af.mass * af.gravity / 4))[1]))
     out = {"share_a": (Ta[0] + Ta[1]) / Ta.sum()}
     for key, opts in (("chain", None), ("cold", TrimOptions(initial_guess=(0, 0, d, d, d, d)))):
@@ -294,16 +294,12 @@ def section_trim(run: Run, cands: list[Candidate], figs: Figures, sample: int,
                  study_starts: int = 4) -> str:
     if run.test_problem:
         return note("A pymoo test problem has no trim.")
-    from casadrone.report.trimstudy import trim_study_part
 
     return _hover_trims(run, cands, figs, sample) + trim_study_part(run, cands, figs,
                                                                     study_starts)
 
 
 def _hover_trims(run: Run, cands: list[Candidate], figs: Figures, sample: int) -> str:
-    from casadrone.optimise.problem import study_setup
-    from casadrone.trim import TrimOptions
-
     setup = study_setup(run.study)
     names = run.study.variable_names
     valid = [r for r in run.history if r["status"] == "completed" or r["stage"] != "geometry"]
@@ -365,8 +361,6 @@ def _hover_trims(run: Run, cands: list[Candidate], figs: Figures, sample: int) -
 
 
 def _trim_figure(rows: list[dict]) -> Figure:
-    from casadrone.trim import TrimOptions
-
     fig = Figure(figsize=(10.0, 3.8), layout="constrained")
     a, b = fig.subplots(1, 2)
     cold = [r for r in rows if r["cold"]["ok"]]

@@ -7,8 +7,19 @@ envelope the candidate's trims become hard."""
 
 from __future__ import annotations
 
+from casadrone.airframe import build_airframe, with_theta
+from casadrone.optimise.problem import study_setup
 from casadrone.report.analysis import Candidate, Run
 from casadrone.report.markup import Figures, Html, cell, note, table
+from casadrone.trimplots import basin_figure, envelope_figure, residual_figure
+from casadrone.trimstudy import (
+    StudyOptions,
+    analytic_guess,
+    basin_slice,
+    draw_starts,
+    residual_history,
+    trim_study,
+)
 
 #: Operating points of the report's study: hover, level flight to 40 m/s, climb, descent, turns.
 POINTS = "hover,forward:10,forward:20,forward:40,climb,turn"
@@ -18,17 +29,6 @@ def trim_study_part(run: Run, cands: list[Candidate], figs: Figures, starts: int
     """HTML of the study (empty with ``starts`` < 0)."""
     if starts < 0:
         return ""
-    from casadrone.airframe import build_airframe, with_theta
-    from casadrone.optimise.problem import study_setup
-    from casadrone.trimplots import basin_figure, envelope_figure, residual_figure
-    from casadrone.trimstudy import (
-        StudyOptions,
-        analytic_guess,
-        basin_slice,
-        draw_starts,
-        residual_history,
-        trim_study,
-    )
 
     setup = study_setup(run.study)
     theta, who = (cands[0].theta, f"candidate {cands[0].label}") if cands else (

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from casadrone.limit.targets import (
+from casadrone.targets import (
     TARGET_KINDS,
     Packed,
     TargetKind,

@@ -164,7 +164,7 @@ def test_front_steps_after_the_first_run_on_a_budget(short_front):
 
 def test_front_run_directory_is_read_by_decide(short_front, cli_runner):
     from casadrone.cli import app
-    from casadrone.optimise.store import RunStore
+    from casadrone.rundir.store import RunStore
 
     result, out = short_front
     header, rows = RunStore(out).read_pareto()

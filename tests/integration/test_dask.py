@@ -16,7 +16,7 @@ from casadrone.config.problem import BackendConfig
 from casadrone.optimise.checks import load_problem
 from casadrone.optimise.problem import Study, evaluate_rows
 from casadrone.optimise.runner import run
-from casadrone.optimise.store import RunStore
+from casadrone.rundir.store import RunStore
 
 distributed = pytest.importorskip("distributed")
 

@@ -23,7 +23,7 @@ from casadrone.config.problem import BackendConfig, ProblemConfig
 from casadrone.optimise.algorithms import ALGORITHM_NAMES, REFUSED
 from casadrone.optimise.checks import load_problem
 from casadrone.optimise.runner import resume, run
-from casadrone.optimise.store import NotARunDirectory, RunDamaged, RunInProgress, RunStore
+from casadrone.rundir.store import NotARunDirectory, RunDamaged, RunInProgress, RunStore
 
 QUICK = "problems/quick.yaml"
 TINY = ["algorithm.population=12", "algorithm.generations=3", "algorithm.settings.n_ind_ga=6"]
@@ -589,7 +589,7 @@ def test_bad_command_line_options_are_one_line_from_the_console(tmp_path, args, 
 
 
 def test_a_failed_creation_leaves_no_half_run(tmp_path, tiny, monkeypatch):
-    import casadrone.optimise.store as store_mod
+    import casadrone.rundir.store as store_mod
 
     def no_space(*args, **kwargs):
         raise OSError(28, "No space left on device")
@@ -608,7 +608,7 @@ def test_a_failed_creation_leaves_no_half_run(tmp_path, tiny, monkeypatch):
 
 KILLED_WHILE_CREATING = """
 import os, signal, sys
-from casadrone.optimise import store
+from casadrone.rundir import store
 from casadrone.optimise.runner import run
 from casadrone.config.problem import BackendConfig
 from casadrone.optimise.checks import load_problem

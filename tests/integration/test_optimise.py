@@ -7,7 +7,7 @@ from casadrone.config.io import ConfigError
 from casadrone.config.problem import BackendConfig
 from casadrone.optimise.checks import load_problem
 from casadrone.optimise.runner import resume, run
-from casadrone.optimise.store import RunStore
+from casadrone.rundir.store import RunStore
 
 QUICK = "problems/quick.yaml"
 TINY = ["algorithm.population=16", "algorithm.generations=3", "algorithm.settings.n_ind_ga=8"]
@@ -92,7 +92,7 @@ def test_dask_local_cluster_equals_serial(tmp_path, tiny, uninterrupted):
 
 
 def test_existing_run_directory_is_not_overwritten(uninterrupted, tiny):
-    from casadrone.optimise.store import NotARunDirectory
+    from casadrone.rundir.store import NotARunDirectory
 
     before = {p.name: p.stat().st_mtime_ns for p in uninterrupted.iterdir()}
     with pytest.raises(NotARunDirectory, match="resume"):

@@ -19,7 +19,7 @@ from casadrone.cli import app
 from casadrone.config.problem import BackendConfig
 from casadrone.optimise.checks import load_problem
 from casadrone.optimise.runner import resume, run
-from casadrone.optimise.store import InputsChanged, RunStore
+from casadrone.rundir.store import InputsChanged, RunStore
 
 QUICK = "problems/quick.yaml"
 TINY = ["algorithm.population=12", "algorithm.generations=2", "algorithm.settings.n_ind_ga=6"]

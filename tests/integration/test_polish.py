@@ -144,7 +144,7 @@ def test_hybrid_run_polishes_and_resumes_as_uninterrupted(tmp_path, monkeypatch)
     import casadrone.codesign.polish as polish
     from casadrone.config.problem import BackendConfig
     from casadrone.optimise.runner import resume, run
-    from casadrone.optimise.store import RunStore
+    from casadrone.rundir.store import RunStore
 
     problem = _hybrid_problem(tmp_path)
     full = tmp_path / "full"
@@ -197,7 +197,7 @@ def test_polish_stage_stores_evaluates_and_resumes(tmp_path, monkeypatch):
     from casadrone.config.problem import BackendConfig
     from casadrone.optimise.problem import Study, evaluate_rows
     from casadrone.optimise.runner import resume, run
-    from casadrone.optimise.store import RunStore
+    from casadrone.rundir.store import RunStore
 
     problem = _hybrid_problem(tmp_path)
     centre = {v.name: (v.lower + v.upper) / 2 for v in problem.variables}

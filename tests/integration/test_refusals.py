@@ -189,7 +189,7 @@ def test_an_empty_front_is_said_plainly(tmp_path):
 
 
 def test_a_full_disk_mid_run_names_the_file_the_cause_and_resume(tmp_path, monkeypatch):
-    from casadrone.optimise import store as store_mod
+    from casadrone.rundir import store as store_mod
 
     real = store_mod.RunStore.write_checkpoint
 

@@ -19,7 +19,7 @@ from casadrone.airframe import build_airframe
 from casadrone.config.airframe import load_airframe
 from casadrone.limit.check import fly, resimulation_miss
 from casadrone.limit.lap import LimitLapOptions, frame_clearance_m, limit_lap, track_targets
-from casadrone.limit.targets import TARGET_SIZE, target_miss
+from casadrone.targets import TARGET_SIZE, target_miss
 from tests.integration.test_limitlap_optimality import TRACK
 
 N = 20

@@ -13,8 +13,8 @@ from casadrone.optimise.hypervolume import (
     advance,
 )
 from casadrone.optimise.runner import resume, run
-from casadrone.optimise.store import RunStore
-from casadrone.optimise.timings import FIELDS, read_timings
+from casadrone.rundir.store import RunStore
+from casadrone.rundir.timings import FIELDS, read_timings
 
 TINY = ["algorithm.population=16", "algorithm.generations=3", "algorithm.settings.n_ind_ga=8"]
 STEPS = ("ask_s", "evaluate_s", "advance_s", "statistics_s", "history_s", "checkpoint_s")

@@ -1,4 +1,4 @@
-"""A generation's files written in the background (casadrone.optimise.writer) are the files the
+"""A generation's files written in the background (casadrone.rundir.writer) are the files the
 coordinator wrote in turn before: same history, same checkpointed state, same front; the
 checkpoint never gets ahead of the history; writes in flight finish before a stopped run lets go
 of its lock; timings.csv of an older run gains the new column without losing rows."""
@@ -15,10 +15,10 @@ import pytest
 
 import casadrone.optimise.runner as runner_mod
 from casadrone.config.problem import BackendConfig, ProblemConfig
-from casadrone.optimise.checkpoint import loads
 from casadrone.optimise.runner import run
-from casadrone.optimise.store import RunStore
-from casadrone.optimise.timings import FIELDS, append_timings, read_timings
+from casadrone.rundir.checkpoint import loads
+from casadrone.rundir.store import RunStore
+from casadrone.rundir.timings import FIELDS, append_timings, read_timings
 
 SERIAL = BackendConfig(name="serial")
 

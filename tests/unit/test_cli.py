@@ -482,7 +482,7 @@ def make_run_dir(path: Path, finished: bool = True, checkpoint: bool = False) ->
     """A run directory of the quick problem with a hand-made two-design front."""
     from casadrone.optimise.checks import load_problem
     from casadrone.optimise.problem import Study
-    from casadrone.optimise.store import RunStore
+    from casadrone.rundir.store import RunStore
 
     problem = load_problem(QUICK, ["objectives=[{index: J3, sense: min}, {index: J4}]"])
     study = Study(problem)

@@ -28,7 +28,7 @@ from casadrone.evaluate import Evaluation
 from casadrone.indices import Interval
 from casadrone.optimise.checks import load_problem
 from casadrone.optimise.problem import Study
-from casadrone.optimise.store import RunStore
+from casadrone.rundir.store import RunStore
 
 #: the module (``casadrone.evaluate`` as an attribute of the package is the function)
 evaluate_mod = importlib.import_module("casadrone.evaluate")

@@ -14,7 +14,6 @@ import numpy as np
 
 from casadrone.limit.nlp import (
     NEAR_VIOLATION,
-    WARM_SETTINGS,
     Layout,
     build_nlp,
     ipopt_options,
@@ -23,6 +22,7 @@ from casadrone.limit.nlp import (
     target_vector,
     warm_solver,
 )
+from casadrone.propulsion import PROPELLER
 from tests.unit.test_limitlap import _double_integrator
 
 A_MAX = 2.0
@@ -94,9 +94,9 @@ def test_warm_solve_after_a_parameter_change_reaches_the_analytic_time():
 
 
 def test_per_kind_warm_settings_leave_paper_and_the_other_solvers_alone():
-    """Only the far warm setting of a kind listed in WARM_SETTINGS changes: ``paper``'s options
-    (and so its solves) are those without a kind, the cold and near ones the same for every
-    kind."""
+    """Only the far warm setting of a kind with warm IPOPT settings (``warm_ipopt``) changes:
+    ``paper``'s options (and so its solves) are those without a kind, the cold and near ones the
+    same for every kind."""
     base = ipopt_options(1e-6, 100, True)
     assert ipopt_options(1e-6, 100, True, propulsion="paper") == base
     for kind in ("paper", "propeller"):
@@ -104,7 +104,7 @@ def test_per_kind_warm_settings_leave_paper_and_the_other_solvers_alone():
         assert ipopt_options(1e-6, 100, True, near=True, propulsion=kind) == \
             ipopt_options(1e-6, 100, True, near=True)
     prop = ipopt_options(1e-6, 100, True, propulsion="propeller")["ipopt"]
-    assert prop == base["ipopt"] | WARM_SETTINGS["propeller"] != base["ipopt"]
+    assert prop == base["ipopt"] | dict(PROPELLER.warm_ipopt) != base["ipopt"]
 
 
 def test_propeller_warm_setting_reaches_the_same_optimum():

@@ -22,7 +22,6 @@ from casadrone.cli import app
 from casadrone.config import load_airframe
 from casadrone.config.io import resolve_config
 from casadrone.limit.nlp import (
-    ROTOR_SPEED_UNIT_RAD_S,
     Layout,
     OcpModel,
     advance_rows,
@@ -31,6 +30,7 @@ from casadrone.limit.nlp import (
     state_scale,
 )
 from casadrone.model import n_params
+from casadrone.propulsion.propeller import ROTOR_SPEED_UNIT_RAD_S
 
 
 @pytest.fixture(scope="module")

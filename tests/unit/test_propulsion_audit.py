@@ -221,7 +221,7 @@ def test_a_shaped_section_keeps_to_the_shape_data_range(tmp_path, log_file, cli_
     """--shape borrows CT(J), CP(J) of a shipped dataset, which hold to its largest fitted J
     only; without max_advance_ratio the limit lap had no bound and flew the extrapolation (the
     negative-thrust air brake of docs/concepts/propulsion.md, "Beyond the data")."""
-    from casadrone.config.propulsion import SHIPPED_PROPELLER, data_advance_ratio
+    from casadrone.propulsion.data import SHIPPED_PROPELLER, data_advance_ratio
 
     out = tmp_path / "shaped.yaml"
     result = _fit(cli_runner, log_file, "--shape", SHIPPED_PROPELLER, "--out", str(out))

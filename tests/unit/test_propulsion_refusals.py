@@ -70,7 +70,7 @@ def _fm_of_coefficients(ct0: float, cp0: float, n: float = 300.0) -> float:
 
 
 def test_shipped_propeller_has_a_possible_figure_of_merit():
-    from casadrone.config.propulsion import figure_of_merit
+    from casadrone.propulsion.data import figure_of_merit
 
     fm = _fm_of_coefficients(CT0, CP0)
     assert 0.5 < fm < 0.7  # a real 5-inch propeller (hand: 0.577)

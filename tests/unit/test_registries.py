@@ -93,7 +93,7 @@ ELLIPSE_PLUGIN = Path(__file__).resolve().parents[2] / "examples" / "plugins" / 
 @pytest.fixture
 def ellipse():
     """The example's kind, registered by running the plugin, and unregistered after the test."""
-    from casadrone.limit.targets import TARGET_KINDS
+    from casadrone.targets import TARGET_KINDS
 
     saved = dict(TARGET_KINDS)
     yield runpy.run_path(str(ELLIPSE_PLUGIN))["ELLIPSE"]
@@ -119,7 +119,7 @@ def test_a_new_target_kind_is_a_track_shape_with_its_own_packing_and_refusal(ell
     from pydantic import ValidationError
 
     from casadrone.limit.lap import LimitLapOptions, check_inputs, track_targets
-    from casadrone.limit.targets import TARGET_KINDS, TARGET_SIZE
+    from casadrone.targets import TARGET_KINDS, TARGET_SIZE
 
     track = _elliptic_gate_track()
     targets = track_targets(track, LimitLapOptions(gate_clearance_m=0.1))
@@ -141,8 +141,8 @@ def test_a_new_target_kind_reaches_the_nlp_rows_the_check_and_the_outline(ellips
     import casadi as ca
 
     from casadrone.limit.lap import LimitLapOptions, track_targets
-    from casadrone.limit.targets import TARGET_SIZE, target_miss, target_outline, target_rows
     from casadrone.plots import target_outlines
+    from casadrone.targets import TARGET_SIZE, target_miss, target_outline, target_rows
 
     targets = track_targets(_elliptic_gate_track(), LimitLapOptions(gate_clearance_m=0.0))
     tp = targets.vector[:TARGET_SIZE]
@@ -174,7 +174,7 @@ def _gate_lap(kind: str, half_width: float, half_height: float) -> tuple[float, 
     from rest at the origin through a gate at x = 5 whose centre is 6 m to the left, flown east,
     to (10, 0, 0) (the sideways flight sets the time)."""
     from casadrone.limit.nlp import Layout, build_nlp, solve
-    from casadrone.limit.targets import TARGET_SIZE
+    from casadrone.targets import TARGET_SIZE
     from tests.unit.test_limitlap import _double_integrator
 
     kinds, N = (kind, "ball"), 20

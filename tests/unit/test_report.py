@@ -17,7 +17,6 @@ from casadrone.config.problem import BackendConfig
 from casadrone.decide import decide
 from casadrone.optimise.checks import load_problem
 from casadrone.optimise.runner import run
-from casadrone.optimise.store import RunStore
 from casadrone.report import write_report
 from casadrone.report.analysis import (
     choose_candidates,
@@ -28,6 +27,7 @@ from casadrone.report.analysis import (
     reason_group,
 )
 from casadrone.report.markup import num
+from casadrone.rundir.store import RunStore
 
 ROOT = Path(__file__).resolve().parents[2]
 SECTIONS = ("verdict", "problem", "convergence", "pareto", "candidates", "airframes", "failures",

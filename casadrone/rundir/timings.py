@@ -13,7 +13,7 @@ Columns (seconds unless named otherwise):
 - ``statistics_s``: the progress statistics (front, hypervolume);
 - ``history_s``: waiting for the writes of the generation's files (``history.sqlite``, the
   checkpoint, this row): they run in the background behind the next generation's evaluation
-  (:mod:`casadrone.optimise.writer`), so this is the wait for the previous generation's, usually
+  (:mod:`casadrone.rundir.writer`), so this is the wait for the previous generation's, usually
   0; with ``runner.BACKGROUND_WRITES`` off, the writes of this generation;
 - ``checkpoint_s``: pickling the algorithm for the checkpoint;
 - ``write_s``: the seconds the writes of the generation's history and checkpoint took (in the

@@ -1,110 +1,99 @@
-"""Propulsion models: the ``propulsion:`` section of an airframe, its parameter vector and its
-symbolic forces, torques and rotor dynamics.
+"""The propeller model (``propulsion.model: propeller``): the rotor states are the rotor speeds
+ω_i (rad/s) and
 
-Two kinds, chosen per airframe (``propulsion.model``), one registry (:data:`KINDS`):
+- thrust and shaft torque from the propeller's coefficients, T = CT(J) ρ n² D⁴,
+  Q = CP(J) ρ n² D⁵ / (2π), n = ω/2π (rev/s), with CT, CP quadratic in the advance ratio
+  J = v_a/(n D). Multiplied out, T = ρ (c₀ D⁴ n² + c₁ D³ n v_a + c₂ D² v_a²) and likewise Q:
+  polynomials in n and v_a, smooth and finite at n = 0 (no division by the rotor speed), which
+  is why the coefficients stop at J²;
+- v_a is each rotor's own axial inflow, the component along the rotor axis (body +z) of
+  v + Ω × r_i (body velocity plus body rate crossed with the rotor's position from the centre of
+  mass). ``inflow: positive`` (default) takes max(v_a, 0), smoothed over ``inflow_smoothing_m_s``
+  and exactly 0 at v_a = 0: the wind-tunnel data cover J ≥ 0 only, and descending or braking
+  through the own wake (vortex-ring state) is where momentum theory and the data both fail, so
+  the static coefficients are used there (an under-estimate of braking thrust).
+  ``inflow: signed`` uses v_a as is (the linear-inflow form of the literature);
+- rotor drag, the in-plane H-force of edgewise flow, H_i = −k_d ω_i v_∥,i (v_∥ the in-plane part
+  of the rotor's velocity), acting at the rotor (its moment about the centre of mass included);
+- the motor: ``dc``, Drela's first-order DC motor (QPROP's motor model 1: I = (V − ω/K_V)/R,
+  shaft torque (I − I₀)/K_V), driving the rotor inertia J_r ω̇ = Q_motor − Q_prop; or
+  ``first-order``, τ_m ω̇ = K_V δ V_oc − ω (a lag to the no-load speed of the command, what a
+  thrust stand's step test identifies). ``dc`` is the default: it is the model that makes the
+  rotor slow down under load and speed up as the inflow unloads the propeller, which a racing
+  lap exercises, and its three constants are on every motor's datasheet;
+- the ESC as an ideal chopper (motor voltage δ V_bat, battery current Σ δ_i I_i) and the battery
+  as an open-circuit voltage behind an internal resistance; the sag V_bat = V_oc − R_b I_bat is
+  solved in closed form (it is linear in V_bat):
+  V_bat = (V_oc + (R_b/R) Σ δ_i ω_i/K_V) / (1 + (R_b/R) Σ δ_i²);
+- the yaw reaction of rotor i on the body is s_i Q_motor,i (the stator's reaction).
 
-* ``paper`` (default): the paper's Table 6 thrust model, T = K δ lagged by τ, independent of
-  airspeed, rotor speed and battery state. The rotor states are the thrusts T_i (N). Every result
-  of the paper problems is computed with it, unchanged.
-* ``propeller``: the rotor states are the rotor speeds ω_i (rad/s) and
+Not modelled: rotor gyroscopic moments, blade flapping, ground effect, vortex-ring state,
+ESC losses, the battery's state of charge. Each term can be switched off: ``axial_inflow:
+false``, ``rotor_drag_n_s2_per_m: 0``, ``internal_resistance_ohm: 0`` (no sag).
 
-  - thrust and shaft torque from the propeller's coefficients, T = CT(J) ρ n² D⁴,
-    Q = CP(J) ρ n² D⁵ / (2π), n = ω/2π (rev/s), with CT, CP quadratic in the advance ratio
-    J = v_a/(n D). Multiplied out, T = ρ (c₀ D⁴ n² + c₁ D³ n v_a + c₂ D² v_a²) and likewise Q:
-    polynomials in n and v_a, smooth and finite at n = 0 (no division by the rotor speed), which
-    is why the coefficients stop at J²;
-  - v_a is each rotor's own axial inflow, the component along the rotor axis (body +z) of
-    v + Ω × r_i (body velocity plus body rate crossed with the rotor's position from the centre of
-    mass). ``inflow: positive`` (default) takes max(v_a, 0), smoothed over ``inflow_smoothing_m_s``
-    and exactly 0 at v_a = 0: the wind-tunnel data cover J ≥ 0 only, and descending or braking
-    through the own wake (vortex-ring state) is where momentum theory and the data both fail, so
-    the static coefficients are used there (an under-estimate of braking thrust).
-    ``inflow: signed`` uses v_a as is (the linear-inflow form of the literature);
-  - rotor drag, the in-plane H-force of edgewise flow, H_i = −k_d ω_i v_∥,i (v_∥ the in-plane part
-    of the rotor's velocity), acting at the rotor (its moment about the centre of mass included);
-  - the motor: ``dc``, Drela's first-order DC motor (QPROP's motor model 1: I = (V − ω/K_V)/R,
-    shaft torque (I − I₀)/K_V), driving the rotor inertia J_r ω̇ = Q_motor − Q_prop; or
-    ``first-order``, τ_m ω̇ = K_V δ V_oc − ω (a lag to the no-load speed of the command, what a
-    thrust stand's step test identifies). ``dc`` is the default: it is the model that makes the
-    rotor slow down under load and speed up as the inflow unloads the propeller, which a racing
-    lap exercises, and its three constants are on every motor's datasheet;
-  - the ESC as an ideal chopper (motor voltage δ V_bat, battery current Σ δ_i I_i) and the battery
-    as an open-circuit voltage behind an internal resistance; the sag V_bat = V_oc − R_b I_bat is
-    solved in closed form (it is linear in V_bat):
-    V_bat = (V_oc + (R_b/R) Σ δ_i ω_i/K_V) / (1 + (R_b/R) Σ δ_i²);
-  - the yaw reaction of rotor i on the body is s_i Q_motor,i (the stator's reaction).
+**The data's range.** CT(J), CP(J) are fits to wind-tunnel points that end at a largest
+advance ratio J_max (``propeller.max_advance_ratio``; default, for a shipped dataset named in
+``propeller.data``, the largest J of the points its fit uses: 0.618 for the shipped
+propeller, :func:`data_advance_ratio`). Beyond it the quadratics are extrapolated, and near a
+stopped rotor in axial inflow (J → ∞) the extrapolated CT is negative: T = ρ c₂ D² v_a², an
+air brake of −3 N at 27 m/s that no data support. The model itself stays the polynomial in
+(n, v_a) everywhere (a clamp of CT at J_max would divide by n and lose smoothness at n = 0,
+and every stage shares this one model and its compiled blocks). Instead:
 
-  Not modelled: rotor gyroscopic moments, blade flapping, ground effect, vortex-ring state,
-  ESC losses, the battery's state of charge. Each term can be switched off: ``axial_inflow:
-  false``, ``rotor_drag_n_s2_per_m: 0``, ``internal_resistance_ohm: 0`` (no sag).
+- the **limit lap**, the one stage that optimises into the extrapolation (without a bound its
+  optimum flew 4–6 % of the paper track's rotor-nodes beyond the data, braking with negative
+  thrust), keeps every rotor inside it: one row per rotor and node,
+  J_max n_i D − v_a,i ≥ 0 (:func:`advance_margins`), linear in n and v_a, at n = 0 no inflow
+  through the stopped rotor (:func:`casadrone.limit.nlp.advance_rows`). Inside the range
+  CT(J) ≥ CT(J_max) > 0, so no thrust is negative (but for the smoothing's −ε/2 at a stopped
+  rotor: ρ |c₂| D² ε²/4 ≈ 2e-5 N). The point mass's thrust bound is unchanged: it bounds a
+  superset of these flights;
+- the **closed-loop lap and the trim** use the model as it is: they simulate or solve a given
+  flight, they do not seek the extrapolation. Measured (benchmarks/RESULTS-propulsion.md),
+  the five reference frames' closed-loop laps stay inside the data but for momentary idle
+  rotors (≤ 0.1 % of rotor-samples, |T| ≤ 0.01 N), and level trims to 30 m/s reach J = 0.59;
+  the trim's message says when a rotor is beyond the range
+  (:func:`casadrone.trim.beyond_data_note`), and ``limit-lap --json`` reports
+  ``max_advance_ratio``, ``data_advance_ratio`` and ``beyond_data_share``.
 
-  **The data's range.** CT(J), CP(J) are fits to wind-tunnel points that end at a largest
-  advance ratio J_max (``propeller.max_advance_ratio``; default, for a shipped dataset named in
-  ``propeller.data``, the largest J of the points its fit uses: 0.618 for the shipped
-  propeller, :func:`data_advance_ratio`). Beyond it the quadratics are extrapolated, and near a
-  stopped rotor in axial inflow (J → ∞) the extrapolated CT is negative: T = ρ c₂ D² v_a², an
-  air brake of −3 N at 27 m/s that no data support. The model itself stays the polynomial in
-  (n, v_a) everywhere (a clamp of CT at J_max would divide by n and lose smoothness at n = 0,
-  and every stage shares this one model and its compiled blocks). Instead:
+The linear-inflow form of the quadrotor literature, T = k_η ω² − k_z ω v_a, Q = k_m ω²,
+H = −k_d ω v_∥, is the special case c₀ = 4π² k_η/(ρ D⁴), c₁ = −2π k_z/(ρ D³), c₂ = 0,
+CP = 8π³ k_m/(ρ D⁵) with signed inflow (``propeller.linear_inflow``).
 
-  - the **limit lap**, the one stage that optimises into the extrapolation (without a bound its
-    optimum flew 4–6 % of the paper track's rotor-nodes beyond the data, braking with negative
-    thrust), keeps every rotor inside it: one row per rotor and node,
-    J_max n_i D − v_a,i ≥ 0 (:func:`advance_margins`), linear in n and v_a, at n = 0 no inflow
-    through the stopped rotor (:func:`casadrone.limit.nlp.advance_rows`). Inside the range
-    CT(J) ≥ CT(J_max) > 0, so no thrust is negative (but for the smoothing's −ε/2 at a stopped
-    rotor: ρ |c₂| D² ε²/4 ≈ 2e-5 N). The point mass's thrust bound is unchanged: it bounds a
-    superset of these flights;
-  - the **closed-loop lap and the trim** use the model as it is: they simulate or solve a given
-    flight, they do not seek the extrapolation. Measured (benchmarks/RESULTS-propulsion.md),
-    the five reference frames' closed-loop laps stay inside the data but for momentary idle
-    rotors (≤ 0.1 % of rotor-samples, |T| ≤ 0.01 N), and level trims to 30 m/s reach J = 0.59;
-    the trim's message says when a rotor is beyond the range
-    (:func:`casadrone.trim.beyond_data_note`), and ``limit-lap --json`` reports
-    ``max_advance_ratio``, ``data_advance_ratio`` and ``beyond_data_share``.
-
-  The linear-inflow form of the quadrotor literature, T = k_η ω² − k_z ω v_a, Q = k_m ω²,
-  H = −k_d ω v_∥, is the special case c₀ = 4π² k_η/(ρ D⁴), c₁ = −2π k_z/(ρ D³), c₂ = 0,
-  CP = 8π³ k_m/(ρ D⁵) with signed inflow (``propeller.linear_inflow``).
-
-The parameter vector of an airframe is the paper's (:data:`casadrone.airframe.PARAM_NAMES`) with,
-for ``propeller``, :data:`PROPELLER_PARAM_NAMES` appended (:func:`casadrone.model.param_names`).
-The section's schema is :mod:`casadrone.config.propulsion`. This module sits below the airframe
-schema (whose hover check uses :func:`full_static_thrust`) and imports CasADi only inside the
-symbolic functions; its airframe-level helpers take any object with the
-:class:`casadrone.airframe.Airframe` attributes.
+The parameter vector of an airframe is the paper's (:data:`casadrone.airframe.PARAM_NAMES`) with
+:data:`PROPELLER_PARAM_NAMES` appended (:func:`casadrone.model.param_names`). The section's
+schema is :mod:`casadrone.config.propulsion`. This module sits below the airframe schema (whose
+hover check uses :func:`full_static_thrust`) and imports CasADi only inside the symbolic
+functions; its airframe-level helpers take any object with the
+:class:`casadrone.airframe.Airframe` attributes. The entry of the registry is :data:`PROPELLER`.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from functools import cache
 from typing import Any
 
-from casadrone.config.propulsion import (  # noqa: F401 (the data helpers re-exported)
+from casadrone.propulsion.base import RotorStates, register_propulsion_model
+from casadrone.propulsion.data import (
     DIAMETER_RTOL,
     FIRST_ORDER_TIME_CONSTANT_S,
-    FIT_MAX_J,
-    FIT_MIN_STATIC_RPM,
-    FIT_SWEEP_RPM,
     INFLOW_SMOOTHING_M_S,
     MAX_FIGURE_OF_MERIT,
     RPM_PER_V_TO_RAD_S_PER_V,
-    SHIPPED_PROPELLER,
     SPEED_OF_SOUND_M_S,
-    PropulsionConfig,
     data_advance_ratio,
     figure_of_merit,
-    fit_points,
     momentum_problem,
-    propeller_data,
     shipped_datasets,
 )
 
-#: The propulsion kinds (the registry): each names a parameter layout and a symbolic model.
-KINDS: tuple[str, ...] = ("paper", "propeller")
+#: A ``propulsion:`` section, :class:`casadrone.config.propulsion.PropulsionConfig` (the schema
+#: sits above this package, so it is not imported here).
+PropulsionConfig = Any
 
-#: Appended to the paper's parameter vector for ``propeller`` (SI units; switches are 0 or 1).
+#: Appended to the paper's parameter vector (SI units; switches are 0 or 1).
 PROPELLER_PARAM_NAMES = (
     "prop_D",  # propeller diameter (m)
     "ct0", "ct1", "ct2",  # CT(J) = ct0 + ct1 J + ct2 J²
@@ -234,17 +223,15 @@ def propeller_terms(vel, omega, w, w_dot, u, q: dict[str, Any], r, s):
     return force, torque, ca.vertcat(*residual), ca.vertcat(*thrusts), ca.vertcat(*inflows)
 
 
-def rotor_decay_rate(q: dict[str, Any], kind: str = "propeller"):
-    """The rotor states' linear decay rate λ (1/s) that depends on the parameters only, the
+def rotor_decay_rate(q: Mapping[str, Any]):
+    """The rotor speeds' linear decay rate λ (1/s) that depends on the parameters only, the
     linear part −λ ω of ω̇ that the exponential step integrates exactly
     (:func:`casadrone.limit.nlp.etdrk4_step`): with the DC motor the back-EMF damping
     1/(J_r R K_V²) (the current's −ω/(K_V R) term through the torque (I − I₀)/K_V over the rotor
     inertia; the propeller's load and the pack's sag are left to the step's nonlinear part), with
-    the first-order motor 1/τ_m; with ``paper`` (``q`` the paper's named parameters) 1/τ of the
-    thrust lag. SY250-propeller: 35.9 1/s (27.8 ms), against 46 1/s (median; 55.5 largest) of the
-    full linearisation along its limit lap (benchmarks/RESULTS-propulsion.md)."""
-    if kind == "paper":
-        return 1 / q["tau"]
+    the first-order motor 1/τ_m. SY250-propeller: 35.9 1/s (27.8 ms), against 46 1/s (median;
+    55.5 largest) of the full linearisation along its limit lap
+    (benchmarks/RESULTS-propulsion.md)."""
     dc = q["motor_dc"]
     return dc / (q["rotor_J"] * q["motor_R"] * q["motor_kv"] ** 2) + (1 - dc) / q["motor_tau"]
 
@@ -424,46 +411,6 @@ def airframe_values(airframe) -> dict[str, float]:
             **{k: float(v) for k, v in zip(PROPELLER_PARAM_NAMES, tail, strict=True)}}
 
 
-def max_static_thrust(airframe) -> float:
-    """Thrust (N) of one rotor at full command and zero airspeed (all four at full command):
-    K with ``paper``; the steady DC-motor/propeller balance with the battery's sag with
-    ``propeller``."""
-    if airframe.propulsion == "paper":
-        return float(airframe.thrust_gain)
-    q = airframe_values(airframe)
-    return static_thrust(q, static_speed(q, 1.0))
-
-
-def rotor_thrust_bound(airframe) -> float:
-    """The point mass's bound (N) of one rotor's share of the total thrust: K with ``paper``
-    (each lagged thrust stays below K); :func:`thrust_bound` with ``propeller``, the largest
-    steady full-command thrust over every airspeed (exceeded only in rotor-speed transients;
-    its docstring argues it); inf with signed inflow, where descent raises the thrust without
-    bound."""
-    if airframe.propulsion == "paper":
-        return float(airframe.thrust_gain)
-    q = airframe_values(airframe)
-    if q["inflow_positive"] < 0.5 and q["inflow_on"] > 0.5:
-        return math.inf
-    return thrust_bound(q)
-
-
-def rotor_state_bounds(airframe) -> tuple[float, float]:
-    """Bounds of the four rotor states in the limit lap: thrust in [0, K] (``paper``), rotor
-    speed in [0, K_V V_oc] (``propeller``, :func:`max_speed`)."""
-    if airframe.propulsion == "paper":
-        return 0.0, float(airframe.thrust_gain)
-    return 0.0, max_speed(airframe_values(airframe))
-
-
-def hover_rotors(airframe, thrusts) -> tuple[list[float], list[float]]:
-    """(rotor states, ESC commands) holding each rotor at ``thrusts`` (N) at zero airspeed:
-    (T, T/K) with ``paper``; (ω, δ) of :func:`hover_commands` with ``propeller``."""
-    if airframe.propulsion == "paper":
-        return list(thrusts), list(thrusts / airframe.thrust_gain)
-    return hover_commands(airframe_values(airframe), list(thrusts))
-
-
 # --------------------------------------------------------------------------------------------
 # Shipped propeller data and the fit behind the shipped coefficients
 # --------------------------------------------------------------------------------------------
@@ -474,7 +421,7 @@ def advance_ratio_limit(cfg: PropulsionConfig) -> float | None:
     dataset, its :func:`data_advance_ratio`; else None (coefficients given without data, the
     linear-inflow form: no range is known, so none is imposed)."""
     prop = cfg.propeller
-    if cfg.model != "propeller" or prop is None:
+    if prop is None:
         return None
     if prop.max_advance_ratio is not None:
         return float(prop.max_advance_ratio)
@@ -493,38 +440,12 @@ def fit_coefficients(J, y, degree: int = 2) -> list[float]:
     return [float(v) for v in c]
 
 
-def static_thrusts(airframe, rotor_states):
-    """Thrust (N) of rotor states (any shape) at zero inflow: the states themselves with
-    ``paper``, ρ c₀ D⁴ n² of the rotor speeds with ``propeller``."""
-    import numpy as np
-
-    r = np.asarray(rotor_states, float)
-    if airframe.propulsion == "paper":
-        return r
-    q = airframe_values(airframe)
-    return q["rho"] * q["ct0"] * q["prop_D"] ** 4 * (r / (2 * math.pi)) ** 2
-
-
-def equal_rotor_guess(airframe, thrust_per_rotor):
-    """(rotor states (N, 4), commands (N, 4)) of N nodes whose four rotors each give
-    ``thrust_per_rotor`` (N,) at rest: a guess for a trajectory from a point-mass solution."""
-    import numpy as np
-
-    t = np.asarray(thrust_per_rotor, float).ravel()
-    if airframe.propulsion == "paper":
-        return np.repeat(t[:, None], 4, axis=1), np.repeat(t[:, None], 4, axis=1) / \
-            airframe.thrust_gain
-    q = airframe_values(airframe)
-    rows = [hover_commands(q, [max(ti, 0.0)] * 4) for ti in t]
-    return np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
-
-
 def airframe_problems(prop: PropulsionConfig, *, mass_kg: float | None, rho: float | None,
                       prop_diameter_mm: float | None, mass_key: str) -> list[tuple[str, str]]:
     """Problems of a valid ``propeller`` section against the rest of its airframe, as (airframe
     key, message): those that need the vehicle's mass, the air density or the airframe's own
     propeller diameter. Checks whose input is absent (None) are skipped."""
-    if prop.model != "propeller" or prop.propeller is None:
+    if prop.propeller is None:
         return []
     found: list[tuple[str, str]] = []
     p, motor, batt = prop.propeller, prop.motor, prop.battery
@@ -596,3 +517,129 @@ def _air_problems(prop: PropulsionConfig, rho: float) -> tuple[tuple[str, str], 
         f"to {w * 60 / (2 * math.pi):.4g} rpm (K_V {motor.kv_rpm_per_v:g} rpm/V, "
         f"{motor.kind} motor): tip speed {tip:.4g} m/s, at or above the speed of sound "
         f"{SPEED_OF_SOUND_M_S:g} m/s, where no propeller model here holds")),)
+
+
+# --------------------------------------------------------------------------------------------
+# The registry's entry
+# --------------------------------------------------------------------------------------------
+
+#: The unit of the rotor states in the limit lap's NLP (rad/s): krad/s. In rad/s the rotor speeds
+#: (~2·10³) and their rates (~10⁵ rad/s² in a full-command step) are three to five orders above
+#: the other states (m, m/s, rad, rad/s ~ 1–50); IPOPT scales constraints by their gradients but
+#: never the variables, so its steps, bound pushes and restoration phase then act on badly
+#: scaled unknowns. Measured (benchmarks/RESULTS-propulsion.md): unscaled, SY250-propeller on
+#: the paper track ended in Restoration_Failed from both starts.
+ROTOR_SPEED_UNIT_RAD_S = 1000.0
+
+
+class Propeller:
+    """The propeller, DC motor and battery model (module docstring;
+    :class:`casadrone.propulsion.base.PropulsionModel`)."""
+
+    name = "propeller"
+    description = "propeller"
+    sections: tuple[str, ...] = ("propeller", "motor", "battery")
+    no_sections = "its rotors are the propeller, motor and battery sections"
+    param_names: tuple[str, ...] = PROPELLER_PARAM_NAMES
+    #: rotor speeds (rad/s), 10³ from the paper's thrusts: no output labels one a thrust
+    rotor_states = RotorStates(("omega1", "omega2", "omega3", "omega4"), "rotor speeds", "rad/s")
+    thrust_is_state = False
+    command_linear = False
+    trim_unknowns = 10
+    #: The rotor speed's time constant (~20 ms with the DC motor and rotor inertia) is shorter
+    #: than the paper's thrust lag (61 ms), and RK4 steps of ~14 ms (40 intervals, 3 steps each, a
+    #: 4.3 s lap over 5 legs) follow it badly: SY250-propeller's paper-track lap re-simulated
+    #: 0.30 m off on 40 intervals and 2.1 cm off on 80, the lap itself the same to 0.01 %
+    #: (4.3094 / 4.3090 s; benchmarks/RESULTS-propulsion.md).
+    default_intervals = 80
+    rotor_scale: float | None = ROTOR_SPEED_UNIT_RAD_S
+    lagless = False  # the lag is the motor's (its section), not thrust.time_constant_s
+    suffix = "-propeller"
+    #: ``sigma_min``, the smallest centring parameter of IPOPT's adaptive μ (μ = σ × the average
+    #: complementarity; IPOPT's default 1e-6), for a far warm start. Why: from a neighbouring
+    #: frame's lap the adaptive μ fell at the first iteration to 10^-9.2 (``paper``: 10^-5.4), and
+    #: with so small a barrier the Newton steps ran into the commands' and the tilt bounds
+    #: (fraction to the boundary) for 40 iterations before the first full step. Measured on
+    #: SY250-propeller's two neighbours of bench_propulsion_warm (80 intervals;
+    #: benchmarks/RESULTS-propulsion.md, "Closing the warm gap"): σ_min 1e-3 35 and 26 iterations
+    #: instead of 66 and 67 (four neighbours: 26–35 against 41–67), the same laps to 8 digits (it
+    #: changes the path, not the convergence test); 1e-4 42 and 33, 1e-2 32 and 49. A floor on μ
+    #: instead (``mu_min`` 1e-7) took 25 and 15 but stops on the barrier's bias (laps 0.003 %
+    #: slower; 3e-7: 0.009 %). ``paper`` keeps IPOPT's default: its results stay bit-identical.
+    warm_ipopt: Mapping[str, float] = {"sigma_min": 1e-3}
+
+    def pack(self, section: PropulsionConfig, rho: float) -> list[float]:
+        return propeller_params(section, rho)
+
+    def section_problems(self, section: PropulsionConfig, *, mass_kg: float | None,
+                         rho: float | None, prop_diameter_mm: float | None, mass_key: str
+                         ) -> list[tuple[str, str]]:
+        return airframe_problems(section, mass_kg=mass_kg, rho=rho,
+                                 prop_diameter_mm=prop_diameter_mm, mass_key=mass_key)
+
+    def full_static_thrust(self, section: PropulsionConfig, rho: float) -> float | None:
+        """None while a section is missing (the schema reports it)."""
+        if None in (section.propeller, section.motor, section.battery):
+            return None
+        return full_static_thrust(section, rho)
+
+    def advance_ratio_limit(self, section: PropulsionConfig) -> float | None:
+        return advance_ratio_limit(section)
+
+    def terms(self, vel, omega, rotor, rotor_dot, u, q, r, s):
+        return propeller_terms(vel, omega, rotor, rotor_dot, u, q, r, s)[:3]
+
+    def thrusts(self, vel, omega, rotor, q, r, s):
+        """T_i = CT(J_i) ρ n_i² D⁴ at the rotor's own axial inflow, the thrust
+        :func:`propeller_terms` gives the model (commands and rotor accelerations do not enter
+        it)."""
+        import casadi as ca
+
+        zero = ca.DM.zeros(4)
+        return propeller_terms(vel, omega, rotor, zero, zero, q, r, s)[3]
+
+    def steady_rotors(self, delta, q):
+        return None  # the rotor speeds at rest solve the motor-propeller balance: trim unknowns
+
+    def static_rotors(self, thrust, q):
+        """ω = 2π √(T / (ρ c_T0 D⁴)) (:func:`speed_for_thrust`, symbolic)."""
+        import casadi as ca
+        import numpy as np
+
+        return 2 * np.pi * ca.sqrt(thrust / (q["rho"] * q["ct0"] * q["prop_D"] ** 4))
+
+    def decay_rate(self, q):
+        return rotor_decay_rate(q)
+
+    def max_static_thrust(self, airframe) -> float:
+        """The steady DC-motor/propeller balance with the battery's sag."""
+        q = airframe_values(airframe)
+        return static_thrust(q, static_speed(q, 1.0))
+
+    def rotor_thrust_bound(self, airframe) -> float:
+        """:func:`thrust_bound`, the largest steady full-command thrust over every airspeed
+        (exceeded only in rotor-speed transients; its docstring argues it); inf with signed
+        inflow, where descent raises the thrust without bound."""
+        q = airframe_values(airframe)
+        if q["inflow_positive"] < 0.5 and q["inflow_on"] > 0.5:
+            return math.inf
+        return thrust_bound(q)
+
+    def rotor_state_bounds(self, airframe) -> tuple[float, float]:
+        """Rotor speed in [0, K_V V_oc] (:func:`max_speed`)."""
+        return 0.0, max_speed(airframe_values(airframe))
+
+    def hover_rotors(self, airframe, thrusts) -> tuple[list[float], list[float]]:
+        """(ω, δ) of :func:`hover_commands`."""
+        return hover_commands(airframe_values(airframe), list(thrusts))
+
+    def static_thrusts(self, airframe, rotor_states):
+        """ρ c₀ D⁴ n² of the rotor speeds."""
+        import numpy as np
+
+        r = np.asarray(rotor_states, float)
+        q = airframe_values(airframe)
+        return q["rho"] * q["ct0"] * q["prop_D"] ** 4 * (r / (2 * math.pi)) ** 2
+
+
+PROPELLER = register_propulsion_model(Propeller())

@@ -43,8 +43,12 @@ from typing import TYPE_CHECKING, Any
 
 import yaml
 
+from casadrone.config.io import CONFIG_DIR, load, read_yaml, resolve_config
 from casadrone.config.problem import ProblemConfig
+from casadrone.outfile import shown_path
 from casadrone.results import Record
+from casadrone.rundir.checkpoint import dumps, loads
+from casadrone.rundir.plugins import import_plugin
 
 if TYPE_CHECKING:
     import numpy as np
@@ -123,16 +127,11 @@ def snapshot_inputs(problem: ProblemConfig, path: Path) -> ProblemConfig:
     """Copy the airframe, track and controller files (and a frozen gain's reference airframe)
     into ``path/inputs/`` and point the problem at the copies (relative to the run directory), so
     resuming or reporting a run never depends on files edited after it started."""
-    from casadrone.config.io import CONFIG_DIR, read_yaml, resolve_config
-    from casadrone.outfile import shown_path
-
     if problem.test_problem is not None:
         return problem
     inputs = path / "inputs"
     inputs.mkdir(exist_ok=True)
     if problem.plugins:  # import each plugin now: an unimportable one fails before any work
-        from casadrone.optimise.checks import import_plugin
-
         for plugin in problem.plugins:
             import_plugin(plugin)
     assert problem.airframe is not None  # a casadrone problem (not a test problem) names one
@@ -179,8 +178,6 @@ def plugin_hashes(problem: ProblemConfig) -> dict[str, str]:
     an edited input."""
     if not problem.plugins:
         return {}
-    from casadrone.optimise.checks import import_plugin
-
     files = (getattr(import_plugin(plugin), "__file__", None) for plugin in problem.plugins)
     return {str(Path(f).resolve()): file_sha256(Path(f)) for f in files if f}
 
@@ -191,8 +188,6 @@ def resolved_yaml(problem: ProblemConfig) -> str:
 
 
 def _checkpoint_state(raw: bytes) -> dict:
-    from casadrone.optimise.checkpoint import loads
-
     state = loads(raw)
     if not isinstance(state, dict) or not {"algorithm", "elapsed_s", "generation"} <= set(state):
         raise ValueError("not a casadrone checkpoint")
@@ -301,8 +296,6 @@ class RunStore:
     def problem(self) -> ProblemConfig:
         """The resolved problem of this run (its input files from the run's own ``inputs/``),
         after :meth:`check_inputs`."""
-        from casadrone.config.io import load
-
         try:
             self.check_inputs()
         except InputsChanged:
@@ -419,8 +412,6 @@ class RunStore:
     def save_checkpoint(self, state: dict) -> None:
         """Pickle the run state and replace the checkpoint atomically, keeping the one before
         as ``checkpoint.prev.pkl``."""
-        from casadrone.optimise.checkpoint import dumps
-
         self.write_checkpoint(dumps(state))
 
     def write_checkpoint(self, data: bytes) -> None:

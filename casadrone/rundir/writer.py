@@ -22,9 +22,9 @@ import threading
 import time
 from collections.abc import Callable
 
-from casadrone.optimise.store import RunStore
-from casadrone.optimise.timings import append_timings
 from casadrone.results import Record
+from casadrone.rundir.store import RunStore
+from casadrone.rundir.timings import append_timings
 
 
 class GenerationWriter:

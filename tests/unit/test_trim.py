@@ -213,10 +213,18 @@ def test_iteration_cap_from_a_bad_guess_fails_without_raising(frames, solver):
 
 
 @pytest.mark.parametrize("solver", ["ipopt", "newton"])
-def test_pitch_near_ninety_degrees_fails_without_raising(frames, solver):
-    tp = trim(frames["SY250"], "forward", 1000.0, solver)
+def test_pitch_near_ninety_degrees_fails_without_raising(solver):
+    # 100 m/s (within Mach 0.3) against a body of 0.5 m² frontal drag area (a parachute, ~40×
+    # SY250's): drag ½ρv²·CdA ≈ 3 kN against ~7 N of weight needs a pitch of nearly 90°
+    frame = build_airframe(load_airframe("SY250", ["drag_area_m2=[0.5, 0.5, 1.0]"]))
+    tp = trim(frame, "forward", 100.0, solver)
     assert not tp.success
     assert "tilt" in tp.message or "residual" in tp.message
+
+
+def test_a_speed_beyond_mach_0_3_is_refused_naming_the_limit(frames):
+    with pytest.raises(ValueError, match=r"speed_mps: 1000 m/s is beyond 102.9 m/s \(Mach 0.3"):
+        trim(frames["SY250"], "forward", 1000.0, "newton")
 
 
 def test_commands_above_one_are_reported_not_failed(frames):

@@ -81,3 +81,36 @@ def test_searches_set_starts_solver_and_rounds():
     assert search_options("certify", base, periodic=False, grid_rounds=0).grid_rounds == 0
     if SEARCHES["fast"].solver == "fatrop":
         assert search_options("fast", base, periodic=True).solver == "ipopt"
+
+
+def _result(table, ending_="acceptable"):
+    starts = [{"start": "fine-grid", "success": True, "ending": ending_, "lap_time_s": 3.8307,
+               "return_status": "Solved_To_Acceptable_Level"},
+              {"start": "closed-loop", "success": False, "ending": "failed",
+               "lap_time_s": math.nan, "return_status": "Restoration_Failed"}]
+    return {"start": "fine-grid", "lap_time_s": 3.8307, "ending": ending_,
+            "return_status": starts[0]["return_status"], "starts": starts,
+            "sensitivity_table": [t.as_dict() for t in table]}
+
+
+def test_text_says_which_optimum_and_what_is_not_resolved():
+    from casadrone.cli.limit import _sensitivity_text, _status_text
+
+    table = sensitivity_table({"lambda_a_mm": 1.35e-4, "alpha_deg": -2e-3},
+                              [{"lambda_a_mm": -0.74e-4, "alpha_deg": -1e-3}])
+    text = "\n".join(_sensitivity_text(_result(table)))
+    assert "fine-grid, 3.8307 s" in text and "2 verified optima" in text
+    # λa: the two branches disagree in sign; α: −2e-3 s/deg × 0.25 deg = −0.5 ms per 1 %,
+    # the other optimum −0.25 ms: ± 0.25 ms
+    assert "lambda_a_mm" in text and "not resolved" in text.split("lambda_a_mm")[1]
+    assert "-0.500 ± 0.250" in text
+    status = "\n".join(_status_text(_result(table)))
+    assert "chosen solve: acceptable (Solved_To_Acceptable_Level)" in status
+    assert "closed-loop failed (Restoration_Failed)" in status
+
+
+def test_text_of_one_optimum_points_to_certify():
+    from casadrone.cli.limit import _sensitivity_text
+
+    text = "\n".join(_sensitivity_text(_result(sensitivity_table({"beta_deg": 4e-3}, []))))
+    assert "--certify" in text and "+1.000" in text and "±" not in text

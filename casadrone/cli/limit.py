@@ -62,12 +62,11 @@ def limit_lap_command(
         "--certify", help="solve from every cold start (closed-loop, point-mass, coarse-grid, "
         "fine-grid) with IPOPT and run grid rounds: whether they agree (certainty, spread) "
         "and the sensitivities' uncertainty over the optima found; without it, the fast "
-        "path: one start (fine-grid) with fatrop")] = False,
+        "path: the two grid-continuation starts (coarse-grid, fine-grid), no rounds")] = False,
     solver: Annotated[str | None, typer.Option(
         help="NLP solver: ipopt (general sparse; the reference) or fatrop (the same NLP in "
              "stage order, Riccati factorisation; IPOPT re-solves where it fails); default "
-             "fatrop on the fast path (ipopt where the track is periodic), ipopt with "
-             "--certify")] = None,
+             "ipopt")] = None,
     grid_rounds: Annotated[int | None, typer.Option(
         min=0, max=5, help="grid-continuation rounds: a verified lap solved on the coarse "
         "and fine grids and brought back, the first round from every verified start, later "

@@ -75,8 +75,9 @@ def model_states(attitude: str, X: np.ndarray) -> np.ndarray:
 #: intervals and 2.1 cm off on 80, the lap itself the same to 0.01 % (4.3094 / 4.3090 s;
 #: benchmarks/RESULTS-propulsion.md).
 DEFAULT_INTERVALS: dict[str, int] = {"paper": 40, "propeller": 80}
-#: Grid rounds of ``casadrone limit-lap`` unless ``--grid-rounds`` says otherwise: the command
-#: answers one frame's question, so it pays 1.2-2.9x the CPU (median 1.8x) for the best optimum
+#: Grid rounds of ``casadrone limit-lap --certify`` unless ``--grid-rounds`` says otherwise
+#: (casadrone.limit.search; the fast path runs none): a certificate answers one frame's
+#: question, so it pays 1.2-2.9x the CPU (median 1.8x) for the best optimum
 #: it can reach. Measured on the five reference frames over the paper, gate and split-S tracks
 #: (benchmarks/RESULTS-limitlap-issue19.md, "Grid rounds as the command's default"): 9 of 15
 #: laps 0.04-1.19 % faster (never slower: the fastest verified start wins), every frame's paper

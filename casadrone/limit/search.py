@@ -33,7 +33,7 @@ class SearchSettings:
 #: ``certify``: the four cold starts and COMMAND_GRID_ROUNDS rounds with IPOPT (the command's
 #: default before the fast path).
 SEARCHES: dict[Search, SearchSettings] = {
-    "fast": SearchSettings(("fine-grid",), 0, "fatrop"),
+    "fast": SearchSettings(("coarse-grid", "fine-grid"), 0, "ipopt"),
     "certify": SearchSettings(LimitLapOptions.starts, COMMAND_GRID_ROUNDS, "ipopt"),
 }
 

@@ -43,6 +43,28 @@ BEFORE = {"paper": (3.8800, 106), "hs210": (3.8307, 115), "gates": (2.1603, 114)
           "propeller": (4.3606, 353), "3laps": (11.692, 628)}
 
 
+#: What the measurements say about the designs tried (kept with the report: the figures are the
+#: rows above).
+DESIGNS = [
+    "## Which start wins, and the designs tried", "",
+    "- **fatrop from the fine-grid start lands in worse optima**: SY250 3.9276 s and HS210 "
+    "3.8948 s against IPOPT's 3.8914 s and 3.8307 s from the same start (HS210 needed 327 "
+    "iterations, 68.8 s CPU). fatrop's cheaper iteration does not pay where its barrier path "
+    "ends in another basin; the fast path keeps IPOPT.",
+    "- **The fine-grid start** (the point-mass reference solved on 60 intervals, resampled "
+    "onto 40) wins on the paper track (HS210 3.8307 s, the best known); SY250's lands at "
+    "3.8914 s on this AMD EPYC VM (3.8800 s on an Intel Xeon VM: "
+    "`RESULTS-limitlap-issue19.md`), 0.31 % above the best known 3.8795 s, which only the grid "
+    "rounds reach (`--certify`: 3.8795 s from grid-30-round-2, 136 s CPU in one process, "
+    "`benchmarks/RESULTS-limitlap-sensitivity-fd.md`).",
+    "- **The coarse-grid start** (the closed-loop lap solved on 30 intervals, resampled) wins "
+    "on the gate track: SY250 2.1603 s, the best known, in 25.5 s CPU alone.",
+    "- So the fast path is those two starts: it meets the gate and HS210 laps and not SY250's "
+    "paper lap on this VM, and no measured design met the 10 s CPU target (one cold IPOPT "
+    "solve on 40 intervals costs 4-5 s on a quiet core, a grid-continuation start two solves).",
+]
+
+
 def children_cpu() -> float:
     """CPU seconds (user + system) of every waited-for child process and its descendants."""
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -50,9 +72,33 @@ def children_cpu() -> float:
 
 
 def command(case: str, mode: str, extra: list[str]) -> list[str]:
+    """The command of a case: ``fast`` and ``certify`` the user's; ``recipe:STARTS:SOLVER``
+    (starts comma-separated) a limit lap from those cold starts alone with that solver and no
+    grid rounds, as the library runs it (:func:`one_recipe`), the designs tried for the fast
+    path."""
     frame, track, _, _ = CASES[case]
+    if mode.startswith("recipe:"):
+        _, starts, solver = mode.split(":")
+        return [sys.executable, str(Path(__file__).resolve()), "--one", frame,
+                track or "paper-rectangle", starts, solver]
     return (["casadrone", "limit-lap", frame, "--json"] + (["--track", track] if track else [])
             + (["--certify"] if mode == "certify" else []) + extra)
+
+
+def one_recipe(frame: str, track: str, starts: str, solver: str) -> None:
+    """Print, as ``limit-lap --json`` does, the limit lap of ``frame`` on ``track`` from the
+    cold ``starts`` alone with ``solver``, no grid rounds (the library's other defaults)."""
+    from casadrone.cli.common import print_json
+    from casadrone.config.airframe import load_airframe
+    from casadrone.config.io import load, resolve_config
+    from casadrone.config.track import TrackConfig
+    from casadrone.limit.lap import LimitLapOptions, limit_lap
+
+    options = LimitLapOptions(starts=tuple(starts.split(",")), solver=solver,  # type: ignore
+                              grid_rounds=0)
+    lap = limit_lap(load_airframe(frame), load(TrackConfig, resolve_config(track, "tracks")),
+                    options)
+    print_json(lap.as_dict())
 
 
 def run(case: str, mode: str, extra: list[str]) -> dict:
@@ -77,25 +123,32 @@ def run(case: str, mode: str, extra: list[str]) -> dict:
                               s["iterations"], s["solver"]) for s in r["starts"]]}
 
 
+def short(cmd: str) -> str:
+    """A row's command as a user types it (the recipe's interpreter path left out)."""
+    return cmd.replace(" --json", "").replace(sys.executable, "python").replace(
+        str(Path(__file__).resolve()), "benchmarks/bench_limitlap_fastpath.py")
+
+
 def fmt(v, spec: str) -> str:
     return "–" if v is None or v != v else format(v, spec)
 
 
 def table(rows: list[dict]) -> list[str]:
-    out = ["| case | command | lap (s) | target lap (s) | chosen start, ending | certainty | "
-           "iterations (chosen / all solves) | CPU (s) | target CPU (s) | wall (s) | before: "
-           "lap / CPU (s) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    out = ["| case | mode | command | lap (s) | target lap (s) | chosen start, ending | "
+           "certainty | iterations (chosen / all solves) | CPU (s) | target CPU (s) | wall (s) | "
+           "before: lap / CPU (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         _, _, lap_target, cpu_target = CASES[r["case"]]
         b_lap, b_cpu = BEFORE[r["case"]]
         if "lap_time_s" not in r:
-            out.append(f"| {r['case']} | `{r['command']}` | error {r.get('error')} | | | | | "
-                       f"{r['cpu_s']:.1f} | | {r['wall_s']:.0f} | |")
+            out.append(f"| {r['case']} | {r['mode']} | `{short(r['command'])}` | error "
+                       f"{r.get('error')} | | | | | {r['cpu_s']:.1f} | | {r['wall_s']:.0f} | |")
             continue
         out.append(
-            f"| {r['case']} | `{r['command'].replace(' --json', '')}` | {r['lap_time_s']:.4f} | "
+            f"| {r['case']} | {r['mode']} | `{short(r['command'])}` | {r['lap_time_s']:.4f} | "
             f"{fmt(lap_target, '.4f') if lap_target != float('inf') else '–'} | "
-            f"{r['start']}, {r['ending']} | {r['certainty']} | {r['iterations']} / "
+            f"{r['start']}, {r['ending']}{'; ' + r['note'] if r.get('note') else ''} | "
+            f"{r['certainty']} | {r['iterations']} / "
             f"{r['all_iterations']} ({r['solves']} solves) | {r['cpu_s']:.1f} | "
             f"{cpu_target if r['mode'] == 'fast' else '–'} | {r['wall_s']:.0f} | "
             f"{b_lap:.4f} / {b_cpu} |")
@@ -116,8 +169,9 @@ def starts_table(rows: list[dict]) -> list[str]:
 def latest(rows: list[dict]) -> list[dict]:
     """The last row of each (case, mode), in CASES order then fast before certify."""
     last = {(r["case"], r["mode"]): r for r in rows}
+    order = {"fast": 0, "certify": 1}
     return [last[k] for k in sorted(last, key=lambda k: (list(CASES).index(k[0]),
-                                                         k[1] != "fast"))]
+                                                         order.get(k[1], 2), k[1]))]
 
 
 def summary(rows: list[dict]) -> str:
@@ -138,17 +192,21 @@ def report(log: Path, out: Path) -> None:
         "# Limit lap: the fast path against --certify", "",
         f"## Summary of {', '.join(dates)}", "",
         "What was measured: `casadrone limit-lap` as a user runs it (a fresh process, solver "
-        "blocks compiled), on the fast path (the default: one start, fine-grid, with fatrop) "
-        "and with `--certify` (four cold starts and grid rounds with IPOPT, the default "
-        "before); CPU of the process and its children (one core's worth; the machine's 2 "
-        "cores were shared with other jobs, so wall times are inflated).", "",
+        "blocks compiled), on the fast path (the default: the coarse-grid and fine-grid "
+        "starts with IPOPT, no grid rounds), with `--certify` (four cold starts and grid "
+        "rounds with IPOPT, the default before), and the designs tried for the fast path "
+        "(`recipe:STARTS:SOLVER`: those cold starts alone); CPU of the process and its "
+        "children (the machine's 2 cores were shared with other jobs at load average 10-16, "
+        "which inflates wall time, and CPU time too, through cache and memory contention). "
+        "Iterations of all solves count the solves in the lap's `starts` (a grid-continuation "
+        "start's own solve on its grid is not among them).", "",
         *[f"- **{r['case']}**: {r['lap_time_s']:.4f} s in {r['cpu_s']:.1f} s CPU "
-          f"(`{r['command'].replace(' --json', '')}`)" for r in fast], "",
+          f"(`{short(r['command'])}`)" for r in fast], "",
         "Command: `python benchmarks/bench_limitlap_fastpath.py --cases "
         + " ".join(dict.fromkeys(r["case"] for r in rows)) + " --modes fast certify`", "",
         "Machine (at the report; each row's own date, revision and load are in "
         "`benchmarks/limitlap-fastpath.jsonl`):", "", markdown(), "",
-        "## Laps, CPU and iterations", "", *table(rows), "",
+        "## Laps, CPU and iterations", "", *table(rows), "", *DESIGNS, "",
         "## Every solve", "", *starts_table(rows), "", summary(rows)]
     out.write_text("\n".join(lines), encoding="utf-8")
 
@@ -157,12 +215,18 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", nargs="+", default=["paper", "hs210", "gates"],
                     choices=list(CASES))
-    ap.add_argument("--modes", nargs="+", default=["fast"], choices=["fast", "certify"])
+    ap.add_argument("--modes", nargs="+", default=["fast"],
+                    help="fast, certify, or recipe:STARTS:SOLVER (e.g. recipe:fine-grid:fatrop)")
+    ap.add_argument("--one", nargs=4, metavar=("FRAME", "TRACK", "STARTS", "SOLVER"),
+                    help=argparse.SUPPRESS)
     ap.add_argument("--extra", nargs="*", default=[], help="more options for the command")
     ap.add_argument("--log", type=Path, default=HERE / "limitlap-fastpath.jsonl")
     ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap-fastpath.md")
     ap.add_argument("--report", action="store_true", help="only rewrite --out from --log")
     args = ap.parse_args(argv)
+    if args.one:
+        one_recipe(*args.one)
+        return 0
     if not args.report:
         for case in args.cases:
             for mode in args.modes:

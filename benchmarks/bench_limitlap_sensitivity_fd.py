@@ -24,7 +24,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.machine import cpu_time, markdown  # noqa: E402
+from benchmarks.machine import cpu_time, describe, markdown, summary_section  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 KEYS = ("lambda_a_mm", "lambda_b_mm", "alpha_deg", "beta_deg")
@@ -85,6 +85,10 @@ def check(frame: str, laps: dict[str, dict]) -> list[dict]:
     return rows
 
 
+def fmt(v: float) -> str:
+    return f"{v:+.4f}" if math.isfinite(v) else "–"
+
+
 def report(log: Path, out: Path, frames: list[str], cmd: str) -> None:
     entries = [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
     rows, centres = [], []
@@ -94,9 +98,11 @@ def report(log: Path, out: Path, frames: list[str], cmd: str) -> None:
             centres.append(laps["centre"])
             rows += check(frame, laps)
     lines = ["# Limit lap: sensitivities against finite differences of the certified laps", "",
-             "## Summary", "",
+             f"## What was measured ({describe()['date'][:10]})", "",
              f"- {sum(r['holds'] for r in rows)} of {len(rows)} slopes hold (resolved: the "
-             "finite difference within the stated uncertainty; or reported not resolved).",
+             "finite difference within the stated uncertainty; or reported not resolved); "
+             f"{sum(math.isfinite(r['fd_ms']) for r in rows)} of {len(rows)} finite "
+             "differences solved (the others' laps are not in the log: not run).",
              f"- Command: `{cmd}`", "", markdown(), "",
              "Slopes in ms per 1 % of the key's paper Table 1 range (λ: 0.5 mm, α and β: "
              "0.25°); finite difference (T(θ + 2 %) − T(θ − 2 %)) / 4 of the `--certify` laps.",
@@ -107,12 +113,21 @@ def report(log: Path, out: Path, frames: list[str], cmd: str) -> None:
         lo, hi = r["laps"]
         lines.append(f"| {r['frame']} | {r['key']} | {r['value_ms']:+.4f} | "
                      f"{r['uncertainty_ms']:.4f} | {'yes' if r['resolved'] else 'not resolved'}"
-                     f" | {r['optima']} | {r['fd_ms']:+.4f} | {'yes' if r['holds'] else 'NO'} | "
-                     f"{lo if lo is None else f'{lo:.4f}'} / {hi if hi is None else f'{hi:.4f}'}"
-                     f" | {r['starts'][0]} / {r['starts'][1]} |")
+                     f" | {r['optima']} | {fmt(r['fd_ms'])} | {'yes' if r['holds'] else 'NO'} | "
+                     f"{'not run' if lo is None else f'{lo:.4f}'} / "
+                     f"{'not run' if hi is None else f'{hi:.4f}'} | {r['starts'][0] or '–'} / "
+                     f"{r['starts'][1] or '–'} |")
     lines += ["", "The certified laps at the frames:", ""]
     lines += [f"- {c['frame']}: {c['lap_time_s']:.4f} s from {c['start']} ({c['certainty']}, "
               f"spread {c['spread_s']:.4f} s), {c['cpu_s']:.0f} s CPU" for c in centres]
+    held = sum(r["holds"] for r in rows)
+    lines += ["", summary_section([(
+        "limit-lap sensitivities dT/dλa, dT/dλb, dT/dα, dT/dβ against finite differences "
+        "(±2 % of the Table 1 range) of the --certify laps",
+        f"{held} of {len(rows)} hold; " + "; ".join(
+            f"{r['frame']} {r['key']} {r['value_ms']:+.3f} ± {r['uncertainty_ms']:.3f} ms/% "
+            f"({'resolved' if r['resolved'] else 'not resolved'})" for r in rows),
+        f"`{cmd}`")])]
     out.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 

@@ -72,7 +72,8 @@ def children_cpu() -> float:
 
 
 def command(case: str, mode: str, extra: list[str]) -> list[str]:
-    """The command of a case: ``fast`` and ``certify`` the user's; ``recipe:STARTS:SOLVER``
+    """The command of a case: ``fast`` and ``certify`` the user's (``fast:OPT,VALUE,...`` the
+    fast path with more options, e.g. ``fast:--grid-rounds,1``); ``recipe:STARTS:SOLVER``
     (starts comma-separated) a limit lap from those cold starts alone with that solver and no
     grid rounds, as the library runs it (:func:`one_recipe`), the designs tried for the fast
     path."""
@@ -81,8 +82,9 @@ def command(case: str, mode: str, extra: list[str]) -> list[str]:
         _, starts, solver = mode.split(":")
         return [sys.executable, str(Path(__file__).resolve()), "--one", frame,
                 track or "paper-rectangle", starts, solver]
+    more = mode.split(":", 1)[1].split(",") if mode.startswith("fast:") else []
     return (["casadrone", "limit-lap", frame, "--json"] + (["--track", track] if track else [])
-            + (["--certify"] if mode == "certify" else []) + extra)
+            + (["--certify"] if mode == "certify" else []) + more + extra)
 
 
 def one_recipe(frame: str, track: str, starts: str, solver: str) -> None:
@@ -216,7 +218,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cases", nargs="+", default=["paper", "hs210", "gates"],
                     choices=list(CASES))
     ap.add_argument("--modes", nargs="+", default=["fast"],
-                    help="fast, certify, or recipe:STARTS:SOLVER (e.g. recipe:fine-grid:fatrop)")
+                    help="fast, certify, fast:OPT,VALUE (more options) or recipe:STARTS:SOLVER "
+                    "(e.g. recipe:fine-grid:fatrop)")
     ap.add_argument("--one", nargs=4, metavar=("FRAME", "TRACK", "STARTS", "SOLVER"),
                     help=argparse.SUPPRESS)
     ap.add_argument("--extra", nargs="*", default=[], help="more options for the command")

@@ -76,13 +76,18 @@ def check(frame: str, laps: dict[str, dict]) -> list[dict]:
         fd = math.nan if hi is None or lo is None else \
             (hi["lap_time_s"] - lo["lap_time_s"]) / (2 * 100 * STEP)
         value, unc = t["s_per_percent"], t["uncertainty_s_per_percent"]
-        holds = (not t["resolved"]) or (math.isfinite(fd) and abs(fd - value) <= unc)
+        # None: resolved, but its finite difference not run
+        holds = True if not t["resolved"] else \
+            None if not math.isfinite(fd) else bool(abs(fd - value) <= unc)
         rows.append({"frame": frame, "key": t["key"], "value_ms": 1e3 * value,
                      "uncertainty_ms": 1e3 * unc, "resolved": t["resolved"],
                      "optima": t["optima"], "fd_ms": 1e3 * fd, "holds": holds,
                      "laps": (lo and lo["lap_time_s"], hi and hi["lap_time_s"]),
                      "starts": (lo and lo["start"], hi and hi["start"])})
     return rows
+
+
+VERDICT = {True: "yes", False: "NO", None: "not run"}
 
 
 def fmt(v: float) -> str:
@@ -99,7 +104,7 @@ def report(log: Path, out: Path, frames: list[str], cmd: str) -> None:
             rows += check(frame, laps)
     lines = ["# Limit lap: sensitivities against finite differences of the certified laps", "",
              f"## What was measured ({describe()['date'][:10]})", "",
-             f"- {sum(r['holds'] for r in rows)} of {len(rows)} slopes hold (resolved: the "
+             f"- {sum(r['holds'] is True for r in rows)} of {len(rows)} slopes hold (resolved: the "
              "finite difference within the stated uncertainty; or reported not resolved); "
              f"{sum(math.isfinite(r['fd_ms']) for r in rows)} of {len(rows)} finite "
              "differences solved (the others' laps are not in the log: not run).",
@@ -113,14 +118,14 @@ def report(log: Path, out: Path, frames: list[str], cmd: str) -> None:
         lo, hi = r["laps"]
         lines.append(f"| {r['frame']} | {r['key']} | {r['value_ms']:+.4f} | "
                      f"{r['uncertainty_ms']:.4f} | {'yes' if r['resolved'] else 'not resolved'}"
-                     f" | {r['optima']} | {fmt(r['fd_ms'])} | {'yes' if r['holds'] else 'NO'} | "
+                     f" | {r['optima']} | {fmt(r['fd_ms'])} | {VERDICT[r['holds']]} | "
                      f"{'not run' if lo is None else f'{lo:.4f}'} / "
                      f"{'not run' if hi is None else f'{hi:.4f}'} | {r['starts'][0] or '–'} / "
                      f"{r['starts'][1] or '–'} |")
     lines += ["", "The certified laps at the frames:", ""]
     lines += [f"- {c['frame']}: {c['lap_time_s']:.4f} s from {c['start']} ({c['certainty']}, "
               f"spread {c['spread_s']:.4f} s), {c['cpu_s']:.0f} s CPU" for c in centres]
-    held = sum(r["holds"] for r in rows)
+    held = sum(r["holds"] is True for r in rows)
     lines += ["", summary_section([(
         "limit-lap sensitivities dT/dλa, dT/dλb, dT/dα, dT/dβ against finite differences "
         "(±2 % of the Table 1 range) of the --certify laps",
@@ -137,6 +142,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--log", type=Path, default=HERE / "limitlap-sensitivity-fd.jsonl")
     ap.add_argument("--out", type=Path, default=HERE / "RESULTS-limitlap-sensitivity-fd.md")
     ap.add_argument("--report", action="store_true", help="only rewrite --out from --log")
+    ap.add_argument("--tags", nargs="*", default=[],
+                    help="only these laps (centre, KEY+ or KEY-), e.g. lambda_a_mm+")
     args = ap.parse_args(argv)
     done = set()
     if args.log.exists():
@@ -145,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.report:
         for frame in args.frames:
             for tag, overrides in moves(frame).items():
-                if (frame, tag) in done:
+                if (frame, tag) in done or (args.tags and tag not in args.tags):
                     continue
                 entry = certified(frame, overrides) | {"tag": tag}
                 print(json.dumps(entry), flush=True)

@@ -1,6 +1,6 @@
 """How far the limit lap's dT/dθ can be trusted: each key's sensitivity at the chosen optimum,
 scaled per 1 % of the key's paper Table 1 range, with its uncertainty over the other verified
-optima of the same call (docs/concepts/limit-lap.md, "Sensitivities").
+optima of the same call (docs/concepts/limit-lap.md, "What it returns").
 
 dT/dθ comes from the multipliers of one local optimum (envelope theorem, no re-solve), so it
 is the slope of *that* optimum's lap. The limit lap has many local optima a few tenths of a per

@@ -59,9 +59,16 @@ DESIGNS = [
     "`benchmarks/RESULTS-limitlap-sensitivity-fd.md`).",
     "- **The coarse-grid start** (the closed-loop lap solved on 30 intervals, resampled) wins "
     "on the gate track: SY250 2.1603 s, the best known, in 25.5 s CPU alone.",
-    "- So the fast path is those two starts: it meets the gate and HS210 laps and not SY250's "
-    "paper lap on this VM, and no measured design met the 10 s CPU target (one cold IPOPT "
-    "solve on 40 intervals costs 4-5 s on a quiet core, a grid-continuation start two solves).",
+    "- **One grid round reaches SY250's best**: `casadrone limit-lap SY250 --grid-rounds 1` "
+    "gives 3.8795 s (the best known) from grid-60-round-1-fine-grid: the fine-grid lap solved "
+    "on 60 intervals and brought back; the round's other three solves (through 30 intervals, "
+    "and from the coarse-grid lap) gain nothing. 95 s CPU against the fast path's 64 s.",
+    "- So the fast path is those two starts without rounds: it meets the gate, HS210 and "
+    "SY250-propeller laps and not SY250's paper lap on this VM (one round does), and no "
+    "measured design met the CPU targets (one cold IPOPT solve on 40 intervals costs 4-5 s on "
+    "a quiet core, a grid-continuation start two solves; SY250-propeller's 80 intervals per "
+    "leg make its fine grid 120). The 3-lap waypoint course was not measured (no machine "
+    "time left).",
 ]
 
 

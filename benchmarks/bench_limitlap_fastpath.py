@@ -190,7 +190,7 @@ def summary(rows: list[dict]) -> str:
     return summary_section([("limit lap, the command's fast path (one start, fatrop) at the "
                              "defaults, blocks compiled, CPU of the process and children",
                              figure, "`python benchmarks/bench_limitlap_fastpath.py --cases "
-                             + " ".join(fast) + " --modes fast certify`")])
+                             + " ".join(fast) + " --modes fast`")])
 
 
 def report(log: Path, out: Path) -> None:
@@ -212,7 +212,9 @@ def report(log: Path, out: Path) -> None:
         *[f"- **{r['case']}**: {r['lap_time_s']:.4f} s in {r['cpu_s']:.1f} s CPU "
           f"(`{short(r['command'])}`)" for r in fast], "",
         "Command: `python benchmarks/bench_limitlap_fastpath.py --cases "
-        + " ".join(dict.fromkeys(r["case"] for r in rows)) + " --modes fast certify`", "",
+        + " ".join(dict.fromkeys(r["case"] for r in rows)) + " --modes "
+        + " ".join(dict.fromkeys(r["mode"] for r in rows if not r["mode"].startswith("recipe")))
+        + "` (the `recipe:` rows: the command in their row)", "",
         "Machine (at the report; each row's own date, revision and load are in "
         "`benchmarks/limitlap-fastpath.jsonl`):", "", markdown(), "",
         "## Laps, CPU and iterations", "", *table(rows), "", *DESIGNS, "",

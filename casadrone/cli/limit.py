@@ -64,13 +64,17 @@ def limit_lap_command(
     tilt: Annotated[str, typer.Option(
         help="tilt limit at the track's max_tilt_deg: axes (|φ|, |θ| each; euler only), cone "
              "(total tilt) or none")] = "axes",
-    solver: Annotated[str, typer.Option(
+    certify: Annotated[bool, typer.Option(
+        "--certify", help="solve from every start and run grid rounds: whether they agree "
+        "(certainty, spread) and how uncertain the sensitivities are over the optima found; "
+        "without it, the fast path: two starts, no rounds")] = False,
+    solver: Annotated[str | None, typer.Option(
         help="optimiser: ipopt (the reference) or fatrop (the same problem, solved step by "
-             "step along the lap; ipopt solves again where it fails)")] = "ipopt",
-    grid_rounds: Annotated[int, typer.Option(
+             "step along the lap; ipopt solves again where it fails); default ipopt")] = None,
+    grid_rounds: Annotated[int | None, typer.Option(
         min=0, max=5, help="rounds that solve the lap again on a coarser and a finer grid to "
         "escape a slower local optimum, stopping at the first round that gains less than 0.1 "
-        "%; 0: none (the library's default)")] = COMMAND_GRID_ROUNDS,
+        f"%; default 0 on the fast path, {COMMAND_GRID_ROUNDS} with --certify")] = None,
     rotor_step: Annotated[str, typer.Option(
         help="how the rotor speeds are stepped: rk4 (like every other state) or exponential "
              "(their decay followed exactly, which allows coarser time steps; opt-in, see the "
@@ -90,10 +94,12 @@ def limit_lap_command(
     """Fly the limit lap: the minimum-time lap of the airframe through the track's waypoints
     (or gates), with ESC commands in [0, 1], thrust lag and the track's tilt limit.
 
+    By default one start (the fast path); --certify solves from every start with grid rounds.
     Prints the lap time, the point-mass reference (attitude dynamics removed; the best of a few
     local optima of that relaxation, not a bound), split and lap times, whether the starts
-    agree (certainty), the share of
-    saturated commands, the re-simulation miss and dT/dθ per decision variable (s per unit). A
+    agree (certainty), how each solve ended (optimal, acceptable, failed), the share of
+    saturated commands, the re-simulation miss and dT/dθ per decision variable (ms per 1 % of
+    its Table 1 range; with --certify, with its uncertainty over the optima found). A
     lap the solver cannot find (no convergence) is a result with status "failed" and a reason,
     exit code 0; a bad config (a malformed track, a frame too heavy to hover, a gate narrower
     than twice the frame's clearance) is bad input, exit code 2.
@@ -110,6 +116,7 @@ def limit_lap_command(
     from casadrone.config.io import ConfigError, load
     from casadrone.config.track import TrackConfig
     from casadrone.limit.lap import LimitLapOptions, check_inputs, frame_clearance_m, limit_lap
+    from casadrone.limit.search import search_options
 
     cfg = load_airframe(airframe, overrides or [])
     track_path = _track_path(track)
@@ -119,7 +126,7 @@ def limit_lap_command(
                        "tilt is axes, cone or none"])
     if resimulation not in ("lap", "legs"):
         raise ConfigError([f"--resimulation {resimulation}: one of lap, legs"])
-    if solver not in ("ipopt", "fatrop"):
+    if solver is not None and solver not in ("ipopt", "fatrop"):
         raise ConfigError([f"--solver {solver}: one of ipopt, fatrop"])
     if solver == "fatrop" and trk.end == "periodic":
         raise ConfigError([f"--solver fatrop: {track_path} has end: periodic, which ties the "
@@ -130,11 +137,14 @@ def limit_lap_command(
     if attitude == "quaternion" and tilt == "axes":
         raise ConfigError(["--tilt axes bounds Euler angles: with --attitude quaternion use cone "
                        "or none"])
-    options = LimitLapOptions(intervals=intervals, attitude=cast("Attitude", attitude),
-                              tilt_limit=cast("TiltLimit", tilt), solver=cast("Solver", solver),
-                              grid_rounds=grid_rounds,
-                              resimulation=cast("Resimulation", resimulation),
-                              rotor_step=cast("RotorStep", rotor_step))
+    options = search_options(
+        "certify" if certify else "fast",
+        LimitLapOptions(intervals=intervals, attitude=cast("Attitude", attitude),
+                        tilt_limit=cast("TiltLimit", tilt),
+                        resimulation=cast("Resimulation", resimulation),
+                        rotor_step=cast("RotorStep", rotor_step)),
+        periodic=trk.end == "periodic", solver=cast("Solver | None", solver),
+        grid_rounds=grid_rounds)
     if substeps is not None:
         options = replace(options, substeps=substeps)
     frame = build_airframe(cfg)
@@ -250,7 +260,6 @@ def _reference_text(seconds: float, lap_s: float) -> str:
 
 
 def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
-    from casadrone.numtext import fixed
 
     cost = cost_text(r["cpu_time_s"], r["wall_time_s"])
     if r["status"] != "completed":
@@ -262,15 +271,55 @@ def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
         f"start {r['start']}, {r['certainty']})",
         f"  solve: the chosen start's took {r['iterations']} iterations; the whole limit lap "
         f"(every start, check and grid round) {cost}",
+        *_status_text(r),
         f"  split times (s): {splits}",
         f"  lap times (s): {', '.join(f'{t:.3f}' for t in r['lap_times_s'])}",
         f"  bang-bang fraction: {r['bang_bang_fraction']:.2f}; re-simulation miss: "
         f"{r['resimulation_miss_m']:.4f} m",
         f"  top speed {r['top_speed_m_s']:.1f} m/s" + _rotor_text(r),
         *_start_text(r, propulsion),
-        "  sensitivity dT/dθ (s per unit):",
+        *_sensitivity_text(r),
     ]
-    lines += [f"    {k:<14}{fixed(v, '>+12.4g')}" for k, v in r["sensitivities"].items()
-              if math.isfinite(v)]
     lines += [f"figure: {p}" for p in r.get("figures", [])]
     return "\n".join(lines)
+
+
+def _status_text(r: dict) -> list[str]:
+    """How the chosen solve ended and how every start and round did (solver, its return
+    status, :data:`casadrone.limit.result.Ending`): a lap is completed when it is a verified
+    optimum, and the line says whether the solver called it optimal or only acceptable."""
+    chosen = (f"  chosen solve: {r['ending']} ({r['return_status']})"
+              + (": the solver stopped at its acceptable level (1000 x its tolerance), not "
+                 "at its tolerance" if r["ending"] == "acceptable" else ""))
+    per = "; ".join(f"{s['start']} {s['ending']}" + (
+        f" {s['lap_time_s']:.4f} s" if s["success"] else f" ({s['return_status']})")
+        for s in r["starts"])
+    return [chosen, f"  solves: {per}"]
+
+
+def _sensitivity_text(r: dict) -> list[str]:
+    """dT/dθ in ms per 1 % of each key's Table 1 range, at the chosen optimum, with its
+    uncertainty over the call's verified optima, "not resolved" where they disagree in sign,
+    or a note that one optimum gives no uncertainty (casadrone.limit.sensitivity)."""
+    from casadrone.limit.sensitivity import percent_of_range
+
+    table = [t for t in r.get("sensitivity_table", []) if math.isfinite(t["s_per_percent"])]
+    if not table:
+        return []
+    n = table[0]["optima"]
+    where = (f"at the chosen optimum ({r['start']}, {r['lap_time_s']:.4f} s)" + (
+        f", uncertainty over the {n} verified optima of this call" if n > 1 else
+        ": one optimum, no uncertainty (--certify solves every start and gives it)"))
+    lines = [f"  sensitivity dT/dθ in ms per 1 % of the key's Table 1 range, {where}:"]
+    for t in table:
+        ms, unc = 1e3 * t["s_per_percent"], 1e3 * t["uncertainty_s_per_percent"]
+        if not t["resolved"]:
+            pct = 1e3 * percent_of_range(t["key"])
+            lo, hi = t["low_s_per_unit"] * pct, t["high_s_per_unit"] * pct
+            lines.append(f"    {t['key']:<14}{ms:>+10.3f}  not resolved: the optima give "
+                         f"{lo:+.3f} … {hi:+.3f}")
+        elif math.isfinite(unc):
+            lines.append(f"    {t['key']:<14}{ms:>+10.3f} ± {unc:.3f}")
+        else:
+            lines.append(f"    {t['key']:<14}{ms:>+10.3f}")
+    return lines

@@ -6,6 +6,9 @@
   targets into the NLP's parameter;
 - :mod:`casadrone.limit.attitude` is the quaternion model (no attitude singularity);
 - :mod:`casadrone.limit.check` analyses a solution (re-simulation, sensitivities);
+  :mod:`casadrone.limit.sensitivity` tables the slopes per 1 % of Table 1 with their
+  uncertainty over the verified optima;
+- :mod:`casadrone.limit.search` holds the command's searches (the fast path, ``--certify``);
 - :mod:`casadrone.limit.result`: the options and the :class:`~casadrone.limit.result.LimitLap`;
 - the steps of :func:`casadrone.limit.lap.limit_lap`, each a module of pure functions:
   :mod:`~casadrone.limit.problem` (track → targets, refusals, start state, bounds),

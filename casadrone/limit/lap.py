@@ -198,7 +198,7 @@ def _limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
         good = verified(solves, misses, options)
     result = assemble_lap(pb, good, solves, misses, grid_laps)
     if options.sensitivities and cfg is not None:
-        result = with_theta_sensitivities(result, cfg, pb)
+        result = with_theta_sensitivities(result, cfg, pb, good)
     return replace(result, wall_time_s=time.perf_counter() - start)
 
 
@@ -340,18 +340,33 @@ def param_sensitivity(pb: Problem, point: NlpPoint) -> np.ndarray:
     return out
 
 
-def with_theta_sensitivities(result: LimitLap, cfg: AirframeConfig, pb: Problem) -> LimitLap:
-    """``result`` with dT/dθ over the config's decision-variable keys: dT/dp and dT/dx0 chained
-    through θ → p and θ → start state (the same build as the evaluation)."""
+def theta_sensitivities_at(cfg: AirframeConfig, pb: Problem, point: NlpPoint
+                           ) -> dict[str, float]:
+    """dT/dθ (s per unit of each decision-variable key) at the optimum ``point``: dT/dp and
+    dT/dx0 chained through θ → p and θ → start state (the same build as the evaluation)."""
     from casadrone.limit.check import theta_sensitivities
+
+    options, n_p = pb.options, len(pb.frame.p)
+    dT_dx0 = -point.lam_p[n_p:n_p + pb.full.model.nx]
+    return theta_sensitivities(
+        cfg, param_sensitivity(pb, point), dT_dx0,
+        lambda f: model_states(options.attitude, start_state(f, pb.track, options))[0])
+
+
+def with_theta_sensitivities(result: LimitLap, cfg: AirframeConfig, pb: Problem,
+                             good: list[StartSolve] | None = None) -> LimitLap:
+    """``result`` with dT/dθ over the config's decision-variable keys at its optimum, and the
+    table of those slopes against the other verified optima's in ``good`` (one per distinct
+    lap: :func:`_distinct`; casadrone.limit.sensitivity)."""
+    from casadrone.limit.sensitivity import sensitivity_table
 
     if result.solution is None:
         return result
-    options, n_p = pb.options, len(pb.frame.p)
-    dT_dx0 = -result.solution.lam_p[n_p:n_p + pb.full.model.nx]
-    return replace(result, sensitivities=theta_sensitivities(
-        cfg, result.param_sensitivity, dT_dx0,
-        lambda f: model_states(options.attitude, start_state(f, pb.track, options))[0]))
+    chosen = theta_sensitivities_at(cfg, pb, result.solution)
+    others = [theta_sensitivities_at(cfg, pb, sol.point)
+              for name, sol in _distinct(good or []) if name != result.start]
+    return replace(result, sensitivities=chosen,
+                   sensitivity_table=sensitivity_table(chosen, others))
 
 
 def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],

@@ -13,6 +13,7 @@ import numpy as np
 
 from casadrone.config.controller import ControllerConfig
 from casadrone.limit.nlp import Layout, NlpPoint
+from casadrone.limit.sensitivity import KeySensitivity
 from casadrone.model import NX
 from casadrone.propulsion import PROPULSION_MODELS
 from casadrone.results import AsDict, Status
@@ -30,6 +31,25 @@ RotorStep = Literal["rk4", "exponential"]
 ROTOR_STEPS: tuple[str, ...] = get_args(RotorStep)
 #: How far the verified starts agree (:func:`casadrone.limit.choose.certainty`).
 Certainty = Literal["agreed", "single", "spread"]
+#: How one solve ended, whatever the solver (:func:`ending`): "optimal" (converged to the
+#: solver's tolerance, ``tol``), "acceptable" (stopped at IPOPT's acceptable level,
+#: ``acceptable_tol`` = 1000 tol, held for 15 iterations: a point the solver itself calls less
+#: than optimal), "failed" (no point: infeasible, restoration failed, iteration limit, an
+#: evaluation error) or "not-run" (the start had no guess).
+Ending = Literal["optimal", "acceptable", "failed", "not-run"]
+#: The solvers' return statuses that count as converged, and the ending each is.
+CONVERGED_STATUSES: dict[str, Ending] = {"Solve_Succeeded": "optimal",
+                                         "Solved_To_Acceptable_Level": "acceptable"}
+
+
+def ending(success: bool, return_status: str) -> Ending:
+    """The :data:`Ending` of a solve from its success flag and the solver's return status
+    (IPOPT's, or fatrop's mapped onto IPOPT's words by casadrone.limit.stagewise)."""
+    if return_status.startswith("not run"):
+        return "not-run"
+    if not success:
+        return "failed"
+    return CONVERGED_STATUSES.get(return_status, "optimal")
 
 
 def euler_states(attitude: str, X: np.ndarray) -> np.ndarray:
@@ -67,8 +87,9 @@ class _DefaultIntervals(Mapping[str, int]):
 #: Intervals per leg by propulsion kind (LimitLapOptions.intervals None): each model's own
 #: (:attr:`casadrone.propulsion.base.PropulsionModel.default_intervals`; paper 40, propeller 80).
 DEFAULT_INTERVALS: Mapping[str, int] = _DefaultIntervals()
-#: Grid rounds of ``casadrone limit-lap`` unless ``--grid-rounds`` says otherwise: the command
-#: answers one frame's question, so it pays 1.2-2.9x the CPU (median 1.8x) for the best optimum
+#: Grid rounds of ``casadrone limit-lap --certify`` unless ``--grid-rounds`` says otherwise
+#: (casadrone.limit.search; the fast path runs none): a certificate answers one frame's
+#: question, so it pays 1.2-2.9x the CPU (median 1.8x) for the best optimum
 #: it can reach. Measured on the five reference frames over the paper, gate and split-S tracks
 #: (benchmarks/RESULTS-limitlap-issue19.md, "Grid rounds as the command's default"): 9 of 15
 #: laps 0.04-1.19 % faster (never slower: the fastest verified start wins), every frame's paper
@@ -202,6 +223,13 @@ class StartResult(AsDict):
     #: stalled: …" (casadrone.limit.watchdog), is otherwise hidden behind IPOPT's fallback
     fatrop_status: str = ""
 
+    _properties = ("ending",)
+
+    @property
+    def ending(self) -> Ending:
+        """How this start's solve ended (:func:`ending`)."""
+        return ending(self.success, self.return_status)
+
 
 @dataclass(frozen=True)
 class LimitLap(AsDict):
@@ -245,6 +273,9 @@ class LimitLap(AsDict):
     resimulation_miss_m: float = math.nan
     param_sensitivity: np.ndarray = field(default_factory=lambda: np.zeros(0))
     sensitivities: dict[str, float] = field(default_factory=dict)
+    # each key's dT/dθ per unit and per 1 % of its Table 1 range, with its uncertainty over the
+    # verified optima of this call (casadrone.limit.sensitivity)
+    sensitivity_table: tuple[KeySensitivity, ...] = ()
     start: str = ""
     starts: tuple[StartResult, ...] = ()
     layout: Layout | None = None
@@ -256,6 +287,24 @@ class LimitLap(AsDict):
 
     # the trajectory, the solver's internals and the airframe's numbers
     _omit = ("t", "x", "u", "layout", "solution", "propulsion", "params")
+    _properties = ("return_status", "ending")
+
+    @property
+    def chosen(self) -> StartResult | None:
+        """The chosen start's record among :attr:`starts` (None for a failed lap)."""
+        return next((s for s in self.starts if s.start == self.start), None) \
+            if self.start else None
+
+    @property
+    def return_status(self) -> str:
+        """The solver's own return status of the chosen solve ("" for a failed lap)."""
+        return self.chosen.return_status if self.chosen is not None else ""
+
+    @property
+    def ending(self) -> Ending:
+        """How the chosen solve ended: "optimal" or "acceptable" for a completed lap (``status``
+        says only that it is a verified optimum), "failed" otherwise."""
+        return self.chosen.ending if self.chosen is not None else "failed"
 
     @property
     def completed(self) -> bool:

@@ -44,26 +44,30 @@ def test_the_fallback_reference_lap_runs_no_rounds():
     assert opts.grid_rounds == 0
 
 
-def test_the_command_runs_grid_rounds_by_default_and_the_library_does_not(monkeypatch):
-    """``casadrone limit-lap`` answers one frame, so it runs COMMAND_GRID_ROUNDS rounds unless
-    told ``--grid-rounds 0``; the library's default (what the evaluation and co-design fly per
-    frame) stays 0."""
+def test_the_command_runs_grid_rounds_with_certify_and_the_library_does_not(monkeypatch):
+    """``casadrone limit-lap`` answers from the fast path's starts without rounds by default;
+    ``--certify`` runs every cold start and COMMAND_GRID_ROUNDS rounds unless told
+    ``--grid-rounds``; the library's default (what the evaluation and co-design fly per frame)
+    stays 0 rounds."""
     from typer.testing import CliRunner
 
     import casadrone.limit.lap as lap_module
     from casadrone.cli import app
     from casadrone.limit.result import COMMAND_GRID_ROUNDS, LimitLap
+    from casadrone.limit.search import SEARCHES
 
     seen = []
 
     def fake(cfg, track, options):
-        seen.append(options.grid_rounds)
+        seen.append((options.starts, options.grid_rounds))
         return LimitLap(status="failed", reason="not solved: the options were recorded")
 
     monkeypatch.setattr(lap_module, "limit_lap", fake)
     runner = CliRunner()
-    for args in ([], ["--grid-rounds", "0"], ["--grid-rounds", "2"]):
+    for args in ([], ["--certify"], ["--certify", "--grid-rounds", "0"], ["--grid-rounds", "2"]):
         r = runner.invoke(app, ["limit-lap", "SY250", "--json", *args])
         assert r.exit_code == 0, r.output
-    assert seen == [COMMAND_GRID_ROUNDS, 0, 2] and COMMAND_GRID_ROUNDS > 0
+    fast, every = SEARCHES["fast"].starts, LimitLapOptions.starts
+    assert seen == [(fast, 0), (every, COMMAND_GRID_ROUNDS), (every, 0), (fast, 2)]
+    assert COMMAND_GRID_ROUNDS > 0 and len(every) > len(fast)
     assert LimitLapOptions().grid_rounds == 0

@@ -1,0 +1,75 @@
+"""How far the limit lap's dT/dθ can be trusted: each key's sensitivity at the chosen optimum,
+scaled per 1 % of the key's paper Table 1 range, with its uncertainty over the other verified
+optima of the same call (docs/concepts/limit-lap.md, "What it returns").
+
+dT/dθ comes from the multipliers of one local optimum (envelope theorem, no re-solve), so it
+is the slope of *that* optimum's lap. The limit lap has many local optima a few tenths of a per
+cent apart (SY250 on the paper track: 3.8795 s and 3.8800 s gave dT/dλa = −0.074 and +0.135 ms
+per mm), and a change of the frame can move the best lap from one to another. So a slope is
+reported with the range of the slopes of every verified optimum the call found: its
+uncertainty is the largest distance from the chosen optimum's slope to another's, and where
+the optima disagree in sign the slope is "not resolved". With one optimum (the command's fast
+path) there is nothing to compare: the uncertainty is NaN, and ``--certify`` gives it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from casadrone.config.airframe import TABLE1_BOUNDS
+from casadrone.results import AsDict
+
+#: Share of a key's Table 1 range the scaled slopes are given per (1 %).
+PERCENT = 0.01
+
+
+def percent_of_range(key: str) -> float:
+    """1 % of ``key``'s paper Table 1 range, in the key's unit (mm, deg, kg·m²); NaN for a key
+    without a Table 1 range."""
+    lo, hi = TABLE1_BOUNDS.get(key, (math.nan, math.nan))
+    return PERCENT * (hi - lo)
+
+
+@dataclass(frozen=True)
+class KeySensitivity(AsDict):
+    """dT/dθ of one key: at the chosen optimum, and the range over the verified optima.
+
+    ``s_per_unit`` is s per unit of the key (mm, deg, kg·m²), ``s_per_percent`` s per 1 % of
+    its Table 1 range; ``uncertainty_*`` the largest distance from it to another verified
+    optimum's slope (NaN: one optimum, not estimated); ``low_*``/``high_*`` the slopes' range
+    (s per unit); ``resolved`` False where the optima disagree in sign; ``optima`` how many
+    verified optima (distinct laps) it was taken over."""
+
+    key: str
+    s_per_unit: float
+    s_per_percent: float
+    uncertainty_s_per_unit: float
+    uncertainty_s_per_percent: float
+    low_s_per_unit: float
+    high_s_per_unit: float
+    resolved: bool
+    optima: int
+
+
+def key_sensitivity(key: str, chosen: float, others: Sequence[float]) -> KeySensitivity:
+    """The chosen optimum's slope ``chosen`` (s per unit) against the other verified optima's
+    (``others``): uncertainty the largest distance to one of them (NaN without any), resolved
+    unless two slopes have opposite signs (a zero slope agrees with both)."""
+    values = np.array([chosen, *others], float)
+    unc = float(np.max(np.abs(values[1:] - chosen))) if len(values) > 1 else math.nan
+    resolved = not (np.any(values > 0) and np.any(values < 0))
+    scale = percent_of_range(key)
+    return KeySensitivity(key, float(chosen), float(chosen * scale), unc, unc * scale,
+                          float(values.min()), float(values.max()), bool(resolved), len(values))
+
+
+def sensitivity_table(chosen: Mapping[str, float], others: Sequence[Mapping[str, float]]
+                      ) -> tuple[KeySensitivity, ...]:
+    """One :class:`KeySensitivity` per key of ``chosen`` (dT/dθ of the chosen optimum, s per
+    unit) against the same keys of the other verified optima."""
+    return tuple(key_sensitivity(k, v, [o[k] for o in others if k in o])
+                 for k, v in chosen.items())

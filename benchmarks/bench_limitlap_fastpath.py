@@ -26,7 +26,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.machine import describe, markdown, summary_section  # noqa: E402
+from benchmarks.machine import describe, markdown, with_summary  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 #: The cases of issue 43's acceptance: (name, frame, track or None, lap target s, CPU target s)
@@ -183,14 +183,15 @@ def latest(rows: list[dict]) -> list[dict]:
                                                          order.get(k[1], 2), k[1]))]
 
 
-def summary(rows: list[dict]) -> str:
+def summary(rows: list[dict]) -> list[tuple[str, str, str]]:
+    """The opening summary's row: the fast path's lap and CPU per case."""
     fast = {r["case"]: r for r in rows if r["mode"] == "fast" and "lap_time_s" in r}
     figure = "; ".join(f"{c} {r['lap_time_s']:.4f} s in {r['cpu_s']:.1f} s CPU"
                        for c, r in fast.items())
-    return summary_section([("limit lap, the command's fast path (one start, fatrop) at the "
-                             "defaults, blocks compiled, CPU of the process and children",
-                             figure, "`python benchmarks/bench_limitlap_fastpath.py --cases "
-                             + " ".join(fast) + " --modes fast`")])
+    return [("limit lap, the command's fast path (the coarse-grid and fine-grid starts, IPOPT, "
+             "no grid rounds) at the defaults, blocks compiled, CPU of the process and children",
+             figure, "`python benchmarks/bench_limitlap_fastpath.py --cases "
+             + " ".join(fast) + " --modes fast`")]
 
 
 def report(log: Path, out: Path) -> None:
@@ -199,7 +200,7 @@ def report(log: Path, out: Path) -> None:
     fast = [r for r in rows if r["mode"] == "fast" and "lap_time_s" in r]
     lines = [
         "# Limit lap: the fast path against --certify", "",
-        f"## Summary of {', '.join(dates)}", "",
+        f"## What was measured ({', '.join(dates)})", "",
         "What was measured: `casadrone limit-lap` as a user runs it (a fresh process, solver "
         "blocks compiled), on the fast path (the default: the coarse-grid and fine-grid "
         "starts with IPOPT, no grid rounds), with `--certify` (four cold starts and grid "
@@ -218,8 +219,8 @@ def report(log: Path, out: Path) -> None:
         "Machine (at the report; each row's own date, revision and load are in "
         "`benchmarks/limitlap-fastpath.jsonl`):", "", markdown(), "",
         "## Laps, CPU and iterations", "", *table(rows), "", *DESIGNS, "",
-        "## Every solve", "", *starts_table(rows), "", summary(rows)]
-    out.write_text("\n".join(lines), encoding="utf-8")
+        "## Every solve", "", *starts_table(rows), ""]
+    out.write_text(with_summary("\n".join(lines), summary(rows), dates[-1]), encoding="utf-8")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -24,7 +24,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.machine import cpu_time, describe, markdown, summary_section  # noqa: E402
+from benchmarks.machine import cpu_time, describe, markdown, with_summary  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 KEYS = ("lambda_a_mm", "lambda_b_mm", "alpha_deg", "beta_deg")
@@ -126,14 +126,14 @@ def report(log: Path, out: Path, frames: list[str], cmd: str) -> None:
     lines += [f"- {c['frame']}: {c['lap_time_s']:.4f} s from {c['start']} ({c['certainty']}, "
               f"spread {c['spread_s']:.4f} s), {c['cpu_s']:.0f} s CPU" for c in centres]
     held = sum(r["holds"] is True for r in rows)
-    lines += ["", summary_section([(
+    summary_rows = [(
         "limit-lap sensitivities dT/dλa, dT/dλb, dT/dα, dT/dβ against finite differences "
         "(±2 % of the Table 1 range) of the --certify laps",
         f"{held} of {len(rows)} hold; " + "; ".join(
             f"{r['frame']} {r['key']} {r['value_ms']:+.3f} ± {r['uncertainty_ms']:.3f} ms/% "
             f"({'resolved' if r['resolved'] else 'not resolved'})" for r in rows),
-        f"`{cmd}`")])]
-    out.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        f"`{cmd}`")]
+    out.write_text(with_summary("\n".join(lines) + "\n", summary_rows), encoding="utf-8")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -275,6 +275,9 @@ PATCHED_POLISH = ("tests replace polish_member and prepared in casadrone.codesig
 #: Function-level imports of casadrone modules that bring no heavy library the importer lacks, and
 #: why each stays lazy: (importing module, imported module) → reason. The one list of them.
 LAZY_ALLOWED: dict[tuple[str, str], str] = {
+    ("casadrone.cli.limit", "casadrone.limit.search"): CLI,
+    ("casadrone.cli.limit", "casadrone.limit.sensitivity"): CLI,
+    ("casadrone.limit.lap", "casadrone.limit.sensitivity"): LIMIT,
     ("casadrone.cli.codesign", "casadrone.codesign.design"): CLI,
     ("casadrone.cli.common", "casadrone.progress"): CLI,
     ("casadrone.cli.design", "casadrone.config.airframe"): CLI,
@@ -291,7 +294,6 @@ LAZY_ALLOWED: dict[tuple[str, str], str] = {
     ("casadrone.cli.flight", "casadrone.numtext"): CLI,
     ("casadrone.cli.flight", "casadrone.simulate"): CLI,
     ("casadrone.cli.limit", "casadrone.evaluate"): CLI,
-    ("casadrone.cli.limit", "casadrone.numtext"): CLI,
     ("casadrone.cli.optimisation", "casadrone.compare"): CLI,
     ("casadrone.cli.optimisation", "casadrone.config.airframe"): CLI,
     ("casadrone.cli.optimisation", "casadrone.indices"): CLI,

@@ -1,0 +1,147 @@
+"""Every shipped command's output, recorded from one checkout and compared with another's.
+
+A refactoring that must not change behaviour (issue 45: "every shipped command's output and a
+paper run's ``pareto.csv`` stay byte-identical") is shown by running the same commands on the
+code before and after and comparing what they print and write, byte for byte, after removing the
+fields that measure the machine (CPU and wall times, dates, the casadrone version and revision
+stamped into files).
+
+    python benchmarks/byte_identity.py record --checkout OLD --out /tmp/bi/before
+    python benchmarks/byte_identity.py record --checkout NEW --out /tmp/bi/after
+    python benchmarks/byte_identity.py compare /tmp/bi/before /tmp/bi/after
+
+``record`` runs each command of :data:`COMMANDS` in a fresh process with ``PYTHONPATH`` set to
+the checkout; ``compare`` prints a Markdown table (command, files, identical or the first
+differing line) and exits 1 when any output differs. ``--only NAME`` records some commands.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+#: name → argv after ``python -m casadrone`` ({out}: the command's own output folder). The cheap
+#: commands of every stage, the paper run's front, the limit lap and the co-design.
+COMMANDS: dict[str, list[str]] = {
+    "validate": ["validate", "SY250", "SY250-propeller", "paper-rectangle",
+                 "multigp-cdra-gates"],
+    "trim": ["trim", "SY250", "--condition", "forward", "--speed", "10", "--json"],
+    "trim-propeller": ["trim", "SY250-propeller", "--condition", "forward", "--speed", "10",
+                       "--json"],
+    "linearise": ["linearise", "SY250", "--json"],
+    "lqr": ["lqr", "SY250", "--json"],
+    "massprops": ["massprops", "SY250-components", "lambda_a_mm=140", "--json"],
+    "simulate": ["simulate", "SY250", "--json"],
+    "export-betaflight": ["export", "SY250", "--format", "betaflight"],
+    "export-px4": ["export", "SY250", "--format", "px4"],
+    "export-urdf": ["export", "SY250", "--format", "urdf"],
+    "fit-propulsion": ["fit-propulsion", "example-5in", "--diameter-in", "5", "--json"],
+    "run-quick": ["run", "quick", "--out", "{out}/run"],
+    "limit-lap": ["limit-lap", "SY250", "--json"],
+    "codesign-paper": ["codesign", "codesign-paper", "--json", "--out", "{out}/codesign"],
+}
+
+#: JSON keys and text patterns that measure the machine or stamp the code, not the answer.
+VOLATILE_KEYS = re.compile(r"(cpu|wall|time_s$|_s_cpu|seconds|date|created|version|revision|"
+                           r"git|host|elapsed|timings?$)", re.I)
+VOLATILE_TEXT = re.compile(r"(\d+(\.\d+)? ?s (CPU|wall)|CPU [\d.]+ ?s|wall [\d.]+ ?s|"
+                           r"casadrone \d[\w.+-]*|20\d\d-\d\d-\d\d[T ][\d:.]+\S*)")
+
+
+def scrub(value: object) -> object:
+    """``value`` (parsed JSON) without the keys that measure the machine."""
+    if isinstance(value, dict):
+        return {k: scrub(v) for k, v in value.items() if not VOLATILE_KEYS.search(k)}
+    if isinstance(value, list):
+        return [scrub(v) for v in value]
+    return value
+
+
+def normalise(text: str) -> str:
+    """A command's output with its volatile fields removed: parsed and re-dumped when it is
+    JSON, else line by line with times, dates and versions masked."""
+    try:
+        return json.dumps(scrub(json.loads(text)), indent=1, sort_keys=True)
+    except ValueError:
+        return VOLATILE_TEXT.sub("<volatile>", text)
+
+
+def record(checkout: Path, out: Path, only: list[str] | None) -> None:
+    """Run :data:`COMMANDS` with ``checkout`` on the path; stdout, exit code and written files
+    under ``out/NAME``."""
+    env = dict(os.environ, PYTHONPATH=str(checkout.resolve()))
+    for name, argv in COMMANDS.items():
+        if only and name not in only:
+            continue
+        folder = out / name
+        shutil.rmtree(folder, ignore_errors=True)
+        folder.mkdir(parents=True)
+        args = [a.replace("{out}", str(folder)) for a in argv]
+        start = time.perf_counter()
+        proc = subprocess.run([sys.executable, "-m", "casadrone", *args], env=env,
+                              capture_output=True, text=True, cwd=folder)
+        (folder / "stdout.txt").write_text(proc.stdout, encoding="utf-8")
+        (folder / "stderr.log").write_text(proc.stderr, encoding="utf-8")
+        (folder / "rc.txt").write_text(f"{proc.returncode}\n", encoding="utf-8")
+        print(f"{name}: rc {proc.returncode}, {time.perf_counter() - start:.0f} s",
+              file=sys.stderr)
+
+
+def files(folder: Path) -> dict[str, Path]:
+    """Relative path → file under ``folder``, stderr and logs of timings aside."""
+    return {str(p.relative_to(folder)): p for p in sorted(folder.rglob("*"))
+            if p.is_file() and not re.search(r"(timings|progress|\.log$|\.lock$)", p.name)}
+
+
+def compare(before: Path, after: Path) -> int:
+    """Print the table; 1 when any command's output or files differ."""
+    print("| command | files compared | outcome |\n|---|---|---|")
+    bad = 0
+    for name in COMMANDS:
+        a, b = before / name, after / name
+        if not a.is_dir() or not b.is_dir():
+            continue
+        fa, fb = files(a), files(b)
+        outcome = "identical"
+        if set(fa) != set(fb):
+            outcome = f"different files: {sorted(set(fa) ^ set(fb))}"
+        else:
+            for rel in fa:
+                ta, tb = (normalise(p.read_text(encoding="utf-8", errors="replace"))
+                          for p in (fa[rel], fb[rel]))
+                if ta != tb:
+                    first = next((i for i, (x, y) in enumerate(
+                        zip(ta.splitlines(), tb.splitlines(), strict=False)) if x != y), None)
+                    outcome = f"{rel} differs at line {first}"
+                    break
+        bad += outcome != "identical"
+        print(f"| `casadrone {' '.join(COMMANDS[name])}` | {len(fa)} | {outcome} |")
+    return 1 if bad else 0
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="what", required=True)
+    rec = sub.add_parser("record")
+    rec.add_argument("--checkout", type=Path, required=True)
+    rec.add_argument("--out", type=Path, required=True)
+    rec.add_argument("--only", nargs="*")
+    cmp = sub.add_parser("compare")
+    cmp.add_argument("before", type=Path)
+    cmp.add_argument("after", type=Path)
+    args = parser.parse_args()
+    if args.what == "record":
+        record(args.checkout, args.out, args.only)
+        return 0
+    return compare(args.before, args.after)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -16,6 +16,7 @@ from typing import Any
 
 from pydantic import Field
 
+from casadrone.config.airframe import AirframeConfig
 from casadrone.config.io import ConfigError, Schema, has_keys, load
 from casadrone.config.propulsion import (
     MIN_RESISTANCE_OHM,
@@ -307,3 +308,24 @@ def battery_section(b: PackPart, soc: float = 1.0) -> BatteryConfig:
     return BatteryConfig(open_circuit_voltage_v=b.cells * interpolate(b.ocv_soc, b.ocv, soc),
                          internal_resistance_ohm=b.resistance_ohm, mass_kg=b.mass_kg,
                          data=f"parts catalogue {b.name}: {b.source}")
+
+
+def airframe_with_parts(cfg: AirframeConfig, propeller: PropellerPart | None = None,
+                        motor: MotorPart | None = None, pack: PackPart | None = None
+                        ) -> AirframeConfig:
+    """``cfg`` (an airframe of the ``propeller`` model) flying the given parts: each given part's
+    section replaces the airframe's, the propeller keeping the airframe's rotor inertia and
+    rotor drag (the catalogue has none of its own), validated again as a whole (a propeller
+    whose diameter disagrees with ``prop_diameter_mm`` is refused as in a file). The airframe's
+    mass stays its own: the parts' masses ride in their sections for a build to add up."""
+    data = cfg.model_dump(exclude_none=True)
+    sections = data.setdefault("propulsion", {})
+    if propeller is not None:
+        old = sections.get("propeller", {})
+        kept = {k: old[k] for k in ("rotor_inertia_kgm2", "rotor_drag_n_s2_per_m") if k in old}
+        sections["propeller"] = propeller_section(propeller, **kept).model_dump(exclude_none=True)
+    if motor is not None:
+        sections["motor"] = motor_section(motor).model_dump(exclude_none=True)
+    if pack is not None:
+        sections["battery"] = battery_section(pack).model_dump(exclude_none=True)
+    return AirframeConfig.model_validate(data)

@@ -92,6 +92,8 @@ class PropellerPart(AsDict):
     @property
     def caveat(self) -> str:
         """The low-rpm caveat in words: the Reynolds numbers measured against a racing rotor's."""
+        if not self.rpm_max:  # a user's propeller given without its rpm range
+            return "no rpm range given: the Reynolds number of its data is unknown"
         if self.reynolds_075_min is None or self.reynolds_075_fit is None:
             return (f"measured at {self.rpm_min:.0f}-{self.rpm_max:.0f} rpm; the database gives no "
                     "blade geometry, so no Reynolds number")

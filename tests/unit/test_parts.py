@@ -276,6 +276,13 @@ def _write(tmp_path: Path, **sections) -> Path:
     return path
 
 
+def test_shipped_example_propeller_says_its_caveat_is_unknown():
+    part = load_parts(DATA.parent / "configs" / "parts" / "example-parts.yaml").get(
+        "example-5x4.3-3blade")
+    assert part.ct_coefficients == (0.20, -0.10, -0.18) and part.j_max_measured == 0.85
+    assert "unknown" in part.caveat
+
+
 def test_user_parts_join_the_catalogue(tmp_path, cli_runner):
     path = _write(tmp_path, motors=[GOOD_MOTOR], packs=[GOOD_PACK])
     cat = load_parts(path)
@@ -283,8 +290,10 @@ def test_user_parts_join_the_catalogue(tmp_path, cli_runner):
     assert cat.sizes()["pack"] == shipped_catalogue().sizes()["pack"] + 1
     out = cli_runner.invoke(app, ["parts", "--file", str(path), "--kind", "pack", "--json"])
     assert out.exit_code == 0, out.stderr
-    names = [p["name"] for p in json.loads(out.stdout)["parts"]]
-    assert "my-pack" in names and all(p["kind"] == "pack" for p in json.loads(out.stdout)["parts"])
+    listed = {p["name"]: p for p in json.loads(out.stdout)["parts"]}
+    assert "my-pack" in listed and all(p["kind"] == "pack" for p in listed.values())
+    assert listed["dogcom-1600mah-6s"]["max_current_a"] == pytest.approx(180 * 1.6)  # C × Ah
+    assert listed["my-pack"]["full_voltage_v"] == pytest.approx(6 * 4.1029)
 
 
 @pytest.mark.parametrize(("section", "change", "key"), [

@@ -320,6 +320,15 @@ def test_bad_user_parts_are_refused_in_one_line(tmp_path, cli_runner, section, c
     assert out.stdout == ""
 
 
+def test_an_airframe_given_as_a_parts_file_is_one_line(cli_runner):
+    frame = DATA.parent / "configs" / "airframes" / "SY250.yaml"
+    out = cli_runner.invoke(app, ["parts", "--file", str(frame)])
+    assert out.exit_code == 2
+    assert out.stderr.strip().splitlines() == [
+        f"{frame}: this is an airframe, not a parts; give a parts here (a YAML file or a "
+        "shipped name)"]
+
+
 def test_a_name_given_twice_in_the_file_is_refused(tmp_path):
     path = _write(tmp_path, motors=[GOOD_MOTOR, GOOD_MOTOR])
     with pytest.raises(Exception, match=r"motors\.1\.name: 'my-motor' is given twice"):

@@ -771,3 +771,63 @@ def propulsion_fit_figures(fit, log) -> dict[str, Figure]:
         ax.grid(True, alpha=0.3)
         figures["propulsion-fit-steps"] = fig
     return figures
+
+
+def propeller_part_figure(part, points) -> Figure:
+    """A catalogue propeller's raw points and its fit: C_T(J) and C_P(J) side by side, each
+    measured sweep in its own colour (the static points at J = 0), the fitted quadratic drawn
+    to the end of the fitted sweep (``j_max_measured``), dashed beyond it to the last point.
+
+    Args:
+        part: a :class:`casadrone.parts.PropellerPart`. points: its raw (J, rpm, C_T, C_P)
+            rows (:func:`casadrone.parts.propeller_points`).
+    """
+    a = np.asarray(points, dtype=float)
+    fig = Figure(figsize=(9, 3.4), layout="constrained")
+    axes = fig.subplots(1, 2)
+    sweeps = sorted(set(a[a[:, 0] > 0, 1]))
+    colours = dict(zip(sweeps, _colours(len(sweeps)), strict=True))
+    J_end = float(a[:, 0].max())
+    grid = np.linspace(0.0, part.j_max_measured, 100)
+    beyond = np.linspace(part.j_max_measured, max(J_end, part.j_max_measured), 20)
+    for ax, col, c, what in ((axes[0], 2, part.ct_coefficients, "C_T"),
+                             (axes[1], 3, part.cp_coefficients, "C_P")):
+        static = a[a[:, 0] == 0]
+        ax.plot(static[:, 0], static[:, col], "k.", ms=4, label="static (J = 0, all rpm)")
+        for rpm in sweeps:
+            s = a[(a[:, 0] > 0) & (a[:, 1] == rpm)]
+            ax.plot(s[:, 0], s[:, col], "o", ms=3, color=colours[rpm], label=f"{rpm:.0f} rpm")
+        ax.plot(grid, np.polynomial.polynomial.polyval(grid, c), "k-", lw=1.5,
+                label=f"fit {c[0]:.4f} {c[1]:+.4f} J {c[2]:+.4f} J²")
+        ax.plot(beyond, np.polynomial.polynomial.polyval(beyond, c), "k--", lw=1)
+        ax.axhline(0.0, color="0.7", lw=0.8)
+        ax.set(xlabel="advance ratio J", ylabel=what)
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=6, loc="lower left")
+    fig.suptitle(f"{part.name}: {part.caveat}", fontsize=8)
+    return fig
+
+
+def propeller_overview_figure(parts, points_by_name: Mapping[str, Any]) -> Figure:
+    """Every catalogue propeller's C_T points and fit in one grid of small panels (the fitted
+    sweep's points dark, the other points grey), for the documentation."""
+    n = len(parts)
+    cols = 6
+    rows = -(-n // cols)
+    fig = Figure(figsize=(2.2 * cols, 1.9 * rows), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, sharey=True)).ravel()
+    for ax, part in zip(axes, parts, strict=False):
+        a = np.asarray(points_by_name[part.name], dtype=float)
+        used = (a[:, 1] == part.sweep_rpm) & (a[:, 0] > 0)
+        ax.plot(a[~used, 0], a[~used, 2], ".", color="0.7", ms=2)
+        ax.plot(a[used, 0], a[used, 2], ".", color="C0", ms=3)
+        J = np.linspace(0.0, part.j_max_measured, 50)
+        ax.plot(J, np.polynomial.polynomial.polyval(J, part.ct_coefficients), "k-", lw=1)
+        ax.axhline(0.0, color="0.8", lw=0.6)
+        ax.set_title(part.name.removeprefix("uiuc-"), fontsize=7)
+        ax.tick_params(labelsize=6)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    fig.supxlabel("advance ratio J", fontsize=8)
+    fig.supylabel("C_T", fontsize=8)
+    return fig

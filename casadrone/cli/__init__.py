@@ -9,7 +9,7 @@ The commands are grouped by layer: :mod:`~casadrone.cli.design` (validate, trim,
 :mod:`~casadrone.cli.flight` (simulate, benchmark), :mod:`~casadrone.cli.limit` (limit-lap),
 :mod:`~casadrone.cli.codesign` (codesign),
 :mod:`~casadrone.cli.massprops` (massprops), :mod:`~casadrone.cli.trimstudy` (trim-study),
-:mod:`~casadrone.cli.propulsion` (fit-propulsion),
+:mod:`~casadrone.cli.propulsion` (fit-propulsion), :mod:`~casadrone.cli.parts` (parts),
 :mod:`~casadrone.cli.optimisation` (run, resume, decide, compare, report) and
 :mod:`~casadrone.cli.export` (export), all registered on the one :data:`app` of
 :mod:`~casadrone.cli.common`, the console entry point ``casadrone.cli:app``.
@@ -27,6 +27,7 @@ from casadrone.cli import (  # noqa: F401 (importing registers the commands)
     limit,
     massprops,
     optimisation,
+    parts,
     propulsion,
     trimstudy,
 )

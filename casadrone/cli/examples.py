@@ -39,6 +39,8 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
                "casadrone report runs/quick --out quick.html"),
     "fit-propulsion": ("casadrone fit-propulsion example-5in --diameter-in 5",
                        "casadrone fit-propulsion stand.csv --diameter-in 5 --part propeller"),
+    "parts": ("casadrone parts --kind motor",
+              "casadrone parts --file example-parts --kind pack --json"),
     "trim-study": ("casadrone trim-study SY250 --starts 5",
                    "casadrone trim-study HS210 --conditions forward:0..40/5 --json"),
 }

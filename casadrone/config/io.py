@@ -531,6 +531,7 @@ TELLING_KEYS = {
     "problem": ("objectives", "variables", "algorithm"),
     "track": ("waypoints_m", "gates"),
     "controller": ("sample_time_s", "gain_policy"),
+    "parts": ("propellers", "motors", "packs"),
 }
 
 

@@ -26,6 +26,7 @@ from casadrone.config.io import (
     read_yaml,
     validate_data,
 )
+from casadrone.config.parts import PartsConfig
 from casadrone.config.problem import ProblemConfig
 from casadrone.config.reference import Table4Reference
 from casadrone.config.track import TrackConfig
@@ -38,6 +39,7 @@ SCHEMAS_BY_FOLDER: dict[str, type[BaseModel]] = {
     "tracks": TrackConfig,
     "references": Table4Reference,
     "problems": ProblemConfig,
+    "parts": PartsConfig,
 }
 #: Fallback when the folder says nothing: a key that only that schema has.
 SCHEMAS_BY_KEY: dict[str, type[BaseModel]] = {
@@ -48,6 +50,9 @@ SCHEMAS_BY_KEY: dict[str, type[BaseModel]] = {
     "gates": TrackConfig,
     "codesign": CodesignProblemConfig,
     "objectives": ProblemConfig,
+    "propellers": PartsConfig,
+    "motors": PartsConfig,
+    "packs": PartsConfig,
 }
 
 

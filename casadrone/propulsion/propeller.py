@@ -430,13 +430,15 @@ def advance_ratio_limit(cfg: PropulsionConfig) -> float | None:
     return None
 
 
-def fit_coefficients(J, y, degree: int = 2) -> list[float]:
-    """Least-squares polynomial coefficients c_0…c_degree of y(J) (relative residuals weighted
-    equally: each point weighted by 1/|y|)."""
+def fit_coefficients(J, y, degree: int = 2, relative: bool = True) -> list[float]:
+    """Least-squares polynomial coefficients c_0…c_degree of y(J): relative residuals weighted
+    equally (each point weighted by 1/|y|), or with ``relative=False`` absolute residuals (every
+    point weighted alike: data that cross zero, a J sweep run to its windmill end)."""
     import numpy as np
 
-    c = np.polynomial.polynomial.polyfit(np.asarray(J), np.asarray(y), degree,
-                                         w=1 / np.abs(np.asarray(y)))
+    y = np.asarray(y)
+    c = np.polynomial.polynomial.polyfit(np.asarray(J), y, degree,
+                                         w=1 / np.abs(y) if relative else None)
     return [float(v) for v in c]
 
 

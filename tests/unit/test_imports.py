@@ -28,6 +28,7 @@ FLOORS: tuple[str, ...] = (
     "casadrone.numtext",  # numbers as printed text (no negative zero): every table's
     "casadrone.massprops",
     "casadrone.propulsion",  # the propulsion models: the airframe schema reads their kinds
+    "casadrone.parts",  # the parts catalogue (static data): config.parts makes sections of it
     "casadrone.targets",  # the limit lap's target kinds: the track schema reads their shapes
     "casadrone.config",
     "casadrone.outfile",

@@ -184,22 +184,23 @@ def _cli(*args):
     return CliRunner().invoke(app, [str(a) for a in args])
 
 
-@pytest.mark.parametrize(("override", "key"), [
-    ("propulsion.battery.capacity_ah=-0.65", "propulsion.battery.capacity_ah"),
-    ("propulsion.battery.c_rating=0", "propulsion.battery.c_rating"),
-    ("propulsion.motor.max_current_a=0", "propulsion.motor.max_current_a"),
+@pytest.mark.parametrize(("override", "key", "why"), [
+    ("propulsion.battery.capacity_ah=-0.65", "propulsion.battery.capacity_ah", "greater than 0"),
+    ("propulsion.battery.c_rating=0", "propulsion.battery.c_rating", "greater than 0"),
+    ("propulsion.motor.max_current_a=0", "propulsion.motor.max_current_a", "greater than 0"),
     ("propulsion.battery.ocv_curve=[[0,3.3],[0.5,3.2],[1,4.2]]",
-     "propulsion.battery.ocv_curve"),
-    ("propulsion.battery.ocv_curve=[[0.1,3.3],[1,4.2]]", "propulsion.battery.ocv_curve"),
+     "propulsion.battery.ocv_curve", "increasing"),
+    ("propulsion.battery.ocv_curve=[[0.1,3.3],[1,4.2]]", "propulsion.battery.ocv_curve",
+     "rise from 0 to 1"),
 ])
-def test_bad_pack_values_are_refused_in_one_line_naming_file_and_key(override, key):
+def test_bad_pack_values_are_refused_in_one_line_naming_file_and_key(override, key, why):
     extra = [] if "capacity_ah" in override else ["propulsion.battery.capacity_ah=0.65",
                                                   "propulsion.battery.cells=4"]
     result = _cli("limit-lap", "SY250-propeller", override, *extra, "--json")
     assert result.exit_code == 2, result.output
     assert "Traceback" not in result.output
     line, = result.stderr.splitlines()
-    assert "SY250-propeller.yaml" in line and f"{key}:" in line
+    assert "SY250-propeller.yaml" in line and f"{key}:" in line and why in line
 
 
 def test_a_start_voltage_outside_the_curve_is_refused():

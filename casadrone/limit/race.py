@@ -68,6 +68,7 @@ class Race(AsDict):
     passes: tuple[Pass, ...] = ()
 
     _omit = ("lap",)
+    _properties = ("feasible", "reason")
 
     @property
     def feasible(self) -> bool:

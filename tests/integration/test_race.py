@@ -32,6 +32,7 @@ def flown(overrides, laps: int = 1):
 @pytest.mark.slow
 def test_the_solved_race_keeps_every_sample_within_the_current_limits():
     result = flown(PACK)
+    print(result.lap.lap_time_s, result.lap.cpu_time_s, result.as_dict())  # the figures, with -s
     assert result.lap.completed, result.lap.reason
     e = result.energy
     assert e is not None and e.feasible, e
@@ -47,6 +48,7 @@ def test_the_solved_race_keeps_every_sample_within_the_current_limits():
 def test_a_race_longer_than_the_pack_lasts_is_refused_naming_the_pack():
     """A 4S 10 mAh pack holds 36 C: a 4 s limit lap drawing tens of amperes empties it."""
     result = flown(["propulsion.battery.capacity_ah=0.01", "propulsion.battery.cells=4"])
+    print(result.lap.lap_time_s, result.lap.cpu_time_s, result.as_dict())  # the figures, with -s
     assert result.lap.completed, result.lap.reason
     assert not result.feasible
     assert result.reason.startswith("4S 10 mAh pack empty in lap 1 of 1")

@@ -17,6 +17,7 @@ from casadrone.config.airframe import TABLE1_BOUNDS, AirframeConfig
 from casadrone.config.io import ConfigError, field_adapter, format_errors
 from casadrone.massprops import mass_properties, rotor_positions_mm
 from casadrone.propulsion import advance_ratio_limit, propulsion_model
+from casadrone.propulsion.electric import current_limits
 
 #: Names and order of the decision vector θ (paper Table 1) and their config keys.
 THETA_NAMES = ("lambda_a", "lambda_b", "alpha", "beta", "Ixx", "Iyy", "Izz")
@@ -85,6 +86,10 @@ class Airframe:
     #: largest advance ratio of the propeller's data, which the limit lap keeps every rotor
     #: within (:func:`casadrone.propulsion.advance_ratio_limit`); None: no bound (``paper``)
     max_advance_ratio: float | None = None
+    #: the pack's c_rating × capacity_ah and the motor's max_current_a (A), which the limit lap
+    #: keeps every node within (:func:`casadrone.propulsion.electric.current_limits`); None: none
+    max_pack_current_a: float | None = None
+    max_motor_current_a: float | None = None
 
     @cached_property
     def p(self) -> np.ndarray:
@@ -132,6 +137,7 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
     (r_i − c), which is where the model's moments are taken.
     """
     mp = mass_properties(cfg)
+    limits = current_limits(cfg.propulsion)
     r = np.array(rotor_positions_mm(cfg.lambda_a_mm, cfg.lambda_b_mm, cfg.alpha_deg, cfg.beta_deg))
     J = mp.inertia_kgm2
     theta = np.array(
@@ -165,6 +171,8 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
         propulsion_params=tuple(propulsion_model(cfg.propulsion.model).pack(
             cfg.propulsion, cfg.air_density_kgm3)),
         max_advance_ratio=advance_ratio_limit(cfg.propulsion),
+        max_pack_current_a=limits[0],
+        max_motor_current_a=limits[1],
     )
 
 

@@ -87,6 +87,10 @@ def limit_lap_command(
         help="what the re-simulation check flies: lap (the whole lap's commands open loop "
              "from the start) or legs (each leg from the lap's own state at the leg's start: "
              "accepts an accurate lap that drifts open loop)")] = "lap",
+    laps: Annotated[int | None, typer.Option(
+        min=1, max=20, help="laps of the race, flown from the track's start (default: the "
+        "track's laps); with a pack capacity (battery.capacity_ah) the state of charge is "
+        "followed through it and a race the pack cannot fly is infeasible")] = None,
     as_json: JsonOpt = False,
     plot: PlotOpt = None,
     quiet: QuietOpt = False,
@@ -115,12 +119,14 @@ def limit_lap_command(
     from casadrone.config.airframe import load_airframe
     from casadrone.config.io import ConfigError, load
     from casadrone.config.track import TrackConfig
-    from casadrone.limit.lap import LimitLapOptions, check_inputs, frame_clearance_m, limit_lap
+    from casadrone.limit.lap import LimitLapOptions, check_inputs, frame_clearance_m
     from casadrone.limit.search import search_options
 
     cfg = load_airframe(airframe, overrides or [])
     track_path = _track_path(track)
     trk = load(TrackConfig, track_path)
+    if laps is not None:
+        trk = trk.model_copy(update={"laps": laps})
     if attitude not in ("euler", "quaternion") or tilt not in ("axes", "cone", "none"):
         raise ConfigError([f"--attitude {attitude} --tilt {tilt}: attitude is euler or quaternion, "
                        "tilt is axes, cone or none"])
@@ -154,9 +160,14 @@ def limit_lap_command(
                                                                cfg.prop_diameter_mm / 1000))
     if impossible:  # known before any solve: bad input, not a failed lap
         raise bad_input([f"{track_path}: {impossible} (refused before any solve)"])
+    from casadrone.limit.race import race, race_text
+
     with progress_lines("limit-lap", quiet):
-        lap = limit_lap(cfg, trk, options)
-    result = lap.as_dict()
+        flown = race(cfg, trk, options)
+    lap = flown.lap
+    result = lap.as_dict() | ({} if flown.energy is None else {"race": flown.as_dict()})
+    if not flown.feasible:
+        result |= {"status": "failed", "reason": flown.reason}
     from casadrone.airframe import build_airframe
     from casadrone.limit.check import lap_propulsion
 
@@ -169,7 +180,8 @@ def limit_lap_command(
     if as_json:
         print_json(result)
         return
-    typer.echo(_text(cfg.name, trk.name, result, frame.propulsion))
+    typer.echo("\n".join([_text(cfg.name, trk.name, result, frame.propulsion),
+                           *race_text(flown)]))
 
 
 def named_parameters(values: Iterable[float], propulsion: str) -> dict[str, float]:

@@ -180,9 +180,15 @@ class MotorConfig(Schema):
         "J_r R K_V²")
     mass_kg: float | None = Field(None, gt=0, le=10, description="datasheet mass (kg)")
     data: str | None = Field(None, description="the datasheet")
+    max_current_a: float | None = Field(
+        None, gt=0, le=1000, description="largest motor current (A, the datasheet's maximum); "
+        "the limit lap keeps every motor at or below it (kind: dc); none: unlimited")
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        if v.get("kind", "dc") != "dc" and v.get("max_current_a") is not None:
+            return [("max_current_a", "a current limit needs the motor's current: kind: dc "
+                     "(the first-order lag has no current); remove it or set kind: dc")]
         if v.get("kind", "dc") == "dc" and v.get("time_constant_s") is not None:
             return [("time_constant_s", "unused by kind: dc, whose rotor lag follows from the "
                      "rotor inertia, the winding resistance and K_V (J_r R K_V²); remove it, or "
@@ -191,13 +197,56 @@ class MotorConfig(Schema):
 
 
 class BatteryConfig(Schema):
-    """A battery pack: open-circuit voltage behind an internal resistance."""
+    """A battery pack: open-circuit voltage behind an internal resistance; with ``capacity_ah``
+    also its state of charge, the open-circuit voltage from it (``cells``, ``ocv_curve``) and
+    its current limit (``c_rating``): :mod:`casadrone.propulsion.electric`. Without
+    ``capacity_ah`` the open-circuit voltage is constant and nothing is limited."""
 
-    open_circuit_voltage_v: float = Field(gt=0, le=1000, description="V_oc (V)")
+    open_circuit_voltage_v: float = Field(gt=0, le=1000, description="V_oc (V) at the start "
+                                          "(with ocv_curve: sets the start's state of charge)")
     internal_resistance_ohm: float = Field(0.0, ge=0, le=100,
                                            description="pack resistance (Ω); 0: no sag")
     mass_kg: float | None = Field(None, gt=0, le=100, description="pack mass (kg)")
     data: str | None = Field(None, description="where the figures come from")
+    capacity_ah: float | None = Field(
+        None, gt=0, le=1000, description="capacity (Ah): the state of charge falls by "
+        "I/(3600 capacity) per second; none: no energy model")
+    c_rating: float | None = Field(
+        None, gt=0, le=1000, description="continuous C rating: the pack current stays at or "
+        "below c_rating x capacity_ah (A); none: unlimited")
+    cells: int | None = Field(None, ge=1, le=100, strict=True,
+                              description="cells in series (the S of 4S); needed by ocv_curve")
+    ocv_curve: tuple[tuple[float, float], ...] | None = Field(
+        None, min_length=2, description="the cell's open-circuit voltage against state of "
+        "charge, [[soc, volts], ...], soc from 0 to 1 and volts increasing; the pack's is cells "
+        "times it; none: open_circuit_voltage_v throughout")
+
+    @classmethod
+    def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
+        curve, cells = v.get("ocv_curve"), v.get("cells")
+        found = [(key, "needs capacity_ah (the pack's energy model)")
+                 for key in ("c_rating", "ocv_curve") if v.get(key) is not None
+                 and v.get("capacity_ah") is None]
+        if curve is None:
+            return found
+        if cells is None:
+            found.append(("cells", "required with ocv_curve (the pack's voltage is cells x the "
+                          "cell's)"))
+        soc, volts = [p[0] for p in curve], [p[1] for p in curve]
+        if soc[0] != 0 or soc[-1] != 1 or any(b <= a for a, b in zip(soc, soc[1:],
+                                                                     strict=False)):
+            found.append(("ocv_curve", f"state of charge must rise from 0 to 1, got {soc}"))
+        elif any(b <= a for a, b in zip(volts, volts[1:], strict=False)) or volts[0] <= 0:
+            found.append(("ocv_curve", f"cell volts must be positive and increasing with the "
+                          f"state of charge, got {volts}"))
+        elif cells is not None:
+            lo, hi = cells * volts[0], cells * volts[-1]
+            voc = v.get("open_circuit_voltage_v")
+            if voc is not None and not lo <= voc <= hi:
+                found.append(("open_circuit_voltage_v", f"{voc:g} V is outside the pack's "
+                              f"open-circuit voltages {lo:g}-{hi:g} V (cells x ocv_curve): it "
+                              "sets the start's state of charge"))
+        return found
 
 
 class PropulsionConfig(Schema):

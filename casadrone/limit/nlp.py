@@ -191,6 +191,11 @@ class Layout:
     #: propeller kind: four rows per node after the start, J_max n_i D − v_a,i ≥ 0, that keep
     #: every rotor inside its propeller data (:func:`advance_rows`); None: none
     max_advance_ratio: float | None = None
+    #: propeller kind with a pack's C rating / a motor's max_current_a: the pack current and
+    #: each motor's current at both ends of every interval at most these (A)
+    #: (:func:`current_rows`); None: no rows
+    max_pack_current_a: float | None = None
+    max_motor_current_a: float | None = None
 
     @property
     def n_legs(self) -> int:
@@ -472,6 +477,44 @@ def _interval_rows(model: OcpModel, M: int, X, U, p) -> list:
     return [(ca.vec(one.map(M)(X[:, :M], X[:, 1:M + 1], U, p)), lo, hi)]
 
 
+def current_rows(model: OcpModel, layout: Layout, X, U, p) -> list:
+    """The current limits (none where the layout has none): the pack current
+    (≤ ``max_pack_current_a``) and each motor's (≤ ``max_motor_current_a``) of the propulsion
+    kind (:meth:`casadrone.propulsion.base.PropulsionModel.currents`) at both ends of every
+    interval under its held command, X in the model's units.
+
+    Why both ends: with the command held, the currents are affine in the rotor speeds (the DC
+    motor's I = (δ V − ω/K_V)/R, V affine in ω), and the rotor speeds move monotonically within
+    an interval far shorter than their ~20 ms time constant, so the largest current of an
+    interval sits at one of its ends; the re-simulation checks every sample
+    (:func:`casadrone.limit.energy.flight_energy`). Like the advance-ratio rows they are
+    differentiated by CasADi beside the compiled interval blocks."""
+    pack_a, motor_a = layout.max_pack_current_a, layout.max_motor_current_a
+    if pack_a is None and motor_a is None:
+        return []
+    from casadrone.model import named
+
+    x, u, ps = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu), ca.SX.sym("p", model.np)
+    if model.rotor is None:
+        raise ValueError(f"model {model.name} has no rotors for a current limit")
+    out = propulsion_model(model.propulsion).currents(x[model.rotor], u,
+                                                      named(ps, model.propulsion))
+    if out is None:
+        raise ValueError(f"propulsion {model.propulsion} has no currents to limit")
+    rows, upper = [], []
+    if pack_a is not None:
+        rows.append(out[0])
+        upper.append(pack_a)
+    if motor_a is not None:
+        rows.append(out[1])
+        upper += [motor_a] * 4
+    node = ca.Function("current_rows", [x, u, ps], [ca.vertcat(*rows)])
+    M = layout.n_intervals
+    g = ca.vertcat(ca.vec(node.map(M)(X[:, :M], U, p)), ca.vec(node.map(M)(X[:, 1:M + 1], U, p)))
+    hi = np.tile(np.asarray(upper, float), 2 * M)
+    return [(g, np.full(hi.size, -np.inf), hi)]
+
+
 def _leg_end_rows(model: OcpModel, layout: Layout, X, targets, p) -> list:
     """Constraint rows of every leg's end node (its target) and, if asked, rest at the end;
     first, if asked, the advance-ratio rows of every node after the start (the rows whose
@@ -748,6 +791,7 @@ def _shooting_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray, np
 
     same_i = np.array([i for i in range(1, M) if i % N], dtype=int)
     trows = _interval_rows(model, M, X, Zb[1:1 + nu, :], p) + \
+        current_rows(model, layout, X, Zb[1:1 + nu, :], p) + \
         _leg_end_rows(model, layout, X, targets, p)
     gt = ca.vertcat(*[r[0] for r in trows])
     rows = [(dynamics(rk4_step(model, layout.substeps)), 0.0, 0.0),
@@ -852,6 +896,7 @@ def _collocation_nlp(model: OcpModel, layout: Layout) -> tuple[dict, np.ndarray,
     x0 = x_start if model.scale is None else x_start / unit
     rows = [(ca.vertcat(*res), 0.0, 0.0), (ca.vertcat(*x_end), 0.0, 0.0),
             (ca.vertcat(*same), 0.0, 0.0), (X[:, 0] - x0, 0.0, 0.0),
+            *current_rows(model, layout, Xp, U, p),
             *_leg_end_rows(model, layout, Xp, targets, p)]
     lbg, ubg = _bounds_of(rows)
     w = ca.vertcat(ca.vec(ca.vertcat(S, U, Z, X[:, :M])), X[:, M])

@@ -89,7 +89,8 @@ class Problem:
     @cached_property
     def point_mass(self) -> Nlp:  # only when a point-mass start or the reference needs it
         return build_nlp(point_mass_ocp_model(self.frame.propulsion),
-                         replace(self.layout, tilt_cone=False, max_advance_ratio=None),
+                         replace(self.layout, tilt_cone=False, max_advance_ratio=None,
+                                 max_pack_current_a=None, max_motor_current_a=None),
                          self.options.tol, self.options.max_iter)
 
     @cached_property
@@ -129,7 +130,9 @@ def prepare(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
     layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
                     options.substeps, end_at_rest=track.end in ("rest", "velocity"),
                     tilt_cone=options.tilt_limit == "cone", periodic=track.end == "periodic",
-                    max_advance_ratio=frame.max_advance_ratio)  # None: the model has none
+                    max_advance_ratio=frame.max_advance_ratio,  # None: the model has none
+                    max_pack_current_a=frame.max_pack_current_a,
+                    max_motor_current_a=frame.max_motor_current_a)
     model = ATTITUDE_MODELS[options.attitude](frame.propulsion)
     if is_lagless(frame):  # thrust.time_constant_s: 0, the lag-off idealisation
         model = without_lag(model)

@@ -119,6 +119,12 @@ class PropulsionModel(Protocol):
         """The rotor states giving ``thrust`` (N) at rest (symbolic or numeric)."""
         ...
 
+    def currents(self, rotor: Any, u: Any, q: Mapping) -> tuple[Any, Any] | None:
+        """(pack current (A), the four motor currents (A)) at rotor states ``rotor`` under
+        commands ``u`` (symbolic), what the limit lap's current limits bound
+        (:func:`casadrone.limit.nlp.current_rows`); None for a model without currents."""
+        ...
+
     def decay_rate(self, q: Mapping) -> Any:
         """The rotor states' linear decay rate λ (1/s) that depends on p only: the part −λ x of
         ẋ the exponential step integrates exactly (:func:`casadrone.limit.nlp.etdrk4_step`)."""

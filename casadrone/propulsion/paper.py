@@ -68,6 +68,10 @@ class PaperThrust:
     def static_rotors(self, thrust, q):
         return thrust
 
+    def currents(self, rotor, u, q):
+        """None: the thrust model has no current."""
+        return None
+
     def decay_rate(self, q):
         """1/τ of the thrust lag."""
         return 1 / q["tau"]

@@ -88,6 +88,7 @@ from casadrone.propulsion.data import (
     momentum_problem,
     shipped_datasets,
 )
+from casadrone.propulsion.electric import pack_current
 
 #: A ``propulsion:`` section, :class:`casadrone.config.propulsion.PropulsionConfig` (the schema
 #: sits above this package, so it is not imported here).
@@ -612,6 +613,12 @@ class Propeller:
 
     def decay_rate(self, q):
         return rotor_decay_rate(q)
+
+    def currents(self, rotor, u, q):
+        """(pack current Σ δ_i I_i, motor currents I_i) (A) of the DC motor model
+        (:func:`motor_currents`, :func:`casadrone.propulsion.electric.pack_current`)."""
+        _, current = motor_currents(rotor, u, q)
+        return pack_current(u, current), current
 
     def max_static_thrust(self, airframe) -> float:
         """The steady DC-motor/propeller balance with the battery's sag."""

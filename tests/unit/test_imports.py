@@ -343,6 +343,7 @@ LAZY_ALLOWED: dict[tuple[str, str], str] = {
     ("casadrone.cli.limit", "casadrone.config.track"): CLI,
     ("casadrone.cli.limit", "casadrone.limit.check"): CLI,
     ("casadrone.cli.limit", "casadrone.limit.lap"): CLI,
+    ("casadrone.cli.limit", "casadrone.limit.race"): CLI,
     ("casadrone.cli.limit", "casadrone.model"): CLI,
     ("casadrone.cli.limit", "casadrone.propulsion"): CLI,
     ("casadrone.cli.massprops", "casadrone.config.airframe"): CLI,

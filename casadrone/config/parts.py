@@ -231,7 +231,7 @@ def propeller_part(e: PropellerEntry) -> PropellerPart:
         j_max_measured=e.j_max_measured,
         rpm_min=e.rpm_min or 0.0, rpm_max=e.rpm_max or 0.0, sweep_rpm=None,
         reynolds_075_min=e.reynolds_075, reynolds_075_fit=None, ct_rms=0.0, cp_rms=0.0,
-        points=0, static_measured=e.basis != "assumed", mass_kg=e.mass_kg, chord_075=None,
+        points_fitted=0, static_measured=False, mass_kg=e.mass_kg, chord_075=None,
         source=e.source)
 
 

@@ -113,7 +113,7 @@ def fit_propeller(row: dict[str, str], points: list[tuple[float, float, float, f
         rpm_min=min(p[1] for p in points), rpm_max=max(p[1] for p in points), sweep_rpm=high,
         reynolds_075_min=reynolds(low), reynolds_075_fit=reynolds(high),
         ct_rms=_rms(ct, J, [p[2] for p in used]), cp_rms=_rms(cp, J, [p[3] for p in used]),
-        points=len(used), static_measured=any(p[0] == 0 for p in used), mass_kg=None,
+        points_fitted=len(used), static_measured=any(p[0] == 0 for p in used), mass_kg=None,
         chord_075=chord, source=row["source"])
 
 

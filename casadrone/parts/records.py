@@ -51,7 +51,13 @@ class PropellerPart(AsDict):
     Reynolds number at 75 % radius of the lowest-rpm sweep (``reynolds_075_min``) and of the
     fitted one (``reynolds_075_fit``) say how far below a racing rotor's (:meth:`reynolds_at`)
     they lie: small-propeller coefficients rise with the Reynolds number (thrust) and fall
-    (power) — the data's low-rpm caveat. None where the database gives no blade geometry."""
+    (power) — the data's low-rpm caveat. None where the database gives no blade geometry.
+
+    Beside them: ``sweep_rpm`` (the fitted sweep's rpm), ``ct_rms``/``cp_rms`` (RMS residual of
+    each fit over its ``points_fitted`` points), ``static_measured`` (C_T0, C_P0 rest on static
+    points, not on the sweep extrapolated to J = 0; False for a user's entry: unknown),
+    ``chord_075`` (blade chord over radius at 75 % radius), ``mass_kg`` (None: the database
+    weighs no propeller)."""
 
     name: str
     diameter_m: float
@@ -67,7 +73,7 @@ class PropellerPart(AsDict):
     reynolds_075_fit: float | None
     ct_rms: float
     cp_rms: float
-    points: int
+    points_fitted: int
     static_measured: bool
     mass_kg: float | None
     chord_075: float | None

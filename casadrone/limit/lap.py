@@ -58,6 +58,7 @@ import numpy as np
 
 from casadrone.airframe import Airframe
 from casadrone.config.airframe import AirframeConfig
+from casadrone.config.limitlap import COMMAND_GRID_ROUNDS, MAX_INTERVALS
 from casadrone.config.track import TrackConfig
 from casadrone.limit import events
 from casadrone.limit.choose import (
@@ -95,9 +96,7 @@ from casadrone.limit.problem import (
     track_targets,
 )
 from casadrone.limit.result import (
-    COMMAND_GRID_ROUNDS,
     DEFAULT_INTERVALS,
-    MAX_INTERVALS,
     Attitude,
     Certainty,
     LimitLap,

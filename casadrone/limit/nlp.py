@@ -33,6 +33,7 @@ import casadi as ca
 import numpy as np
 
 from casadrone.codegen import vector_flags
+from casadrone.config.limitlap import SOLVERS
 from casadrone.limit.gates import (  # noqa: F401 (re-exported: the NLP's target layout)
     TARGET_SIZE,
     TargetKind,
@@ -921,10 +922,6 @@ class NlpSolution:
     fatrop: tuple[str, int, float] | None = None
 
 
-#: NLP solvers of the limit lap: IPOPT (general sparse, MUMPS: the reference) and fatrop
-#: (Riccati recursion over the stages of the same NLP put in stage order,
-#: :mod:`casadrone.limit.stagewise`; IPOPT re-solves from the same start where it fails).
-SOLVERS: tuple[str, ...] = ("ipopt", "fatrop")
 
 
 def solve(nlp: Nlp, w0: np.ndarray, P: np.ndarray, lbx: np.ndarray, ubx: np.ndarray,

@@ -10,16 +10,20 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from casadrone.airframe import Airframe
+from casadrone.config.limitlap import (
+    MAX_GRID_ROUNDS,
+    MAX_INTERVALS,
+    MAX_SUBSTEPS,
+    ROTOR_STEPS,
+    SOLVERS,
+)
 from casadrone.config.track import TrackConfig, unreachable_target
 from casadrone.guidance import segment_headings
 from casadrone.limit.gates import MAX_EDGES, TargetKind, gate_frame, target_vector
-from casadrone.limit.nlp import SOLVERS, Nlp
+from casadrone.limit.nlp import Nlp
 from casadrone.limit.result import (
     DEFAULT_INTERVALS,
-    MAX_INTERVALS,
-    MAX_SUBSTEPS,
     MAX_TOTAL_INTERVALS,
-    ROTOR_STEPS,
     LimitLapOptions,
     model_states,
 )
@@ -99,8 +103,6 @@ def track_targets(track: TrackConfig, options: LimitLapOptions,
                                                frames, edges), first, tuple(ends), route)
 
 
-#: At most this many grid-continuation rounds (each about four solves).
-MAX_GRID_ROUNDS = 5
 #: Shortest leg duration (s) of the limit lap's box (:func:`bounds`): a leg of zero time would
 #: make its RK4 steps zero and its dynamics rows empty.
 MIN_LEG_S = 1e-3

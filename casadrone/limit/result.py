@@ -7,28 +7,25 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Literal, get_args
+from typing import Literal
 
 import numpy as np
 
 from casadrone.config.controller import ControllerConfig
+from casadrone.config.limitlap import (
+    Attitude,
+    Resimulation,
+    RotorStep,
+    Solver,
+    Start,
+    TiltLimit,
+)
 from casadrone.limit.nlp import Layout, NlpPoint
 from casadrone.limit.sensitivity import KeySensitivity
 from casadrone.model import NX
 from casadrone.propulsion import PROPULSION_MODELS
 from casadrone.results import AsDict, Status
 
-Start = Literal["closed-loop", "point-mass", "coarse-grid", "fine-grid", "relaxed-tolerance"]
-#: The attitude models of the limit lap, and the ways it limits the tilt.
-Attitude = Literal["euler", "quaternion"]
-TiltLimit = Literal["axes", "cone", "none"]
-#: What the re-simulation check flies (LimitLapOptions.resimulation).
-Resimulation = Literal["lap", "legs"]
-#: NLP solvers of the full model (casadrone.limit.nlp.SOLVERS).
-Solver = Literal["ipopt", "fatrop"]
-#: Steps of the rotor states (LimitLapOptions.rotor_step).
-RotorStep = Literal["rk4", "exponential"]
-ROTOR_STEPS: tuple[str, ...] = get_args(RotorStep)
 #: How far the verified starts agree (:func:`casadrone.limit.choose.certainty`).
 Certainty = Literal["agreed", "single", "spread"]
 #: How one solve ended, whatever the solver (:func:`ending`): "optimal" (converged to the
@@ -87,31 +84,14 @@ class _DefaultIntervals(Mapping[str, int]):
 #: Intervals per leg by propulsion kind (LimitLapOptions.intervals None): each model's own
 #: (:attr:`casadrone.propulsion.base.PropulsionModel.default_intervals`; paper 40, propeller 80).
 DEFAULT_INTERVALS: Mapping[str, int] = _DefaultIntervals()
-#: Grid rounds of ``casadrone limit-lap --certify`` unless ``--grid-rounds`` says otherwise
-#: (casadrone.limit.search; the fast path runs none): a certificate answers one frame's
-#: question, so it pays 1.2-2.9x the CPU (median 1.8x) for the best optimum
-#: it can reach. Measured on the five reference frames over the paper, gate and split-S tracks
-#: (benchmarks/RESULTS-limitlap-issue19.md, "Grid rounds as the command's default"): 9 of 15
-#: laps 0.04-1.19 % faster (never slower: the fastest verified start wins), every frame's paper
-#: lap the best known for it, and SY250's the same (3.8795 s) on two VMs whose starts alone had
-#: stopped at 3.8800 and 3.8914 s. Rounds stop when one gains less than CERTAIN_REL; none of
-#: the calls measured ran a third.
-COMMAND_GRID_ROUNDS = 3
-#: Most intervals per leg. Grid refinement moved SY250's lap by 0.02 % from 40 to 80 intervals
-#: (LimitLapOptions.intervals), so 400 is ten times finer than any measured need; the NLP's
-#: memory grows in proportion (20 000 intervals reached 5.8 GB and failed to allocate), so 400
-#: stays near 0.1 GB.
-MAX_INTERVALS = 400
 #: Most intervals over the whole course (legs × laps × intervals per leg), the grid rounds and
 #: the refinement then solving up to 1.5× as many. The NLP's memory grows ~0.3 MB per interval
-#: in a whole limit lap (the 5.8 GB of 20 000 above; building the NLP and three IPOPT
-#: iterations alone: 0.07-0.1 MB, 390 MB at 3 200), so 6 000 keep a limit lap within about
-#: 2-3 GB, and still take a 20-gate, three-lap race at the propeller model's 80 per leg. A
-#: 5 000-waypoint, 20-lap track had run out of memory (5.4 GB under a 6 GB limit) unrefused.
+#: in a whole limit lap (20 000 reached 5.8 GB: casadrone.config.limitlap.MAX_INTERVALS;
+#: building the NLP and three IPOPT iterations alone: 0.07-0.1 MB, 390 MB at 3 200), so 6 000
+#: keep a limit lap within about 2-3 GB, and still take a 20-gate, three-lap race at the
+#: propeller model's 80 per leg. A 5 000-waypoint, 20-lap track had run out of memory (5.4 GB
+#: under a 6 GB limit) unrefused.
 MAX_TOTAL_INTERVALS = 6000
-#: Most integration steps per shooting interval: each one adds to the compiled interval
-#: blocks (4 exponential steps of the propeller model: an 11 MB Hessian block of C).
-MAX_SUBSTEPS = 20
 
 
 @dataclass(frozen=True)

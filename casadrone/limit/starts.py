@@ -18,6 +18,7 @@ import numpy as np
 
 from casadrone.airframe import Airframe
 from casadrone.config.airframe import AirframeConfig
+from casadrone.config.limitlap import MAX_INTERVALS
 from casadrone.config.track import TrackConfig
 from casadrone.limit import events
 from casadrone.limit.guesses import (
@@ -42,7 +43,6 @@ from casadrone.limit.nlp import (
 from casadrone.limit.pointmass import point_mass_reference
 from casadrone.limit.problem import Targets, bounds, row_bounds, start_state, track_targets
 from casadrone.limit.result import (
-    MAX_INTERVALS,
     LimitLap,
     LimitLapOptions,
     Start,

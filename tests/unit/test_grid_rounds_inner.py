@@ -51,9 +51,10 @@ def test_the_command_runs_grid_rounds_with_certify_and_the_library_does_not(monk
     stays 0 rounds."""
     from typer.testing import CliRunner
 
-    import casadrone.limit.lap as lap_module
+    import casadrone.cli.limit as command
     from casadrone.cli import app
-    from casadrone.limit.result import COMMAND_GRID_ROUNDS, LimitLap
+    from casadrone.config.limitlap import COMMAND_GRID_ROUNDS
+    from casadrone.limit.result import LimitLap
     from casadrone.limit.search import SEARCHES
 
     seen = []
@@ -62,7 +63,7 @@ def test_the_command_runs_grid_rounds_with_certify_and_the_library_does_not(monk
         seen.append((options.starts, options.grid_rounds))
         return LimitLap(status="failed", reason="not solved: the options were recorded")
 
-    monkeypatch.setattr(lap_module, "limit_lap", fake)
+    monkeypatch.setattr(command, "limit_lap", fake)
     runner = CliRunner()
     for args in ([], ["--certify"], ["--certify", "--grid-rounds", "0"], ["--grid-rounds", "2"]):
         r = runner.invoke(app, ["limit-lap", "SY250", "--json", *args])

@@ -32,7 +32,7 @@ from benchmarks.machine import markdown  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load, resolve_config  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
-from casadrone.limit.lap import LimitLap, LimitLapOptions, limit_lap  # noqa: E402
+from casadrone.limit.lap import LimitLap, LimitLapOptions, design_limit_lap  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 REL = 1e-3  # "the same optimum": within 0.1 % of the best
@@ -41,7 +41,7 @@ REL = 1e-3  # "the same optimum": within 0.1 % of the best
 def call(frame: str, track: TrackConfig, options: LimitLapOptions, strategy: str, grid: int,
          log) -> tuple[dict, LimitLap]:
     c0 = time.process_time()
-    lap = limit_lap(load_airframe(frame), track, options)
+    lap = design_limit_lap(load_airframe(frame), track, options)
     row = {"frame": frame, "grid": grid, "strategy": strategy, "status": lap.status,
            "lap_time_s": lap.lap_time_s if lap.completed else None,
            "miss_m": lap.resimulation_miss_m, "iterations": lap.iterations,

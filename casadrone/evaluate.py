@@ -57,7 +57,7 @@ class EvaluationSetup:
         """The limit laps of ``limit_references``, solved once per process: every worker holds
         the same ones (same inputs, deterministic IPOPT), so warm-starting a candidate from them
         gives the same result on every backend and in any evaluation order."""
-        from casadrone.limit.lap import limit_lap
+        from casadrone.limit.lap import design_limit_lap
 
         if self.limit is None:  # no limit lap in this study: nothing to warm-start
             return ()
@@ -67,7 +67,7 @@ class EvaluationSetup:
                 cfg = with_theta(self.template, theta)
             except ConfigError:  # a reference outside the valid geometries is skipped
                 continue
-            laps.append(limit_lap(cfg, self.track, self.limit))
+            laps.append(design_limit_lap(cfg, self.track, self.limit))
         return tuple(lap for lap in laps if lap.completed)
 
     @cached_property
@@ -188,19 +188,20 @@ def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory
     every worker, so the result does not depend on the backend or the evaluation order); from
     its closed-loop lap when no reference solved or every warm start failed, then from
     ``fallback_reference`` (only in that cold call: the references were tried already)."""
-    from casadrone.limit.lap import limit_lap
+    from casadrone.limit.lap import design_limit_lap
 
     assert setup.limit is not None
     cold = replace(setup.limit, guess_trajectory=traj, starts=("closed-loop", "point-mass"),
                    warm_starts=(), sensitivities=False)
     warm = setup.limit_warm_starts
     if not warm:
-        return limit_lap(cfg, setup.track, cold)
-    first = limit_lap(cfg, setup.track, replace(cold, starts=(), warm_starts=warm,
-                                                fallback_reference=None, refinements=0))
+        return design_limit_lap(cfg, setup.track, cold)
+    first = design_limit_lap(cfg, setup.track, replace(
+        cold, starts=(), warm_starts=warm, fallback_reference=None, refinements=0))
     if first.completed:
         return first
-    lap = limit_lap(cfg, setup.track, cold)  # every warm start failed: the cold starts decide
+    # every warm start failed: the cold starts decide
+    lap = design_limit_lap(cfg, setup.track, cold)
     if not lap.completed:
         lap = replace(lap, reason=f"warm starts: {first.reason}; cold starts: {lap.reason}")
     return lap

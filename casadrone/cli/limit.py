@@ -39,8 +39,8 @@ from casadrone.limit.lap import (
     LimitLapOptions,
     check_inputs,
     closed_loop_lap,
+    design_limit_lap,
     frame_clearance_m,
-    limit_lap,
     track_targets,
 )
 from casadrone.limit.search import lap_options
@@ -157,7 +157,7 @@ def limit_lap_command(
     setup = load_setup(airframe, overrides or [], track,
                        {k: v for k, v in given.items() if v is not None})
     with progress_lines("limit-lap", quiet):
-        lap = limit_lap(setup.config, setup.track, setup.options)
+        lap = design_limit_lap(setup.config, setup.track, setup.options, setup.frame)
     result = lap_result(setup, lap, plot)
     if as_json:
         print_json(result)

@@ -16,8 +16,8 @@ from functools import cached_property
 
 import numpy as np
 
-from casadrone.airframe import Airframe
-from casadrone.config.airframe import AirframeConfig
+from casadrone.airframe import Airframe, build_airframe
+from casadrone.config.airframe import load_airframe
 from casadrone.config.limitlap import MAX_INTERVALS
 from casadrone.config.track import TrackConfig
 from casadrone.limit import events
@@ -41,7 +41,14 @@ from casadrone.limit.nlp import (
     solve,
 )
 from casadrone.limit.pointmass import point_mass_reference
-from casadrone.limit.problem import Targets, bounds, row_bounds, start_state, track_targets
+from casadrone.limit.problem import (
+    Targets,
+    bounds,
+    frame_clearance_m,
+    row_bounds,
+    start_state,
+    track_targets,
+)
 from casadrone.limit.result import (
     LimitLap,
     LimitLapOptions,
@@ -61,7 +68,7 @@ RELAXED_RADIUS_M = 1.0
 #: A named solve: the start's name and what IPOPT gave from it.
 StartSolve = tuple[str, NlpSolution]
 #: The limit lap itself (:func:`casadrone.limit.lap.limit_lap`), for starts that need one.
-LapOf = Callable[[Airframe | AirframeConfig, TrackConfig, LimitLapOptions], LimitLap]
+LapOf = Callable[[Airframe, TrackConfig, LimitLapOptions], LimitLap]
 
 
 @dataclass(frozen=True)
@@ -314,16 +321,21 @@ def reference_lap(name: str, track: TrackConfig, options: LimitLapOptions,
                   lap_of: LapOf) -> LimitLap:
     """The limit lap of the shipped airframe ``name`` on ``track`` with ``options`` (its own
     cold starts only, no point-mass reference or sensitivities), solved once per process and
-    cached: deterministic, so a cache hit is the same result as a new solve."""
-    from casadrone.config.airframe import load_airframe
-
+    cached: deterministic, so a cache hit is the same result as a new solve. Its gates keep the
+    reference's own clearance (its config's propeller; ``options.gate_clearance_m`` where set)."""
     ref_options = replace(options, warm_starts=(), guess_trajectory=None,
                           point_mass_reference=False, sensitivities=False,
                           fallback_reference=None, starts=LimitLapOptions.starts,
                           grid_rounds=0)
     key = (name, track.model_dump_json(), repr(ref_options))
     if key not in _REFERENCE_LAPS:
-        _REFERENCE_LAPS[key] = lap_of(load_airframe(name), track, ref_options)
+        cfg = load_airframe(name)
+        frame = build_airframe(cfg)
+        clearance_m = ref_options.gate_clearance_m
+        if clearance_m is None:
+            clearance_m = frame_clearance_m(frame, cfg.prop_diameter_mm / 1000)
+        _REFERENCE_LAPS[key] = lap_of(frame, track,
+                                      replace(ref_options, gate_clearance_m=clearance_m))
     return _REFERENCE_LAPS[key]
 
 

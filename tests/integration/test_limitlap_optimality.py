@@ -32,7 +32,7 @@ from scipy.integrate import solve_ivp
 from casadrone.airframe import build_airframe
 from casadrone.config.airframe import load_airframe
 from casadrone.config.track import TrackConfig
-from casadrone.limit.lap import LimitLapOptions, limit_lap
+from casadrone.limit.lap import LimitLapOptions, design_limit_lap
 from casadrone.model import PARAM_NAMES, quadrotor_model
 
 NAME = "SY250"
@@ -57,7 +57,7 @@ def frame(cfg):
 def lap(cfg):
     """The one cold solve of the module (every start, point-mass reference, re-simulation and
     sensitivities, as a user gets them)."""
-    return limit_lap(cfg, TRACK, OPTIONS)
+    return design_limit_lap(cfg, TRACK, OPTIONS)
 
 
 def straight_intervals(lap) -> np.ndarray:
@@ -202,7 +202,7 @@ def _resolved(lap, name_overrides: list[str]):
     opts = replace(OPTIONS, warm_starts=(lap,), starts=(), point_mass_reference=False,
                    resimulate=False,
                    sensitivities=False)
-    out = limit_lap(load_airframe(NAME, name_overrides), TRACK, opts)
+    out = design_limit_lap(load_airframe(NAME, name_overrides), TRACK, opts)
     assert out.completed, out.reason
     return out.lap_time_s
 

@@ -59,11 +59,11 @@ def test_the_command_runs_grid_rounds_with_certify_and_the_library_does_not(monk
 
     seen = []
 
-    def fake(cfg, track, options):
+    def fake(cfg, track, options, frame=None):
         seen.append((options.starts, options.grid_rounds))
         return LimitLap(status="failed", reason="not solved: the options were recorded")
 
-    monkeypatch.setattr(command, "limit_lap", fake)
+    monkeypatch.setattr(command, "design_limit_lap", fake)
     runner = CliRunner()
     for args in ([], ["--certify"], ["--certify", "--grid-rounds", "0"], ["--grid-rounds", "2"]):
         r = runner.invoke(app, ["limit-lap", "SY250", "--json", *args])

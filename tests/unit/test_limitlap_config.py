@@ -101,11 +101,11 @@ def recorded(monkeypatch):
 
     seen = []
 
-    def fake(cfg, track, options):
+    def fake(cfg, track, options, frame=None):
         seen.append(options)
         return LimitLap(status="failed", reason="not solved: the options were recorded")
 
-    monkeypatch.setattr(command, "limit_lap", fake)
+    monkeypatch.setattr(command, "design_limit_lap", fake)
     return seen
 
 

@@ -247,13 +247,13 @@ def test_fatrop_and_ipopt_give_the_same_quadrotor_lap():
     from casadrone.config.io import load
     from casadrone.config.track import TrackConfig
     from casadrone.evaluate import DEFAULT_TRACK
-    from casadrone.limit.lap import LimitLapOptions, limit_lap
+    from casadrone.limit.lap import LimitLapOptions, design_limit_lap
 
     track = load(TrackConfig, DEFAULT_TRACK)
     opts = LimitLapOptions(intervals=40, starts=("closed-loop",), point_mass_reference=False,
                            sensitivities=False, fallback_reference=None)
-    ip = limit_lap(load_airframe("SY250"), track, opts)
-    fa = limit_lap(load_airframe("SY250"), track, replace(opts, solver="fatrop"))
+    ip = design_limit_lap(load_airframe("SY250"), track, opts)
+    fa = design_limit_lap(load_airframe("SY250"), track, replace(opts, solver="fatrop"))
     assert ip.completed and fa.completed, (ip.reason, fa.reason)
     assert [s.solver for s in fa.starts] == ["fatrop"]
     assert abs(fa.lap_time_s - ip.lap_time_s) <= 1e-4 * ip.lap_time_s

@@ -121,11 +121,11 @@ def test_cli_rotor_step_and_substeps_reach_the_options(monkeypatch, cli_runner):
 
     seen = []
 
-    def fake(cfg, track, options):
+    def fake(cfg, track, options, frame=None):
         seen.append((options.rotor_step, options.substeps, options.intervals))
         return LimitLap(status="failed", reason="not solved: the options were recorded")
 
-    monkeypatch.setattr(command, "limit_lap", fake)
+    monkeypatch.setattr(command, "design_limit_lap", fake)
     for args in ([], ["--rotor-step", "exponential", "--substeps", "4", "--intervals", "40"]):
         r = cli_runner.invoke(app, ["limit-lap", "SY250-propeller", "--json", *args])
         assert r.exit_code == 0, r.output

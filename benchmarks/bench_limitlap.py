@@ -50,7 +50,7 @@ from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
-from casadrone.limit.lap import LimitLapOptions, design_limit_lap  # noqa: E402
+from casadrone.limit.lap import LapSeeds, LimitLapOptions, design_limit_lap  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
@@ -113,10 +113,10 @@ def main(argv: list[str] | None = None) -> int:
         if not others:
             break
         j = nearest(i, others, unit)[0]
-        wopts = replace(options, starts=(), warm_starts=(cold[j][1],), point_mass_reference=False,
-                        resimulate=False, sensitivities=False)
+        wopts = replace(options, starts=(), point_mass_reference=False, resimulate=False,
+                        sensitivities=False)
         c0 = cpu_time()
-        lap = design_limit_lap(cold[i][0], track, wopts)
+        lap = design_limit_lap(cold[i][0], track, wopts, LapSeeds(warm_starts=(cold[j][1],)))
         warm.append((i, lap, cpu_time() - c0))
     laps = np.array([cold[i][1].lap_time_s for i in ok])
     lbs = np.array([cold[i][1].point_mass_reference_s for i in ok])

@@ -54,8 +54,7 @@ def main() -> None:
     rows = rows[:args.members]
     n_var = len(header) - len(study.objective_names)
     col = header.index(args.index)
-    options = replace(setup.limit, starts=LimitLapOptions().starts, warm_starts=(),
-                      sensitivities=False)
+    options = replace(setup.limit, starts=LimitLapOptions().starts, sensitivities=False)
     lines = [f"Front of `{args.run_dir}` ({len(rows)} members), each re-solved with the default "
              f"starts {', '.join(options.starts)}; {options.intervals or 'default'} intervals "
              "per leg.", "",

@@ -46,7 +46,7 @@ from casadrone.config.io import load, resolve_config  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK, default_setup, evaluate, theta_of  # noqa: E402
 from casadrone.limit.check import lap_propulsion  # noqa: E402
-from casadrone.limit.lap import LimitLapOptions, design_limit_lap  # noqa: E402
+from casadrone.limit.lap import LapSeeds, LimitLapOptions, design_limit_lap  # noqa: E402
 from casadrone.model import propeller_outputs  # noqa: E402
 from casadrone.propulsion import max_static_thrust, rotor_thrust_bound  # noqa: E402
 from casadrone.trim import trim  # noqa: E402
@@ -218,11 +218,11 @@ def warm_solves(rep: Report, n: int, seed: int, options: LimitLapOptions, solved
         for _ in range(n):
             theta = {k: float(np.clip(getattr(cfg, k) + 0.05 * (hi - lo) * rng.uniform(-1, 1),
                                       lo, hi)) for k, (lo, hi) in TABLE1_BOUNDS.items()}
-            opts = replace(options, starts=(), warm_starts=(lap0,),
-                           point_mass_reference=False, sensitivities=False,
+            opts = replace(options, starts=(), point_mass_reference=False, sensitivities=False,
                            fallback_reference=None)
             near = with_theta(cfg, theta)
-            lap, t = cpu(lambda c=near, o=opts: design_limit_lap(c, track, o))
+            seeds = LapSeeds(warm_starts=(lap0,))
+            lap, t = cpu(lambda c=near, o=opts, s=seeds: design_limit_lap(c, track, o, s))
             times.append(t if lap.completed else np.nan)
             iters.append(lap.iterations if lap.completed else np.nan)
         t_arr = np.array(times)

@@ -157,7 +157,8 @@ def limit_lap_command(
     setup = load_setup(airframe, overrides or [], track,
                        {k: v for k, v in given.items() if v is not None})
     with progress_lines("limit-lap", quiet):
-        lap = design_limit_lap(setup.config, setup.track, setup.options, setup.frame)
+        lap = design_limit_lap(setup.config, setup.track, setup.options,
+                               frame=setup.frame)
     result = lap_result(setup, lap, plot)
     if as_json:
         print_json(result)

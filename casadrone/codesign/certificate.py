@@ -20,7 +20,7 @@ At a returned point (θ*, laps):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import casadi as ca
@@ -30,7 +30,7 @@ from casadrone.airframe import build_airframe
 from casadrone.codesign.nlp import epsilon_rows
 from casadrone.config.io import ConfigError
 from casadrone.limit.check import resimulation_miss, theta_sensitivities
-from casadrone.limit.lap import design_limit_lap, model_states, start_state
+from casadrone.limit.lap import LapSeeds, design_limit_lap, model_states, start_state
 from casadrone.limit.nlp import NlpPoint
 from casadrone.limit.starts import prepare, trajectory
 from casadrone.model import n_params
@@ -281,8 +281,8 @@ def _fixed_laps(prep, point, k: int, cfg):
     track = prep.tracks[k]
     warm, pb = _fixed_warm(prep, point, k, cfg)
     ref = prep.template_laps[k]
-    cold = design_limit_lap(cfg, track, replace(prep.options, warm_starts=(ref,)
-                                                if ref.solution is not None else ()))
+    cold = design_limit_lap(cfg, track, prep.options, LapSeeds(
+        warm_starts=(ref,) if ref.solution is not None else ()))
     return warm, cold, pb
 
 

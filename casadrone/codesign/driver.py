@@ -36,6 +36,7 @@ from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
 from casadrone.limit.lap import (
     DEFAULT_INTERVALS,
+    LapSeeds,
     LimitLap,
     LimitLapOptions,
     design_limit_lap,
@@ -272,8 +273,9 @@ def resampled(prep: Prepared, point: CodesignPoint, to: Prepared) -> np.ndarray 
         T, _, _ = part.nlp.unpack(w)
         own = replace(trajectory(part.nlp, w, part.nlp.layout), leg_times_s=T,
                       solution=NlpPoint(w, np.zeros(0), np.zeros(0), np.zeros(0)))
-        lap = design_limit_lap(cfg, track, replace(to.options, warm_starts=(own,), starts=(),
-                                                   point_mass_reference=False))
+        lap = design_limit_lap(cfg, track, replace(to.options, starts=(),
+                                                   point_mass_reference=False),
+                               LapSeeds(warm_starts=(own,)))
         if not lap.completed or lap.solution is None:
             return None
         out.append(lap.solution.w)
@@ -317,10 +319,10 @@ def initial_vector(prep: Prepared, theta: dict[str, float]) -> np.ndarray | None
     cfg = prep.config(theta)
     ws, laps = [], []
     for track, ref in zip(prep.tracks, prep.template_laps, strict=True):
-        opts = replace(prep.options, warm_starts=(ref,) if ref.solution is not None else (),
-                       starts=() if ref.solution is not None else prep.options.starts,
+        warm = (ref,) if ref.solution is not None else ()
+        opts = replace(prep.options, starts=() if warm else prep.options.starts,
                        point_mass_reference=False)
-        lap = design_limit_lap(cfg, track, opts)
+        lap = design_limit_lap(cfg, track, opts, LapSeeds(warm_starts=warm))
         if not lap.completed or lap.solution is None:
             return None
         ws.append(lap.solution.w)

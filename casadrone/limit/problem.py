@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from casadrone.airframe import Airframe
+from casadrone.airframe import PARAM_NAMES, Airframe
 from casadrone.config.limitlap import (
     MAX_GRID_ROUNDS,
     MAX_INTERVALS,
@@ -59,8 +59,6 @@ def frame_clearance_m(airframe: Airframe, prop_diameter_m: float = 0.127) -> flo
     """The frame's own size as a gate clearance (m): the farthest rotor centre from the centre
     of mass in the rotor plane plus a propeller's radius (the default 127 mm is the paper's
     5-inch propeller, AirframeConfig's default)."""
-    from casadrone.airframe import PARAM_NAMES
-
     at = PARAM_NAMES.index("r1x")
     r = np.asarray(airframe.p[at:at + 12]).reshape(4, 3)[:, 0:2]
     return float(np.linalg.norm(r, axis=1).max()) + prop_diameter_m / 2

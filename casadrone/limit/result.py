@@ -1,5 +1,6 @@
-"""The limit lap's options and result types (docs/concepts/limit-lap.md): what goes into
-:func:`casadrone.limit.lap.limit_lap` and what comes out, with the conversions between the
+"""The limit lap's options, seeds and result types (docs/concepts/limit-lap.md): what goes into
+:func:`casadrone.limit.lap.limit_lap` (settings, :class:`LimitLapOptions`; data,
+:class:`LapSeeds`) and what comes out, with the conversions between the
 model's states and the 16 Euler-model states."""
 
 from __future__ import annotations
@@ -7,7 +8,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, Protocol
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from casadrone.config.limitlap import (
     Start,
     TiltLimit,
 )
+from casadrone.limit.attitude import euler_states_to_quat, quat_states_to_euler
 from casadrone.limit.nlp import Layout, NlpPoint
 from casadrone.limit.sensitivity import KeySensitivity
 from casadrone.model import NX
@@ -52,8 +54,6 @@ def ending(success: bool, return_status: str) -> Ending:
 def euler_states(attitude: str, X: np.ndarray) -> np.ndarray:
     """Model states (rows) as 16 Euler-model states."""
     if attitude == "quaternion":
-        from casadrone.limit.attitude import quat_states_to_euler
-
         return quat_states_to_euler(X)
     return np.asarray(X, float)
 
@@ -61,8 +61,6 @@ def euler_states(attitude: str, X: np.ndarray) -> np.ndarray:
 def model_states(attitude: str, X: np.ndarray) -> np.ndarray:
     """16 Euler-model states (rows) as the model's states."""
     if attitude == "quaternion":
-        from casadrone.limit.attitude import euler_states_to_quat
-
         return euler_states_to_quat(X)
     return np.atleast_2d(np.asarray(X, float))
 
@@ -129,8 +127,6 @@ class LimitLapOptions:
     # fine-grid start on another VM). The relaxed-tolerance start lands where the point-mass
     # start does.
     starts: tuple[Start, ...] = ("closed-loop", "point-mass", "coarse-grid", "fine-grid")
-    warm_starts: tuple[LimitLap, ...] = ()  # neighbouring solutions (same legs; any grid)
-    guess_trajectory: object | None = None  # the frame's closed-loop lap, if already flown
     ball_radius_m: float | None = None  # None: the track's acceptance radius
     # Kept from the gate's frame on each side (m); None: the frame's own size (the farthest
     # rotor plus a propeller radius, frame_clearance_m).
@@ -144,7 +140,6 @@ class LimitLapOptions:
     # tilt (angle between body z and world z, at every node), or "none".
     tilt_limit: TiltLimit = "axes"
     start_state: tuple[float, ...] | None = None  # 16 values; None: hover at the start
-    controller: ControllerConfig | None = None  # closed-loop guess; None: default controller
     # NLP solver of the full model: "ipopt" (the reference) or "fatrop" (the same NLP in stage
     # order, Riccati factorisation; IPOPT re-solves where it fails: casadrone.limit.stagewise).
     # The point-mass reference is always IPOPT's.
@@ -185,6 +180,35 @@ class LimitLapOptions:
     # command's default is COMMAND_GRID_ROUNDS (benchmarks/RESULTS-limitlap-issue19.md, "Grid
     # rounds as the command's default").
     grid_rounds: int = 0
+
+
+class FlownLap(Protocol):
+    """What the closed-loop start reads of a lap already flown (a
+    :class:`casadrone.simulate.Trajectory`, whose module this one does not import): sample times
+    (s), the 16 Euler-model states and the ESC commands at them, the route segment flown."""
+
+    @property
+    def t(self) -> np.ndarray: ...
+
+    @property
+    def x(self) -> np.ndarray: ...
+
+    @property
+    def u(self) -> np.ndarray: ...
+
+    @property
+    def segment(self) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class LapSeeds:
+    """What a limit lap may start from beside its options' cold starts: data (earlier laps, a
+    flown trajectory, the controller that flies the closed-loop start), never settings, so the
+    options stay the same for every candidate of a study while the seeds differ."""
+
+    warm_starts: tuple[LimitLap, ...] = ()  # neighbouring solutions (same legs; any grid)
+    guess_trajectory: FlownLap | None = None  # the frame's closed-loop lap, if already flown
+    controller: ControllerConfig | None = None  # closed-loop start; None: the default controller
 
 
 @dataclass(frozen=True)

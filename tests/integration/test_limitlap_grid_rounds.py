@@ -16,7 +16,13 @@ from casadrone.config.airframe import load_airframe
 from casadrone.config.io import load
 from casadrone.config.track import TrackConfig
 from casadrone.evaluate import DEFAULT_TRACK
-from casadrone.limit.lap import CERTAIN_REL, LimitLapOptions, check_inputs, design_limit_lap
+from casadrone.limit.lap import (
+    CERTAIN_REL,
+    LapSeeds,
+    LimitLapOptions,
+    check_inputs,
+    design_limit_lap,
+)
 
 OPTIONS = LimitLapOptions(intervals=24, starts=("point-mass",), sensitivities=False,
                           fallback_reference=None)
@@ -43,8 +49,9 @@ def test_a_round_leaves_the_start_for_a_faster_verified_lap(laps):
 
 def test_the_chosen_lap_is_an_optimum_of_its_own_grid(laps):
     frame, track, _, rounds = laps
-    again = design_limit_lap(frame, track, replace(OPTIONS, starts=(), warm_starts=(rounds,),
-                                                   point_mass_reference=False))
+    again = design_limit_lap(frame, track, replace(OPTIONS, starts=(),
+                                                   point_mass_reference=False),
+                             LapSeeds(warm_starts=(rounds,)))
     assert again.completed and again.start == "warm-1"
     assert again.lap_time_s == pytest.approx(rounds.lap_time_s, rel=1e-6)
 

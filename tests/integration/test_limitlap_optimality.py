@@ -32,7 +32,7 @@ from scipy.integrate import solve_ivp
 from casadrone.airframe import build_airframe
 from casadrone.config.airframe import load_airframe
 from casadrone.config.track import TrackConfig
-from casadrone.limit.lap import LimitLapOptions, design_limit_lap
+from casadrone.limit.lap import LapSeeds, LimitLapOptions, design_limit_lap
 from casadrone.model import PARAM_NAMES, quadrotor_model
 
 NAME = "SY250"
@@ -199,10 +199,10 @@ RELAXATION_RTOL = 4e-4  # ~10x the observed 2.4e-5 to 3.7e-5
 
 def _resolved(lap, name_overrides: list[str]):
     """The lap of SY250 with ``overrides``, warm-started from ``lap`` (the same local optimum)."""
-    opts = replace(OPTIONS, warm_starts=(lap,), starts=(), point_mass_reference=False,
-                   resimulate=False,
+    opts = replace(OPTIONS, starts=(), point_mass_reference=False, resimulate=False,
                    sensitivities=False)
-    out = design_limit_lap(load_airframe(NAME, name_overrides), TRACK, opts)
+    out = design_limit_lap(load_airframe(NAME, name_overrides), TRACK, opts,
+                           LapSeeds(warm_starts=(lap,)))
     assert out.completed, out.reason
     return out.lap_time_s
 

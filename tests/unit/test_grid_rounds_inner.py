@@ -11,7 +11,7 @@ from casadrone.config.io import load
 from casadrone.config.track import TrackConfig
 from casadrone.evaluate import DEFAULT_TRACK
 from casadrone.limit import starts
-from casadrone.limit.result import LimitLapOptions
+from casadrone.limit.result import LapSeeds, LimitLapOptions
 
 OPTIONS = LimitLapOptions(intervals=40, grid_rounds=3)
 
@@ -19,14 +19,14 @@ OPTIONS = LimitLapOptions(intervals=40, grid_rounds=3)
 def _recording():
     seen = []
 
-    def lap_of(frame, track, options):
+    def lap_of(frame, track, options, seeds):
         seen.append(options)
         return SimpleNamespace(completed=False)
     return seen, lap_of
 
 
 def test_grid_continuation_starts_solve_their_grid_without_rounds():
-    pb = SimpleNamespace(options=OPTIONS, frame=None, track=None,
+    pb = SimpleNamespace(options=OPTIONS, frame=None, track=None, seeds=LapSeeds(),
                          layout=SimpleNamespace(intervals=40))
     for start in (starts.coarse_grid_start, starts.fine_grid_start):
         seen, lap_of = _recording()

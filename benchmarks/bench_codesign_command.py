@@ -90,7 +90,7 @@ def template_laps(problem: str, starts: list[str], keep: bool = False) -> None:
 
     from casadrone.codesign import driver
     from casadrone.codesign.checks import load_codesign_problem
-    from casadrone.limit.lap import LimitLapOptions, limit_lap
+    from casadrone.limit.lap import LimitLapOptions, design_limit_lap
     from casadrone.limit.nlp import _NLPS
 
     if keep:
@@ -109,7 +109,7 @@ def template_laps(problem: str, starts: list[str], keep: bool = False) -> None:
                            gate_clearance_m=driver.gate_clearance(template, lower, upper, keys))
     for names in starts:
         r0 = resource.getrusage(resource.RUSAGE_SELF)
-        lap = limit_lap(template, tracks[0], replace(base, starts=tuple(names.split("+"))))
+        lap = design_limit_lap(template, tracks[0], replace(base, starts=tuple(names.split("+"))))
         r1 = resource.getrusage(resource.RUSAGE_SELF)
         print(f"{names}: {lap.status}, lap {lap.lap_time_s:.6f} s from {lap.start}, "
               f"{[(s.start, s.iterations) for s in lap.starts]}, "

@@ -34,7 +34,7 @@ from casadrone.airframe import random_thetas, with_theta  # noqa: E402
 from casadrone.config import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
 from casadrone.config.track import DEFAULT_TRACK, TrackConfig  # noqa: E402
-from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
+from casadrone.limit.lap import LapSeeds, LimitLapOptions, design_limit_lap  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -51,9 +51,9 @@ def main(argv: list[str] | None = None) -> int:
     track = load(TrackConfig, args.track)
     options = LimitLapOptions(intervals=args.intervals, sensitivities=False,
                               point_mass_reference=False)
-    ref = limit_lap(template, track, options)
+    ref = design_limit_lap(template, track, options)
     print(f"reference {template.name}: {ref.status} {ref.lap_time_s:.4f} s", flush=True)
-    warm = replace(options, starts=(), warm_starts=(ref,))
+    warm, from_ref = replace(options, starts=()), LapSeeds(warm_starts=(ref,))
     thetas, rejected = random_thetas(template, args.n, args.seed)
     keys = list(thetas[0])
     rows = []
@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         for i, theta in enumerate(thetas):
             cfg = with_theta(template, theta, name=f"frame{i}")
             c0 = time.process_time()
-            lap = limit_lap(cfg, track, warm)
+            lap = design_limit_lap(cfg, track, warm, from_ref)
             rows.append([i, *theta.values(), lap.status, lap.lap_time_s, lap.start,
                          time.process_time() - c0, "warm"])
             out.writerow(rows[-1])
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         for r in ok[:args.top]:
             cfg = with_theta(template, thetas[r[0]], name=f"frame{r[0]}")
             c0 = time.process_time()
-            lap = limit_lap(cfg, track, replace(options, warm_starts=(ref,)))
+            lap = design_limit_lap(cfg, track, options, from_ref)
             row = [r[0], *thetas[r[0]].values(), lap.status, lap.lap_time_s, lap.start,
                    time.process_time() - c0, "cold"]
             out.writerow(row)

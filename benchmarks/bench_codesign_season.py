@@ -92,7 +92,7 @@ def cross(path: Path, intervals: int) -> None:
     from casadrone.codesign import driver
     from casadrone.codesign.checks import load_codesign_problem
     from casadrone.config.codesign import DEFAULT_LAP_STARTS
-    from casadrone.limit.lap import LimitLapOptions, limit_lap
+    from casadrone.limit.lap import LimitLapOptions, design_limit_lap
 
     result = json.loads(path.read_text())
     cfg = load_codesign_problem("codesign-season")
@@ -110,7 +110,7 @@ def cross(path: Path, intervals: int) -> None:
         if track.name in result["best"]["laps_s"]:
             continue
         c0 = time.process_time()
-        lap = limit_lap(frame, track, options)
+        lap = design_limit_lap(frame, track, options)
         print(f"{result['problem']} frame {result['best']['theta']} on {label}: {lap.status}, "
               f"{lap.lap_time_s:.6f} s from {lap.start}, miss {lap.resimulation_miss_m:.4f} m, "
               f"{time.process_time() - c0:.1f} s CPU", flush=True)

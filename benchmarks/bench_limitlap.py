@@ -50,7 +50,7 @@ from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
-from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
+from casadrone.limit.lap import LapSeeds, LimitLapOptions, design_limit_lap  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
@@ -94,12 +94,12 @@ def main(argv: list[str] | None = None) -> int:
     thetas, _ = random_thetas(template, args.n, args.seed)
     keys = list(thetas[0])
     unit = unit_positions(thetas)
-    limit_lap(template, track, options)  # warm-up: builds the NLPs once
+    design_limit_lap(template, track, options)  # warm-up: builds the NLPs once
     cold = []
     for i, theta in enumerate(thetas):
         cfg = with_theta(template, theta, name=f"frame{i}")
         c0 = cpu_time()
-        lap = limit_lap(cfg, track, replace(options, sensitivities=False))
+        lap = design_limit_lap(cfg, track, replace(options, sensitivities=False))
         cold.append((cfg, lap, cpu_time() - c0))
         print(f"{i}: {lap.status} {lap.lap_time_s:.4f} s "
               f"(reference {lap.point_mass_reference_s:.4f}) "
@@ -113,10 +113,10 @@ def main(argv: list[str] | None = None) -> int:
         if not others:
             break
         j = nearest(i, others, unit)[0]
-        wopts = replace(options, starts=(), warm_starts=(cold[j][1],), point_mass_reference=False,
-                        resimulate=False, sensitivities=False)
+        wopts = replace(options, starts=(), point_mass_reference=False, resimulate=False,
+                        sensitivities=False)
         c0 = cpu_time()
-        lap = limit_lap(cold[i][0], track, wopts)
+        lap = design_limit_lap(cold[i][0], track, wopts, LapSeeds(warm_starts=(cold[j][1],)))
         warm.append((i, lap, cpu_time() - c0))
     laps = np.array([cold[i][1].lap_time_s for i in ok])
     lbs = np.array([cold[i][1].point_mass_reference_s for i in ok])

@@ -101,12 +101,12 @@ def one_recipe(frame: str, track: str, starts: str, solver: str) -> None:
     from casadrone.config.airframe import load_airframe
     from casadrone.config.io import load, resolve_config
     from casadrone.config.track import TrackConfig
-    from casadrone.limit.lap import LimitLapOptions, limit_lap
+    from casadrone.limit.lap import LimitLapOptions, design_limit_lap
 
     options = LimitLapOptions(starts=tuple(starts.split(",")), solver=solver,  # type: ignore
                               grid_rounds=0)
-    lap = limit_lap(load_airframe(frame), load(TrackConfig, resolve_config(track, "tracks")),
-                    options)
+    lap = design_limit_lap(load_airframe(frame), load(TrackConfig, resolve_config(track, "tracks")),
+                           options)
     print_json(lap.as_dict())
 
 

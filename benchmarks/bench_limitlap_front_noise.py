@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.machine import markdown  # noqa: E402
 from casadrone.airframe import with_theta  # noqa: E402
-from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
+from casadrone.limit.lap import LimitLapOptions, design_limit_lap  # noqa: E402
 from casadrone.optimise.problem import Study, study_setup  # noqa: E402
 from casadrone.rundir.store import RunStore  # noqa: E402
 
@@ -54,8 +54,7 @@ def main() -> None:
     rows = rows[:args.members]
     n_var = len(header) - len(study.objective_names)
     col = header.index(args.index)
-    options = replace(setup.limit, starts=LimitLapOptions().starts, warm_starts=(),
-                      sensitivities=False)
+    options = replace(setup.limit, starts=LimitLapOptions().starts, sensitivities=False)
     lines = [f"Front of `{args.run_dir}` ({len(rows)} members), each re-solved with the default "
              f"starts {', '.join(options.starts)}; {options.intervals or 'default'} intervals "
              "per leg.", "",
@@ -67,7 +66,7 @@ def main() -> None:
         theta = {h: float(v) for h, v in zip(header[:n_var], row[:n_var], strict=True)}
         cfg = with_theta(setup.template, theta, base=setup.template_data)
         t0 = time.process_time()
-        lap = limit_lap(cfg, setup.track, options)
+        lap = design_limit_lap(cfg, setup.track, options)
         cpu = time.process_time() - t0
         ga = float(row[col])
         best = lap.lap_time_s if lap.completed else float("nan")

@@ -32,16 +32,17 @@ from benchmarks.machine import markdown  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load, resolve_config  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
-from casadrone.limit.lap import LimitLap, LimitLapOptions, limit_lap  # noqa: E402
+from casadrone.limit.lap import LapSeeds, LimitLap, LimitLapOptions, design_limit_lap  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 REL = 1e-3  # "the same optimum": within 0.1 % of the best
 
 
-def call(frame: str, track: TrackConfig, options: LimitLapOptions, strategy: str, grid: int,
-         log) -> tuple[dict, LimitLap]:
+def call(frame: str, track: TrackConfig, options: LimitLapOptions, warm: LimitLap | None,
+         strategy: str, grid: int, log) -> tuple[dict, LimitLap]:
     c0 = time.process_time()
-    lap = limit_lap(load_airframe(frame), track, options)
+    lap = design_limit_lap(load_airframe(frame), track, options,
+                           LapSeeds(warm_starts=(warm,) if warm is not None else ()))
     row = {"frame": frame, "grid": grid, "strategy": strategy, "status": lap.status,
            "lap_time_s": lap.lap_time_s if lap.completed else None,
            "miss_m": lap.resimulation_miss_m, "iterations": lap.iterations,
@@ -101,9 +102,9 @@ def main(argv: list[str] | None = None) -> int:
                     if other == grid or lap is None or (grid, lap.lap_time_s) in tried:
                         continue
                     tried.add((grid, lap.lap_time_s))
-                    opts = replace(base, intervals=grid, starts=(), warm_starts=(lap,))
+                    opts = replace(base, intervals=grid, starts=())
                     old = best.get((frame, grid))
-                    row, new = call(frame, track, opts, f"grid-{other}" + (
+                    row, new = call(frame, track, opts, lap, f"grid-{other}" + (
                         f" (round {r + 1})" if r else ""), grid, log)
                     rows.append(row)
                     keep(frame, grid, new)
@@ -118,8 +119,8 @@ def main(argv: list[str] | None = None) -> int:
             for other, lap in own.items():
                 if other == frame or lap is None:
                     continue
-                opts = replace(base, intervals=g, starts=(), warm_starts=(lap,))
-                row, new = call(frame, track, opts, f"frame-{other}", g, log)
+                opts = replace(base, intervals=g, starts=())
+                row, new = call(frame, track, opts, lap, f"frame-{other}", g, log)
                 rows.append(row)
                 keep(frame, g, new)
     cmd = "python benchmarks/bench_limitlap_optimum.py " + " ".join(argv or sys.argv[1:])

@@ -26,7 +26,7 @@ from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
-from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
+from casadrone.limit.lap import LimitLapOptions, design_limit_lap  # noqa: E402
 
 CLOSED = ["climb_to_m=null", "start_position_m=[0, 0, 20]", "end=periodic"]
 
@@ -35,7 +35,7 @@ def one(frame: str, laps: int, options: LimitLapOptions) -> dict:
     """One periodic limit-lap call of ``laps`` laps."""
     trk = load(TrackConfig, DEFAULT_TRACK, [*CLOSED, f"laps={laps}"])
     c0 = time.process_time()
-    lap = limit_lap(load_airframe(frame), trk, options)
+    lap = design_limit_lap(load_airframe(frame), trk, options)
     x0 = lap.start_state
     return {"frame": frame, "laps": laps, "status": lap.status, "reason": lap.reason[:300],
             "lap_time_s": lap.lap_time_s, "lap_times_s": [float(t) for t in lap.lap_times_s],

@@ -133,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     problems, optima = [], []
     for i, theta in enumerate(thetas):
         _, pb = frame_problem(template, theta, f"frame{i}", track, options)
-        traj = limit.closed_loop_lap(pb.frame, track, options.controller)
+        traj = limit.closed_loop_lap(pb.frame, track, None)  # the default controller
         w0 = limit.guess_from_trajectory(pb.full, traj, pb.x0) if traj is not None else \
             limit.straight_guess(pb.full, pb.targets.route, pb.x0)
         problems.append(pb)

@@ -38,12 +38,13 @@ def certified(frame: str, overrides: list[str]) -> dict:
     from casadrone.config.io import load
     from casadrone.config.track import TrackConfig
     from casadrone.evaluate import DEFAULT_TRACK
-    from casadrone.limit.lap import LimitLapOptions, limit_lap
+    from casadrone.limit.lap import LimitLapOptions, design_limit_lap
     from casadrone.limit.search import search_options
 
     options = search_options("certify", LimitLapOptions(), periodic=False)
     c0 = cpu_time()
-    lap = limit_lap(load_airframe(frame, overrides), load(TrackConfig, DEFAULT_TRACK), options)
+    lap = design_limit_lap(load_airframe(frame, overrides), load(TrackConfig, DEFAULT_TRACK),
+                                  options)
     return {"frame": frame, "overrides": overrides, "status": lap.status,
             "lap_time_s": lap.lap_time_s, "start": lap.start, "certainty": lap.certainty,
             "spread_s": lap.spread_s, "cpu_s": cpu_time() - c0,

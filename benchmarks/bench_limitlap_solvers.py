@@ -369,7 +369,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.cold_start == "point-mass":
             w0 = pb.lifted  # the point-mass reference (three point-mass solves), lifted
         else:
-            traj = limit.closed_loop_lap(frame, track, options.controller)
+            traj = limit.closed_loop_lap(frame, track, None)  # the default controller
             w0 = limit.guess_from_trajectory(pb.full, traj, pb.x0) if traj is not None else None
         if w0 is None:
             w0 = limit.straight_guess(pb.full, pb.targets.route, pb.x0)

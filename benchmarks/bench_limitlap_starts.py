@@ -24,7 +24,7 @@ from benchmarks.machine import markdown  # noqa: E402
 from casadrone.config.airframe import load_airframe  # noqa: E402
 from casadrone.config.io import load, resolve_config  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
-from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
+from casadrone.limit.lap import LimitLapOptions, design_limit_lap  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 STARTS = LimitLapOptions().starts
@@ -34,7 +34,7 @@ def one(frame: str, track: str, options: LimitLapOptions) -> dict:
     """One call: the chosen lap and every start's outcome."""
     trk = load(TrackConfig, resolve_config(track, "tracks"))
     c0 = time.process_time()
-    lap = limit_lap(load_airframe(frame), trk, options)
+    lap = design_limit_lap(load_airframe(frame), trk, options)
     before = [s.lap_time_s for s in lap.starts if s.success and "-round-" not in s.start
               and s.resimulation_miss_m <= options.max_miss_m]
     return {"frame": frame, "track": track, "status": lap.status, "reason": lap.reason[:300],

@@ -46,7 +46,7 @@ from casadrone.config.io import load, resolve_config  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK, default_setup, evaluate, theta_of  # noqa: E402
 from casadrone.limit.check import lap_propulsion  # noqa: E402
-from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
+from casadrone.limit.lap import LapSeeds, LimitLapOptions, design_limit_lap  # noqa: E402
 from casadrone.model import propeller_outputs  # noqa: E402
 from casadrone.propulsion import max_static_thrust, rotor_thrust_bound  # noqa: E402
 from casadrone.trim import trim  # noqa: E402
@@ -141,7 +141,7 @@ def lap_row(name: str, model: str, track_name: str, options: LimitLapOptions):
     cfg = load_airframe(frame_name(name, model))
     frame = build_airframe(cfg)
     track = load(TrackConfig, resolve_config(TRACKS[track_name], "tracks"))
-    lap, t = cpu(lambda: limit_lap(cfg, track, options))
+    lap, t = cpu(lambda: design_limit_lap(cfg, track, options))
     head = f"| {name} | {track_name} | {model} |"
     if not lap.completed:
         return f"{head} failed: {lap.reason[:160]} | | | | | | | | | | {t:.0f} |", lap
@@ -208,7 +208,7 @@ def warm_solves(rep: Report, n: int, seed: int, options: LimitLapOptions, solved
         options = per_model[model]
         lap0 = solved.get(("SY250", model, "paper")) if options is per_model["paper"] else None
         if lap0 is None:
-            lap0 = limit_lap(load_airframe(frame_name("SY250", model)), track, options)
+            lap0 = design_limit_lap(load_airframe(frame_name("SY250", model)), track, options)
         if not lap0.completed:
             rep.add(f"| {model} | no SY250 lap to start from | | | |")
             continue
@@ -218,11 +218,11 @@ def warm_solves(rep: Report, n: int, seed: int, options: LimitLapOptions, solved
         for _ in range(n):
             theta = {k: float(np.clip(getattr(cfg, k) + 0.05 * (hi - lo) * rng.uniform(-1, 1),
                                       lo, hi)) for k, (lo, hi) in TABLE1_BOUNDS.items()}
-            opts = replace(options, starts=(), warm_starts=(lap0,),
-                           point_mass_reference=False, sensitivities=False,
+            opts = replace(options, starts=(), point_mass_reference=False, sensitivities=False,
                            fallback_reference=None)
             near = with_theta(cfg, theta)
-            lap, t = cpu(lambda c=near, o=opts: limit_lap(c, track, o))
+            seeds = LapSeeds(warm_starts=(lap0,))
+            lap, t = cpu(lambda c=near, o=opts, s=seeds: design_limit_lap(c, track, o, s))
             times.append(t if lap.completed else np.nan)
             iters.append(lap.iterations if lap.completed else np.nan)
         t_arr = np.array(times)

@@ -50,7 +50,7 @@ from casadrone.config import load_airframe  # noqa: E402
 from casadrone.config.io import load  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
-from casadrone.limit.lap import LimitLapOptions, frame_clearance_m, limit_lap  # noqa: E402
+from casadrone.limit.lap import LapSeeds, LimitLapOptions, frame_clearance_m, limit_lap  # noqa: E402
 from casadrone.limit.nlp import ipopt_options  # noqa: E402
 from casadrone.limit.starts import prepare  # noqa: E402
 
@@ -209,16 +209,17 @@ def variant(rep: Report, model: str, intervals: int, n: int, seed: int, logs: Pa
             f"{lap0.iterations} it, {t0:.0f} s")
     frames = ([cfg] if itself else []) + neighbours(cfg, n, seed)
     for i, near in enumerate(frames):
-        opts = LimitLapOptions(starts=(), warm_starts=(lap0,), point_mass_reference=False,
+        seeds = LapSeeds(warm_starts=(lap0,))
+        opts = LimitLapOptions(starts=(), point_mass_reference=False,
                                sensitivities=False, fallback_reference=None,
                                **grid)  # type: ignore[arg-type]
         frame = frame_of(near)
         if overrides or nlp_only:  # a diagnosis of the NLP solve only: limit_lap not repeated
             lap, t_lap = None, np.nan
         else:
-            lap, t_lap = cpu(lambda f=frame, o=opts: limit_lap(f, track, o))
+            lap, t_lap = cpu(lambda f=frame, o=opts, s=seeds: limit_lap(f, track, o, s))
         pb = prepare(frame, track, opts,
-                     frame_clearance_m(frame, near.prop_diameter_mm / 1000))
+                     frame_clearance_m(frame, near.prop_diameter_mm / 1000), seeds)
         fit = warm_fit(pb, lap0.solution)
         tag = "-".join(f"{k}={v}" for k, v in overrides.items())
         log = logs / f"warm-{model}-{label}-{i + 1 - itself}{'-' + tag if tag else ''}.log"

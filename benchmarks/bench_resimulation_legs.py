@@ -37,7 +37,7 @@ from casadrone.config.io import load  # noqa: E402
 from casadrone.config.track import TrackConfig  # noqa: E402
 from casadrone.evaluate import DEFAULT_TRACK  # noqa: E402
 from casadrone.limit.check import fly  # noqa: E402
-from casadrone.limit.lap import LimitLapOptions, limit_lap  # noqa: E402
+from casadrone.limit.lap import LimitLapOptions, design_limit_lap  # noqa: E402
 
 
 def legs(frame, lap) -> dict:
@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     for i in args.frames:
         cfg = with_theta(template, thetas[i], name=f"frame{i}")
         c0 = time.process_time()
-        lap = limit_lap(cfg, track, options)
+        lap = design_limit_lap(cfg, track, options)
         row = {"frame": i, "status": lap.status, "lap_s": lap.lap_time_s, "start": lap.start,
                "cpu_s": time.process_time() - c0}
         if lap.completed:

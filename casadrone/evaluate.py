@@ -13,7 +13,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,12 +23,10 @@ from casadrone.config.io import ConfigError, load
 from casadrone.config.track import DEFAULT_TRACK, TrackConfig
 from casadrone.control import design_for
 from casadrone.indices import compute_indices, interval_table, limit_indices
+from casadrone.limit.lap import LapSeeds, LimitLapOptions, design_limit_lap
 from casadrone.results import Record
 from casadrone.simulate import SimOptions, Trajectory, simulate
 from casadrone.trim import trim
-
-if TYPE_CHECKING:
-    from casadrone.limit.lap import LimitLapOptions
 
 
 @dataclass(frozen=True)
@@ -57,8 +54,6 @@ class EvaluationSetup:
         """The limit laps of ``limit_references``, solved once per process: every worker holds
         the same ones (same inputs, deterministic IPOPT), so warm-starting a candidate from them
         gives the same result on every backend and in any evaluation order."""
-        from casadrone.limit.lap import limit_lap
-
         if self.limit is None:  # no limit lap in this study: nothing to warm-start
             return ()
         laps = []
@@ -67,7 +62,7 @@ class EvaluationSetup:
                 cfg = with_theta(self.template, theta)
             except ConfigError:  # a reference outside the valid geometries is skipped
                 continue
-            laps.append(limit_lap(cfg, self.track, self.limit))
+            laps.append(design_limit_lap(cfg, self.track, self.limit))
         return tuple(lap for lap in laps if lap.completed)
 
     @cached_property
@@ -188,19 +183,19 @@ def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory
     every worker, so the result does not depend on the backend or the evaluation order); from
     its closed-loop lap when no reference solved or every warm start failed, then from
     ``fallback_reference`` (only in that cold call: the references were tried already)."""
-    from casadrone.limit.lap import limit_lap
-
     assert setup.limit is not None
-    cold = replace(setup.limit, guess_trajectory=traj, starts=("closed-loop", "point-mass"),
-                   warm_starts=(), sensitivities=False)
+    cold = replace(setup.limit, starts=("closed-loop", "point-mass"), sensitivities=False)
+    flown = LapSeeds(guess_trajectory=traj)
     warm = setup.limit_warm_starts
     if not warm:
-        return limit_lap(cfg, setup.track, cold)
-    first = limit_lap(cfg, setup.track, replace(cold, starts=(), warm_starts=warm,
-                                                fallback_reference=None, refinements=0))
+        return design_limit_lap(cfg, setup.track, cold, flown)
+    first = design_limit_lap(cfg, setup.track, replace(
+        cold, starts=(), fallback_reference=None, refinements=0),
+        replace(flown, warm_starts=warm))
     if first.completed:
         return first
-    lap = limit_lap(cfg, setup.track, cold)  # every warm start failed: the cold starts decide
+    # every warm start failed: the cold starts decide
+    lap = design_limit_lap(cfg, setup.track, cold, flown)
     if not lap.completed:
         lap = replace(lap, reason=f"warm starts: {first.reason}; cold starts: {lap.reason}")
     return lap

@@ -1,37 +1,52 @@
-"""``casadrone limit-lap``: the time-optimal lap of one airframe (:mod:`casadrone.limit.lap`)."""
+"""``casadrone limit-lap``: the time-optimal lap of one airframe (:mod:`casadrone.limit.lap`):
+load (the airframe, the track and the limit lap's settings,
+:class:`casadrone.config.limitlap.LimitLapConfig`) → solve → print."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, cast
+from typing import Annotated, Any
 
 import typer
 
+from casadrone.airframe import Airframe, build_airframe
 from casadrone.cli.common import (
     AirframeArg,
     JsonOpt,
-    OverridesArg,
     PlotOpt,
     QuietOpt,
     TrackOpt,
     app,
-    bad_input,
     check_plot_dir,
     cost_text,
     print_json,
     progress_lines,
+    registry_option,
     reports_config_errors,
     save_figures,
 )
-from casadrone.limit.result import (
-    COMMAND_GRID_ROUNDS,
+from casadrone.config.airframe import AirframeConfig, load_airframe
+from casadrone.config.io import ConfigError, load, resolve_config
+from casadrone.config.limitlap import LimitLapConfig, choices, lap_key, read_limit_lap
+from casadrone.config.track import DEFAULT_TRACK, TrackConfig
+from casadrone.limit.check import lap_propulsion
+from casadrone.limit.lap import (
     DEFAULT_INTERVALS,
-    MAX_SUBSTEPS,
-    ROTOR_STEPS,
+    LimitLap,
+    LimitLapOptions,
+    check_inputs,
+    closed_loop_lap,
+    frame_clearance_m,
+    track_targets,
 )
+from casadrone.limit.race import race, race_text
+from casadrone.limit.search import lap_options
+from casadrone.limit.sensitivity import percent_of_range
+from casadrone.model import param_names, rotor_states
+from casadrone.propulsion import max_static_thrust
 
 #: What the propulsion did (:func:`casadrone.limit.check.lap_propulsion`), added to ``--json``.
 PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio",
@@ -41,52 +56,73 @@ PROPULSION_KEYS = ("top_speed_m_s", "thrust_at_top_speed_n", "max_advance_ratio"
 #: thrust against airspeed), checked before any solve (:func:`check_plot_dir`).
 LIMIT_FIGURES = ("limit-top-view", "limit-3d", "limit-time-histories", "limit-thrust-airspeed")
 
-if TYPE_CHECKING:  # the limit lap is imported when the command runs (CasADi)
-    from casadrone.airframe import Airframe
-    from casadrone.config.airframe import AirframeConfig
-    from casadrone.config.track import TrackConfig
-    from casadrone.limit.lap import Attitude, Solver, TiltLimit
-    from casadrone.limit.result import LimitLap, LimitLapOptions, Resimulation, RotorStep
+#: The limit lap's settings (:class:`LimitLapConfig`), each a ``key=value`` argument; the
+#: options below are aliases of those (``--certify``: ``search=certify``).
+LAP_KEYS = tuple(LimitLapConfig.model_fields)
+
+
+def _about(key: str) -> str:
+    """The help of a limit-lap key: its schema's description (one declaration of each), with
+    its default where that does not say it."""
+    field = LimitLapConfig.model_fields[key]
+    text = str(field.description)
+    return text if field.default is None or "default" in text else (
+        f"{text}; default {field.default}")
+
+
+def _bound(key: str, which: str) -> int:
+    """A numeric key's bound (``ge`` or ``le``) as its schema states it."""
+    return next(getattr(m, which) for m in LimitLapConfig.model_fields[key].metadata
+                if getattr(m, which, None) is not None)
+
+
+def _choice(key: str) -> Any:
+    """``--KEY NAME``: one of the key's values (:func:`casadrone.config.limitlap.choices`),
+    refused naming the option otherwise."""
+    return registry_option(lambda: choices(key), key, _about(key))
+
+
+def _number(key: str) -> Any:
+    return typer.Option(min=_bound(key, "ge"), max=_bound(key, "le"), help=_about(key))
+
+
+LapOverridesArg = Annotated[list[str] | None, typer.Argument(
+    help="key=value overrides of the airframe (alpha_deg=75) and of the limit lap's settings: "
+         f"{', '.join(LAP_KEYS)} (each also an option below, but starts: "
+         "starts=\\[fine-grid,coarse-grid])")]
+
+
+@dataclass(frozen=True)
+class LapSetup:
+    """What a limit lap is flown from: the airframe (its config and the built frame), the track
+    (and its file) and the options."""
+
+    config: AirframeConfig
+    frame: Airframe
+    track_path: Path
+    track: TrackConfig
+    options: LimitLapOptions
 
 
 @app.command("limit-lap")
 @reports_config_errors
 def limit_lap_command(
     airframe: AirframeArg,
-    overrides: OverridesArg = None,
+    overrides: LapOverridesArg = None,
     track: TrackOpt = None,
-    intervals: Annotated[int | None, typer.Option(
-        min=2, max=400, help="time steps of the lap per leg: more is finer, slower and needs "
-        "more memory; default 40 with the paper propulsion model, 80 with propeller (its rotors "
-        "change speed faster)")] = None,
-    attitude: Annotated[str, typer.Option(
-        help="euler (ZYX angles) or quaternion (no singularity: split-S, loops)")] = "euler",
-    tilt: Annotated[str, typer.Option(
-        help="tilt limit at the track's max_tilt_deg: axes (|φ|, |θ| each; euler only), cone "
-             "(total tilt) or none")] = "axes",
+    intervals: Annotated[int | None, _number("intervals")] = None,
+    attitude: Annotated[str | None, _choice("attitude")] = None,
+    tilt: Annotated[str | None, _choice("tilt")] = None,
     certify: Annotated[bool, typer.Option(
-        "--certify", help="solve from every start and run grid rounds: whether they agree "
-        "(certainty, spread) and how uncertain the sensitivities are over the optima found; "
-        "without it, the fast path: two starts, no rounds")] = False,
-    solver: Annotated[str | None, typer.Option(
-        help="optimiser: ipopt (the reference) or fatrop (the same problem, solved step by "
-             "step along the lap; ipopt solves again where it fails); default ipopt")] = None,
-    grid_rounds: Annotated[int | None, typer.Option(
-        min=0, max=5, help="rounds that solve the lap again on a coarser and a finer grid to "
-        "escape a slower local optimum, stopping at the first round that gains less than 0.1 "
-        f"%; default 0 on the fast path, {COMMAND_GRID_ROUNDS} with --certify")] = None,
-    rotor_step: Annotated[str, typer.Option(
-        help="how the rotor speeds are stepped: rk4 (like every other state) or exponential "
-             "(their decay followed exactly, which allows coarser time steps; opt-in, see the "
-             "propulsion concept page)")] = "rk4",
-    substeps: Annotated[int | None, typer.Option(
-        min=1, max=MAX_SUBSTEPS, help="integration steps per shooting interval (default 3); "
-        "a new combination of steps and rotor step compiles its derivative blocks once per "
-        "machine (minutes)")] = None,
-    resimulation: Annotated[str, typer.Option(
-        help="what the re-simulation check flies: lap (the whole lap's commands open loop "
-             "from the start) or legs (each leg from the lap's own state at the leg's start: "
-             "accepts an accurate lap that drifts open loop)")] = "lap",
+        "--certify", help="search=certify (without it, the fast path: two starts, no "
+        "rounds): solve from every start and run grid rounds: whether they agree "
+        "(certainty, spread) and how uncertain the sensitivities are over the optima "
+        "found")] = False,
+    solver: Annotated[str | None, _choice("solver")] = None,
+    grid_rounds: Annotated[int | None, _number("grid_rounds")] = None,
+    rotor_step: Annotated[str | None, _choice("rotor_step")] = None,
+    substeps: Annotated[int | None, _number("substeps")] = None,
+    resimulation: Annotated[str | None, _choice("resimulation")] = None,
     laps: Annotated[int | None, typer.Option(
         min=1, max=20, help="laps of the race, flown from the track's start (default: the "
         "track's laps); with a pack capacity (battery.capacity_ah) the state of charge is "
@@ -106,7 +142,11 @@ def limit_lap_command(
     its Table 1 range; with --certify, with its uncertainty over the optima found). A
     lap the solver cannot find (no convergence) is a result with status "failed" and a reason,
     exit code 0; a bad config (a malformed track, a frame too heavy to hover, a gate narrower
-    than twice the frame's clearance) is bad input, exit code 2.
+    than twice the frame's clearance) or a bad setting (solver=snopt) is bad input, exit
+    code 2.
+
+    Every setting of the limit lap is a key=value argument (solver=fatrop), the same keys as
+    a problem file's limit_lap section; the options are their aliases.
 
     Progress (the set-up, each start and grid round with its lap, iterations and CPU, any
     compile) goes to stderr as it happens; -q silences it.
@@ -115,81 +155,65 @@ def limit_lap_command(
     commands over time.
     """
     check_plot_dir(plot, LIMIT_FIGURES)
-    from casadrone.airframe import build_airframe
-    from casadrone.config.airframe import load_airframe
-    from casadrone.config.io import ConfigError, load
-    from casadrone.config.track import TrackConfig
-    from casadrone.limit.lap import LimitLapOptions, check_inputs, frame_clearance_m
-    from casadrone.limit.search import search_options
+    given = {"search": "certify" if certify else None, "intervals": intervals,
+             "attitude": attitude, "tilt": tilt, "solver": solver, "grid_rounds": grid_rounds,
+             "rotor_step": rotor_step, "substeps": substeps, "resimulation": resimulation}
+    setup = load_setup(airframe, overrides or [], track,
+                       {k: v for k, v in given.items() if v is not None})
+    if laps is not None:
+        setup = replace(setup, track=setup.track.model_copy(update={"laps": laps}))
+    with progress_lines("limit-lap", quiet):
+        flown = race(setup.config, setup.track, setup.options, frame=setup.frame)
+    result = lap_result(setup, flown.lap, plot)
+    if flown.energy is not None:
+        result["race"] = flown.as_dict()
+    if not flown.feasible:
+        result |= {"status": "failed", "reason": flown.reason}
+    if as_json:
+        print_json(result)
+        return
+    typer.echo("\n".join([_text(setup.config.name, setup.track.name, result,
+                                setup.frame.propulsion), *race_text(flown)]))
 
-    cfg = load_airframe(airframe, overrides or [])
+
+def load_setup(airframe: str, overrides: list[str], track: str | None,
+               given: dict[str, Any]) -> LapSetup:
+    """The limit lap's inputs: ``key=value`` overrides of the limit lap's keys (on the
+    options ``given``) and of the airframe's, the track; ConfigError for bad input, and for a
+    problem the limit lap cannot pose (:func:`casadrone.limit.problem.check_inputs`), found
+    before any solve."""
+    settings = read_limit_lap(given, [o for o in overrides if lap_key(o)])
+    cfg = load_airframe(airframe, [o for o in overrides if not lap_key(o)])
     track_path = _track_path(track)
     trk = load(TrackConfig, track_path)
-    if laps is not None:
-        trk = trk.model_copy(update={"laps": laps})
-    if attitude not in ("euler", "quaternion") or tilt not in ("axes", "cone", "none"):
-        raise ConfigError([f"--attitude {attitude} --tilt {tilt}: attitude is euler or quaternion, "
-                       "tilt is axes, cone or none"])
-    if resimulation not in ("lap", "legs"):
-        raise ConfigError([f"--resimulation {resimulation}: one of lap, legs"])
-    if solver is not None and solver not in ("ipopt", "fatrop"):
-        raise ConfigError([f"--solver {solver}: one of ipopt, fatrop"])
-    if solver == "fatrop" and trk.end == "periodic":
-        raise ConfigError([f"--solver fatrop: {track_path} has end: periodic, which ties the "
-                           "last node to the first (fatrop's stages couple neighbours only); "
-                           "use --solver ipopt"])
-    if rotor_step not in ROTOR_STEPS:
-        raise ConfigError([f"--rotor-step {rotor_step}: one of {', '.join(ROTOR_STEPS)}"])
-    if attitude == "quaternion" and tilt == "axes":
-        raise ConfigError(["--tilt axes bounds Euler angles: with --attitude quaternion use cone "
-                       "or none"])
-    options = search_options(
-        "certify" if certify else "fast",
-        LimitLapOptions(intervals=intervals, attitude=cast("Attitude", attitude),
-                        tilt_limit=cast("TiltLimit", tilt),
-                        resimulation=cast("Resimulation", resimulation),
-                        rotor_step=cast("RotorStep", rotor_step)),
-        periodic=trk.end == "periodic", solver=cast("Solver | None", solver),
-        grid_rounds=grid_rounds)
-    if substeps is not None:
-        options = replace(options, substeps=substeps)
     frame = build_airframe(cfg)
+    options = lap_options(settings, periodic=trk.end == "periodic")
     resolved = options if options.intervals is not None else replace(
         options, intervals=DEFAULT_INTERVALS.get(frame.propulsion, 40))  # as limit_lap does
     impossible = check_inputs(trk, resolved, frame_clearance_m(frame,
                                                                cfg.prop_diameter_mm / 1000))
     if impossible:  # known before any solve: bad input, not a failed lap
-        raise bad_input([f"{track_path}: {impossible} (refused before any solve)"])
-    from casadrone.limit.race import race, race_text
+        raise ConfigError([f"{track_path}: {impossible} (refused before any solve)"])
+    return LapSetup(cfg, frame, track_path, trk, options)
 
-    with progress_lines("limit-lap", quiet):
-        flown = race(cfg, trk, options)
-    lap = flown.lap
-    result = lap.as_dict() | ({} if flown.energy is None else {"race": flown.as_dict()})
-    if not flown.feasible:
-        result |= {"status": "failed", "reason": flown.reason}
-    from casadrone.airframe import build_airframe
-    from casadrone.limit.check import lap_propulsion
 
-    frame = build_airframe(cfg)
-    prop = lap_propulsion(frame, lap.x_euler, lap.u)
+def lap_result(setup: LapSetup, lap: LimitLap, plot: Path | None) -> dict[str, Any]:
+    """The command's result: the lap's own (:meth:`LimitLap.as_dict`), what the propulsion
+    did, dT/dp by parameter name, and the figures ``plot`` saved."""
+    result = lap.as_dict()
+    prop = lap_propulsion(setup.frame, lap.x_euler, lap.u)
     result |= {k: prop[k] for k in PROPULSION_KEYS}
-    result["param_sensitivity"] = named_parameters(lap.param_sensitivity, frame.propulsion)
+    result["param_sensitivity"] = named_parameters(lap.param_sensitivity,
+                                                   setup.frame.propulsion)
     if plot is not None:
-        result["figures"] = _figures(cfg, trk, lap, plot, frame, prop, options)
-    if as_json:
-        print_json(result)
-        return
-    typer.echo("\n".join([_text(cfg.name, trk.name, result, frame.propulsion),
-                           *race_text(flown)]))
+        result["figures"] = _figures(setup, lap, plot, prop)
+    return result
 
 
 def named_parameters(values: Iterable[float], propulsion: str) -> dict[str, float]:
     """dT/dp keyed by the model's parameter names (s per SI unit of each): ``--json`` gave a
     bare list of 31 numbers (50 with ``propeller``) in an order only the code states
     (casadrone.model.param_names). Empty for a failed lap (no sensitivities)."""
-    from casadrone.model import param_names
-
     names = param_names(propulsion)
     floats = [float(v) for v in values]
     return dict(zip(names, floats, strict=True)) if len(floats) == len(names) else {}
@@ -200,9 +224,6 @@ def _track_path(track: str | None) -> Path:
     name is refused (:func:`casadrone.config.io.resolve_config`) naming the option: it read as
     no ``--track`` at all and flew the default track for minutes (``--track ""`` from an unset
     shell variable)."""
-    from casadrone.config.io import ConfigError, resolve_config
-    from casadrone.evaluate import DEFAULT_TRACK
-
     if track is None:
         return DEFAULT_TRACK
     try:
@@ -211,17 +232,16 @@ def _track_path(track: str | None) -> Path:
         raise ConfigError([f"--track {line}" for line in exc.lines]) from None
 
 
-def _figures(cfg: AirframeConfig, trk: TrackConfig, lap: LimitLap, folder: Path,
-             frame: Airframe, prop: Any, options: LimitLapOptions) -> list[str]:
+def _figures(setup: LapSetup, lap: LimitLap, folder: Path, prop: Any) -> list[str]:
     if not lap.completed:
         typer.echo("--plot: nothing to plot, the limit lap failed", err=True)
         return []
-    from casadrone import plots
-    from casadrone.limit.lap import closed_loop_lap, frame_clearance_m, track_targets
-    from casadrone.propulsion import max_static_thrust
+    from casadrone import plots  # only with --plot: it imports matplotlib
 
+    frame, trk = setup.frame, setup.track
     traj = closed_loop_lap(frame, trk)
-    targets = track_targets(trk, options, frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
+    targets = track_targets(trk, setup.options, frame_clearance_m(
+        frame, setup.config.prop_diameter_mm / 1000))
     figures = plots.limit_lap_figures(lap, traj, trk.waypoints_m, targets)
     figures["limit-thrust-airspeed"] = plots.thrust_against_airspeed(
         prop, lap.u, max_static_thrust(frame), frame.propulsion)
@@ -248,8 +268,6 @@ def _start_text(r: dict, propulsion: str = "paper") -> list[str]:
     x = [float(v) for v in x]
     def vec(v: list[float], fmt: str) -> str:
         return "(" + ", ".join(format(c, fmt) for c in v) + ")"
-
-    from casadrone.model import rotor_states
 
     eul = [math.degrees(a) for a in x[9:12]]
     rotors = rotor_states(propulsion)
@@ -313,8 +331,6 @@ def _sensitivity_text(r: dict) -> list[str]:
     """dT/dθ in ms per 1 % of each key's Table 1 range, at the chosen optimum, with its
     uncertainty over the call's verified optima, "not resolved" where they disagree in sign,
     or a note that one optimum gives no uncertainty (casadrone.limit.sensitivity)."""
-    from casadrone.limit.sensitivity import percent_of_range
-
     table = [t for t in r.get("sensitivity_table", []) if math.isfinite(t["s_per_percent"])]
     if not table:
         return []

@@ -4,9 +4,9 @@ At a returned point (θ*, laps):
 
 1. **Lap**: each track's limit lap re-solved with θ fixed at θ*, twice: from the co-design point
    (primal-dual warm start: the co-design optimum must be an optimum of the fixed-frame problem)
-   and by :func:`casadrone.limit.lap.limit_lap`'s own cold starts (a faster local optimum of the
-   fixed frame would show the co-design point is not the frame's best lap). The fixed-frame lap,
-   the better of both, must equal the co-design lap within :data:`LAP_RTOL`.
+   and by :func:`casadrone.limit.lap.design_limit_lap`'s own cold starts (a faster local optimum
+   of the fixed frame would show the co-design point is not the frame's best lap). The
+   fixed-frame lap, the better of both, must equal the co-design lap within :data:`LAP_RTOL`.
 2. **Reduced gradient**: dT/dθ of the fixed-frame optimum by the envelope theorem (its
    multipliers of p and x_start, chained through :mod:`casadrone.massprops`' numbers by
    :func:`casadrone.limit.check.theta_sensitivities`: a path independent of the symbolic frame),
@@ -20,7 +20,7 @@ At a returned point (θ*, laps):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import casadi as ca
@@ -30,7 +30,7 @@ from casadrone.airframe import build_airframe
 from casadrone.codesign.nlp import epsilon_rows
 from casadrone.config.io import ConfigError
 from casadrone.limit.check import resimulation_miss, theta_sensitivities
-from casadrone.limit.lap import limit_lap, model_states, start_state
+from casadrone.limit.lap import LapSeeds, design_limit_lap, model_states, start_state
 from casadrone.limit.nlp import NlpPoint
 from casadrone.limit.starts import prepare, trajectory
 from casadrone.model import n_params
@@ -281,8 +281,8 @@ def _fixed_laps(prep, point, k: int, cfg):
     track = prep.tracks[k]
     warm, pb = _fixed_warm(prep, point, k, cfg)
     ref = prep.template_laps[k]
-    cold = limit_lap(cfg, track, replace(prep.options, warm_starts=(ref,)
-                                         if ref.solution is not None else ()))
+    cold = design_limit_lap(cfg, track, prep.options, LapSeeds(
+        warm_starts=(ref,) if ref.solution is not None else ()))
     return warm, cold, pb
 
 

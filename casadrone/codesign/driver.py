@@ -36,9 +36,10 @@ from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
 from casadrone.limit.lap import (
     DEFAULT_INTERVALS,
+    LapSeeds,
     LimitLap,
     LimitLapOptions,
-    limit_lap,
+    design_limit_lap,
 )
 from casadrone.limit.nlp import NlpPoint
 from casadrone.limit.result import Start
@@ -190,11 +191,11 @@ def template_lap(template: AirframeConfig, track: TrackConfig,
     is its own solve, so the ones tried would fail again). No point-mass reference unless a
     start needs it: co-design does not report it, and it is three point-mass solves (13 s of the
     paper track's 38)."""
-    lap = limit_lap(template, track, options)
+    lap = design_limit_lap(template, track, options)
     rest: tuple[Start, ...] = tuple(s for s in DEFAULT_LAP_STARTS if s not in options.starts)
     if lap.completed or not rest:
         return lap
-    return limit_lap(template, track, replace(options, starts=rest))
+    return design_limit_lap(template, track, replace(options, starts=rest))
 
 
 _BUILT: dict[tuple, CodesignNlp] = {}
@@ -272,8 +273,9 @@ def resampled(prep: Prepared, point: CodesignPoint, to: Prepared) -> np.ndarray 
         T, _, _ = part.nlp.unpack(w)
         own = replace(trajectory(part.nlp, w, part.nlp.layout), leg_times_s=T,
                       solution=NlpPoint(w, np.zeros(0), np.zeros(0), np.zeros(0)))
-        lap = limit_lap(cfg, track, replace(to.options, warm_starts=(own,), starts=(),
-                                            point_mass_reference=False))
+        lap = design_limit_lap(cfg, track, replace(to.options, starts=(),
+                                                   point_mass_reference=False),
+                               LapSeeds(warm_starts=(own,)))
         if not lap.completed or lap.solution is None:
             return None
         out.append(lap.solution.w)
@@ -317,10 +319,10 @@ def initial_vector(prep: Prepared, theta: dict[str, float]) -> np.ndarray | None
     cfg = prep.config(theta)
     ws, laps = [], []
     for track, ref in zip(prep.tracks, prep.template_laps, strict=True):
-        opts = replace(prep.options, warm_starts=(ref,) if ref.solution is not None else (),
-                       starts=() if ref.solution is not None else prep.options.starts,
+        warm = (ref,) if ref.solution is not None else ()
+        opts = replace(prep.options, starts=() if warm else prep.options.starts,
                        point_mass_reference=False)
-        lap = limit_lap(cfg, track, opts)
+        lap = design_limit_lap(cfg, track, opts, LapSeeds(warm_starts=warm))
         if not lap.completed or lap.solution is None:
             return None
         ws.append(lap.solution.w)

@@ -18,6 +18,7 @@ from typing import Any, Literal
 from pydantic import Field
 
 from casadrone.config.io import Schema
+from casadrone.config.limitlap import Start
 from casadrone.config.problem import ProblemConfig
 
 #: Front objectives the co-design NLP holds as ε-constraints, with their units and why.
@@ -29,10 +30,8 @@ FRONT_MEASURES = {
               "(N^1.5 s): the rotors' ideal induced energy by momentum theory times "
               "sqrt(2 rho A) (casadrone.codesign.nlp.effort)",
 }
-#: The limit lap's cold starts (casadrone.limit.result.Start: the config stage comes before the
-#: limit lap's, so the names are repeated here; tests/unit/test_codesign_config.py keeps them
-#: equal).
-LapStart = Literal["closed-loop", "point-mass", "coarse-grid", "fine-grid", "relaxed-tolerance"]
+#: The limit lap's cold starts (declared once, :data:`casadrone.config.limitlap.Start`).
+LapStart = Start
 #: The template's lap from these cold starts unless a problem names others
 #: (``codesign.lap_starts``), and where those give no verified lap. Not the fine-grid start:
 #: with it as well, the certificate's cold re-solve of the short-track frame

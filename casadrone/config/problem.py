@@ -31,6 +31,7 @@ from casadrone.config.io import (
     resolve_config,
     scalar_types,
 )
+from casadrone.config.limitlap import LimitLapConfig
 from casadrone.config.track import TrackConfig
 
 
@@ -179,10 +180,10 @@ class ProblemConfig(Schema):
         default_factory=list,
         description="limits on indices (the lap-completed constraint is always on)",
     )
-    limit_solver: Literal["ipopt", "fatrop"] = Field(
-        "ipopt",
-        description="NLP solver of the limit-lap indices: ipopt (the reference) or fatrop (the "
-        "same NLP in stage order; IPOPT re-solves where fatrop fails)",
+    limit_lap: LimitLapConfig = Field(
+        default_factory=LimitLapConfig,
+        description="how the limit-lap indices (J3_limit) fly their limit lap: the keys of "
+        "casadrone limit-lap (solver, attitude, tilt, intervals, ...)",
     )
     algorithm: AlgorithmConfig = Field(
         default_factory=AlgorithmConfig,

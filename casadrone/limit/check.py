@@ -14,7 +14,9 @@ import numpy as np
 from casadrone.airframe import Airframe, build_airframe, decision_keys, with_theta
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.io import ConfigError
+from casadrone.limit.attitude import quaternion_f
 from casadrone.limit.gates import TARGET_SIZE, target_miss  # noqa: F401 (re-exported)
+from casadrone.limit.lagless import is_lagless, lagless_f
 from casadrone.model import NU, n_params, propeller_outputs, quadrotor_model
 from casadrone.propulsion import airframe_values, propulsion_model
 
@@ -34,14 +36,10 @@ def scaled_cvodes(rtol: float = 1e-10, atol: float = 1e-10, attitude: str = "eul
     quaternion model (:mod:`casadrone.limit.attitude`); ``lagless`` the thrust-lag-off model
     (:mod:`casadrone.limit.lagless`)."""
     if attitude == "quaternion":
-        from casadrone.limit.attitude import quaternion_f
-
         f, rotor = quaternion_f(propulsion), slice(13, 17)
     else:
         f, rotor = quadrotor_model(propulsion).f, slice(12, 16)
     if lagless:
-        from casadrone.limit.lagless import lagless_f
-
         f = lagless_f(f, rotor)
     x = ca.SX.sym("x", f.size1_in(0))
     NP = n_params(propulsion)
@@ -95,8 +93,6 @@ def resimulation_miss(airframe: Airframe, lap, targets: np.ndarray, kinds,
 
 
 def _lagless(airframe: Airframe) -> bool:
-    from casadrone.limit.lagless import is_lagless
-
     return is_lagless(airframe)
 
 

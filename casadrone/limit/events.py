@@ -21,11 +21,12 @@ def solve_text(sol: NlpSolution) -> str:
     return f"{lap}, {sol.iterations} iterations"
 
 
-def begun(options: LimitLapOptions) -> None:
-    """The lap's set-up, before its NLP is built (the first use of a model compiles it)."""
+def begun(options: LimitLapOptions, warm_starts: int = 0) -> None:
+    """The lap's set-up, before its NLP is built (the first use of a model compiles it), with
+    ``warm_starts`` earlier laps to start from."""
     if active():
         starts = ", ".join(options.starts) or "none"
-        warm = f" and {len(options.warm_starts)} warm start(s)" if options.warm_starts else ""
+        warm = f" and {warm_starts} warm start(s)" if warm_starts else ""
         emit("stage", f"limit lap on {options.intervals} intervals per leg ({options.solver}): "
              f"cold starts {starts}{warm}, grid rounds up to {options.grid_rounds}")
 

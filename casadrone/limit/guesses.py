@@ -6,24 +6,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from casadrone.airframe import Airframe
-from casadrone.config.controller import ControllerConfig
+from casadrone.airframe import Airframe, build_airframe
+from casadrone.config.airframe import load_airframe
+from casadrone.config.controller import ControllerConfig, load_controller
 from casadrone.config.track import TrackConfig
 from casadrone.limit.nlp import Nlp
 from casadrone.limit.result import LimitLap, euler_states, model_states, node_times
 from casadrone.model import NX, rotation_matrix
 from casadrone.propulsion import equal_rotor_guess, static_thrusts
+from casadrone.trim import trim
 
 
 def closed_loop_lap(airframe: Airframe, track: TrackConfig,
                     controller: ControllerConfig | None = None):
     """casadrone's closed-loop lap of this frame (a :class:`Trajectory`), or None if the frame
     cannot be trimmed or controlled."""
-    from casadrone.config.airframe import load_airframe
-    from casadrone.config.controller import load_controller
     from casadrone.control import design_for
     from casadrone.simulate import simulate
-    from casadrone.trim import trim
 
     ctrl = controller or load_controller(None)
     tp = trim(airframe, "hover", 0.0, solver="newton")
@@ -32,8 +31,6 @@ def closed_loop_lap(airframe: Airframe, track: TrackConfig,
     ref = ctrl.reference_airframe
     reference = None
     if ref is not None:
-        from casadrone.airframe import build_airframe
-
         reference = build_airframe(load_airframe(ref))
     design = design_for(airframe, ctrl, reference, tp, certificate=False)
     if not design.stable:

@@ -1,8 +1,10 @@
 """The limit lap: the minimum-time flight of an airframe through a track
 (docs/concepts/limit-lap.md).
 
-``limit_lap(airframe, track, options) -> LimitLap``. The NLP (:mod:`casadrone.limit.nlp`) is built
-once per track layout on the one symbolic model; the airframe enters only as the parameter p.
+``limit_lap(airframe, track, options) -> LimitLap`` (``design_limit_lap(config, ...)`` for the
+airframe of a config, with dT/dθ over its decision variables). The NLP
+(:mod:`casadrone.limit.nlp`) is built once per track layout on the one symbolic model; the
+airframe enters only as the parameter p.
 Legs are the track's route segments (start → climb point → waypoints, or start → gates); a leg
 ends inside the waypoint's acceptance ball or through the gate's opening. Start: hover at the
 first route point (rotors at hover thrust, at rest, the track's start yaw), as the closed-loop
@@ -15,7 +17,7 @@ Robustness:
 
 - starts: ``closed-loop`` (casadrone's own closed-loop lap of the frame, sampled onto the grid: a
   dynamically consistent but slow guess) and ``point-mass`` (the lower-bound solution lifted to
-  the full state: fast but not consistent); for each of ``options.warm_starts`` (neighbouring
+  the full state: fast but not consistent); for each of ``seeds.warm_starts`` (neighbouring
   LimitLaps on the same layout) also ``warm-i``, a primal-dual IPOPT warm start, or
   ``resampled-i`` for a LimitLap of the same legs on another grid (grid refinement follows the
   same local optimum). The best converged start that passes the re-simulation check wins; a
@@ -52,14 +54,17 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
 
-from casadrone.airframe import Airframe
+from casadrone.airframe import Airframe, build_airframe
 from casadrone.config.airframe import AirframeConfig
+from casadrone.config.limitlap import COMMAND_GRID_ROUNDS, MAX_INTERVALS
 from casadrone.config.track import TrackConfig
 from casadrone.limit import events
+from casadrone.limit.check import bang_bang_fraction, theta_sensitivities
 from casadrone.limit.choose import (
     CERTAIN_REL,
     best,
@@ -95,11 +100,10 @@ from casadrone.limit.problem import (
     track_targets,
 )
 from casadrone.limit.result import (
-    COMMAND_GRID_ROUNDS,
     DEFAULT_INTERVALS,
-    MAX_INTERVALS,
     Attitude,
     Certainty,
+    LapSeeds,
     LimitLap,
     LimitLapOptions,
     Solver,
@@ -110,6 +114,7 @@ from casadrone.limit.result import (
     model_states,
     node_times,
 )
+from casadrone.limit.sensitivity import sensitivity_table
 from casadrone.limit.starts import (
     COARSE_SHARE,
     RELAXED_RADIUS_M,
@@ -122,15 +127,17 @@ from casadrone.limit.starts import (
     prepare,
     run_starts,
 )
+from casadrone.model import param_names
 from casadrone.propulsion import max_static_thrust, propulsion_model
 
 #: The limit lap's names, wherever their step lives (``from casadrone.limit.lap import ...``).
 __all__ = [
     "BANG_BANG_TOL", "CERTAIN_REL", "COARSE_SHARE", "COMMAND_GRID_ROUNDS", "DEFAULT_INTERVALS",
     "MAX_INTERVALS", "POINT_MASS_PARAMS", "REFERENCE_SPEEDS_MPS", "RELAXED_RADIUS_M",
-    "Attitude", "Certainty", "LimitLap", "LimitLapOptions", "Solver", "Start", "StartResult",
-    "Targets", "TiltLimit", "bounds", "check_inputs", "closed_loop_lap", "euler_states",
-    "frame_clearance_m", "guess_from_lap", "guess_from_trajectory", "lifted_guess", "limit_lap",
+    "Attitude", "Certainty", "LapSeeds", "LimitLap", "LimitLapOptions", "Solver", "Start",
+    "StartResult", "Targets", "TiltLimit", "bounds", "check_inputs", "closed_loop_lap",
+    "design_limit_lap", "euler_states", "frame_clearance_m", "guess_from_lap",
+    "guess_from_trajectory", "lifted_guess", "limit_lap",
     "model_states", "node_times", "param_sensitivity", "point_mass_guess", "point_mass_p",
     "point_mass_reference", "refusal", "row_bounds", "start_state", "straight_guess",
     "track_targets",
@@ -139,44 +146,73 @@ __all__ = [
 BANG_BANG_TOL = 0.02  # a command within this of 0 or 1 counts as saturated
 
 
-def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
-              options: LimitLapOptions = LimitLapOptions()) -> LimitLap:
+#: The propeller diameter (m) whose radius a bare :class:`Airframe`'s gate clearance adds (the
+#: paper's 5-inch propeller, AirframeConfig's default; :func:`frame_clearance_m`).
+BARE_PROP_DIAMETER_M = 0.127
+
+
+def limit_lap(airframe: Airframe, track: TrackConfig,
+              options: LimitLapOptions = LimitLapOptions(),
+              seeds: LapSeeds = LapSeeds()) -> LimitLap:
     """The minimum-time lap of ``airframe`` on ``track``; never raises for a bad airframe.
 
-    Given an :class:`AirframeConfig`, the result also carries ``sensitivities`` over its
-    decision-variable keys (chain θ → p through the same build as the evaluation), and
-    ``cpu_time_s`` beside ``wall_time_s``: what the whole call cost this process (every start,
-    check and grid round; a compiler the first solve runs is another process).
+    The result carries ``cpu_time_s`` beside ``wall_time_s``: what the whole call cost this
+    process (every start, check and grid round; a compiler the first solve runs is another
+    process). ``seeds``: what the starts may use beside the cold starts (earlier laps as warm
+    starts, the frame's closed-loop lap if flown, the controller that flies it).
+    :func:`design_limit_lap` flies the airframe of a config and adds dT/dθ.
     """
+    if not isinstance(airframe, Airframe):
+        raise TypeError(f"limit_lap takes an Airframe, not {type(airframe).__name__} "
+                        "(design_limit_lap takes an AirframeConfig)")
+    return _timed(airframe, None, track, options, seeds)
+
+
+def design_limit_lap(config: AirframeConfig, track: TrackConfig,
+                     options: LimitLapOptions = LimitLapOptions(),
+                     seeds: LapSeeds = LapSeeds(), frame: Airframe | None = None) -> LimitLap:
+    """The limit lap of the airframe ``config`` builds (``frame``, where built already), as
+    :func:`limit_lap`, with what only the config knows: ``sensitivities`` over its
+    decision-variable keys (chain θ → p through the same build as the evaluation; with
+    ``options.sensitivities``) and the gate clearance of its own propeller diameter."""
+    return _timed(frame if frame is not None else build_airframe(config), config, track,
+                  options, seeds)
+
+
+def _timed(frame: Airframe, cfg: AirframeConfig | None, track: TrackConfig,
+           options: LimitLapOptions, seeds: LapSeeds) -> LimitLap:
     cpu = time.process_time()
-    lap = _limit_lap(airframe, track, options)
+    lap = _limit_lap(frame, cfg, track, options, seeds)
     return replace(lap, cpu_time_s=time.process_time() - cpu)
 
 
-def _limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
-               options: LimitLapOptions) -> LimitLap:
-    from casadrone.airframe import build_airframe
-
+def _limit_lap(frame: Airframe, cfg: AirframeConfig | None, track: TrackConfig,
+               options: LimitLapOptions, seeds: LapSeeds) -> LimitLap:
     start = time.perf_counter()
-    cfg = airframe if isinstance(airframe, AirframeConfig) else None
-    frame: Airframe = build_airframe(airframe) if isinstance(airframe, AirframeConfig) else airframe
     if options.intervals is None:
         options = replace(options, intervals=DEFAULT_INTERVALS.get(frame.propulsion, 40))
     clearance_m = frame_clearance_m(frame, cfg.prop_diameter_mm / 1000 if cfg is not None
-                                    else 0.127)
-    why = refusal(frame, track, options, clearance_m)
+                                    else BARE_PROP_DIAMETER_M)
+    why = refusal(frame, track, options, clearance_m, seeds)
     if why:
         return _failed(why, start)
-    events.begun(options)
-    pb = prepare(frame, track, options, clearance_m)
+    events.begun(options, len(seeds.warm_starts))
+    pb = prepare(frame, track, options, clearance_m, seeds)
     grid_laps: dict[int, float] = {}  # the laps the grid-continuation starts solved on theirs
 
-    def lap_on_grid(f, trk, opts):
-        lap = limit_lap(f, trk, opts)
+    def on_grid(lap: LimitLap) -> LimitLap:
         if lap.completed and lap.layout is not None:
             n = lap.layout.intervals
             grid_laps[n] = min(grid_laps.get(n, math.inf), lap.lap_time_s)
         return lap
+
+    def lap_on_grid(f: Airframe, trk: TrackConfig, opts: LimitLapOptions, s: LapSeeds
+                    ) -> LimitLap:
+        return on_grid(limit_lap(f, trk, opts, s))
+
+    def again(opts: LimitLapOptions, warm: LimitLap) -> LimitLap:
+        """This airframe (and config) and track, from ``warm``, with other options."""
+        return _timed(frame, cfg, track, opts, replace(seeds, warm_starts=(warm,)))
 
     solves = run_starts(pb, lap_on_grid)
     misses = resimulation_misses(pb, solves)
@@ -187,14 +223,15 @@ def _limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
         solves.append(fallback)
         misses = resimulation_misses(pb, solves, misses)
         good = verified(solves, misses, options)
-    if not good and (fine := refined(airframe, track, options, pb, solves, misses)) is not None:
+    if not good and (fine := refined(again, options, pb, solves, misses)) is not None:
         return replace(fine, starts=start_results(solves, misses) + fine.starts,
                        wall_time_s=time.perf_counter() - start)
     if not good:
         reason, starts = failure(solves, misses, options)
         return _failed(reason, start, starts=starts, layout=pb.layout)
     if options.grid_rounds:
-        misses = grid_rounds(airframe, track, options, pb, solves, misses, lap_on_grid)
+        misses = grid_rounds(lambda opts, warm: on_grid(again(opts, warm)), options, pb,
+                             solves, misses)
         good = verified(solves, misses, options)
     result = assemble_lap(pb, good, solves, misses, grid_laps)
     if options.sensitivities and cfg is not None:
@@ -202,15 +239,17 @@ def _limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     return replace(result, wall_time_s=time.perf_counter() - start)
 
 
-def grid_rounds(airframe, track: TrackConfig, options: LimitLapOptions, pb: Problem,
-                solves: list[StartSolve], misses: dict[str, float], lap_on_grid
+def grid_rounds(lap_on_grid: Callable[[LimitLapOptions, LimitLap], LimitLap],
+                options: LimitLapOptions,
+                pb: Problem, solves: list[StartSolve], misses: dict[str, float]
                 ) -> dict[str, float]:
     """Grid continuation, at most ``options.grid_rounds`` rounds; returns the re-simulation
     misses with the new solves' (appended to ``solves``).
 
     A round resamples a verified lap onto the coarse- and fine-grid starts' grids
     (:func:`~casadrone.limit.starts.coarse_intervals`, :func:`~casadrone.limit.starts.
-    fine_intervals`) and solves it there (``lap_on_grid``, so those laps count in the result's
+    fine_intervals`) and solves it there (``lap_on_grid``: the same airframe and track with
+    other options, from a warm start, so those laps count in the result's
     ``grid_laps_s`` and certainty), then resamples each of those laps back onto this grid and
     solves it here, re-simulated and verified like any other start. The first round does this
     from **every** verified start (``grid-N-round-1-START``), later rounds from the best lap so
@@ -233,8 +272,8 @@ def grid_rounds(airframe, track: TrackConfig, options: LimitLapOptions, pb: Prob
             tag = f"round-{r}-{name}" if r == 1 else f"round-{r}"
             for g in grids:
                 with events.start(f"grid-{g}-{tag}", n) as done:
-                    other = lap_on_grid(airframe, track, inner_options(
-                        options, intervals=g, starts=(), warm_starts=(here,)))
+                    other = lap_on_grid(inner_options(options, intervals=g, starts=()),
+                                        here)
                     if other.completed:
                         solves.append((f"grid-{g}-{tag}",
                                        pb.solve(guess_from_lap(pb.full, other, pb.x0))))
@@ -268,13 +307,15 @@ def refined_intervals(n: int) -> int:
     return min(MAX_INTERVALS, math.ceil(REFINE_FACTOR * n))
 
 
-def refined(airframe, track: TrackConfig, options: LimitLapOptions, pb: Problem,
-            solves: list[StartSolve], misses: dict[str, float]) -> LimitLap | None:
+def refined(again: Callable[[LimitLapOptions, LimitLap], LimitLap], options: LimitLapOptions,
+            pb: Problem, solves: list[StartSolve], misses: dict[str, float]
+            ) -> LimitLap | None:
     """The limit lap on a finer grid when starts converged but none passes the re-simulation
     check: the fastest converged lap resampled onto ``REFINE_FACTOR`` × the intervals (at most
     MAX_INTERVALS) is that grid's only start, and that call may refine once less. None when
     nothing converged, no refinement is left, the grid cannot grow, or the finer grid gives no
-    verified lap either. The lap's chosen start is named ``refined-N`` (N intervals per leg)."""
+    verified lap either. The lap's chosen start is named ``refined-N`` (N intervals per leg);
+    ``again`` flies the same airframe and track with other options from a warm start."""
     converged = [(n, s) for n, s in solves if s.success]
     n = pb.layout.intervals
     fine = refined_intervals(n)
@@ -286,9 +327,8 @@ def refined(airframe, track: TrackConfig, options: LimitLapOptions, pb: Problem,
     coarse = LimitLap(status="failed", reason="re-simulation missed: a start only",
                       leg_times_s=T, t=node_times(T, n), x=X, u=U,
                       attitude=pb.full.model.attitude, layout=pb.layout, solution=sol.point)
-    lap = limit_lap(airframe, track, replace(
-        options, intervals=fine, starts=(), warm_starts=(coarse,), fallback_reference=None,
-        refinements=options.refinements - 1))
+    lap = again(replace(options, intervals=fine, starts=(), fallback_reference=None,
+                        refinements=options.refinements - 1), coarse)
     if not lap.completed:
         return None
     name = f"refined-{fine}"
@@ -298,7 +338,7 @@ def refined(airframe, track: TrackConfig, options: LimitLapOptions, pb: Problem,
 
 
 def refusal(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
-            clearance_m: float) -> str:
+            clearance_m: float, seeds: LapSeeds = LapSeeds()) -> str:
     """Why the limit lap of ``frame`` cannot be posed or flown (empty string when it can): the
     inputs (:func:`check_inputs`), a frame that cannot hover, no start to solve from."""
     why = check_inputs(track, options, clearance_m)
@@ -308,7 +348,7 @@ def refusal(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
     if weight >= full_thrust:
         return (f"cannot hover: weight {weight:.2f} N is not below the full thrust "
                 f"{full_thrust:.2f} N")
-    if not options.starts and not any(w.solution is not None for w in options.warm_starts):
+    if not options.starts and not any(w.solution is not None for w in seeds.warm_starts):
         return "no start: give starts or warm_starts"
     return ""
 
@@ -324,8 +364,6 @@ def param_sensitivity(pb: Problem, point: NlpPoint) -> np.ndarray:
     Measured on SY250 (a 30 m straight and a 2.5 m curve, 20 intervals per leg), where the
     thrust saturates: without the bound term dT/dK was 3.4 % short of central differences of
     warm re-solves, with it they agree to 1e-5 (tests/integration/test_limitlap_optimality.py)."""
-    from casadrone.model import param_names
-
     out = -point.lam_p[:len(pb.frame.p)].copy()
     names = param_names(pb.frame.propulsion)
     # rotor states that are thrusts: their bounds are [0, K] (propulsion.rotor_state_bounds),
@@ -344,8 +382,6 @@ def theta_sensitivities_at(cfg: AirframeConfig, pb: Problem, point: NlpPoint
                            ) -> dict[str, float]:
     """dT/dθ (s per unit of each decision-variable key) at the optimum ``point``: dT/dp and
     dT/dx0 chained through θ → p and θ → start state (the same build as the evaluation)."""
-    from casadrone.limit.check import theta_sensitivities
-
     options, n_p = pb.options, len(pb.frame.p)
     dT_dx0 = -point.lam_p[n_p:n_p + pb.full.model.nx]
     return theta_sensitivities(
@@ -358,8 +394,6 @@ def with_theta_sensitivities(result: LimitLap, cfg: AirframeConfig, pb: Problem,
     """``result`` with dT/dθ over the config's decision-variable keys at its optimum, and the
     table of those slopes against the other verified optima's in ``good`` (one per distinct
     lap: :func:`_distinct`; casadrone.limit.sensitivity)."""
-    from casadrone.limit.sensitivity import sensitivity_table
-
     if result.solution is None:
         return result
     chosen = theta_sensitivities_at(cfg, pb, result.solution)
@@ -374,8 +408,6 @@ def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],
                  ) -> LimitLap:
     """The LimitLap of the best verified start; ``grid_laps`` (intervals per leg → lap) are the
     other grids' laps of the grid-continuation starts, part of its certainty."""
-    from casadrone.limit.check import bang_bang_fraction
-
     name, chosen = best(good)
     T, X, U = pb.full.unpack(chosen.point.w)
     if is_lagless(pb.frame):  # the rotor states the lag-free model flies: T = K δ

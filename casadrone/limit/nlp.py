@@ -32,15 +32,19 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from casadrone.codegen import vector_flags
+from casadrone.codegen import compile_recipe, compile_with_reverse, recipe_fingerprint, vector_flags
+from casadrone.config.limitlap import SOLVERS
+from casadrone.limit.attitude import QUAT, quat_rotation, quaternion_f
 from casadrone.limit.gates import (  # noqa: F401 (re-exported: the NLP's target layout)
     TARGET_SIZE,
     TargetKind,
     target_rows,
     target_vector,
 )
-from casadrone.model import EUL, n_params, quadrotor_model, rotation_matrix, unpack_params
-from casadrone.propulsion import propulsion_model
+from casadrone.limit.stagewise import StageError, fatrop_solver, solve_stagewise
+from casadrone.limit.watchdog import STALL_S, run_guarded
+from casadrone.model import EUL, n_params, named, quadrotor_model, rotation_matrix, unpack_params
+from casadrone.propulsion import advance_margins, propulsion_model
 
 
 @dataclass(frozen=True)
@@ -120,8 +124,6 @@ def quadrotor_ocp_model(propulsion: str = "paper") -> OcpModel:
 
 def quaternion_ocp_model(propulsion: str = "paper") -> OcpModel:
     """The 17-state quaternion model of :mod:`casadrone.limit.attitude`: no singularity."""
-    from casadrone.limit.attitude import QUAT, quat_rotation, quaternion_f
-
     def up_z(x):
         q = x[QUAT]
         return (q[0] ** 2 + q[3] ** 2 - q[1] ** 2 - q[2] ** 2) / ca.sumsqr(q)
@@ -402,7 +404,6 @@ def exponential_rotor(model: OcpModel) -> OcpModel:
     (:meth:`casadrone.propulsion.base.PropulsionModel.decay_rate`), under its own name (its own
     NLP and compiled blocks)."""
     propulsion = model.propulsion
-    from casadrone.model import named
 
     def rate(p):
         return propulsion_model(propulsion).decay_rate(named(p, propulsion))
@@ -445,9 +446,6 @@ def advance_rows(model: OcpModel, j_max: float, M: int) -> ca.Function:
     thrust (braking the data do not support). The rows are linear in the rotor speed and the
     inflow (no division by n), and, like the tilt cone, they are differentiated by CasADi beside
     the compiled interval blocks, which stay as they are (no recompile)."""
-    from casadrone.model import named, unpack_params
-    from casadrone.propulsion import advance_margins
-
     if model.velocity is None or model.rates is None or model.rotor is None:
         raise ValueError(f"model {model.name} has no rotors for an advance-ratio bound")
     x = ca.SX.sym("x", model.nx)
@@ -571,8 +569,6 @@ def _periodic_rows(model: OcpModel, x_first, x_last) -> list:
         at = EUL  # the Euler angles of the 16-state model
         return [(ca.vertcat(diff[:at.start], ca.sin(diff[at] / 2), diff[at.stop:]), 0.0, 0.0)]
     if model.attitude == "quaternion":
-        from casadrone.limit.attitude import QUAT
-
         q0, q1 = x_first[QUAT], x_last[QUAT]
         w0, v0, w1, v1 = q0[0], q0[1:4], q1[0], q1[1:4]
         relative = w0 * v1 - w1 * v0 - ca.cross(v0, v1)  # vector part of q0* ⊗ q1
@@ -668,8 +664,6 @@ def interval_blocks(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Fun
     """
     key = (model.name, substeps)
     if key not in _BLOCKS:
-        from casadrone.codegen import compile_recipe, recipe_fingerprint
-
         names = tuple(f"limit_{part}_{_block_tag(model, substeps)}"
                       for part in ("jac", "hess", "hess_pattern"))
         jac, hess, pattern = compile_recipe(
@@ -719,8 +713,6 @@ def step_block(model: OcpModel, substeps: int) -> ca.Function:
     numbers as the SX step to the last bit; its C is a few per cent of the Hessian block's."""
     key = (model.name, substeps)
     if key not in _STEPS:
-        from casadrone.codegen import compile_with_reverse
-
         step = rk4_step(model, substeps)
         ins = step.sx_in()
         name = f"limit_step_{model.name.replace('-', '_')}_rk4x{substeps}"
@@ -966,10 +958,6 @@ class NlpSolution:
     fatrop: tuple[str, int, float] | None = None
 
 
-#: NLP solvers of the limit lap: IPOPT (general sparse, MUMPS: the reference) and fatrop
-#: (Riccati recursion over the stages of the same NLP put in stage order,
-#: :mod:`casadrone.limit.stagewise`; IPOPT re-solves from the same start where it fails).
-SOLVERS: tuple[str, ...] = ("ipopt", "fatrop")
 
 
 def solve(nlp: Nlp, w0: np.ndarray, P: np.ndarray, lbx: np.ndarray, ubx: np.ndarray,
@@ -1016,8 +1004,6 @@ def _solve_fatrop(nlp: Nlp, w0, P, lbx, ubx, warm, lbg, ubg,
     solves in this process (for the solver's own statistics; it can hang)."""
     import time
 
-    from casadrone.limit.stagewise import StageError, fatrop_solver, solve_stagewise
-    from casadrone.limit.watchdog import STALL_S, run_guarded
 
     start = time.perf_counter()
     x0 = np.clip(w0 if warm is None else warm.w, lbx, ubx)

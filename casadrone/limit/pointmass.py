@@ -11,7 +11,8 @@ from casadrone.limit.guesses import straight_guess
 from casadrone.limit.nlp import Nlp, NlpSolution, solve
 from casadrone.limit.problem import Targets, bounds, row_bounds
 from casadrone.limit.result import LimitLapOptions
-from casadrone.model import rotation_matrix
+from casadrone.model import param_names, rotation_matrix
+from casadrone.propulsion import PROPELLER_PARAM_NAMES
 
 #: Constant speeds (m/s) of the straight-line starts of the point-mass reference (best of them).
 REFERENCE_SPEEDS_MPS = (5.0, 10.0, 20.0)
@@ -23,9 +24,6 @@ _POINT_MASS: dict[bytes, NlpSolution | None] = {}
 def point_mass_p(airframe: Airframe) -> np.ndarray:
     """p with every entry the point mass does not read set to zero, so the point-mass problem,
     and its cache key, depend on mass, gravity, drag and density only (thrust is its bound)."""
-    from casadrone.model import param_names
-    from casadrone.propulsion import PROPELLER_PARAM_NAMES
-
     names = np.array(param_names(airframe.propulsion))
     # the propeller's data set the point mass's thrust bound: they stay in the key
     keep = np.isin(names, POINT_MASS_PARAMS + PROPELLER_PARAM_NAMES)

@@ -9,17 +9,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from casadrone.airframe import Airframe
+from casadrone.airframe import PARAM_NAMES, Airframe
+from casadrone.config.limitlap import (
+    MAX_GRID_ROUNDS,
+    MAX_INTERVALS,
+    MAX_SUBSTEPS,
+    ROTOR_STEPS,
+    SOLVERS,
+)
 from casadrone.config.track import TrackConfig, unreachable_target
 from casadrone.guidance import segment_headings
 from casadrone.limit.gates import MAX_EDGES, TargetKind, gate_frame, target_vector
-from casadrone.limit.nlp import SOLVERS, Nlp
+from casadrone.limit.nlp import Nlp
 from casadrone.limit.result import (
     DEFAULT_INTERVALS,
-    MAX_INTERVALS,
-    MAX_SUBSTEPS,
     MAX_TOTAL_INTERVALS,
-    ROTOR_STEPS,
     LimitLapOptions,
     model_states,
 )
@@ -55,8 +59,6 @@ def frame_clearance_m(airframe: Airframe, prop_diameter_m: float = 0.127) -> flo
     """The frame's own size as a gate clearance (m): the farthest rotor centre from the centre
     of mass in the rotor plane plus a propeller's radius (the default 127 mm is the paper's
     5-inch propeller, AirframeConfig's default)."""
-    from casadrone.airframe import PARAM_NAMES
-
     at = PARAM_NAMES.index("r1x")
     r = np.asarray(airframe.p[at:at + 12]).reshape(4, 3)[:, 0:2]
     return float(np.linalg.norm(r, axis=1).max()) + prop_diameter_m / 2
@@ -99,8 +101,6 @@ def track_targets(track: TrackConfig, options: LimitLapOptions,
                                                frames, edges), first, tuple(ends), route)
 
 
-#: At most this many grid-continuation rounds (each about four solves).
-MAX_GRID_ROUNDS = 5
 #: Shortest leg duration (s) of the limit lap's box (:func:`bounds`): a leg of zero time would
 #: make its RK4 steps zero and its dynamics rows empty.
 MIN_LEG_S = 1e-3

@@ -26,14 +26,14 @@ little within the race.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
-from casadrone.airframe import build_airframe
+from casadrone.airframe import Airframe, build_airframe
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.track import TrackConfig
 from casadrone.limit.energy import RaceEnergy, flight_energy, race_energy
-from casadrone.limit.lap import limit_lap
-from casadrone.limit.result import LimitLap, LimitLapOptions
+from casadrone.limit.lap import design_limit_lap
+from casadrone.limit.result import LapSeeds, LimitLap, LimitLapOptions
 from casadrone.propulsion.electric import Pack, pack_of
 from casadrone.results import AsDict
 
@@ -91,19 +91,19 @@ def with_open_circuit_voltage(cfg: AirframeConfig, volts: float) -> AirframeConf
 
 
 def race(cfg: AirframeConfig, track: TrackConfig,
-         options: LimitLapOptions = LimitLapOptions()) -> Race:
+         options: LimitLapOptions = LimitLapOptions(), frame: Airframe | None = None) -> Race:
     """The race of ``track.laps`` laps (module docstring); without a pack capacity, the limit
-    lap alone."""
+    lap alone (of ``frame``, where ``cfg`` is built already)."""
     pack = pack_of(cfg.propulsion.battery)
     if pack is None:
-        return Race(limit_lap(cfg, track, options))
+        return Race(design_limit_lap(cfg, track, options, frame=frame))
     passes: list[Pass] = []
     soc, lap, account = pack.start_soc, None, None
     volts = pack.open_circuit_voltage_v  # the first pass: the section's own
     for _ in range(MAX_PASSES):
         flown = with_open_circuit_voltage(cfg, volts)
-        warm = options if lap is None else replace(options, warm_starts=(lap,))
-        lap = limit_lap(flown, track, warm)
+        seeds = LapSeeds() if lap is None else LapSeeds(warm_starts=(lap,))
+        lap = design_limit_lap(flown, track, options, seeds)
         if not lap.completed:
             return Race(lap, None, tuple(passes))
         account = account_of(flown, lap, pack)

@@ -1,5 +1,6 @@
-"""The limit lap's options and result types (docs/concepts/limit-lap.md): what goes into
-:func:`casadrone.limit.lap.limit_lap` and what comes out, with the conversions between the
+"""The limit lap's options, seeds and result types (docs/concepts/limit-lap.md): what goes into
+:func:`casadrone.limit.lap.limit_lap` (settings, :class:`LimitLapOptions`; data,
+:class:`LapSeeds`) and what comes out, with the conversions between the
 model's states and the 16 Euler-model states."""
 
 from __future__ import annotations
@@ -7,28 +8,26 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Literal, get_args
+from typing import Literal, Protocol
 
 import numpy as np
 
 from casadrone.config.controller import ControllerConfig
+from casadrone.config.limitlap import (
+    Attitude,
+    Resimulation,
+    RotorStep,
+    Solver,
+    Start,
+    TiltLimit,
+)
+from casadrone.limit.attitude import euler_states_to_quat, quat_states_to_euler
 from casadrone.limit.nlp import Layout, NlpPoint
 from casadrone.limit.sensitivity import KeySensitivity
 from casadrone.model import NX
 from casadrone.propulsion import PROPULSION_MODELS
 from casadrone.results import AsDict, Status
 
-Start = Literal["closed-loop", "point-mass", "coarse-grid", "fine-grid", "relaxed-tolerance"]
-#: The attitude models of the limit lap, and the ways it limits the tilt.
-Attitude = Literal["euler", "quaternion"]
-TiltLimit = Literal["axes", "cone", "none"]
-#: What the re-simulation check flies (LimitLapOptions.resimulation).
-Resimulation = Literal["lap", "legs"]
-#: NLP solvers of the full model (casadrone.limit.nlp.SOLVERS).
-Solver = Literal["ipopt", "fatrop"]
-#: Steps of the rotor states (LimitLapOptions.rotor_step).
-RotorStep = Literal["rk4", "exponential"]
-ROTOR_STEPS: tuple[str, ...] = get_args(RotorStep)
 #: How far the verified starts agree (:func:`casadrone.limit.choose.certainty`).
 Certainty = Literal["agreed", "single", "spread"]
 #: How one solve ended, whatever the solver (:func:`ending`): "optimal" (converged to the
@@ -55,8 +54,6 @@ def ending(success: bool, return_status: str) -> Ending:
 def euler_states(attitude: str, X: np.ndarray) -> np.ndarray:
     """Model states (rows) as 16 Euler-model states."""
     if attitude == "quaternion":
-        from casadrone.limit.attitude import quat_states_to_euler
-
         return quat_states_to_euler(X)
     return np.asarray(X, float)
 
@@ -64,8 +61,6 @@ def euler_states(attitude: str, X: np.ndarray) -> np.ndarray:
 def model_states(attitude: str, X: np.ndarray) -> np.ndarray:
     """16 Euler-model states (rows) as the model's states."""
     if attitude == "quaternion":
-        from casadrone.limit.attitude import euler_states_to_quat
-
         return euler_states_to_quat(X)
     return np.atleast_2d(np.asarray(X, float))
 
@@ -87,31 +82,14 @@ class _DefaultIntervals(Mapping[str, int]):
 #: Intervals per leg by propulsion kind (LimitLapOptions.intervals None): each model's own
 #: (:attr:`casadrone.propulsion.base.PropulsionModel.default_intervals`; paper 40, propeller 80).
 DEFAULT_INTERVALS: Mapping[str, int] = _DefaultIntervals()
-#: Grid rounds of ``casadrone limit-lap --certify`` unless ``--grid-rounds`` says otherwise
-#: (casadrone.limit.search; the fast path runs none): a certificate answers one frame's
-#: question, so it pays 1.2-2.9x the CPU (median 1.8x) for the best optimum
-#: it can reach. Measured on the five reference frames over the paper, gate and split-S tracks
-#: (benchmarks/RESULTS-limitlap-issue19.md, "Grid rounds as the command's default"): 9 of 15
-#: laps 0.04-1.19 % faster (never slower: the fastest verified start wins), every frame's paper
-#: lap the best known for it, and SY250's the same (3.8795 s) on two VMs whose starts alone had
-#: stopped at 3.8800 and 3.8914 s. Rounds stop when one gains less than CERTAIN_REL; none of
-#: the calls measured ran a third.
-COMMAND_GRID_ROUNDS = 3
-#: Most intervals per leg. Grid refinement moved SY250's lap by 0.02 % from 40 to 80 intervals
-#: (LimitLapOptions.intervals), so 400 is ten times finer than any measured need; the NLP's
-#: memory grows in proportion (20 000 intervals reached 5.8 GB and failed to allocate), so 400
-#: stays near 0.1 GB.
-MAX_INTERVALS = 400
 #: Most intervals over the whole course (legs × laps × intervals per leg), the grid rounds and
 #: the refinement then solving up to 1.5× as many. The NLP's memory grows ~0.3 MB per interval
-#: in a whole limit lap (the 5.8 GB of 20 000 above; building the NLP and three IPOPT
-#: iterations alone: 0.07-0.1 MB, 390 MB at 3 200), so 6 000 keep a limit lap within about
-#: 2-3 GB, and still take a 20-gate, three-lap race at the propeller model's 80 per leg. A
-#: 5 000-waypoint, 20-lap track had run out of memory (5.4 GB under a 6 GB limit) unrefused.
+#: in a whole limit lap (20 000 reached 5.8 GB: casadrone.config.limitlap.MAX_INTERVALS;
+#: building the NLP and three IPOPT iterations alone: 0.07-0.1 MB, 390 MB at 3 200), so 6 000
+#: keep a limit lap within about 2-3 GB, and still take a 20-gate, three-lap race at the
+#: propeller model's 80 per leg. A 5 000-waypoint, 20-lap track had run out of memory (5.4 GB
+#: under a 6 GB limit) unrefused.
 MAX_TOTAL_INTERVALS = 6000
-#: Most integration steps per shooting interval: each one adds to the compiled interval
-#: blocks (4 exponential steps of the propeller model: an 11 MB Hessian block of C).
-MAX_SUBSTEPS = 20
 
 
 @dataclass(frozen=True)
@@ -149,8 +127,6 @@ class LimitLapOptions:
     # fine-grid start on another VM). The relaxed-tolerance start lands where the point-mass
     # start does.
     starts: tuple[Start, ...] = ("closed-loop", "point-mass", "coarse-grid", "fine-grid")
-    warm_starts: tuple[LimitLap, ...] = ()  # neighbouring solutions (same legs; any grid)
-    guess_trajectory: object | None = None  # the frame's closed-loop lap, if already flown
     ball_radius_m: float | None = None  # None: the track's acceptance radius
     # Kept from the gate's frame on each side (m); None: the frame's own size (the farthest
     # rotor plus a propeller radius, frame_clearance_m).
@@ -164,7 +140,6 @@ class LimitLapOptions:
     # tilt (angle between body z and world z, at every node), or "none".
     tilt_limit: TiltLimit = "axes"
     start_state: tuple[float, ...] | None = None  # 16 values; None: hover at the start
-    controller: ControllerConfig | None = None  # closed-loop guess; None: default controller
     # NLP solver of the full model: "ipopt" (the reference) or "fatrop" (the same NLP in stage
     # order, Riccati factorisation; IPOPT re-solves where it fails: casadrone.limit.stagewise).
     # The point-mass reference is always IPOPT's.
@@ -205,6 +180,35 @@ class LimitLapOptions:
     # command's default is COMMAND_GRID_ROUNDS (benchmarks/RESULTS-limitlap-issue19.md, "Grid
     # rounds as the command's default").
     grid_rounds: int = 0
+
+
+class FlownLap(Protocol):
+    """What the closed-loop start reads of a lap already flown (a
+    :class:`casadrone.simulate.Trajectory`, whose module this one does not import): sample times
+    (s), the 16 Euler-model states and the ESC commands at them, the route segment flown."""
+
+    @property
+    def t(self) -> np.ndarray: ...
+
+    @property
+    def x(self) -> np.ndarray: ...
+
+    @property
+    def u(self) -> np.ndarray: ...
+
+    @property
+    def segment(self) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class LapSeeds:
+    """What a limit lap may start from beside its options' cold starts: data (earlier laps, a
+    flown trajectory, the controller that flies the closed-loop start), never settings, so the
+    options stay the same for every candidate of a study while the seeds differ."""
+
+    warm_starts: tuple[LimitLap, ...] = ()  # neighbouring solutions (same legs; any grid)
+    guess_trajectory: FlownLap | None = None  # the frame's closed-loop lap, if already flown
+    controller: ControllerConfig | None = None  # closed-loop start; None: the default controller
 
 
 @dataclass(frozen=True)

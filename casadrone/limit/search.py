@@ -5,18 +5,20 @@ the coarse grid on the gate track), without grid rounds; and ``--certify``, ever
 plus grid
 rounds, whose agreement or spread (and the uncertainty of the sensitivities) is what a
 certificate is made of. One registry, :data:`SEARCHES`; the CLI's flag and the benchmark
-(``benchmarks/bench_limitlap_fastpath.py``) read it.
+(``benchmarks/bench_limitlap_fastpath.py``) read it. :func:`lap_options` turns the settings a
+user gives (:class:`casadrone.config.limitlap.LimitLapConfig`: the command's ``key=value``
+arguments and options, a problem file's ``limit_lap:``) into the limit lap's options.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Literal
 
-from casadrone.limit.result import COMMAND_GRID_ROUNDS, LimitLapOptions, Solver, Start
+from casadrone.config.limitlap import COMMAND_GRID_ROUNDS, LimitLapConfig, Search, Solver, Start
+from casadrone.limit.result import LimitLapOptions
 
-#: The command's searches.
-Search = Literal["fast", "certify"]
+__all__ = ["SEARCHES", "Search", "SearchSettings", "fatrop_allowed", "lap_options",
+           "search_options"]
 
 
 @dataclass(frozen=True)
@@ -60,3 +62,16 @@ def search_options(search: Search, options: LimitLapOptions, periodic: bool,
         chosen = "ipopt"
     return replace(options, starts=s.starts, solver=chosen,
                    grid_rounds=s.grid_rounds if grid_rounds is None else grid_rounds)
+
+
+def lap_options(config: LimitLapConfig, periodic: bool,
+                base: LimitLapOptions = LimitLapOptions()) -> LimitLapOptions:
+    """The limit lap's options of ``config`` (on ``base``'s other settings): its model and
+    check settings, then its search's starts, grid rounds and solver (:func:`search_options`;
+    ``periodic``: the track ends where it starts), its own starts where it names them."""
+    options = replace(base, intervals=config.intervals, attitude=config.attitude,
+                      tilt_limit=config.tilt, resimulation=config.resimulation,
+                      rotor_step=config.rotor_step, substeps=config.substeps)
+    options = search_options(config.search, options, periodic, solver=config.solver,
+                             grid_rounds=config.grid_rounds)
+    return options if config.starts is None else replace(options, starts=config.starts)

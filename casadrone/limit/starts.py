@@ -2,7 +2,7 @@
 solve per start (docs/concepts/limit-lap.md, "Robustness").
 
 Each cold start is one entry of :data:`COLD_STARTS` (``LimitLapOptions.starts`` chooses among
-them, solved in the registry's order); warm starts come from ``LimitLapOptions.warm_starts``; the
+them, solved in the registry's order); warm starts come from ``LapSeeds.warm_starts``; the
 fallback start is the limit lap of a shipped reference frame. A start that needs a limit lap of
 its own (the coarse grid, the fallback reference) gets the solver as ``lap_of``, so this module
 does not import :mod:`casadrone.limit.lap`.
@@ -16,10 +16,13 @@ from functools import cached_property
 
 import numpy as np
 
-from casadrone.airframe import Airframe
-from casadrone.config.airframe import AirframeConfig
+from casadrone.airframe import Airframe, build_airframe
+from casadrone.config.airframe import load_airframe
+from casadrone.config.io import ConfigError
+from casadrone.config.limitlap import MAX_INTERVALS
 from casadrone.config.track import TrackConfig
 from casadrone.limit import events
+from casadrone.limit.gates import TARGET_SIZE
 from casadrone.limit.guesses import (
     closed_loop_lap,
     guess_from_lap,
@@ -40,9 +43,16 @@ from casadrone.limit.nlp import (
     solve,
 )
 from casadrone.limit.pointmass import point_mass_reference
-from casadrone.limit.problem import Targets, bounds, row_bounds, start_state, track_targets
+from casadrone.limit.problem import (
+    Targets,
+    bounds,
+    frame_clearance_m,
+    row_bounds,
+    start_state,
+    track_targets,
+)
 from casadrone.limit.result import (
-    MAX_INTERVALS,
+    LapSeeds,
     LimitLap,
     LimitLapOptions,
     Start,
@@ -61,7 +71,7 @@ RELAXED_RADIUS_M = 1.0
 #: A named solve: the start's name and what IPOPT gave from it.
 StartSolve = tuple[str, NlpSolution]
 #: The limit lap itself (:func:`casadrone.limit.lap.limit_lap`), for starts that need one.
-LapOf = Callable[[Airframe | AirframeConfig, TrackConfig, LimitLapOptions], LimitLap]
+LapOf = Callable[[Airframe, TrackConfig, LimitLapOptions, LapSeeds], LimitLap]
 
 
 @dataclass(frozen=True)
@@ -79,6 +89,7 @@ class Problem:
     P: np.ndarray
     box: tuple[np.ndarray, np.ndarray]
     rows: tuple[np.ndarray, np.ndarray]
+    seeds: LapSeeds = LapSeeds()  # warm starts, a flown lap, the closed-loop start's controller
 
     def solve(self, w0: np.ndarray, warm: NlpPoint | None = None) -> NlpSolution:
         if warm is None:
@@ -122,9 +133,9 @@ def periodic_guess(nlp: Nlp, w0: np.ndarray) -> np.ndarray:
 
 
 def prepare(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
-            clearance_m: float) -> Problem:
+            clearance_m: float, seeds: LapSeeds = LapSeeds()) -> Problem:
     """The problem of ``frame`` on ``track``: the NLP of its layout (built once per process),
-    P = [p, x0, targets], the box and the row bounds."""
+    P = [p, x0, targets], the box and the row bounds; ``seeds``: what its starts may use."""
     targets = track_targets(track, options, clearance_m)
     assert options.intervals is not None  # limit_lap resolved it (DEFAULT_INTERVALS)
     layout = Layout(targets.kinds, options.intervals, options.degree, options.method,
@@ -144,7 +155,7 @@ def prepare(frame: Airframe, track: TrackConfig, options: LimitLapOptions,
     return Problem(frame, track, options, targets, layout, full, x0_euler, x0,
                    np.concatenate([frame.p, x0, targets.vector]),
                    bounds(full, frame, track, options, point_mass=False),
-                   row_bounds(full, track, options))
+                   row_bounds(full, track, options), seeds)
 
 
 def trajectory(nlp: Nlp, w: np.ndarray, layout: Layout) -> LimitLap:
@@ -162,10 +173,10 @@ def trajectory(nlp: Nlp, w: np.ndarray, layout: Layout) -> LimitLap:
 def closed_loop_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:
     """From the frame's closed-loop lap sampled onto the grid (straight lines when it does not
     fly the track)."""
-    options, full, x0 = pb.options, pb.full, pb.x0
+    seeds, full, x0 = pb.seeds, pb.full, pb.x0
     guess = None
-    traj = options.guess_trajectory or closed_loop_lap(with_guess_lag(pb.frame), pb.track,
-                                                       options.controller)
+    traj = seeds.guess_trajectory or closed_loop_lap(with_guess_lag(pb.frame), pb.track,
+                                                     seeds.controller)
     if traj is not None:
         guess = guess_from_trajectory(full, traj, x0)
     if guess is None:
@@ -214,8 +225,9 @@ def _grid_continuation(pb: Problem, lap_of: LapOf, intervals: int, start: Start
                        ) -> NlpSolution | None:
     """The lap from cold start ``start`` on ``intervals`` per leg, its optimum resampled onto
     this grid and solved here (None when that lap fails)."""
-    other = lap_of(pb.frame, pb.track, inner_options(
-        pb.options, intervals=intervals, starts=(start,), warm_starts=()))
+    other = lap_of(pb.frame, pb.track, inner_options(pb.options, intervals=intervals,
+                                                     starts=(start,)),
+                   replace(pb.seeds, warm_starts=()))
     if not other.completed:
         return None
     return pb.solve(guess_from_lap(pb.full, other, pb.x0))
@@ -245,8 +257,6 @@ COLD_STARTS: dict[Start, Callable[[Problem, LapOf], NlpSolution | None]] = {
 def relaxed_then_tight(pb: Problem, w0: np.ndarray) -> NlpSolution:
     """Tolerance homotopy: solve with every ball at least RELAXED_RADIUS_M, then from that
     primal-dual point with the track's tolerances (the same NLP: radii are parameters)."""
-    from casadrone.limit.gates import TARGET_SIZE
-
     P = pb.P.copy()
     at = len(pb.frame.p) + pb.full.model.nx + 14  # the first target's ball radius
     radii = P[at::TARGET_SIZE]
@@ -264,7 +274,7 @@ def warm_solves(pb: Problem) -> list[StartSolve]:
     """One solve per usable warm start: ``warm-i`` (primal-dual, same layout and attitude) or
     ``resampled-i`` (same legs and method, another grid or attitude)."""
     solves: list[StartSolve] = []
-    for i, ws in enumerate(pb.options.warm_starts):
+    for i, ws in enumerate(pb.seeds.warm_starts):
         if ws.solution is None or ws.layout is None:
             continue
         if ws.layout == pb.layout and ws.attitude == pb.full.model.attitude:
@@ -314,19 +324,26 @@ _REFERENCE_LAPS: dict[tuple, LimitLap] = {}
 
 
 def reference_lap(name: str, track: TrackConfig, options: LimitLapOptions,
-                  lap_of: LapOf) -> LimitLap:
+                  lap_of: LapOf, seeds: LapSeeds = LapSeeds()) -> LimitLap:
     """The limit lap of the shipped airframe ``name`` on ``track`` with ``options`` (its own
-    cold starts only, no point-mass reference or sensitivities), solved once per process and
-    cached: deterministic, so a cache hit is the same result as a new solve."""
-    from casadrone.config.airframe import load_airframe
-
-    ref_options = replace(options, warm_starts=(), guess_trajectory=None,
-                          point_mass_reference=False, sensitivities=False,
+    cold starts only, no point-mass reference or sensitivities; of ``seeds`` only the
+    controller), solved once per process and cached: deterministic, so a cache hit is the same
+    result as a new solve. Its gates keep the reference's own clearance (its config's
+    propeller; ``options.gate_clearance_m`` where set)."""
+    ref_options = replace(options, point_mass_reference=False, sensitivities=False,
                           fallback_reference=None, starts=LimitLapOptions.starts,
                           grid_rounds=0)
-    key = (name, track.model_dump_json(), repr(ref_options))
+    ref_seeds = LapSeeds(controller=seeds.controller)
+    key = (name, track.model_dump_json(), repr(ref_options), repr(ref_seeds))
     if key not in _REFERENCE_LAPS:
-        _REFERENCE_LAPS[key] = lap_of(load_airframe(name), track, ref_options)
+        cfg = load_airframe(name)
+        frame = build_airframe(cfg)
+        clearance_m = ref_options.gate_clearance_m
+        if clearance_m is None:
+            clearance_m = frame_clearance_m(frame, cfg.prop_diameter_mm / 1000)
+        _REFERENCE_LAPS[key] = lap_of(frame, track,
+                                      replace(ref_options, gate_clearance_m=clearance_m),
+                                      ref_seeds)
     return _REFERENCE_LAPS[key]
 
 
@@ -338,8 +355,6 @@ def fallback_name(name: str | None, propulsion: str) -> str | None:
     suffix = propulsion_model(propulsion).suffix
     if name is None or not suffix:
         return name
-    from casadrone.config.airframe import load_airframe
-    from casadrone.config.io import ConfigError
 
     try:
         ref = load_airframe(f"{name}-{propulsion}")
@@ -354,7 +369,7 @@ def fallback_solve(pb: Problem, lap_of: LapOf) -> StartSolve | None:
     name = fallback_name(pb.options.fallback_reference, pb.frame.propulsion)
     if name is None:
         return None
-    ref = reference_lap(name, pb.track, pb.options, lap_of)
+    ref = reference_lap(name, pb.track, pb.options, lap_of, pb.seeds)
     if ref.solution is None or ref.layout != pb.layout:
         return None
     return f"reference-{name}", pb.solve(ref.solution.w, warm=ref.solution)

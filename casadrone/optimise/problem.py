@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -22,6 +22,7 @@ from casadrone.config.controller import load_controller
 from casadrone.config.io import load
 from casadrone.config.problem import ProblemConfig
 from casadrone.config.track import TrackConfig
+from casadrone.limit.search import lap_options
 from casadrone.results import Record
 from casadrone.rundir.plugins import import_plugin
 
@@ -105,19 +106,22 @@ def _setup(key: str, problem: ProblemConfig) -> EvaluationSetup:
     template = load_airframe(problem.airframe)
     if problem.fixed:
         template = template.model_validate({**template.model_dump(), **problem.fixed})
+    track = load(TrackConfig, problem.track or DEFAULT_TRACK)
     _SETUPS[key] = EvaluationSetup(
         template=template,
         controller=load_controller(problem.controller),
-        track=load(TrackConfig, problem.track or DEFAULT_TRACK),
+        track=track,
         integrator=problem.integrator,
-        **limit_setup(problem, template),
+        **limit_setup(problem, template, periodic=track.end == "periodic"),
     )
     return _SETUPS[key]
 
 
-def limit_setup(problem: ProblemConfig, template: AirframeConfig) -> dict:
+def limit_setup(problem: ProblemConfig, template: AirframeConfig, periodic: bool = False
+                ) -> dict:
     """Limit-lap settings of a problem that optimises or constrains a limit-lap index: the
-    options, and the per-study warm-start references (the template and the centre of the
+    options (the problem's ``limit_lap:`` settings; ``periodic``: its track ends where it
+    starts), and the per-study warm-start references (the template and the centre of the
     decision-variable box), identical in every worker."""
     from casadrone.indices import limit_index_names
 
@@ -125,16 +129,15 @@ def limit_setup(problem: ProblemConfig, template: AirframeConfig) -> dict:
     if not limit_index_names(names):
         return {}
     from casadrone.evaluate import theta_of
-    from casadrone.limit.lap import LimitLapOptions
 
     keys = [v.name for v in problem.variables]
     centre = {v.name: 0.5 * (v.lower + v.upper) for v in problem.variables}
     template_theta = {k: float(getattr(template, k)) for k in keys} if keys else theta_of(template)
     # resimulate: every converged warm start is flown by CVODES (~30 ms) and counts only if it
     # passes the targets, so a lap that exploits the discretisation never reaches the front.
-    return {"limit": LimitLapOptions(starts=("closed-loop",), point_mass_reference=False,
-                                     resimulate=True, sensitivities=False,
-                                     solver=problem.limit_solver),
+    options = lap_options(problem.limit_lap, periodic)
+    return {"limit": replace(options, starts=("closed-loop",), point_mass_reference=False,
+                             resimulate=True, sensitivities=False),
             "limit_references": (template_theta, centre)}
 
 

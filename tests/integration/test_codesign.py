@@ -20,7 +20,7 @@ from casadrone.codesign.design import codesign
 from casadrone.config.codesign import CodesignProblemConfig
 from casadrone.config.io import load
 from casadrone.config.track import TrackConfig
-from casadrone.limit.lap import LimitLapOptions, limit_lap
+from casadrone.limit.lap import LimitLapOptions, design_limit_lap
 
 ROOT = Path(__file__).resolve().parents[2]
 SHORT = ROOT / "tests" / "data" / "codesign" / "short-track.yaml"
@@ -49,7 +49,8 @@ def test_codesign_frame_is_valid_and_no_slower_than_the_template(short_result):
         assert lo - 1e-6 <= r.best.theta[key] <= hi + 1e-6
     # oracle: the limit lap of the template frame (the co-design started from its geometry)
     track = load(TrackConfig, SHORT)
-    template = limit_lap(r_template(), track, LimitLapOptions(intervals=8, sensitivities=False))
+    template = design_limit_lap(r_template(), track,
+                                       LimitLapOptions(intervals=8, sensitivities=False))
     assert r.best.laps_s["short"] <= template.lap_time_s * (1 + 1e-6)
     assert build_airframe(cfg).mass == pytest.approx(r.best.mass_kg, rel=1e-12)
 
@@ -112,8 +113,8 @@ def test_paper_track_codesign_beats_random_frames():
     assert r.status == "completed" and r.certificate.passed, r.certificate.text()
     track = load(TrackConfig, ROOT / "configs/tracks/paper-rectangle.yaml")
     thetas, _ = random_thetas(r_template(), 8, seed=11)
-    laps = [limit_lap(with_theta(r_template(), t), track,
-                      LimitLapOptions(sensitivities=False)).lap_time_s for t in thetas]
+    laps = [design_limit_lap(with_theta(r_template(), t), track,
+                             LimitLapOptions(sensitivities=False)).lap_time_s for t in thetas]
     assert r.best.objective <= np.nanmin(laps) * (1 + 1e-4)
 
 
@@ -351,7 +352,7 @@ def test_template_lap_falls_back_to_the_default_starts(monkeypatch):
         ok = options.starts == ("closed-loop", "point-mass")
         return LimitLap(status="completed" if ok else "failed", reason="")
 
-    monkeypatch.setattr(driver, "limit_lap", fake)
+    monkeypatch.setattr(driver, "design_limit_lap", fake)
     opts = LimitLapOptions(intervals=8, starts=("coarse-grid",))
     track = load(TrackConfig, SHORT)
     assert driver.template_lap(r_template(), track, opts).completed

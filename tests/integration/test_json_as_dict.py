@@ -170,7 +170,7 @@ def test_limit_lap_json_is_the_laps_as_dict(tmp_path, sy250):
     """The short track of the optimality test (seconds a solve), flown by the command and by the
     API: the lap's as_dict beside the propulsion figures."""
     from casadrone.cli.limit import PROPULSION_KEYS, named_parameters
-    from casadrone.limit.lap import LimitLapOptions, limit_lap
+    from casadrone.limit.lap import LimitLapOptions, design_limit_lap
     from casadrone.limit.search import search_options
     from tests.integration.test_limitlap_optimality import TRACK
 
@@ -178,8 +178,8 @@ def test_limit_lap_json_is_the_laps_as_dict(tmp_path, sy250):
     track = tmp_path / "track.yaml"
     track.write_text(json.dumps(TRACK.model_dump(mode="json")))
     out = cli_json("limit-lap", "SY250", "--track", str(track), "--intervals", "20")
-    lap = limit_lap(cfg, TRACK, search_options("fast", LimitLapOptions(intervals=20),
-                                               periodic=False))
+    lap = design_limit_lap(cfg, TRACK, search_options("fast", LimitLapOptions(intervals=20),
+                                                      periodic=False))
     expected = as_json(lap)  # the command's options (its default search, the fast path)
     # dT/dp keyed by the model's parameter names (the lap keeps the bare vector)
     expected["param_sensitivity"] = as_json(named_parameters(lap.param_sensitivity, "paper"))

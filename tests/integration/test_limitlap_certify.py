@@ -10,7 +10,7 @@ from __future__ import annotations
 import pytest
 
 from casadrone.config.airframe import load_airframe
-from casadrone.limit.lap import LimitLapOptions, limit_lap
+from casadrone.limit.lap import LimitLapOptions, design_limit_lap
 from casadrone.limit.search import search_options
 
 pytestmark = pytest.mark.slow
@@ -22,8 +22,8 @@ def laps():
 
     cfg = load_airframe("SY250")
     base = LimitLapOptions(intervals=10)
-    fast = limit_lap(cfg, TRACK, search_options("fast", base, periodic=False))
-    certified = limit_lap(cfg, TRACK, search_options("certify", base, periodic=False))
+    fast = design_limit_lap(cfg, TRACK, search_options("fast", base, periodic=False))
+    certified = design_limit_lap(cfg, TRACK, search_options("certify", base, periodic=False))
     return fast, certified
 
 

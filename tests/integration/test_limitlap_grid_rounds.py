@@ -16,7 +16,13 @@ from casadrone.config.airframe import load_airframe
 from casadrone.config.io import load
 from casadrone.config.track import TrackConfig
 from casadrone.evaluate import DEFAULT_TRACK
-from casadrone.limit.lap import CERTAIN_REL, LimitLapOptions, check_inputs, limit_lap
+from casadrone.limit.lap import (
+    CERTAIN_REL,
+    LapSeeds,
+    LimitLapOptions,
+    check_inputs,
+    design_limit_lap,
+)
 
 OPTIONS = LimitLapOptions(intervals=24, starts=("point-mass",), sensitivities=False,
                           fallback_reference=None)
@@ -25,8 +31,8 @@ OPTIONS = LimitLapOptions(intervals=24, starts=("point-mass",), sensitivities=Fa
 @pytest.fixture(scope="module")
 def laps():
     frame, track = load_airframe("SY250"), load(TrackConfig, DEFAULT_TRACK)
-    plain = limit_lap(frame, track, OPTIONS)
-    rounds = limit_lap(frame, track, replace(OPTIONS, grid_rounds=1))
+    plain = design_limit_lap(frame, track, OPTIONS)
+    rounds = design_limit_lap(frame, track, replace(OPTIONS, grid_rounds=1))
     return frame, track, plain, rounds
 
 
@@ -43,8 +49,9 @@ def test_a_round_leaves_the_start_for_a_faster_verified_lap(laps):
 
 def test_the_chosen_lap_is_an_optimum_of_its_own_grid(laps):
     frame, track, _, rounds = laps
-    again = limit_lap(frame, track, replace(OPTIONS, starts=(), warm_starts=(rounds,),
-                                            point_mass_reference=False))
+    again = design_limit_lap(frame, track, replace(OPTIONS, starts=(),
+                                                   point_mass_reference=False),
+                             LapSeeds(warm_starts=(rounds,)))
     assert again.completed and again.start == "warm-1"
     assert again.lap_time_s == pytest.approx(rounds.lap_time_s, rel=1e-6)
 
@@ -78,8 +85,8 @@ def test_the_first_round_starts_from_every_verified_start():
     advance, so round 1 resamples every distinct verified start, not only the chosen one; the
     chosen lap is the fastest of all of them."""
     frame, track = load_airframe("SY250"), load(TrackConfig, DEFAULT_TRACK)
-    lap = limit_lap(frame, track, replace(OPTIONS, starts=("point-mass", "closed-loop"),
-                                          grid_rounds=1))
+    lap = design_limit_lap(frame, track, replace(OPTIONS, starts=("point-mass", "closed-loop"),
+                                                 grid_rounds=1))
     assert lap.completed, lap.reason
     by_name = {s.start: s for s in lap.starts}
     own = [n for n in ("point-mass", "closed-loop")

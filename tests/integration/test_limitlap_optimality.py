@@ -32,7 +32,7 @@ from scipy.integrate import solve_ivp
 from casadrone.airframe import build_airframe
 from casadrone.config.airframe import load_airframe
 from casadrone.config.track import TrackConfig
-from casadrone.limit.lap import LimitLapOptions, limit_lap
+from casadrone.limit.lap import LapSeeds, LimitLapOptions, design_limit_lap
 from casadrone.model import PARAM_NAMES, quadrotor_model
 
 NAME = "SY250"
@@ -57,7 +57,7 @@ def frame(cfg):
 def lap(cfg):
     """The one cold solve of the module (every start, point-mass reference, re-simulation and
     sensitivities, as a user gets them)."""
-    return limit_lap(cfg, TRACK, OPTIONS)
+    return design_limit_lap(cfg, TRACK, OPTIONS)
 
 
 def straight_intervals(lap) -> np.ndarray:
@@ -199,10 +199,10 @@ RELAXATION_RTOL = 4e-4  # ~10x the observed 2.4e-5 to 3.7e-5
 
 def _resolved(lap, name_overrides: list[str]):
     """The lap of SY250 with ``overrides``, warm-started from ``lap`` (the same local optimum)."""
-    opts = replace(OPTIONS, warm_starts=(lap,), starts=(), point_mass_reference=False,
-                   resimulate=False,
+    opts = replace(OPTIONS, starts=(), point_mass_reference=False, resimulate=False,
                    sensitivities=False)
-    out = limit_lap(load_airframe(NAME, name_overrides), TRACK, opts)
+    out = design_limit_lap(load_airframe(NAME, name_overrides), TRACK, opts,
+                           LapSeeds(warm_starts=(lap,)))
     assert out.completed, out.reason
     return out.lap_time_s
 

@@ -28,7 +28,7 @@ from casadrone.airframe import build_airframe
 from casadrone.config.airframe import load_airframe
 from casadrone.config.track import TrackConfig
 from casadrone.limit.check import lap_propulsion
-from casadrone.limit.lap import LimitLapOptions, limit_lap
+from casadrone.limit.lap import LimitLapOptions, design_limit_lap
 from casadrone.limit.result import DEFAULT_INTERVALS
 from casadrone.model import quadrotor_model
 from casadrone.propulsion import max_static_thrust, rotor_thrust_bound
@@ -48,8 +48,8 @@ def frame():
 
 @pytest.fixture(scope="module")
 def lap():
-    return limit_lap(load_airframe("SY250-propeller"), TRACK,
-                     LimitLapOptions(sensitivities=False))
+    return design_limit_lap(load_airframe("SY250-propeller"), TRACK,
+                            LimitLapOptions(sensitivities=False))
 
 
 def test_propeller_lap_converges_on_its_default_grid(lap):
@@ -98,7 +98,7 @@ TIGHT_J = 0.45
 @pytest.fixture(scope="module")
 def tight_lap():
     cfg = load_airframe("SY250-propeller", [f"propulsion.propeller.max_advance_ratio={TIGHT_J}"])
-    return build_airframe(cfg), limit_lap(cfg, TRACK, LimitLapOptions(sensitivities=False))
+    return build_airframe(cfg), design_limit_lap(cfg, TRACK, LimitLapOptions(sensitivities=False))
 
 
 def _recomputed(frame, lap):
@@ -145,9 +145,9 @@ def test_exponential_rotor_step_on_half_the_intervals_follows_the_lap(frame):
     and DOP853 flying its commands stays within the issue's 5 cm of its nodes (observed 0.5 mm
     here; on the paper track SY250-propeller missed by 2.1 cm, classical RK4 on 40 × 3 by
     0.30 m)."""
-    lap = limit_lap(load_airframe("SY250-propeller"), TRACK,
-                    LimitLapOptions(sensitivities=False, intervals=40, substeps=4,
-                                    rotor_step="exponential", starts=("point-mass",)))
+    lap = design_limit_lap(load_airframe("SY250-propeller"), TRACK,
+                           LimitLapOptions(sensitivities=False, intervals=40, substeps=4,
+                                           rotor_step="exponential", starts=("point-mass",)))
     assert lap.completed, lap.reason
     nodes = flown_by_dop853(lap, frame)
     assert np.max(np.linalg.norm(nodes[:, 0:3] - lap.x[:, 0:3], axis=1)) <= RESIM_M

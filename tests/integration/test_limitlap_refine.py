@@ -12,7 +12,7 @@ import pytest
 
 from casadrone.config.airframe import load_airframe
 from casadrone.config.track import TrackConfig
-from casadrone.limit.lap import LimitLapOptions, limit_lap
+from casadrone.limit.lap import LimitLapOptions, design_limit_lap
 
 #: 32.5 m in two legs; SY250-propeller's rotor speed lags ~20 ms, which 20 intervals per leg
 #: follow to 7.8 cm of open-loop drift and 30 to 1.3 cm (measured)
@@ -30,14 +30,14 @@ def frame():
 
 
 def test_without_refinement_the_coarse_lap_fails_its_check(frame):
-    lap = limit_lap(frame, TRACK, replace(OPTIONS, refinements=0))
+    lap = design_limit_lap(frame, TRACK, replace(OPTIONS, refinements=0))
     assert lap.status == "failed" and "re-simulation" in lap.reason
     (coarse,) = lap.starts
     assert coarse.success and coarse.resimulation_miss_m > MISS_M
 
 
 def test_a_lap_that_misses_is_refined_and_flown(frame):
-    lap = limit_lap(frame, TRACK, OPTIONS)
+    lap = design_limit_lap(frame, TRACK, OPTIONS)
     assert lap.completed, lap.reason
     assert lap.layout is not None and lap.layout.intervals == 30
     assert lap.start == "refined-30" and lap.resimulation_miss_m <= MISS_M

@@ -15,7 +15,7 @@ from casadrone.config.airframe import load_airframe
 from casadrone.config.io import load
 from casadrone.config.track import TrackConfig
 from casadrone.evaluate import DEFAULT_TRACK, default_setup, evaluate, theta_of
-from casadrone.limit.lap import LimitLapOptions, limit_lap
+from casadrone.limit.lap import LapSeeds, LimitLapOptions, design_limit_lap
 
 pytestmark = pytest.mark.slow
 TRACK = load(TrackConfig, DEFAULT_TRACK)
@@ -25,7 +25,7 @@ FAST = LimitLapOptions(sensitivities=False)
 
 @pytest.fixture(scope="module")
 def laps():
-    return {name: limit_lap(load_airframe(name), TRACK, FAST) for name in REFERENCES}
+    return {name: design_limit_lap(load_airframe(name), TRACK, FAST) for name in REFERENCES}
 
 
 #: Laps an independent re-implementation of the same problem found on this grid (issue 19):
@@ -62,13 +62,13 @@ def test_grid_refinement_changes_the_lap_little(laps, name):
     coarse = laps[name]
     cfg = load_airframe(name)
     assert coarse.layout is not None  # the grid the default solved it on (40 per leg)
-    fine = limit_lap(cfg, TRACK, replace(FAST, intervals=2 * coarse.layout.intervals,
-                                         point_mass_reference=False, starts=(),
-                                         warm_starts=(coarse,)))
+    fine = design_limit_lap(cfg, TRACK, replace(FAST, intervals=2 * coarse.layout.intervals,
+                                                point_mass_reference=False, starts=()),
+                            LapSeeds(warm_starts=(coarse,)))
     assert fine.completed, fine.reason
     assert fine.start == "resampled-1"
-    back = limit_lap(cfg, TRACK, replace(FAST, point_mass_reference=False, starts=(),
-                                         warm_starts=(fine,)))
+    back = design_limit_lap(cfg, TRACK, replace(FAST, point_mass_reference=False, starts=()),
+                            LapSeeds(warm_starts=(fine,)))
     best = min([coarse.lap_time_s] + ([back.lap_time_s] if back.completed else []))
     assert abs(fine.lap_time_s - best) <= 1e-3 * best
 
@@ -77,7 +77,7 @@ def test_slower_lag_and_weaker_thrust_never_faster(laps):
     base = laps["SY250"]
     for override in (["thrust.time_constant_s=0.09"], ["thrust.gain_n=8.0"]):
         cfg = load_airframe("SY250", override)
-        lap = limit_lap(cfg, TRACK, replace(FAST, warm_starts=(base,)))
+        lap = design_limit_lap(cfg, TRACK, FAST, LapSeeds(warm_starts=(base,)))
         assert lap.completed, lap.reason
         assert lap.lap_time_s >= base.lap_time_s - 1e-4, override
 
@@ -126,9 +126,9 @@ def test_mirror_track_same_lap_on_mirror_image_frame(laps):
     base = laps["SY250"]
     mirror = TRACK.model_copy(update={"waypoints_m": [(x, -y, z) for x, y, z in
                                                       TRACK.waypoints_m]})
-    lap = limit_lap(load_airframe("SY250"), mirror,
-                    replace(FAST, starts=(), warm_starts=(_reflect_lap(base),),
-                            point_mass_reference=False))
+    lap = design_limit_lap(load_airframe("SY250"), mirror,
+                           replace(FAST, starts=(), point_mass_reference=False),
+                           LapSeeds(warm_starts=(_reflect_lap(base),)))
     assert lap.completed, lap.reason
     assert lap.iterations <= 20
     np.testing.assert_allclose(lap.lap_time_s, base.lap_time_s, rtol=1e-6)
@@ -139,20 +139,21 @@ def test_mirror_track_same_lap_on_mirror_image_frame(laps):
 
 def test_sensitivities_match_finite_differences_on_asymmetric_frame():
     cfg = load_airframe("HS210")
-    lap = limit_lap(cfg, TRACK, LimitLapOptions())
+    lap = design_limit_lap(cfg, TRACK, LimitLapOptions())
     assert lap.completed, lap.reason
     for key, step in (("lambda_a_mm", 2.0), ("ixx_kgm2", 1e-4)):
         v = getattr(cfg, key)
-        T = [limit_lap(load_airframe("HS210", [f"{key}={v + s}"]), TRACK,
-                       replace(FAST, warm_starts=(lap,), starts=(), point_mass_reference=False,
-                               resimulate=False)).lap_time_s for s in (-step, step)]
+        T = [design_limit_lap(load_airframe("HS210", [f"{key}={v + s}"]), TRACK,
+                              replace(FAST, starts=(), point_mass_reference=False,
+                                      resimulate=False), LapSeeds(warm_starts=(lap,))).lap_time_s
+             for s in (-step, step)]
         fd = (T[1] - T[0]) / (2 * step)
         assert lap.sensitivities[key] == pytest.approx(fd, rel=0.05, abs=1e-6), key
 
 
 def test_unreachable_gate_is_a_failed_result():
     trk = load(TrackConfig, "configs/tracks/multigp-cdra-gates.yaml", ["time_limit_s=0.1"])
-    lap = limit_lap(load_airframe("SY250"), trk, FAST)
+    lap = design_limit_lap(load_airframe("SY250"), trk, FAST)
     assert lap.status == "failed" and lap.reason
 
 
@@ -213,20 +214,21 @@ def test_a_start_that_misses_on_resimulation_is_never_chosen(laps):
     """The same converged warm start is chosen under the default threshold and refused under
     one below its re-simulation miss: the check, not the solver, decides."""
     base = laps["SY250"]
-    opts = replace(FAST, starts=(), warm_starts=(base,), point_mass_reference=False)
-    lap = limit_lap(load_airframe("SY250"), TRACK, opts)
+    opts, seeds = replace(FAST, starts=(), point_mass_reference=False), LapSeeds(
+        warm_starts=(base,))
+    lap = design_limit_lap(load_airframe("SY250"), TRACK, opts, seeds)
     assert lap.completed and 0 < lap.resimulation_miss_m <= opts.max_miss_m
     # this start alone: no grid refinement, and no fallback start from SY250's own lap (another
     # optimum, which can pass the stricter check)
-    strict = limit_lap(load_airframe("SY250"), TRACK,
-                       replace(opts, max_miss_m=0.5 * lap.resimulation_miss_m, refinements=0,
-                               fallback_reference=None))
+    strict = design_limit_lap(load_airframe("SY250"), TRACK,
+                              replace(opts, max_miss_m=0.5 * lap.resimulation_miss_m, refinements=0,
+                                      fallback_reference=None), seeds)
     assert strict.status == "failed" and "re-simulation" in strict.reason
 
 
 def test_gate_track_lap_passes_every_gate_opening():
     trk = load(TrackConfig, "configs/tracks/multigp-cdra-gates.yaml")
-    lap = limit_lap(load_airframe("SY250"), trk, FAST)
+    lap = design_limit_lap(load_airframe("SY250"), trk, FAST)
     assert lap.completed, lap.reason
     assert lap.resimulation_miss_m <= 0.05
     assert len(lap.split_times_s) == len(trk.gates)
@@ -246,11 +248,11 @@ def test_a_frame_whose_own_starts_fail_is_started_from_sy250():
     cfg = load_airframe("HS210")
     flown = closed_loop_lap(build_airframe(cfg), TRACK)
     broken = replace(flown, x=np.full_like(flown.x, np.nan))
-    opts = replace(FAST, starts=("closed-loop",), guess_trajectory=broken)
-    without = limit_lap(cfg, TRACK, replace(opts, fallback_reference=None,
-                                            point_mass_reference=False))
+    opts, seeds = replace(FAST, starts=("closed-loop",)), LapSeeds(guess_trajectory=broken)
+    without = design_limit_lap(cfg, TRACK, replace(opts, fallback_reference=None,
+                                                   point_mass_reference=False), seeds)
     assert not without.completed and "no start converged" in without.reason
-    lap = limit_lap(cfg, TRACK, opts)
+    lap = design_limit_lap(cfg, TRACK, opts, seeds)
     assert lap.completed, lap.reason
     assert lap.starts[-1].start == "reference-SY250" == lap.start
     assert not any(s.success for s in lap.starts[:-1])
@@ -267,12 +269,12 @@ def test_quaternion_and_euler_laps_agree_where_euler_is_regular():
     regular): the Euler model's optimum, converted to quaternions, is an optimum of the
     quaternion model too, of the same time up to the RK4 discretisation of two state
     representations; both pass the re-simulation check of their own model."""
-    euler = limit_lap(load_airframe("SY250"), TRACK, replace(FAST, tilt_limit="cone",
-                                                              max_tilt_deg=60.0))
+    euler = design_limit_lap(load_airframe("SY250"), TRACK, replace(FAST, tilt_limit="cone",
+                                                                     max_tilt_deg=60.0))
     assert euler.completed, euler.reason
     assert np.degrees(np.abs(euler.x[:, 10]).max()) < 60.0 + 1e-3
-    quat = limit_lap(load_airframe("SY250"), TRACK, replace(QUAT, max_tilt_deg=60.0, starts=(),
-                                                             warm_starts=(euler,)))
+    quat = design_limit_lap(load_airframe("SY250"), TRACK, replace(
+        QUAT, max_tilt_deg=60.0, starts=()), LapSeeds(warm_starts=(euler,)))
     assert quat.completed, quat.reason
     assert quat.attitude == "quaternion" and quat.x.shape[1] == 17
     # observed: 6.041060 s against 6.041119 s (1e-5 relative)
@@ -288,7 +290,7 @@ def test_split_s_is_flown_and_resimulated_within_5_cm():
     the quaternion model with no tilt limit flies it, inverted between the two gates (body z
     pointing down), and its commands flown by CVODES pass every gate within 5 cm."""
     trk = load(TrackConfig, "configs/tracks/uzh-split-s.yaml")
-    lap = limit_lap(load_airframe("SY250"), trk, replace(QUAT, tilt_limit="none"))
+    lap = design_limit_lap(load_airframe("SY250"), trk, replace(QUAT, tilt_limit="none"))
     assert lap.completed, lap.reason
     assert lap.resimulation_miss_m <= 0.05
     n = lap.layout.intervals
@@ -323,9 +325,9 @@ def test_two_periodic_laps_take_twice_one_periodic_lap():
     frame = load_airframe("SY250")
     base = ["climb_to_m=null", "start_position_m=[0, 0, 20]", "end=periodic"]
     opts = replace(FAST, intervals=20, starts=("closed-loop", "point-mass"))
-    one = limit_lap(frame, load(TrackConfig, DEFAULT_TRACK, base), opts)
+    one = design_limit_lap(frame, load(TrackConfig, DEFAULT_TRACK, base), opts)
     assert one.completed, one.reason
-    two = limit_lap(frame, load(TrackConfig, DEFAULT_TRACK, [*base, "laps=2"]), opts)
+    two = design_limit_lap(frame, load(TrackConfig, DEFAULT_TRACK, [*base, "laps=2"]), opts)
     assert two.completed, two.reason
     assert len(two.lap_times_s) == 2
     np.testing.assert_allclose(two.lap_times_s.sum(), two.lap_time_s, rtol=1e-12)
@@ -349,10 +351,10 @@ def test_periodic_quaternion_and_euler_laps_agree_where_euler_is_regular():
     trk = load(TrackConfig, DEFAULT_TRACK, ["climb_to_m=null", "start_position_m=[0, 0, 20]",
                                             "end=periodic", "max_tilt_deg=60"])
     opts = replace(FAST, intervals=20, starts=("closed-loop",), tilt_limit="cone")
-    euler = limit_lap(frame, trk, opts)
+    euler = design_limit_lap(frame, trk, opts)
     assert euler.completed, euler.reason
-    quat = limit_lap(frame, trk, replace(opts, attitude="quaternion", starts=(),
-                                         warm_starts=(euler,)))
+    quat = design_limit_lap(frame, trk, replace(opts, attitude="quaternion", starts=()),
+                            LapSeeds(warm_starts=(euler,)))
     assert quat.completed, quat.reason
     np.testing.assert_allclose(quat.lap_time_s, euler.lap_time_s, rtol=3e-4)
     np.testing.assert_allclose(np.linalg.norm(quat.x[0, 9:13]), 1.0, atol=1e-8)

@@ -23,7 +23,7 @@ from casadrone.config.codesign import CodesignProblemConfig
 from casadrone.config.io import load
 from casadrone.config.track import TrackConfig
 from casadrone.indices import limit_lap_effort
-from casadrone.limit.lap import LimitLapOptions, limit_lap
+from casadrone.limit.lap import LapSeeds, LimitLapOptions, design_limit_lap
 
 ROOT = Path(__file__).resolve().parents[2]
 SHORT = ROOT / "tests" / "data" / "codesign" / "short-track.yaml"
@@ -49,10 +49,10 @@ def _own_lap(prep, theta):
     minimum-time lap primal-dual warm-started from the template's limit lap (the per-study
     reference, :func:`casadrone.evaluate.evaluate_limit`; nothing from the polish)."""
     template = prep.template_laps[0]
-    lap = limit_lap(with_theta(prep.template, theta), load(TrackConfig, SHORT),
-                    LimitLapOptions(intervals=INTERVALS, sensitivities=False, starts=(),
-                                    warm_starts=(template,),
-                                    gate_clearance_m=prep.options.gate_clearance_m))
+    lap = design_limit_lap(with_theta(prep.template, theta), load(TrackConfig, SHORT),
+                           LimitLapOptions(intervals=INTERVALS, sensitivities=False, starts=(),
+                                           gate_clearance_m=prep.options.gate_clearance_m),
+                           LapSeeds(warm_starts=(template,)))
     assert lap.completed, lap.reason
     return {"J3_limit": lap.lap_time_s, "effort": limit_lap_effort(lap)}
 
@@ -246,10 +246,10 @@ def test_propeller_polish_holds_the_members_effort():
     prep = prepared(CodesignProblemConfig.model_validate(data))
 
     def own(theta):
-        lap = limit_lap(with_theta(prep.template, theta), load(TrackConfig, SHORT),
-                        LimitLapOptions(intervals=16, sensitivities=False, starts=(),
-                                        warm_starts=(prep.template_laps[0],),
-                                        gate_clearance_m=prep.options.gate_clearance_m))
+        lap = design_limit_lap(with_theta(prep.template, theta), load(TrackConfig, SHORT),
+                               LimitLapOptions(intervals=16, sensitivities=False, starts=(),
+                                               gate_clearance_m=prep.options.gate_clearance_m),
+                               LapSeeds(warm_starts=(prep.template_laps[0],)))
         assert lap.completed and lap.propulsion == "propeller", lap.reason
         return {"J3_limit": lap.lap_time_s, "effort": limit_lap_effort(lap)}
 

@@ -28,12 +28,12 @@ def test_each_start_and_round_of_a_limit_lap_is_an_event_with_its_lap_and_iterat
     from casadrone.config.airframe import load_airframe
     from casadrone.config.io import load
     from casadrone.config.track import TrackConfig
-    from casadrone.limit.lap import LimitLapOptions, limit_lap
+    from casadrone.limit.lap import LimitLapOptions, design_limit_lap
 
     seen: list[Event] = []
     with listening(seen.append):
-        lap = limit_lap(load_airframe("SY250"), load(TrackConfig, SHORT_TRACK),
-                        LimitLapOptions(intervals=6, grid_rounds=1, sensitivities=False))
+        lap = design_limit_lap(load_airframe("SY250"), load(TrackConfig, SHORT_TRACK),
+                               LimitLapOptions(intervals=6, grid_rounds=1, sensitivities=False))
     assert lap.completed, lap.reason
     outer = {e.text.split(" ")[1]: e for e in seen if e.topic == "start" and e.depth == 0}
     assert set(outer) == {r.start for r in lap.starts}

@@ -18,7 +18,7 @@ import pytest
 from casadrone.airframe import build_airframe
 from casadrone.config.airframe import load_airframe
 from casadrone.limit.check import fly, resimulation_miss
-from casadrone.limit.lap import LimitLapOptions, frame_clearance_m, limit_lap, track_targets
+from casadrone.limit.lap import LimitLapOptions, design_limit_lap, frame_clearance_m, track_targets
 from casadrone.targets import TARGET_SIZE, target_miss
 from tests.integration.test_limitlap_optimality import TRACK
 
@@ -32,7 +32,7 @@ def flown():
     options = LimitLapOptions(intervals=N, starts=("point-mass",), sensitivities=False,
                               point_mass_reference=False, fallback_reference=None,
                               refinements=0)
-    lap = limit_lap(cfg, TRACK, options)
+    lap = design_limit_lap(cfg, TRACK, options)
     assert lap.completed, lap.reason
     frame = build_airframe(cfg)
     targets = track_targets(TRACK, options, frame_clearance_m(frame, cfg.prop_diameter_mm / 1000))
@@ -66,6 +66,6 @@ def test_each_leg_of_the_unmoved_lap_lands_on_its_own_end_node(flown):
 
 
 def test_an_unknown_mode_is_refused():
-    lap = limit_lap(load_airframe("SY250"), TRACK,
-                    LimitLapOptions(intervals=N, resimulation="open"))  # type: ignore[arg-type]
+    lap = design_limit_lap(load_airframe("SY250"), TRACK,
+                           LimitLapOptions(intervals=N, resimulation="open"))  # type: ignore[arg-type]
     assert lap.status == "failed" and "resimulation" in lap.reason

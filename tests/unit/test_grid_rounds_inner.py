@@ -11,7 +11,7 @@ from casadrone.config.io import load
 from casadrone.config.track import TrackConfig
 from casadrone.evaluate import DEFAULT_TRACK
 from casadrone.limit import starts
-from casadrone.limit.result import LimitLapOptions
+from casadrone.limit.result import LapSeeds, LimitLapOptions
 
 OPTIONS = LimitLapOptions(intervals=40, grid_rounds=3)
 
@@ -19,14 +19,14 @@ OPTIONS = LimitLapOptions(intervals=40, grid_rounds=3)
 def _recording():
     seen = []
 
-    def lap_of(frame, track, options):
+    def lap_of(frame, track, options, seeds):
         seen.append(options)
         return SimpleNamespace(completed=False)
     return seen, lap_of
 
 
 def test_grid_continuation_starts_solve_their_grid_without_rounds():
-    pb = SimpleNamespace(options=OPTIONS, frame=None, track=None,
+    pb = SimpleNamespace(options=OPTIONS, frame=None, track=None, seeds=LapSeeds(),
                          layout=SimpleNamespace(intervals=40))
     for start in (starts.coarse_grid_start, starts.fine_grid_start):
         seen, lap_of = _recording()
@@ -51,18 +51,19 @@ def test_the_command_runs_grid_rounds_with_certify_and_the_library_does_not(monk
     stays 0 rounds."""
     from typer.testing import CliRunner
 
-    import casadrone.limit.lap as lap_module
+    import casadrone.cli.limit as command
     from casadrone.cli import app
-    from casadrone.limit.result import COMMAND_GRID_ROUNDS, LimitLap
+    from casadrone.config.limitlap import COMMAND_GRID_ROUNDS
+    from casadrone.limit.result import LimitLap
     from casadrone.limit.search import SEARCHES
 
     seen = []
 
-    def fake(cfg, track, options):
+    def fake(cfg, track, options, frame=None):
         seen.append((options.starts, options.grid_rounds))
         return LimitLap(status="failed", reason="not solved: the options were recorded")
 
-    monkeypatch.setattr(lap_module, "limit_lap", fake)
+    monkeypatch.setattr(command, "design_limit_lap", fake)
     runner = CliRunner()
     for args in ([], ["--certify"], ["--certify", "--grid-rounds", "0"], ["--grid-rounds", "2"]):
         r = runner.invoke(app, ["limit-lap", "SY250", "--json", *args])

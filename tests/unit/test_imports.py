@@ -268,17 +268,12 @@ HOIST = ("imported where it is used by code written beside the floors' move; no 
          "is kept out, so it moves to the top with the same hoisting as CLI and LIMIT")
 PATCHED_EVALUATE = ("tests replace casadrone.evaluate.evaluate (tests/unit/test_compare.py): "
                     "read when called")
-PATCHED_LIMIT_LAP = ("tests replace casadrone.limit.lap.limit_lap (test_grid_rounds_inner, "
-                     "test_rotor_step): read when called")
 PATCHED_POLISH = ("tests replace polish_member and prepared in casadrone.codesign.polish "
                   "(tests/integration/test_polish.py): read when called")
 
 #: Function-level imports of casadrone modules that bring no heavy library the importer lacks, and
 #: why each stays lazy: (importing module, imported module) → reason. The one list of them.
 LAZY_ALLOWED: dict[tuple[str, str], str] = {
-    ("casadrone.cli.limit", "casadrone.limit.search"): CLI,
-    ("casadrone.cli.limit", "casadrone.limit.sensitivity"): CLI,
-    ("casadrone.limit.lap", "casadrone.limit.sensitivity"): LIMIT,
     ("casadrone.cli.codesign", "casadrone.codesign.design"): CLI,
     ("casadrone.cli.common", "casadrone.progress"): CLI,
     ("casadrone.cli.design", "casadrone.config.airframe"): CLI,
@@ -294,7 +289,6 @@ LAZY_ALLOWED: dict[tuple[str, str], str] = {
     ("casadrone.cli.flight", "casadrone.indices"): CLI,
     ("casadrone.cli.flight", "casadrone.numtext"): CLI,
     ("casadrone.cli.flight", "casadrone.simulate"): CLI,
-    ("casadrone.cli.limit", "casadrone.evaluate"): CLI,
     ("casadrone.cli.optimisation", "casadrone.compare"): CLI,
     ("casadrone.cli.optimisation", "casadrone.config.airframe"): CLI,
     ("casadrone.cli.optimisation", "casadrone.indices"): CLI,
@@ -308,7 +302,6 @@ LAZY_ALLOWED: dict[tuple[str, str], str] = {
     ("casadrone.config.controller", "casadrone.config.airframe"): HOIST,
     ("casadrone.optimise.problem", "casadrone.evaluate"): HOIST,
     ("casadrone.optimise.problem", "casadrone.indices"): HOIST,
-    ("casadrone.optimise.problem", "casadrone.limit.lap"): HOIST,
     ("casadrone.optimise.runner", "casadrone.indices"): HOIST,
     ("casadrone.report", "casadrone.verdict"): HOIST,
     ("casadrone.report.candidates", "casadrone.airframe"): HOIST,
@@ -337,15 +330,6 @@ LAZY_ALLOWED: dict[tuple[str, str], str] = {
     ("casadrone.cli.flight", "casadrone.config.controller"): CLI,
     ("casadrone.cli.flight", "casadrone.config.io"): CLI,
     ("casadrone.cli.flight", "casadrone.config.track"): CLI,
-    ("casadrone.cli.limit", "casadrone.airframe"): CLI,
-    ("casadrone.cli.limit", "casadrone.config.airframe"): CLI,
-    ("casadrone.cli.limit", "casadrone.config.io"): CLI,
-    ("casadrone.cli.limit", "casadrone.config.track"): CLI,
-    ("casadrone.cli.limit", "casadrone.limit.check"): CLI,
-    ("casadrone.cli.limit", "casadrone.limit.lap"): CLI,
-    ("casadrone.cli.limit", "casadrone.limit.race"): CLI,
-    ("casadrone.cli.limit", "casadrone.model"): CLI,
-    ("casadrone.cli.limit", "casadrone.propulsion"): CLI,
     ("casadrone.cli.massprops", "casadrone.config.airframe"): CLI,
     ("casadrone.cli.massprops", "casadrone.massprops"): CLI,
     ("casadrone.cli.optimisation", "casadrone.config.io"): CLI,
@@ -355,29 +339,6 @@ LAZY_ALLOWED: dict[tuple[str, str], str] = {
     ("casadrone.cli.propulsion", "casadrone.thruststand"): CLI,
     ("casadrone.cli.trimstudy", "casadrone.conditions"): CLI,
     ("casadrone.compare", "casadrone.evaluate"): PATCHED_EVALUATE,
-    ("casadrone.evaluate", "casadrone.limit.lap"): PATCHED_LIMIT_LAP,
-    ("casadrone.limit.check", "casadrone.limit.attitude"): LIMIT,
-    ("casadrone.limit.check", "casadrone.limit.lagless"): LIMIT,
-    ("casadrone.limit.guesses", "casadrone.airframe"): LIMIT,
-    ("casadrone.limit.guesses", "casadrone.config.airframe"): LIMIT,
-    ("casadrone.limit.guesses", "casadrone.config.controller"): LIMIT,
-    ("casadrone.limit.guesses", "casadrone.trim"): LIMIT,
-    ("casadrone.limit.lap", "casadrone.airframe"): LIMIT,
-    ("casadrone.limit.lap", "casadrone.limit.check"): LIMIT,
-    ("casadrone.limit.lap", "casadrone.model"): LIMIT,
-    ("casadrone.limit.nlp", "casadrone.codegen"): LIMIT,
-    ("casadrone.limit.nlp", "casadrone.limit.attitude"): LIMIT,
-    ("casadrone.limit.nlp", "casadrone.limit.stagewise"): LIMIT,
-    ("casadrone.limit.nlp", "casadrone.limit.watchdog"): LIMIT,
-    ("casadrone.limit.nlp", "casadrone.model"): LIMIT,
-    ("casadrone.limit.nlp", "casadrone.propulsion"): LIMIT,
-    ("casadrone.limit.pointmass", "casadrone.model"): LIMIT,
-    ("casadrone.limit.pointmass", "casadrone.propulsion"): LIMIT,
-    ("casadrone.limit.problem", "casadrone.airframe"): LIMIT,
-    ("casadrone.limit.result", "casadrone.limit.attitude"): LIMIT,
-    ("casadrone.limit.starts", "casadrone.config.airframe"): LIMIT,
-    ("casadrone.limit.starts", "casadrone.config.io"): LIMIT,
-    ("casadrone.limit.starts", "casadrone.limit.gates"): LIMIT,
     ("casadrone.optimise.hybrid", "casadrone.codesign.polish"): PATCHED_POLISH,
 }
 

@@ -17,7 +17,7 @@ from casadrone.config.io import CONFIG_DIR, ConfigError, load
 from casadrone.config.track import TrackConfig
 from casadrone.evaluate import DEFAULT_TRACK
 from casadrone.limit.check import target_miss
-from casadrone.limit.lap import LimitLapOptions, limit_lap, track_targets
+from casadrone.limit.lap import LimitLapOptions, design_limit_lap, track_targets
 from casadrone.limit.nlp import Layout, OcpModel, build_nlp, solve, target_vector
 
 TRACK = load(TrackConfig, DEFAULT_TRACK)
@@ -277,7 +277,7 @@ def test_gate_track_targets_are_the_gate_openings():
 
 def test_too_small_gate_is_a_failed_result_not_an_exception():
     trk = load(TrackConfig, "configs/tracks/multigp-cdra-gates.yaml")
-    lap = limit_lap(load_airframe("SY250"), trk, LimitLapOptions(gate_clearance_m=1.0))
+    lap = design_limit_lap(load_airframe("SY250"), trk, LimitLapOptions(gate_clearance_m=1.0))
     assert lap.status == "failed" and "clearance" in lap.reason
 
 

@@ -179,14 +179,15 @@ def test_a_start_without_a_guess_is_listed_with_why(monkeypatch, tmp_path):
     said "no start ran". It is now a failed start saying why, in ``starts`` and the reason."""
     import casadrone.limit.starts as starts
     from casadrone.config.airframe import load_airframe
-    from casadrone.limit.lap import limit_lap
+    from casadrone.limit.lap import design_limit_lap
 
     monkeypatch.setitem(starts.COLD_STARTS, "point-mass", lambda pb, lap_of: None)
     path = tmp_path / "straight.yaml"
     path.write_text(STRAIGHT, encoding="utf-8")
-    lap = limit_lap(load_airframe("SY250"), load(TrackConfig, path),
-                    LimitLapOptions(intervals=10, starts=("point-mass",), fallback_reference=None,
-                                    point_mass_reference=False, sensitivities=False))
+    lap = design_limit_lap(load_airframe("SY250"), load(TrackConfig, path),
+                           LimitLapOptions(intervals=10, starts=("point-mass",),
+                                           fallback_reference=None, point_mass_reference=False,
+                                           sensitivities=False))
     assert not lap.completed
     (only,) = lap.starts
     assert only.start == "point-mass" and not only.success

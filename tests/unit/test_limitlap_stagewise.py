@@ -220,18 +220,20 @@ def test_cli_unknown_solver_exits_2(cli_runner):
     assert r.exit_code == 2 and "Traceback" not in r.output and "--solver" in r.stderr
 
 
-def test_problem_yaml_limit_solver_is_validated_and_reaches_the_options(tmp_path):
+def test_problem_yaml_limit_lap_solver_is_validated_and_reaches_the_options(tmp_path):
     from casadrone.config.airframe import load_airframe
     from casadrone.config.io import ConfigError
     from casadrone.optimise.checks import load_problem
     from casadrone.optimise.problem import limit_setup
 
-    problem = load_problem("limit-lap", ["limit_solver=fatrop"])
+    problem = load_problem("limit-lap", ["limit_lap.solver=fatrop"])
     extra = limit_setup(problem, load_airframe(problem.airframe))
     assert extra["limit"].solver == "fatrop"
-    assert load_problem("limit-lap").limit_solver == "ipopt"
-    with pytest.raises(ConfigError, match="limit_solver"):
-        load_problem("limit-lap", ["limit_solver=snopt"])
+    assert extra["limit"].starts == ("closed-loop",) and not extra["limit"].sensitivities
+    assert limit_setup(load_problem("limit-lap"), load_airframe(problem.airframe))[
+        "limit"].solver == "ipopt"
+    with pytest.raises(ConfigError, match=r"limit_lap\.solver"):
+        load_problem("limit-lap", ["limit_lap.solver=snopt"])
 
 
 @pytest.mark.slow
@@ -245,30 +247,31 @@ def test_fatrop_and_ipopt_give_the_same_quadrotor_lap():
     from casadrone.config.io import load
     from casadrone.config.track import TrackConfig
     from casadrone.evaluate import DEFAULT_TRACK
-    from casadrone.limit.lap import LimitLapOptions, limit_lap
+    from casadrone.limit.lap import LimitLapOptions, design_limit_lap
 
     track = load(TrackConfig, DEFAULT_TRACK)
     opts = LimitLapOptions(intervals=40, starts=("closed-loop",), point_mass_reference=False,
                            sensitivities=False, fallback_reference=None)
-    ip = limit_lap(load_airframe("SY250"), track, opts)
-    fa = limit_lap(load_airframe("SY250"), track, replace(opts, solver="fatrop"))
+    ip = design_limit_lap(load_airframe("SY250"), track, opts)
+    fa = design_limit_lap(load_airframe("SY250"), track, replace(opts, solver="fatrop"))
     assert ip.completed and fa.completed, (ip.reason, fa.reason)
     assert [s.solver for s in fa.starts] == ["fatrop"]
     assert abs(fa.lap_time_s - ip.lap_time_s) <= 1e-4 * ip.lap_time_s
     assert fa.resimulation_miss_m <= opts.max_miss_m
 
 
-def test_cli_fatrop_on_a_periodic_track_names_the_option(cli_runner, tmp_path):
-    """fatrop cannot take the periodic rows: the refusal names --solver (the option to change)
-    and the track, in one line, before any solve."""
+@pytest.mark.parametrize("setting", [["--solver", "fatrop"], ["solver=fatrop"]])
+def test_cli_fatrop_on_a_periodic_track_names_the_key(cli_runner, tmp_path, setting):
+    """fatrop cannot take the periodic rows: the refusal names the solver key (to change) and
+    the track, in one line, before any solve, whether the option or the key set it."""
     from casadrone.cli import app
 
     src = (CONFIG_DIR / "tracks" / "paper-rectangle.yaml").read_text()
     track = tmp_path / "periodic.yaml"
     track.write_text(src + "\nend: periodic\n")
-    r = cli_runner.invoke(app, ["limit-lap", "SY250", "--track", str(track), "--solver",
-                                "fatrop", "--json"])
+    r = cli_runner.invoke(app, ["limit-lap", "SY250", "--track", str(track), *setting,
+                                "--json"])
     assert r.exit_code == 2 and "Traceback" not in r.output
     lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("--solver fatrop:"), lines
-    assert str(track) in lines[0] and "end: periodic" in lines[0]
+    assert len(lines) == 1 and lines[0].startswith(f"{track}: solver 'fatrop'"), lines
+    assert "periodic" in lines[0] and "before any solve" in lines[0]

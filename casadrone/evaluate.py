@@ -24,6 +24,7 @@ from casadrone.config.io import ConfigError, load
 from casadrone.config.track import DEFAULT_TRACK, TrackConfig
 from casadrone.control import design_for
 from casadrone.indices import compute_indices, interval_table, limit_indices
+from casadrone.limit.lap import limit_lap
 from casadrone.results import Record
 from casadrone.simulate import SimOptions, Trajectory, simulate
 from casadrone.trim import trim
@@ -57,8 +58,6 @@ class EvaluationSetup:
         """The limit laps of ``limit_references``, solved once per process: every worker holds
         the same ones (same inputs, deterministic IPOPT), so warm-starting a candidate from them
         gives the same result on every backend and in any evaluation order."""
-        from casadrone.limit.lap import limit_lap
-
         if self.limit is None:  # no limit lap in this study: nothing to warm-start
             return ()
         laps = []
@@ -188,8 +187,6 @@ def evaluate_limit(cfg: AirframeConfig, setup: EvaluationSetup, traj: Trajectory
     every worker, so the result does not depend on the backend or the evaluation order); from
     its closed-loop lap when no reference solved or every warm start failed, then from
     ``fallback_reference`` (only in that cold call: the references were tried already)."""
-    from casadrone.limit.lap import limit_lap
-
     assert setup.limit is not None
     cold = replace(setup.limit, guess_trajectory=traj, starts=("closed-loop", "point-mass"),
                    warm_starts=(), sensitivities=False)

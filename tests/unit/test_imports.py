@@ -26,6 +26,7 @@ FLOORS: tuple[str, ...] = (
     "casadrone.parentdeath",  # child processes that die with their parent
     "casadrone.results",
     "casadrone.numtext",  # numbers as printed text (no negative zero): every table's
+    "casadrone.num",  # Num, a number or a CasADi expression: the model's and propulsion's values
     "casadrone.massprops",
     "casadrone.propulsion",  # the propulsion models: the airframe schema reads their kinds
     "casadrone.targets",  # the limit lap's target kinds: the track schema reads their shapes

@@ -17,6 +17,7 @@ from casadrone.config.airframe import TABLE1_BOUNDS, AirframeConfig
 from casadrone.config.io import ConfigError, field_adapter, format_errors
 from casadrone.massprops import mass_properties, rotor_positions_mm
 from casadrone.propulsion import advance_ratio_limit, propulsion_model
+from casadrone.propulsion.base import PaperParams
 from casadrone.propulsion.electric import current_limits
 
 #: Names and order of the decision vector θ (paper Table 1) and their config keys.
@@ -34,12 +35,9 @@ THETA_KEYS = (
 #: follow from the parts).
 GEOMETRY_KEYS = THETA_KEYS[:4]
 
-#: Order of the model parameter vector p (see :mod:`casadrone.model`).
-PARAM_NAMES = (
-    ("mass", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
-    + tuple(f"r{i}{c}" for i in range(1, 5) for c in "xyz")
-    + ("s1", "s2", "s3", "s4", "kappa", "CdA_x", "CdA_y", "CdA_z", "rho", "K", "tau", "g")
-)
+#: Order of the model parameter vector p (see :mod:`casadrone.model`): the fields of its typed
+#: record, :class:`casadrone.propulsion.base.PaperParams`, declared there with their units.
+PARAM_NAMES: tuple[str, ...] = tuple(PaperParams.__annotations__)
 
 Family = Literal["SY", "HS", "NSY"]
 

@@ -20,7 +20,7 @@ from casadrone.benchmark import _f
 from casadrone.config.airframe import load_airframe
 from casadrone.config.reference import Table4Reference, load_reference
 from casadrone.decide import METHODS, decide
-from casadrone.evaluate import Evaluation
+from casadrone.evaluate import Evaluation, evaluate, theta_of
 from casadrone.indices import Interval
 from casadrone.results import AsDict
 from casadrone.rundir.store import CONFIG, PARETO, RunStore
@@ -286,7 +286,6 @@ def compare_run(
     """
     from dataclasses import replace
 
-    from casadrone.evaluate import evaluate, theta_of
     from casadrone.optimise.problem import Study, study_setup
 
     candidates = run_candidates(run_dir, objective=objective)

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from casadrone.config.track import MAX_SPEED_MPS  # the tracks' limit (Mach 0.3)
+
 #: Fastest turn trimmed (deg/s): Betaflight's largest configurable rate (rate-mode "max rate",
 #: about 2000 deg/s); a racing quadrotor's heading turns no faster.
 MAX_TURN_RATE_DPS = 2000.0
@@ -64,8 +66,6 @@ def operating_vector(
         raise ValueError(f"climb_angle_deg must lie in [-90, 90] (got {climb_angle_deg:g})")
     if speed_mps < 0 and condition != "forward":
         raise ValueError(f"{condition}: speed_mps must be >= 0 (got {speed_mps:g})")
-    from casadrone.config.track import MAX_SPEED_MPS  # the tracks' (Mach 0.3); pydantic: lazily
-
     if abs(speed_mps) > MAX_SPEED_MPS:
         raise ValueError(f"speed_mps: {speed_mps:g} m/s is beyond {MAX_SPEED_MPS:.4g} m/s (Mach "
                          "0.3, the tracks' limit: the models' incompressible aerodynamics)")

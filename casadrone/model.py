@@ -14,13 +14,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Literal, cast, overload
 
 import casadi as ca
 
 from casadrone.airframe import PARAM_NAMES
+from casadrone.num import Num
 from casadrone.propulsion import RotorStates, motor_currents, propulsion_model
-from casadrone.propulsion.propeller import propeller_terms
+from casadrone.propulsion.base import PaperParams
+from casadrone.propulsion.propeller import PropellerParams, propeller_terms
 
 STATE_NAMES = (
     "x", "y", "z", "u", "v", "w", "p", "q", "r", "phi", "theta", "psi", "T1", "T2", "T3", "T4",
@@ -44,7 +46,7 @@ def state_names(propulsion: str = "paper") -> tuple[str, ...]:
     return STATE_NAMES[:12] + rotor_states(propulsion).names
 
 
-def rotation_matrix(phi, theta, psi):
+def rotation_matrix(phi: Num, theta: Num, psi: Num) -> Num:
     """Body → world rotation R = Rz(ψ) Ry(θ) Rx(φ) (works on CasADi symbols and floats)."""
     cph, sph = ca.cos(phi), ca.sin(phi)
     cth, sth = ca.cos(theta), ca.sin(theta)
@@ -56,7 +58,7 @@ def rotation_matrix(phi, theta, psi):
     )
 
 
-def euler_rate_matrix(phi, theta):
+def euler_rate_matrix(phi: Num, theta: Num) -> Num:
     """W with [φ̇, θ̇, ψ̇] = W ω for ZYX Euler angles (singular at θ = ±90°)."""
     cph, sph = ca.cos(phi), ca.sin(phi)
     cth, tth = ca.cos(theta), ca.tan(theta)
@@ -67,16 +69,19 @@ def euler_rate_matrix(phi, theta):
     )
 
 
-def unpack_params(p):
-    """Named pieces of the parameter vector p (symbolic or numeric)."""
-    g = {name: p[i] for i, name in enumerate(PARAM_NAMES)}
+def unpack_params(p: Num) -> tuple[PaperParams, Num, list[Num], list[Num], Num]:
+    """Named pieces of the parameter vector p (symbolic or numeric): the paper's parameters by
+    name, the inertia matrix J (3×3), the rotor positions r_i (3 each), the spin signs s_i and
+    the drag areas (3)."""
+    entries = {name: p[i] for i, name in enumerate(PARAM_NAMES)}
+    g = cast(PaperParams, entries)
     J = ca.vertcat(
         ca.horzcat(g["Ixx"], g["Ixy"], g["Ixz"]),
         ca.horzcat(g["Ixy"], g["Iyy"], g["Iyz"]),
         ca.horzcat(g["Ixz"], g["Iyz"], g["Izz"]),
     )
-    r = [ca.vertcat(g[f"r{i}x"], g[f"r{i}y"], g[f"r{i}z"]) for i in range(1, 5)]
-    s = [g[f"s{i}"] for i in range(1, 5)]
+    r = [ca.vertcat(entries[f"r{i}x"], entries[f"r{i}y"], entries[f"r{i}z"]) for i in range(1, 5)]
+    s = [entries[f"s{i}"] for i in range(1, 5)]
     cda = ca.vertcat(g["CdA_x"], g["CdA_y"], g["CdA_z"])
     return g, J, r, s, cda
 
@@ -117,10 +122,10 @@ class AirframeTerms:
             model: τ Ṫ_i + T_i − K δ_i).
     """
 
-    thrust: Any
-    drag: Any
-    torque: Any
-    rotor_residual: Any
+    thrust: Num
+    drag: Num
+    torque: Num
+    rotor_residual: Num
 
 
 def param_names(kind: str = "paper") -> tuple[str, ...]:
@@ -129,9 +134,20 @@ def param_names(kind: str = "paper") -> tuple[str, ...]:
     return PARAM_NAMES + propulsion_model(kind).param_names
 
 
-def named(p, kind: str = "propeller") -> dict[str, Any]:
-    """The entries of p (symbolic or numeric) by name."""
-    return {name: p[i] for i, name in enumerate(param_names(kind))}
+@overload
+def named(p: Num, kind: Literal["propeller"] = ...) -> PropellerParams: ...
+
+
+@overload
+def named(p: Num, kind: str) -> PaperParams: ...
+
+
+def named(p: Num, kind: str = "propeller") -> PaperParams:
+    """The entries of p (symbolic or numeric) by name: the typed record of the paper's
+    parameters (:class:`~casadrone.propulsion.base.PaperParams`) with those of propulsion
+    ``kind`` after them (:class:`~casadrone.propulsion.propeller.PropellerParams` for
+    ``propeller``)."""
+    return cast(PaperParams, {name: p[i] for i, name in enumerate(param_names(kind))})
 
 
 def n_params(propulsion: str = "paper") -> int:
@@ -139,8 +155,8 @@ def n_params(propulsion: str = "paper") -> int:
     return len(param_names(propulsion))
 
 
-def airframe_terms(vel, omega, rotor, rotor_dot, u, p, propulsion: str = "paper"
-                   ) -> AirframeTerms:
+def airframe_terms(vel: Num, omega: Num, rotor: Num, rotor_dot: Num, u: Num, p: Num,
+                   propulsion: str = "paper") -> AirframeTerms:
     """:class:`AirframeTerms` at body velocity ``vel`` (m/s), body rates ``omega`` (rad/s), rotor
     states ``rotor`` and their derivative ``rotor_dot``, ESC commands ``u`` and airframe vector
     ``p`` (in the layout of ``propulsion``, :func:`param_names`). Every
@@ -156,7 +172,7 @@ def airframe_terms(vel, omega, rotor, rotor_dot, u, p, propulsion: str = "paper"
                          torque=torque, rotor_residual=residual)
 
 
-def rotor_thrusts(vel, omega, rotor, p, propulsion: str = "paper"):
+def rotor_thrusts(vel: Num, omega: Num, rotor: Num, p: Num, propulsion: str = "paper") -> Num:
     """Each rotor's thrust (N, 4) along its axis at body velocity ``vel`` (m/s), body rates
     ``omega`` (rad/s) and rotor states ``rotor``: the states themselves with ``paper`` (they are
     the thrusts); with ``propeller`` T_i = CT(J_i) ρ n_i² D⁴ at the rotor's own axial inflow, the
@@ -177,7 +193,7 @@ def rotor_thrust_function(propulsion: str = "paper") -> ca.Function:
                        ["vel", "omega", "rotor", "p"], ["thrust"])
 
 
-def implicit_residual(xdot, x, u, p, propulsion: str = "paper"):
+def implicit_residual(xdot: Num, x: Num, u: Num, p: Num, propulsion: str = "paper") -> Num:
     """F(ẋ, x, u, p) of docs/concepts/chain.md#model as an SX/MX expression (16 rows)."""
     g, J, _, _, _ = unpack_params(p)
     m, grav = g["mass"], g["g"]

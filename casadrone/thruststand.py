@@ -94,7 +94,13 @@ from typing import Any, Literal
 import numpy as np
 
 from casadrone.config.io import error_pairs
-from casadrone.config.propulsion import PropulsionConfig, data_advance_ratio
+from casadrone.config.propulsion import (
+    BatteryConfig,
+    MotorConfig,
+    PropellerConfig,
+    PropulsionConfig,
+    data_advance_ratio,
+)
 from casadrone.propulsion import airframe_problems, fit_coefficients, fit_points, propeller_data
 
 #: Standard gravity (m/s²): the stands' kgf and gf are kilogram- and gram-force.
@@ -956,9 +962,6 @@ def fitted_problem(fit: PropulsionFit, shape: str | None = None) -> str | None:
     when every part is fitted, else each part's own schema (a section of some parts is not a
     whole ``propulsion:`` section: the user adds the others)."""
     from pydantic import BaseModel, ValidationError
-
-    from casadrone.config.io import error_pairs
-    from casadrone.config.propulsion import BatteryConfig, MotorConfig, PropellerConfig
 
     section = fit.section(shape)
     if fit.fitted == PARTS:

@@ -33,10 +33,10 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from casadrone.config.airframe import AirframeConfig, load_airframe
 from casadrone.results import AsDict
 
 if TYPE_CHECKING:
-    from casadrone.config.airframe import AirframeConfig
     from casadrone.evaluate import EvaluationSetup
 
 __all__ = ["DesignNoise", "IndexComparison", "Verdict", "compare_to_baseline", "design_noise",
@@ -345,7 +345,6 @@ def run_verdict(study, candidates: Sequence, reference: str | Path | AirframeCon
         baseline_values: indices of the baseline already flown (a limit lap the caller solved);
             they complete the closed-loop values flown here.
     """
-    from casadrone.config.airframe import load_airframe
     from casadrone.evaluate import theta_of
     from casadrone.indices import INDICES
     from casadrone.optimise.problem import study_setup

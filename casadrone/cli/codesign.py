@@ -15,10 +15,12 @@ from casadrone.cli.common import (
     app,
     check_out_folder,
     cost_text,
+    jsonable,
     print_json,
     progress_lines,
     reports_config_errors,
 )
+from casadrone.codesign.checks import load_codesign_problem
 
 if TYPE_CHECKING:  # co-design is imported when the command runs (CasADi)
     from casadrone.codesign.driver import CodesignResult
@@ -55,8 +57,6 @@ def codesign_command(
     3 (EXIT_FAILED) when no start converged: the result, status "failed" with its reason, is
     still printed and written to --out.
     """
-    from casadrone.codesign.checks import load_codesign_problem
-
     check_out_folder(out)
     cfg = load_codesign_problem(problem, overrides or [])
     from casadrone.codesign.design import codesign
@@ -65,8 +65,6 @@ def codesign_command(
         result = codesign(cfg, run_dir=out)
     data = result.as_dict()
     if out is not None:
-        from casadrone.cli.common import jsonable
-
         out.mkdir(parents=True, exist_ok=True)
         (out / "result.json").write_text(json.dumps(jsonable(data), indent=2) + "\n")
     if as_json:

@@ -9,15 +9,16 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from functools import wraps
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import Annotated, Any
 
 import typer
 
+from casadrone.airframe import Airframe, build_airframe
+from casadrone.config.airframe import AirframeConfig, load_airframe
 from casadrone.config.io import ConfigError
-
-if TYPE_CHECKING:  # the model is imported when a command runs
-    from casadrone.airframe import Airframe
-    from casadrone.config.airframe import AirframeConfig
+from casadrone.heap import keep_heap
+from casadrone.progress import listening, printer
+from casadrone.rundir.store import NotARunDirectory, RunDamaged, RunInProgress
 
 
 class _App(typer.Typer):
@@ -32,8 +33,6 @@ class _App(typer.Typer):
         kwargs.setdefault("prog_name", "casadrone")
         # the process is casadrone's: keep MUMPS's freed workspace for its next factorization
         # (casadrone.heap: a system-time saving, the same numbers)
-        from casadrone.heap import keep_heap
-
         keep_heap()
         if "standalone_mode" in kwargs:
             return super().__call__(*args, **kwargs)
@@ -169,8 +168,6 @@ def progress_lines(command: str, quiet: bool) -> Iterator[None]:
     """Run the block with the library's progress events (:mod:`casadrone.progress`) printed on
     stderr as ``COMMAND: what [CPU c s, wall w s]``, or with none at all (compiles included)
     under ``--quiet``; stdout stays the command's result (pure JSON with ``--json``)."""
-    from casadrone.progress import listening, printer
-
     with listening(None if quiet else printer(command)):
         yield
 
@@ -207,8 +204,6 @@ def _expected() -> tuple[type[BaseException], ...]:
     import sqlite3
 
     import yaml
-
-    from casadrone.rundir.store import NotARunDirectory, RunDamaged, RunInProgress
 
     return (OSError, sqlite3.Error, pickle.PickleError, EOFError, UnicodeDecodeError,
             yaml.YAMLError, FloatingPointError, OverflowError, RunDamaged, RunInProgress,
@@ -320,9 +315,6 @@ def print_json(obj: Any) -> None:
 def load_airframe_or_exit(airframe: str, overrides: list[str] | None
                           ) -> tuple[AirframeConfig, Airframe]:
     """(config, Airframe) of an airframe path or name with overrides; ConfigError propagates."""
-    from casadrone.airframe import build_airframe
-    from casadrone.config.airframe import load_airframe
-
     cfg = load_airframe(airframe, overrides or [])
     return cfg, build_airframe(cfg)
 

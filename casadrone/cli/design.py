@@ -27,7 +27,15 @@ from casadrone.cli.common import (
     save_figures,
 )
 from casadrone.conditions import CONDITION_REGISTRY, CONDITIONS, OperatingPoint
-from casadrone.config.io import ConfigError
+from casadrone.config.airframe import ROTOR_LABELS
+from casadrone.config.controller import load_controller
+from casadrone.config.io import DATA_DIR, ConfigError, kind_dir
+from casadrone.config.problem import ProblemConfig
+from casadrone.config.track import MAX_SPEED_MPS
+from casadrone.config.validation import SCHEMAS_BY_FOLDER, FileReport, check_config_file
+from casadrone.numtext import fixed
+from casadrone.trim import TRIM_SOLVERS
+from casadrone.trim import trim as trim_fn
 
 if TYPE_CHECKING:
     import numpy as np
@@ -38,8 +46,6 @@ HOVER = Condition("hover")
 
 
 def _trim_solvers() -> list[str]:
-    from casadrone.trim import TRIM_SOLVERS
-
     return list(TRIM_SOLVERS)
 
 
@@ -52,8 +58,6 @@ class LinMethod(StrEnum):
 def _by_position(names: tuple[str, ...] | list[str]) -> tuple[str, ...]:
     """Model names with a rotor number (T1…T4, delta1…delta4, omega1…omega4) shown by the rotor's
     position (``T FR``, ``d FR``, ``w FR``) for the console; other names as they are."""
-    from casadrone.config.airframe import ROTOR_LABELS
-
     short = {"T": "T", "delta": "d", "omega": "w"}
     out = []
     for n in names:
@@ -64,8 +68,6 @@ def _by_position(names: tuple[str, ...] | list[str]) -> tuple[str, ...]:
 
 
 def _matrix_text(M: np.ndarray, rows: tuple[str, ...], cols: tuple[str, ...]) -> str:
-    from casadrone.numtext import fixed
-
     width = 10
     head = " " * 8 + "".join(f"{c:>{width}}" for c in cols)
     body = [
@@ -84,9 +86,6 @@ def _yaml_files(paths: list[Path]) -> list[Path]:
     """The files given, with a folder expanded to every YAML below it (sorted), and a bare name
     that is no file here taken as the shipped config of that name (``SY250``, ``quick``) or the
     shipped folder (``configs``, ``problems``)."""
-    from casadrone.config.io import DATA_DIR, kind_dir
-    from casadrone.config.validation import SCHEMAS_BY_FOLDER
-
     out: list[Path] = []
     for p in paths:
         if not p.exists() and str(p) in ("configs", "problems"):
@@ -114,9 +113,6 @@ def validate(
 
     With ``key=value`` arguments after a single file, that file is validated with the overrides
     applied, as every other command applies them."""
-    from casadrone.config.problem import ProblemConfig
-    from casadrone.config.validation import FileReport, check_config_file
-
     overrides = [str(p) for p in files if "=" in str(p) and not p.exists()]
     files = [p for p in files if str(p) not in overrides]
     if overrides and len(files) != 1:
@@ -222,7 +218,6 @@ def operating_point_options(condition: str, speed: float | None, climb_angle: fl
             raise bad_input([f"{option}: {condition} has no {option[2:]} (got {value:g}){hint}"])
         if key in wanted and value is None:
             raise bad_input([f"{option}: required with --condition {condition}"])
-    from casadrone.config.track import MAX_SPEED_MPS
 
     point = {key: float(given[key] or 0.0) for key in wanted}
     v = point.get("speed_mps", 0.0)
@@ -241,9 +236,6 @@ def operating_point_options(condition: str, speed: float | None, climb_angle: fl
 
 def _trim_table(r: dict) -> str:
     import numpy as np
-
-    from casadrone.config.airframe import ROTOR_LABELS
-    from casadrone.numtext import fixed
 
     pos = np.asarray(r["rotor_positions_m"]) * 1000
     rotors = zip(ROTOR_LABELS, pos, strict=True)
@@ -310,7 +302,6 @@ def linearise(
     point = operating_point_options(condition.value, speed, climb_angle, turn_rate)
     cfg, frame = load_airframe_or_exit(airframe, overrides)
     lin_mod = importlib.import_module("casadrone.linearise")  # the module, as in trim
-    from casadrone.trim import trim as trim_fn
 
     tp = trim_fn(frame, condition.value, solver="ipopt", **point)
     if not tp.success:
@@ -363,9 +354,6 @@ def lqr(
     cloud and the hover disturbance responses of the nominal and perturbed plants. Without
     --ensemble they use the controller's robustness.n_plants perturbed plants.
     """
-
-    from casadrone.config.controller import load_controller
-
     check_plot_dir(plot, LQR_FIGURES)
     cfg, frame = load_airframe_or_exit(airframe, overrides)
     ctrl = load_controller(controller)
@@ -397,7 +385,6 @@ def lqr(
     verdict = "stable" if design.stable else "UNSTABLE"
     typer.echo(f"closed loop {verdict}: spectral radius {result['spectral_radius']:.6f}, "
                f"Lyapunov min eig(P) {design.lyapunov_min_eig:.4g}")
-    from casadrone.config.airframe import ROTOR_LABELS
 
     typer.echo("K (rows: the ESC command of each rotor) =\n"
                + _matrix_text(design.K, tuple(f"d {r}" for r in ROTOR_LABELS),

@@ -10,11 +10,13 @@ from typing import Annotated
 import typer
 
 from casadrone.cli.common import app, bad_input, registry_option, reports_config_errors
+from casadrone.export import FORMATS, export, write_export
+from casadrone.export.plate import PlateOptions, arm_width_problem
+from casadrone.export.source import source_of
+from casadrone.outfile import OutputRefused, check_out
 
 
 def _formats() -> list[str]:
-    from casadrone.export import FORMATS
-
     return list(FORMATS)
 
 
@@ -52,11 +54,6 @@ def export_command(
     Betaflight custom mix (mmix lines), PX4 CA_ROTOR* parameters, URDF, or the frame plate as a 1:1
     SVG/DXF. Every file names the casadrone version, the airframe or run and the candidate.
     """
-    from casadrone.export import export, write_export
-    from casadrone.export.plate import PlateOptions, arm_width_problem
-    from casadrone.export.source import source_of
-    from casadrone.outfile import OutputRefused, check_out
-
     options = PlateOptions(arm_width_mm=arm_width, pattern=pattern.value)
     if arm_width_problem(options):
         raise bad_input([f"--arm-width: {arm_width_problem(options)}"])

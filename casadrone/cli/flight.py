@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
 import typer
 
-if TYPE_CHECKING:  # the schema is imported when a command runs
-    from casadrone.config.airframe import AirframeConfig
-
+from casadrone.airframe import build_airframe
 from casadrone.cli.common import (
     AirframeArg,
     ControllerOpt,
@@ -25,6 +23,12 @@ from casadrone.cli.common import (
     reports_config_errors,
     save_figures,
 )
+from casadrone.config.airframe import MOTOR_NUMBERING, ROTOR_LABELS, ROTOR_NAMES, AirframeConfig
+from casadrone.config.controller import load_controller
+from casadrone.config.io import load, resolve_config
+from casadrone.config.track import TrackConfig
+from casadrone.export.mixers import spin_word
+from casadrone.numtext import fixed
 
 
 def _integrators() -> list[str]:
@@ -69,9 +73,6 @@ def simulate(
     """
     check_plot_dir(plot, SIMULATE_FIGURES)
     cfg, _ = load_airframe_or_exit(airframe, overrides)
-    from casadrone.config.controller import load_controller
-    from casadrone.config.io import load, resolve_config
-    from casadrone.config.track import TrackConfig
     from casadrone.evaluate import DEFAULT_TRACK, EvaluationSetup, evaluate, theta_of
     from casadrone.indices import INDICES
 
@@ -107,10 +108,6 @@ def simulate(
 def _rotors(cfg: AirframeConfig) -> list[dict]:
     """Each rotor by position, with its firmware motor numbers, place, spin and hover thrust (the
     table that says which motor is which; empty for a frame that cannot be built)."""
-    from casadrone.airframe import build_airframe
-    from casadrone.config.airframe import MOTOR_NUMBERING, ROTOR_LABELS, ROTOR_NAMES
-    from casadrone.export.mixers import spin_word
-
     try:
         af = build_airframe(cfg)
     except ValueError:
@@ -125,8 +122,6 @@ def _rotors(cfg: AirframeConfig) -> list[dict]:
 
 
 def _rotor_lines(rotors: list[dict]) -> list[str]:
-    from casadrone.config.airframe import MOTOR_NUMBERING
-
     firm = "".join(f"{n.firmware + ' motor':>18}" for n in MOTOR_NUMBERING.values())
     lines = [f"  {'rotor':<7}{'x fwd (mm)':>11}{'y left (mm)':>13}{'spin':>6}"
              f"{'hover thrust (N)':>18}{firm}"]
@@ -139,7 +134,6 @@ def _rotor_lines(rotors: list[dict]) -> list[str]:
 
 def _simulate_text(r: dict) -> str:
     from casadrone.indices import INDICES, INTERVAL_LEGEND
-    from casadrone.numtext import fixed
 
     head = f"{r['airframe']}: track {r['track']}, controller {r['controller']}, {r['integrator']}"
     if r["status"] != "completed":

@@ -12,6 +12,8 @@ from casadrone.cli.common import (
     print_json,
     reports_config_errors,
 )
+from casadrone.config.airframe import load_airframe
+from casadrone.massprops import mass_properties
 
 
 @app.command()
@@ -22,9 +24,6 @@ def massprops(airframe: AirframeArg, overrides: OverridesArg = None,
     of mass, body axes x nose, y left, z up) of an airframe: given (mass_model free) or computed
     from its parts for its geometry (mass_model components, e.g. SY250-components
     lambda_a_mm=140)."""
-    from casadrone.config.airframe import load_airframe
-    from casadrone.massprops import mass_properties
-
     cfg = load_airframe(airframe, overrides or [])
     mp = mass_properties(cfg)
     result = {"airframe": cfg.name, **mp.as_dict()}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
 import typer
 
@@ -18,10 +18,20 @@ from casadrone.cli.common import (
     progress_lines,
     reports_config_errors,
 )
-
-if TYPE_CHECKING:  # the schemas are imported when a command runs
-    from casadrone.config.airframe import AirframeConfig
-    from casadrone.config.problem import BackendConfig, ProblemConfig
+from casadrone.config.airframe import AirframeConfig, load_airframe
+from casadrone.config.io import validate_data
+from casadrone.config.problem import BackendConfig, ProblemConfig
+from casadrone.rundir.store import (
+    CONFIG,
+    MANIFEST,
+    PARETO,
+    NotARunDirectory,
+    RunDamaged,
+    RunStore,
+    check_new_run_dir,
+    interrupted_creation,
+)
+from casadrone.verdict import default_baseline, format_verdicts, run_verdict
 
 
 class BackendName(StrEnum):
@@ -68,9 +78,6 @@ BaselineOpt = Annotated[
 def backend_config(base: BackendConfig, name: BackendName | None, workers: int | None,
                    scheduler: str | None) -> BackendConfig:
     """The problem's backend section with the command-line choices applied (validated)."""
-    from casadrone.config.io import validate_data
-    from casadrone.config.problem import BackendConfig
-
     if scheduler is not None:
         if name not in (None, BackendName.dask):
             raise bad_input([f"--scheduler: only with --backend dask (got --backend {name})"])
@@ -95,8 +102,6 @@ def backend_config(base: BackendConfig, name: BackendName | None, workers: int |
 
 def require_run_dir(run_dir: Path) -> None:
     """Exit 2 unless ``run_dir`` is a run directory (it has config.yaml and manifest.json)."""
-    from casadrone.rundir.store import CONFIG, MANIFEST, interrupted_creation
-
     if not run_dir.exists():
         raise bad_input([f"{run_dir}: no such run directory"])
     if not run_dir.is_dir():
@@ -111,8 +116,6 @@ def require_run_dir(run_dir: Path) -> None:
 
 def open_problem(run_dir: Path) -> ProblemConfig:
     """The resolved problem of a run directory; an unreadable config.yaml is bad input."""
-    from casadrone.rundir.store import CONFIG, RunDamaged, RunStore
-
     try:
         return RunStore(run_dir).problem()
     except RunDamaged:
@@ -126,7 +129,6 @@ def run_summary(run_dir: Path) -> list[str]:
     """The run directory and a short summary of its front (from pareto.csv)."""
     from casadrone.indices import INDICES
     from casadrone.optimise.problem import Study
-    from casadrone.rundir.store import RunDamaged, RunStore
 
     store = RunStore(run_dir)
     m = store.manifest
@@ -155,8 +157,6 @@ def run_summary(run_dir: Path) -> list[str]:
 
 def _failure_summary(run_dir: Path) -> list[str]:
     from collections import Counter
-
-    from casadrone.rundir.store import RunStore
 
     hist = RunStore(run_dir).history()
     failed = [r for r in hist if r["status"] != "completed"]
@@ -194,7 +194,6 @@ def run_command(
     """
     from casadrone.optimise import runner
     from casadrone.optimise.checks import load_problem
-    from casadrone.rundir.store import NotARunDirectory, check_new_run_dir
 
     if quiet and verbose:
         raise bad_input(["--quiet and --verbose: choose one"])
@@ -241,7 +240,6 @@ def resume(
     complete (exit code 0): resuming is idempotent, so scripts may call it unconditionally.
     """
     from casadrone.optimise import runner
-    from casadrone.rundir.store import PARETO, RunStore
 
     require_run_dir(run_dir)
     problem = open_problem(run_dir)
@@ -298,8 +296,6 @@ def decide_command(
     (the same verdict opens the report).
     """
     from casadrone.compare import run_candidates
-    from casadrone.config.airframe import load_airframe
-    from casadrone.verdict import default_baseline
 
     require_run_dir(run_dir)
     problem = open_problem(run_dir)
@@ -330,8 +326,6 @@ def _verdict_block(run_dir: Path, candidates: list, reference: AirframeConfig) -
     """The verdict against the baseline for ``decide`` (empty for a test problem); a problem
     with a limit-lap objective is sent to the report (the baseline's limit lap takes minutes)."""
     from casadrone.optimise.problem import Study, study_setup
-    from casadrone.rundir.store import RunStore
-    from casadrone.verdict import format_verdicts, run_verdict
 
     study = Study(RunStore(run_dir).problem())
     if study.problem.test_problem is not None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
 import typer
 
@@ -21,10 +21,21 @@ from casadrone.cli.common import (
     reports_config_errors,
     save_figures,
 )
+from casadrone.config.io import resolve_config
 from casadrone.config.propulsion import shipped_datasets
-
-if TYPE_CHECKING:
-    from casadrone.thruststand import PropulsionFit
+from casadrone.outfile import OutputRefused, check_out, write_out
+from casadrone.thruststand import (
+    AIR_DENSITY_RANGE,
+    DIAMETER_RANGE_M,
+    ESC_SIGNAL_RANGE,
+    PARTS,
+    LogError,
+    PropulsionFit,
+    check_log_file,
+    fit_propulsion,
+    fitted_problem,
+    read_log,
+)
 
 #: The figures ``--plot`` writes (:func:`casadrone.plots.propulsion_fit_figures`), each in each
 #: format (:data:`casadrone.cli.common.FIGURE_FORMATS`): their paths are checked before the log
@@ -34,8 +45,6 @@ FIGURES = ("propulsion-fit-steady", "propulsion-fit-steps")
 
 def _parts() -> list[str]:
     """The ``--part`` choices: the parts of :data:`casadrone.thruststand.PARTS`, and all."""
-    from casadrone.thruststand import PARTS
-
     return [*PARTS, "all"]
 
 
@@ -93,16 +102,6 @@ def fit_propulsion_command(
     folder created before any file is written: a refused command writes nothing. A figure
     casadrone wrote (marked in its metadata) is replaced without --force, as by every --plot.
     """
-    from casadrone.outfile import OutputRefused, write_out
-    from casadrone.thruststand import (
-        PARTS,
-        LogError,
-        check_log_file,
-        fit_propulsion,
-        fitted_problem,
-        read_log,
-    )
-
     check_plot_dir(plot)
     problem = (option_problem(diameter_in, diameter_m, air_density, motor_poles, esc_min_us,
                               esc_max_us) or shape_problem(shape) or part_problem(part))
@@ -170,8 +169,6 @@ def shipped_log(log: Path) -> Path:
     says what a folder or a FIFO is), else the shipped log of that name (the convention of
     :func:`casadrone.config.io.resolve_config`: ``example-5in``); ConfigError naming the
     shipped logs when there is none."""
-    from casadrone.config.io import resolve_config
-
     if log.exists() or log.is_symlink():
         return log
     return resolve_config(log, "thruststand")
@@ -186,8 +183,6 @@ def option_problem(diameter_in: float | None, diameter_m: float | None, air_dens
                    motor_poles: int | None, esc_min_us: float | None, esc_max_us: float | None
                    ) -> str | None:
     """The first option outside its range (NaN and inf included), as one line naming it."""
-    from casadrone.thruststand import AIR_DENSITY_RANGE, DIAMETER_RANGE_M, ESC_SIGNAL_RANGE
-
     if (diameter_in is None) == (diameter_m is None):
         return ("fit-propulsion: give the propeller diameter: --diameter-in or --diameter-m (one "
                 "of them)")
@@ -246,8 +241,6 @@ def destination_problem(flag: str, path: Path, log: Path, force: bool) -> str | 
     (:func:`casadrone.outfile.check_out`); an existing file only with ``force``, or without it
     a figure casadrone wrote (:func:`replaceable_figure`); never where its folder cannot be
     written."""
-    from casadrone.outfile import OutputRefused, check_out
-
     what = "--out" if flag == "--out" else "--plot folder"
     if path.is_symlink() and not path.exists():
         return (f"{flag}: {path}: is a dangling symbolic link (to {os.readlink(path)}); it was "
@@ -375,6 +368,4 @@ def _values_text(fit: PropulsionFit, part: str) -> str:
 
 def _missing_parts(fit: PropulsionFit) -> list[tuple[str, str]]:
     """(part, refused or not fitted) of each part the section lacks."""
-    from casadrone.thruststand import PARTS
-
     return [(p, fit.status(p)) for p in PARTS if p not in fit.fitted]

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import Annotated, Any
 
 import typer
 
+from casadrone.airframe import Airframe
 from casadrone.cli.common import (
     AirframeArg,
     JsonOpt,
@@ -22,11 +23,18 @@ from casadrone.cli.common import (
     reports_config_errors,
     save_figures,
 )
-
-if TYPE_CHECKING:  # the study is imported when the command runs
-    from casadrone.airframe import Airframe
-    from casadrone.conditions import OperatingPoint
-    from casadrone.trimstudy import StudyOptions, TrimStudy
+from casadrone.conditions import OperatingPoint, envelope
+from casadrone.trimstudy import (
+    MAX_SOLVES,
+    StudyOptions,
+    TrimStudy,
+    analytic_guess,
+    basin_slice,
+    draw_starts,
+    residual_history,
+    solve_count,
+)
+from casadrone.trimstudy import trim_study as run_study
 
 #: The option of each field of :class:`casadrone.trimstudy.StudyOptions`.
 OPTION_OF = {"starts": "--starts", "seed": "--seed", "angle_spread_deg": "--angle-spread",
@@ -79,7 +87,6 @@ def trim_study(
                                     solvers, reference, distinct_tolerance, basin_grid, plot_point)
     check_size(len(points), options, basin_grid if plot else 0)
     _, frame = load_airframe_or_exit(airframe, overrides)
-    from casadrone.trimstudy import trim_study as run_study
 
     with progress_lines("trim-study", quiet):
         study = run_study(frame, points, options)
@@ -97,9 +104,6 @@ def _parse(conditions: str, starts: int, seed: int, angle_spread: float,
            command_spread: float, solvers: str, reference: str,
            distinct_tolerance: float, basin_grid: int, plot_point: str | None) -> tuple[Any, ...]:
     """(points, StudyOptions, plot point or None); exit 2 naming the option on a bad value."""
-    from casadrone.conditions import envelope
-    from casadrone.trimstudy import StudyOptions
-
     try:
         points = envelope(conditions)
     except ValueError as exc:
@@ -126,8 +130,6 @@ def _parse(conditions: str, starts: int, seed: int, angle_spread: float,
 def check_size(points: int, options: StudyOptions, basin_grid: int) -> None:
     """Exit 2 naming the options when the study asks for more than
     :data:`casadrone.trimstudy.MAX_SOLVES` trim solves."""
-    from casadrone.trimstudy import MAX_SOLVES, solve_count
-
     n = solve_count(points, options, basin_grid)
     if n > MAX_SOLVES:
         basin = f" + {basin_grid}² --basin-grid starts" if basin_grid else ""
@@ -147,7 +149,6 @@ def _figures(frame: Airframe, study: TrimStudy, point: OperatingPoint, grid: int
              folder: Path) -> list[str]:
     """The envelope, basin and residual-history figures of a study, saved in ``folder``."""
     from casadrone.trimplots import basin_figure, envelope_figure, residual_figure
-    from casadrone.trimstudy import analytic_guess, basin_slice, draw_starts, residual_history
 
     o = study.options
     guess = analytic_guess(frame, point)

@@ -27,6 +27,7 @@ import casadi as ca
 import numpy as np
 
 from casadrone.airframe import build_airframe
+from casadrone.codesign.frame import ROTOR_KEYS
 from casadrone.codesign.nlp import epsilon_rows
 from casadrone.config.io import ConfigError
 from casadrone.limit.check import resimulation_miss, theta_sensitivities
@@ -179,8 +180,6 @@ def _bound_clauses(variables) -> list[str]:
 
 def _row_clause(name: str, interior: dict[str, float], set_keys: set[str]) -> str:
     """A clause for one active row: what it is and which free variables it sets."""
-    from casadrone.codesign.frame import ROTOR_KEYS
-
     if name.startswith("gap "):
         pair = name[4:].split("-")
         what = _GAPS.get(frozenset(pair), f"the {pair[0]}-{pair[1]} props' clearance")

@@ -14,9 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
+from casadrone.airframe import build_airframe, with_theta
 from casadrone.config.airframe import AirframeConfig, load_airframe
 from casadrone.config.codesign import FRONT_MEASURES, LAP_INDEX, CodesignProblemConfig
 from casadrone.config.io import ConfigError, load, problem_lines, resolve_config
+from casadrone.config.track import TrackConfig
 
 
 def codesign_index_problems(objectives, constraints) -> list[tuple[str, str]]:
@@ -64,7 +66,6 @@ def gate_clearance(template: AirframeConfig, lower: np.ndarray, upper: np.ndarra
     same, so a frame is never compared on a different track."""
     import itertools
 
-    from casadrone.airframe import build_airframe, with_theta
     from casadrone.limit.lap import frame_clearance_m
 
     sizes = []
@@ -84,7 +85,6 @@ def codesign_track_problems(problem: CodesignProblemConfig) -> list[tuple[str, s
     :func:`gate_clearance`), or more intervals than a limit lap takes
     (:func:`casadrone.limit.problem.check_inputs`, the check of ``limit-lap``). Found before any
     solve: co-design only learnt it when every start failed ("start frame has no limit lap")."""
-    from casadrone.config.track import TrackConfig
     from casadrone.limit.problem import check_inputs
     from casadrone.limit.result import DEFAULT_INTERVALS, LimitLapOptions
 

@@ -8,6 +8,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator
 
+from casadrone.config.airframe import load_airframe
 from casadrone.config.io import ConfigError, Schema, first_line, load, resolve_config
 
 Positive = Annotated[float, Field(gt=0)]
@@ -127,8 +128,6 @@ def load_controller(
     Its ``reference_airframe`` is loaded too: a file that is no valid airframe (a controller, a
     track) is one line naming the controller and the key (ConfigError), not the referenced
     file's own line, which read as if the option given (``--controller``) were wrong."""
-    from casadrone.config.airframe import load_airframe
-
     source = resolve_config(path or "default", "controllers")
     ctrl = load(ControllerConfig, source, overrides)
     if ctrl.reference_airframe is not None:

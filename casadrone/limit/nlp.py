@@ -490,7 +490,6 @@ def current_rows(model: OcpModel, layout: Layout, X, U, p) -> list:
     pack_a, motor_a = layout.max_pack_current_a, layout.max_motor_current_a
     if pack_a is None and motor_a is None:
         return []
-    from casadrone.model import named
 
     x, u, ps = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu), ca.SX.sym("p", model.np)
     if model.rotor is None:

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
+from casadrone.codesign.polish import improves, polish_member, polish_problem, prepared, spread
 from casadrone.config.codesign import PolishSettings
 from casadrone.optimise.problem import Study, objectives_and_constraints
 from casadrone.results import Record
@@ -62,14 +63,6 @@ def polish_front(algorithm: Any, study: Study, evaluate: Callable[..., Any],
     docstring): ``evaluate(study, X)`` evaluates the proposals (the run's backend),
     ``front_of(algorithm, study)`` gives the front (X, F in the objectives' own sense). Returns
     the evaluations (the polish's generation) and one report per member."""
-    from casadrone.codesign.polish import (
-        improves,
-        polish_member,
-        polish_problem,
-        prepared,
-        spread,
-    )
-
     settings = polish_settings(study)
     assert settings is not None
     stream = stream or sys.stderr

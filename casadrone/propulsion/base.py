@@ -16,10 +16,51 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Protocol, TypedDict
+
+from casadrone.num import Num
 
 #: The model of an airframe whose ``propulsion:`` section names none.
 DEFAULT_MODEL = "paper"
+
+
+class PaperParams(TypedDict):
+    """The airframe vector p by name (:func:`casadrone.model.named`), symbolic or numeric: the
+    paper's parameters, in the order of p (:data:`casadrone.airframe.PARAM_NAMES` is this list),
+    which every propulsion model's p starts with; a model's own follow them (its
+    :attr:`PropulsionModel.param_names`)."""
+
+    mass: Num  # kg
+    Ixx: Num  # inertia about the body axes at the centre of mass (kg·m²)
+    Iyy: Num
+    Izz: Num
+    Ixy: Num  # products of inertia (kg·m²)
+    Ixz: Num
+    Iyz: Num
+    r1x: Num  # rotor positions from the centre of mass (m, body axes), rotors FR, FL, RL, RR
+    r1y: Num
+    r1z: Num
+    r2x: Num
+    r2y: Num
+    r2z: Num
+    r3x: Num
+    r3y: Num
+    r3z: Num
+    r4x: Num
+    r4y: Num
+    r4z: Num
+    s1: Num  # spin signs: the sign of each rotor's reaction torque about +z
+    s2: Num
+    s3: Num
+    s4: Num
+    kappa: Num  # yaw reaction per thrust (m)
+    CdA_x: Num  # drag areas along the body axes (m²)
+    CdA_y: Num
+    CdA_z: Num
+    rho: Num  # air density (kg/m³)
+    K: Num  # thrust gain (N per unit command)
+    tau: Num  # thrust time constant (s)
+    g: Num  # gravity (m/s²)
 
 
 @dataclass(frozen=True)
@@ -35,11 +76,11 @@ class RotorStates:
 class PropulsionModel(Protocol):
     """One entry of :data:`PROPULSION_MODELS`.
 
-    ``q`` below is the airframe vector p by name, the paper's names
-    (:data:`casadrone.airframe.PARAM_NAMES`) and this model's :attr:`param_names`
-    (:func:`casadrone.model.named`), symbolic or numeric; ``r`` the four rotor positions from the
-    centre of mass (m), ``s`` the spin signs. ``airframe`` is anything with the
-    :class:`casadrone.airframe.Airframe` attributes; ``section`` a
+    ``q`` below is the airframe vector p by name, the paper's names (:class:`PaperParams`) and
+    this model's :attr:`param_names` (:func:`casadrone.model.named`); it and the other values of
+    the symbolic methods are :data:`casadrone.num.Num` (numbers or CasADi expressions); ``r``
+    the four rotor positions from the centre of mass (m), ``s`` the spin signs. ``airframe`` is
+    anything with the :class:`casadrone.airframe.Airframe` attributes; ``section`` a
     :class:`casadrone.config.propulsion.PropulsionConfig`.
     """
 
@@ -99,33 +140,34 @@ class PropulsionModel(Protocol):
         """The largest advance ratio the limit lap may fly, None for none."""
         ...
 
-    def terms(self, vel: Any, omega: Any, rotor: Any, rotor_dot: Any, u: Any, q: Mapping,
-              r: list, s: list) -> tuple[Any, Any, Any]:
+    def terms(self, vel: Num, omega: Num, rotor: Num, rotor_dot: Num, u: Num, q: PaperParams,
+              r: list[Num], s: list[Num]) -> tuple[Num, Num, Num]:
         """(rotor force (3, N, body frame), rotor torque (3, N·m), rotor residual (4, zero along
         a flight)) at body velocity ``vel``, body rates ``omega``, rotor states ``rotor`` and
         their derivative ``rotor_dot``, ESC commands ``u`` (symbolic)."""
         ...
 
-    def thrusts(self, vel: Any, omega: Any, rotor: Any, q: Mapping, r: list, s: list) -> Any:
+    def thrusts(self, vel: Num, omega: Num, rotor: Num, q: PaperParams, r: list[Num],
+                s: list[Num]) -> Num:
         """Each rotor's thrust (N, 4) along its axis, the same expression :meth:`terms` uses."""
         ...
 
-    def steady_rotors(self, delta: Any, q: Mapping) -> Any:
+    def steady_rotors(self, delta: Num, q: PaperParams) -> Num | None:
         """The rotor states at rest under commands ``delta`` (symbolic), None when not explicit
         (then they are unknowns of the trim, :attr:`trim_unknowns`)."""
         ...
 
-    def static_rotors(self, thrust: Any, q: Mapping) -> Any:
+    def static_rotors(self, thrust: Num, q: PaperParams) -> Num:
         """The rotor states giving ``thrust`` (N) at rest (symbolic or numeric)."""
         ...
 
-    def currents(self, rotor: Any, u: Any, q: Mapping) -> tuple[Any, Any] | None:
+    def currents(self, rotor: Num, u: Num, q: PaperParams) -> tuple[Num, Num] | None:
         """(pack current (A), the four motor currents (A)) at rotor states ``rotor`` under
         commands ``u`` (symbolic), what the limit lap's current limits bound
         (:func:`casadrone.limit.nlp.current_rows`); None for a model without currents."""
         ...
 
-    def decay_rate(self, q: Mapping) -> Any:
+    def decay_rate(self, q: PaperParams) -> Num:
         """The rotor states' linear decay rate λ (1/s) that depends on p only: the part −λ x of
         ẋ the exponential step integrates exactly (:func:`casadrone.limit.nlp.etdrk4_step`)."""
         ...

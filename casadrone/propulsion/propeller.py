@@ -73,9 +73,10 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from functools import cache
-from typing import Any
+from typing import Any, TypedDict
 
-from casadrone.propulsion.base import RotorStates, register_propulsion_model
+from casadrone.num import Num
+from casadrone.propulsion.base import PaperParams, RotorStates, register_propulsion_model
 from casadrone.propulsion.data import (
     DIAMETER_RTOL,
     FIRST_ORDER_TIME_CONSTANT_S,
@@ -94,24 +95,38 @@ from casadrone.propulsion.electric import pack_current
 #: sits above this package, so it is not imported here).
 PropulsionConfig = Any
 
-#: Appended to the paper's parameter vector (SI units; switches are 0 or 1).
-PROPELLER_PARAM_NAMES = (
-    "prop_D",  # propeller diameter (m)
-    "ct0", "ct1", "ct2",  # CT(J) = ct0 + ct1 J + ct2 J²
-    "cp0", "cp1", "cp2",  # CP(J)
-    "rotor_J",  # rotor (propeller + motor bell) inertia about its axis (kg·m²)
-    "rotor_kd",  # rotor drag k_d (N·s²/m): H = −k_d ω v_∥
-    "inflow_on",  # 1: thrust and torque depend on the axial inflow
-    "inflow_positive",  # 1: v_a taken as max(v_a, 0) (smoothed); 0: signed
-    "inflow_eps",  # smoothing width of max(v_a, 0) (m/s)
-    "motor_dc",  # 1: DC motor; 0: first-order lag
-    "motor_kv",  # K_V (rad/s per V)
-    "motor_R",  # winding resistance (Ω)
-    "motor_I0",  # no-load current (A)
-    "motor_tau",  # first-order time constant (s)
-    "batt_Voc",  # battery open-circuit voltage (V)
-    "batt_R",  # battery internal resistance (Ω)
-)  # fmt: skip
+class PropellerTail(TypedDict):
+    """What the ``propeller`` kind appends to the paper's parameter vector, in its order (SI
+    units; switches are 0 or 1), symbolic or numeric."""
+
+    prop_D: Num  # propeller diameter (m)
+    ct0: Num  # CT(J) = ct0 + ct1 J + ct2 J²
+    ct1: Num
+    ct2: Num
+    cp0: Num  # CP(J)
+    cp1: Num
+    cp2: Num
+    rotor_J: Num  # rotor (propeller + motor bell) inertia about its axis (kg·m²)
+    rotor_kd: Num  # rotor drag k_d (N·s²/m): H = −k_d ω v_∥
+    inflow_on: Num  # 1: thrust and torque depend on the axial inflow
+    inflow_positive: Num  # 1: v_a taken as max(v_a, 0) (smoothed); 0: signed
+    inflow_eps: Num  # smoothing width of max(v_a, 0) (m/s)
+    motor_dc: Num  # 1: DC motor; 0: first-order lag
+    motor_kv: Num  # K_V (rad/s per V)
+    motor_R: Num  # winding resistance (Ω)
+    motor_I0: Num  # no-load current (A)
+    motor_tau: Num  # first-order time constant (s)
+    batt_Voc: Num  # battery open-circuit voltage (V)
+    batt_R: Num  # battery internal resistance (Ω)
+
+
+class PropellerParams(PaperParams, PropellerTail):
+    """The airframe vector p of the ``propeller`` kind by name (:func:`casadrone.model.named`):
+    the paper's parameters, then :class:`PropellerTail`'s."""
+
+
+#: Appended to the paper's parameter vector: the fields of :class:`PropellerTail`, in order.
+PROPELLER_PARAM_NAMES: tuple[str, ...] = tuple(PropellerTail.__annotations__)
 
 
 # --------------------------------------------------------------------------------------------
@@ -157,7 +172,7 @@ def propeller_params(cfg: PropulsionConfig, rho: float) -> list[float]:
 # --------------------------------------------------------------------------------------------
 
 
-def axial_inflow(v_axial, q: dict[str, Any]):
+def axial_inflow(v_axial: Num, q: PropellerParams) -> Num:
     """The axial inflow (m/s) that enters CT and CP: v_a, or max(v_a, 0) smoothed as
     ½(v + √(v² + ε²)) − ε/2 (exactly 0 at v = 0, ≥ −ε/2 everywhere), times the inflow switch."""
     import casadi as ca
@@ -168,7 +183,7 @@ def axial_inflow(v_axial, q: dict[str, Any]):
     return q["inflow_on"] * (pos * positive + (1 - pos) * v_axial)
 
 
-def rotor_loads(w, v_a, q: dict[str, Any]):
+def rotor_loads(w: Num, v_a: Num, q: PropellerParams) -> tuple[Num, Num]:
     """Thrust (N) and shaft torque (N·m) of one rotor at speed w (rad/s) and effective axial
     inflow v_a (m/s): T = ρ (c₀ D⁴ n² + c₁ D³ n v + c₂ D² v²), Q = ρ/(2π) (cp₀ D⁵ n² + …)."""
     rho, D = q["rho"], q["prop_D"]
@@ -179,7 +194,7 @@ def rotor_loads(w, v_a, q: dict[str, Any]):
     return T, Q
 
 
-def battery_voltage(w, u, q: dict[str, Any]):
+def battery_voltage(w: Num, u: Num, q: PropellerParams) -> Num:
     """V_bat (V) under load, the closed-form sag (module docstring); w, u of all four rotors."""
     import casadi as ca
 
@@ -187,13 +202,14 @@ def battery_voltage(w, u, q: dict[str, Any]):
     return (q["batt_Voc"] + k * ca.dot(u, w) / q["motor_kv"]) / (1 + k * ca.dot(u, u))
 
 
-def motor_currents(w, u, q: dict[str, Any]):
+def motor_currents(w: Num, u: Num, q: PropellerParams) -> tuple[Num, Num]:
     """(V_bat (V), motor currents I_i (A, 4)) of the DC motor model."""
     V = battery_voltage(w, u, q)
     return V, (u * V - w / q["motor_kv"]) / q["motor_R"]
 
 
-def propeller_terms(vel, omega, w, w_dot, u, q: dict[str, Any], r, s):
+def propeller_terms(vel: Num, omega: Num, w: Num, w_dot: Num, u: Num, q: PropellerParams,
+                    r: list[Num], s: list[Num]) -> tuple[Num, Num, Num, Num, Num]:
     """Rotor force, torque and rotor residual of the ``propeller`` kind (see module docstring)
     as (force (3), torque (3), rotor residual (4), thrusts (4), axial inflows (4)); ``q`` the
     named parameters (:func:`casadrone.model.named`), ``r`` the rotor positions from the centre
@@ -224,7 +240,7 @@ def propeller_terms(vel, omega, w, w_dot, u, q: dict[str, Any], r, s):
     return force, torque, ca.vertcat(*residual), ca.vertcat(*thrusts), ca.vertcat(*inflows)
 
 
-def rotor_decay_rate(q: Mapping[str, Any]):
+def rotor_decay_rate(q: PropellerParams) -> Num:
     """The rotor speeds' linear decay rate λ (1/s) that depends on the parameters only, the
     linear part −λ ω of ω̇ that the exponential step integrates exactly
     (:func:`casadrone.limit.nlp.etdrk4_step`): with the DC motor the back-EMF damping
@@ -237,7 +253,8 @@ def rotor_decay_rate(q: Mapping[str, Any]):
     return dc / (q["rotor_J"] * q["motor_R"] * q["motor_kv"] ** 2) + (1 - dc) / q["motor_tau"]
 
 
-def advance_margins(vel, omega, w, q: dict[str, Any], r, j_max: float):
+def advance_margins(vel: Num, omega: Num, w: Num, q: PropellerParams, r: list[Num],
+                    j_max: float) -> Num:
     """The four rows J_max n_i D − v_a,i (m/s) that keep each rotor inside its data,
     J = v_a/(n D) ≤ J_max: ``vel``, ``omega`` the body velocity (m/s) and rates (rad/s), ``w``
     the rotor speeds (rad/s), v_a the effective axial inflow of :func:`axial_inflow` (the one

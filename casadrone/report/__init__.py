@@ -53,6 +53,7 @@ from casadrone.report.sections import (
 )
 from casadrone.report.verdict import baseline_of, baseline_verdict, section_verdict
 from casadrone.rundir.store import atomic_write
+from casadrone.verdict import default_baseline
 
 __all__ = ["Candidate", "choose_candidates", "convergence_history", "failure_groups",
            "write_report"]
@@ -114,8 +115,6 @@ def write_report(run_dir: str | Path, references: tuple[str, ...] | None = None,
         raise ValueError(f"--out: {path}: cannot be made: {blocker} is a file, not a folder")
     run = read_run(run_dir)
     if not references:
-        from casadrone.verdict import default_baseline
-
         references = (str(default_baseline(run.study.problem)),)
     figs = Figures(path.parent / PLOTS)
     cands = choose_candidates(run)

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from casadrone import plots
 from casadrone.airframe import build_airframe, family, with_theta
 from casadrone.compare import Candidate, compare_run, gain_pct
-from casadrone.config.airframe import load_airframe
+from casadrone.config.airframe import AirframeConfig, load_airframe
 from casadrone.config.io import ConfigError
 from casadrone.evaluate import Evaluation, evaluate, evaluate_limit, theta_of
 from casadrone.export import FORMATS, export
@@ -35,9 +35,6 @@ from casadrone.report.markup import (
     unit_of,
 )
 from casadrone.rundir.store import PARETO, atomic_write, git_revision
-
-if TYPE_CHECKING:
-    from casadrone.config.airframe import AirframeConfig
 
 
 def evaluate_candidates(run: Run, cands: list[Candidate], limit: bool = True
@@ -220,8 +217,6 @@ def section_airframes(run: Run, cands: list[Candidate], references: Any, figs: F
         return note("A pymoo test problem has no airframe.")
     if not cands:
         return empty_front(run)
-    from casadrone.airframe import with_theta
-    from casadrone.optimise.problem import study_setup
 
     setup = study_setup(run.study)
     frames = [build_airframe(with_theta(setup.template, c.theta, name=f"Candidate {c.label}"))

@@ -7,7 +7,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from casadrone.compare import Candidate
+from casadrone.config.airframe import INERTIA_KEYS
 from casadrone.evaluate import Evaluation
+from casadrone.optimise.problem import study_setup
 from casadrone.report.analysis import Run
 from casadrone.report.markup import Html, cell, empty_front, esc, note, num, table
 from casadrone.verdict import (
@@ -35,9 +37,6 @@ def impossible_bodies(history: list[dict]) -> int:
 def mass_model_note(run: Run) -> Html:
     """What the problem fixes and frees of the mass properties, with the share of impossible
     bodies among the run's evaluations, and where the parts-based variant is."""
-    from casadrone.config.airframe import INERTIA_KEYS
-    from casadrone.optimise.problem import study_setup
-
     t = study_setup(run.study).template
     n = len(run.history)
     if t.mass_model != "free":

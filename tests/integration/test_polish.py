@@ -142,6 +142,7 @@ def test_hybrid_run_polishes_and_resumes_as_uninterrupted(tmp_path, monkeypatch)
     import json
 
     import casadrone.codesign.polish as polish
+    import casadrone.optimise.hybrid as hybrid  # the polish's steps are called by these names
     from casadrone.config.problem import BackendConfig
     from casadrone.optimise.runner import resume, run
     from casadrone.rundir.store import RunStore
@@ -172,12 +173,12 @@ def test_hybrid_run_polishes_and_resumes_as_uninterrupted(tmp_path, monkeypatch)
             raise RuntimeError("killed during the polish")
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(polish, "polish_member", killed_on_second)
+    monkeypatch.setattr(hybrid, "polish_member", killed_on_second)
     part = tmp_path / "part"
     with pytest.raises(RuntimeError, match="killed during the polish"):
         run(problem, part, BackendConfig(name="serial"), quiet=True)
     assert not (part / "pareto.csv").exists()
-    monkeypatch.setattr(polish, "polish_member", real)
+    monkeypatch.setattr(hybrid, "polish_member", real)
     resume(part, quiet=True)
     assert (part / "pareto.csv").read_bytes() == (full / "pareto.csv").read_bytes()
     strip = lambda h: [{k: v for k, v in r.items() if k != "wall_time_s"} for r in h]  # noqa: E731
@@ -194,6 +195,7 @@ def test_polish_stage_stores_evaluates_and_resumes(tmp_path, monkeypatch):
     import json
 
     import casadrone.codesign.polish as polish
+    import casadrone.optimise.hybrid as hybrid  # the polish's steps are called by these names
     from casadrone.config.problem import BackendConfig
     from casadrone.optimise.problem import Study, evaluate_rows
     from casadrone.optimise.runner import resume, run
@@ -209,8 +211,8 @@ def test_polish_stage_stores_evaluates_and_resumes(tmp_path, monkeypatch):
             raise RuntimeError("killed during the polish")
         return polish.Polished(theta, member, centre, {}, True, "stand-in", "", 0, 0.0)
 
-    monkeypatch.setattr(polish, "polish_member", stand_in)
-    monkeypatch.setattr(polish, "prepared", lambda problem: None)
+    monkeypatch.setattr(hybrid, "polish_member", stand_in)
+    monkeypatch.setattr(hybrid, "prepared", lambda problem: None)
     full = tmp_path / "full"
     run(problem, full, BackendConfig(name="serial"), quiet=True)
     report = json.loads((full / "polish.json").read_text())

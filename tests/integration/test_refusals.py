@@ -388,12 +388,12 @@ def test_a_reference_airframe_that_is_a_controller_names_the_key(tmp_path, comma
      "point(s) x 21 start(s) + 201² --basin-grid starts) x 3 solver(s) = 121266 trim solves"),
 ])
 def test_trim_study_refuses_absurd_envelopes_before_any_solve(tmp_path, monkeypatch, args, start):
-    import casadrone.trimstudy as trimstudy
+    import casadrone.cli.trimstudy as command
 
     def tripwire(*a, **k):
         raise AssertionError("a solve started before the envelope was checked")
 
-    monkeypatch.setattr(trimstudy, "trim_study", tripwire)
+    monkeypatch.setattr(command, "run_study", tripwire)  # the study, where the command calls it
     figures = tmp_path / "figures"
     line = one_line_exit_2(cli("trim-study", "SY250", *args, "--plot", figures))
     assert line.startswith(start), line

@@ -26,6 +26,7 @@ FLOORS: tuple[str, ...] = (
     "casadrone.parentdeath",  # child processes that die with their parent
     "casadrone.results",
     "casadrone.numtext",  # numbers as printed text (no negative zero): every table's
+    "casadrone.num",  # Num, a number or a CasADi expression: the model's and propulsion's values
     "casadrone.massprops",
     "casadrone.propulsion",  # the propulsion models: the airframe schema reads their kinds
     "casadrone.parts",  # the parts catalogue (static data): config.parts makes sections of it
@@ -160,7 +161,7 @@ def test_cycle_finder_finds_a_planted_circle():
 def test_graph_sees_lazy_and_relative_imports():
     graph = import_graph()
     assert "casadrone.config.airframe" in graph["casadrone.airframe"]  # module-level
-    assert "casadrone.codesign.polish" in graph["casadrone.optimise.hybrid"]  # inside a function
+    assert "casadrone.evaluate" in graph["casadrone.optimise.problem"]  # inside a function
     assert "casadrone.cli.common" in graph["casadrone.cli"]
 
 
@@ -259,92 +260,23 @@ HEAVY: dict[str, str] = {
     "ezdxf": "DXF export, an optional extra",
 }
 
-#: Why a lazy import below brings no heavy library and stays lazy all the same.
-CLI = ("the command line: each command imports its stage when it runs; to be hoisted with the "
-       "command line's limit-lap settings (issue 45, item 3), which rewrite these commands")
-LIMIT = ("the limit lap's steps: to be hoisted with the limit lap's settings schema (issue 45, "
-         "item 3), which rewrites these modules")
-HOIST = ("imported where it is used by code written beside the floors' move; no heavy library "
-         "is kept out, so it moves to the top with the same hoisting as CLI and LIMIT")
-PATCHED_EVALUATE = ("tests replace casadrone.evaluate.evaluate (tests/unit/test_compare.py): "
-                    "read when called")
-PATCHED_POLISH = ("tests replace polish_member and prepared in casadrone.codesign.polish "
-                  "(tests/integration/test_polish.py): read when called")
-
 #: Function-level imports of casadrone modules that bring no heavy library the importer lacks, and
-#: why each stays lazy: (importing module, imported module) → reason. The one list of them.
-LAZY_ALLOWED: dict[tuple[str, str], str] = {
-    ("casadrone.cli.codesign", "casadrone.codesign.design"): CLI,
-    ("casadrone.cli.common", "casadrone.progress"): CLI,
-    ("casadrone.cli.design", "casadrone.config.airframe"): CLI,
-    ("casadrone.cli.design", "casadrone.config.track"): CLI,
-    ("casadrone.cli.design", "casadrone.control"): CLI,
-    ("casadrone.cli.design", "casadrone.numtext"): CLI,
-    ("casadrone.cli.design", "casadrone.trim"): CLI,
-    ("casadrone.cli.flight", "casadrone.airframe"): CLI,
-    ("casadrone.cli.flight", "casadrone.benchmark"): CLI,
-    ("casadrone.cli.flight", "casadrone.config.airframe"): CLI,
-    ("casadrone.cli.flight", "casadrone.evaluate"): CLI,
-    ("casadrone.cli.flight", "casadrone.export.mixers"): CLI,
-    ("casadrone.cli.flight", "casadrone.indices"): CLI,
-    ("casadrone.cli.flight", "casadrone.numtext"): CLI,
-    ("casadrone.cli.flight", "casadrone.simulate"): CLI,
-    ("casadrone.cli.optimisation", "casadrone.compare"): CLI,
-    ("casadrone.cli.optimisation", "casadrone.config.airframe"): CLI,
-    ("casadrone.cli.optimisation", "casadrone.indices"): CLI,
-    ("casadrone.cli.optimisation", "casadrone.verdict"): CLI,
-    ("casadrone.cli.propulsion", "casadrone.config.io"): CLI,
-    ("casadrone.cli.trimstudy", "casadrone.trimstudy"): CLI,
-    ("casadrone.codesign.certificate", "casadrone.codesign.frame"): HOIST,
-    ("casadrone.codesign.checks", "casadrone.airframe"): HOIST,
-    ("casadrone.codesign.checks", "casadrone.config.track"): HOIST,
-    ("casadrone.conditions", "casadrone.config.track"): HOIST,
-    ("casadrone.config.controller", "casadrone.config.airframe"): HOIST,
-    ("casadrone.optimise.problem", "casadrone.evaluate"): HOIST,
-    ("casadrone.optimise.problem", "casadrone.indices"): HOIST,
-    ("casadrone.optimise.runner", "casadrone.indices"): HOIST,
-    ("casadrone.report", "casadrone.verdict"): HOIST,
-    ("casadrone.report.candidates", "casadrone.airframe"): HOIST,
-    ("casadrone.report.candidates", "casadrone.optimise.problem"): HOIST,
-    ("casadrone.report.verdict", "casadrone.config.airframe"): HOIST,
-    ("casadrone.report.verdict", "casadrone.optimise.problem"): HOIST,
-    ("casadrone.thruststand", "casadrone.config.io"): HOIST,
-    ("casadrone.thruststand", "casadrone.config.propulsion"): HOIST,
-    ("casadrone.verdict", "casadrone.config.airframe"): HOIST,
-    ("casadrone.verdict", "casadrone.evaluate"): HOIST,
-    ("casadrone.verdict", "casadrone.indices"): HOIST,
-    ("casadrone.cli.codesign", "casadrone.cli.common"): CLI,
-    ("casadrone.cli.codesign", "casadrone.codesign.checks"): CLI,
-    ("casadrone.cli.common", "casadrone.airframe"): CLI,
-    ("casadrone.cli.common", "casadrone.config.airframe"): CLI,
-    ("casadrone.cli.common", "casadrone.heap"): CLI,
-    ("casadrone.cli.common", "casadrone.rundir.store"): CLI,
-    ("casadrone.cli.design", "casadrone.config.controller"): CLI,
-    ("casadrone.cli.design", "casadrone.config.io"): CLI,
-    ("casadrone.cli.design", "casadrone.config.problem"): CLI,
-    ("casadrone.cli.design", "casadrone.config.validation"): CLI,
-    ("casadrone.cli.export", "casadrone.export"): CLI,
-    ("casadrone.cli.export", "casadrone.export.plate"): CLI,
-    ("casadrone.cli.export", "casadrone.export.source"): CLI,
-    ("casadrone.cli.export", "casadrone.outfile"): CLI,
-    ("casadrone.cli.flight", "casadrone.config.controller"): CLI,
-    ("casadrone.cli.flight", "casadrone.config.io"): CLI,
-    ("casadrone.cli.flight", "casadrone.config.track"): CLI,
-    ("casadrone.cli.massprops", "casadrone.config.airframe"): CLI,
-    ("casadrone.cli.massprops", "casadrone.massprops"): CLI,
-    ("casadrone.cli.optimisation", "casadrone.config.io"): CLI,
-    ("casadrone.cli.optimisation", "casadrone.config.problem"): CLI,
-    ("casadrone.cli.optimisation", "casadrone.rundir.store"): CLI,
-    ("casadrone.cli.propulsion", "casadrone.outfile"): CLI,
-    ("casadrone.cli.propulsion", "casadrone.thruststand"): CLI,
-    ("casadrone.cli.trimstudy", "casadrone.conditions"): CLI,
-    ("casadrone.compare", "casadrone.evaluate"): PATCHED_EVALUATE,
-    ("casadrone.optimise.hybrid", "casadrone.codesign.polish"): PATCHED_POLISH,
-}
+#: why each stays lazy: (importing module, imported module) → reason. The one list of them, and
+#: empty: every other function-level import of a casadrone module keeps a HEAVY library out.
+LAZY_ALLOWED: dict[tuple[str, str], str] = {}
+
+
+def _type_checking(node: ast.stmt) -> bool:
+    """``if TYPE_CHECKING:`` (or ``typing.TYPE_CHECKING``): a block the type checker reads and an
+    import never runs."""
+    test = node.test if isinstance(node, ast.If) else None
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING"
+            or isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
 
 
 def _top_level_imports(path: Path) -> list[ast.stmt]:
-    """The import statements a module runs when it is imported (not inside a function)."""
+    """The import statements a module runs when it is imported (not inside a function, nor under
+    ``if TYPE_CHECKING:``)."""
     found: list[ast.stmt] = []
 
     def visit(nodes: list[ast.stmt]) -> None:
@@ -352,7 +284,8 @@ def _top_level_imports(path: Path) -> list[ast.stmt]:
             if isinstance(node, ast.Import | ast.ImportFrom):
                 found.append(node)
             elif isinstance(node, ast.If | ast.Try | ast.With):
-                for block in ("body", "orelse", "finalbody"):
+                for block in ("orelse",) if _type_checking(node) else ("body", "orelse",
+                                                                        "finalbody"):
                     visit(getattr(node, block, []))
                 for handler in getattr(node, "handlers", []):
                     visit(handler.body)
@@ -439,9 +372,37 @@ def test_heavy_and_lazy_are_read_from_the_source():
     heavy = heavy_at_import()
     assert heavy["casadrone.model"] >= {"casadi"} and not heavy["casadrone.config.airframe"]
     lazy = {(mod, dest) for mod, _, dest in lazy_imports()}
-    assert ("casadrone.optimise.hybrid", "casadrone.codesign.polish") in lazy
+    assert ("casadrone.optimise.problem", "casadrone.evaluate") in lazy
     assert ("casadrone.cli.optimisation", "casadrone.optimise.runner") in lazy  # pymoo, lazily
     assert heavy["casadrone.optimise.runner"] - heavy["casadrone.cli.optimisation"] == {"pymoo"}
+
+
+#: Prints the HEAVY libraries that importing one module loads.
+LOADED = """
+import importlib, sys
+importlib.import_module({!r})
+print(",".join(sorted({{m.split(".")[0] for m in sys.modules}} & {})))
+"""
+
+
+@pytest.mark.parametrize("name", [
+    "casadrone.optimise.problem",  # the chain (CasADi) only under TYPE_CHECKING: pymoo alone
+    "casadrone.verdict",  # its evaluation's types only under TYPE_CHECKING: none
+    "casadrone.cli",  # the commands: CasADi (the limit lap's results), not SciPy nor pymoo
+])
+def test_heavy_at_import_is_what_importing_loads(name):
+    # the oracle: a fresh interpreter imports the module and lists what it loaded
+    import os
+    import subprocess
+    import sys
+
+    root = PACKAGE.parent
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    run = subprocess.run([sys.executable, "-c", LOADED.format(name, set(HEAVY))],
+                         capture_output=True, text=True, cwd=root, timeout=120, env=env)
+    assert run.returncode == 0, run.stderr
+    loaded = set(run.stdout.strip().split(",")) - {""}
+    assert heavy_at_import()[name] == loaded
 
 
 def test_lazy_imports_of_casadrone_modules_keep_a_heavy_library_out():

@@ -10,6 +10,7 @@ from __future__ import annotations
 import importlib.metadata
 import json
 import os
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -130,13 +131,19 @@ def test_a_hand_written_svg_with_the_creator_is_recognised(tmp_path):
 
 
 def _no_work(monkeypatch):
-    """Any work of the commands fails the test: the refusal must come first."""
+    """Any work of the commands fails the test: the refusal must come first. The airframe's
+    loading is replaced in every module that holds it, by whatever name each command calls it."""
     def work(*args, **kwargs):
         raise AssertionError("the command worked before refusing")
 
-    import casadrone.config.airframe as airframe
+    from casadrone.config.airframe import load_airframe
 
-    monkeypatch.setattr(airframe, "load_airframe", work)
+    holders = [m for name, m in sys.modules.items()
+               if name.startswith("casadrone")
+               and getattr(m, "load_airframe", None) is load_airframe]
+    assert len(holders) >= 2  # its own module and the commands' (casadrone.cli.common)
+    for module in holders:
+        monkeypatch.setattr(module, "load_airframe", work)
 
 
 @pytest.mark.parametrize("command", COMMANDS)

@@ -177,3 +177,26 @@ def test_a_new_model_reaches_the_command_line(cli_runner):
                                    "newton", "--json"])
     assert done.exit_code == 0, done.output
     assert '"success": true' in done.output
+
+
+def test_the_typed_parameter_record_names_the_entries_of_p():
+    """named(p) reads p through the typed records (PaperParams, PropellerParams): each name gives
+    the airframe's own value, read from the Airframe's attributes and the YAML section (the
+    oracle), so the records' field order is the vector's packing order."""
+    from casadrone.model import named
+    from casadrone.propulsion.propeller import PropellerParams
+
+    cfg = load_airframe("SY250-propeller")
+    frame = build_airframe(cfg)
+    q = named(frame.p, "propeller")
+    assert list(q) == list(PropellerParams.__annotations__) == list(param_names("propeller"))
+    assert q["mass"] == frame.mass and q["Ixy"] == frame.inertia[0, 1]
+    assert q["Izz"] == frame.inertia[2, 2] and q["r2y"] == frame.rotor_positions[1, 1]
+    assert q["r4z"] == frame.rotor_positions[3, 2] and q["s3"] == frame.rotor_spins[2]
+    assert q["kappa"] == frame.kappa and q["CdA_y"] == frame.drag_area[1]
+    assert (q["rho"], q["K"], q["tau"], q["g"]) == (frame.air_density, frame.thrust_gain,
+                                                    frame.thrust_time_constant, frame.gravity)
+    assert q["prop_D"] == 0.127 and q["ct1"] == -0.095082 and q["cp2"] == -0.14669  # the YAML's
+    assert q["motor_kv"] == pytest.approx(2300 * 2 * math.pi / 60, rel=1e-15)  # rpm/V → rad/s/V
+    assert (q["motor_R"], q["motor_I0"], q["batt_Voc"], q["batt_R"]) == (0.075, 1.4, 16.8, 0.040)
+    assert q["rotor_J"] == 6.4e-6 and q["rotor_kd"] == 8.0e-6 and q["motor_dc"] == 1.0

@@ -15,7 +15,7 @@ import itertools
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, ValidationError
+from pydantic import Field, ValidationError, model_validator
 
 from casadrone.config.airframe import MASS_KEYS, TABLE1_BOUNDS, AirframeConfig, load_airframe
 from casadrone.config.controller import load_controller
@@ -189,6 +189,24 @@ class ProblemConfig(Schema):
         default_factory=AlgorithmConfig,
         description="the optimiser and its budget",
     )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _legacy_limit_solver(cls, data: Any) -> Any:
+        """``limit_solver: NAME``, the one limit-lap setting a problem had before the
+        ``limit_lap:`` section, read as ``limit_lap.solver``: every run directory written before
+        stores it in its config.yaml, and such a run must still resume. Given beside
+        ``limit_lap.solver`` it is refused naming both."""
+        if not isinstance(data, dict) or "limit_solver" not in data:
+            return data
+        section = data.get("limit_lap") or {}
+        if not isinstance(section, dict):
+            return data
+        if section.get("solver") is not None:
+            raise ValueError("limit_solver: give limit_lap.solver alone (limit_solver is its "
+                             "older name)")
+        rest = {k: v for k, v in data.items() if k != "limit_solver"}
+        return {**rest, "limit_lap": {**section, "solver": data["limit_solver"]}}
     seed: int = Field(1, ge=0, le=2**32 - 1, description="random seed (numpy: 0 … 2³² − 1)")
     backend: BackendConfig = Field(
         default_factory=BackendConfig,

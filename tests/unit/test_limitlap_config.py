@@ -156,3 +156,18 @@ def test_a_key_given_twice_or_a_bad_combination_is_refused(cli_runner, recorded)
     r = cli_runner.invoke(app, ["limit-lap", "SY250", "substeps=0"])
     assert r.exit_code == 2 and r.stderr.startswith("limit-lap: substeps:")
     assert recorded == []
+
+
+def test_a_run_written_with_limit_solver_still_loads_and_both_names_are_refused():
+    """Every run directory written before the ``limit_lap:`` section stores ``limit_solver`` in
+    its config.yaml; ``casadrone resume`` reads that file, so the older name must still load (as
+    ``limit_lap.solver``), and given beside the new one it is refused naming both."""
+    from pydantic import ValidationError
+
+    from casadrone.config.problem import ProblemConfig
+
+    old = {"name": "old-run", "limit_solver": "fatrop"}
+    assert ProblemConfig.model_validate(old).limit_lap.solver == "fatrop"
+    assert ProblemConfig.model_validate({"name": "new"}).limit_lap.solver is None
+    with pytest.raises(ValidationError, match="limit_solver: give limit_lap.solver alone"):
+        ProblemConfig.model_validate({**old, "limit_lap": {"solver": "ipopt"}})

@@ -162,12 +162,18 @@ def test_a_run_written_with_limit_solver_still_loads_and_both_names_are_refused(
     """Every run directory written before the ``limit_lap:`` section stores ``limit_solver`` in
     its config.yaml; ``casadrone resume`` reads that file, so the older name must still load (as
     ``limit_lap.solver``), and given beside the new one it is refused naming both."""
+    import yaml
     from pydantic import ValidationError
 
+    import casadrone
     from casadrone.config.problem import ProblemConfig
 
-    old = {"name": "old-run", "limit_solver": "fatrop"}
+    data = Path(casadrone.__file__).parent / "data"
+    quick = yaml.safe_load((data / "problems" / "quick.yaml").read_text(encoding="utf-8"))
+    quick |= {"airframe": str(data / "configs/airframes/SY250.yaml"),
+              "track": str(data / "configs/tracks/paper-rectangle.yaml")}
+    assert ProblemConfig.model_validate(quick).limit_lap.solver is None
+    old = {**quick, "limit_solver": "fatrop"}
     assert ProblemConfig.model_validate(old).limit_lap.solver == "fatrop"
-    assert ProblemConfig.model_validate({"name": "new"}).limit_lap.solver is None
     with pytest.raises(ValidationError, match="limit_solver: give limit_lap.solver alone"):
         ProblemConfig.model_validate({**old, "limit_lap": {"solver": "ipopt"}})

@@ -53,6 +53,22 @@ VOLATILE_KEYS = re.compile(r"(cpu|wall|time_s$|_s_cpu|seconds|date|created|versi
                            r"git|host|elapsed|timings?$)", re.I)
 VOLATILE_TEXT = re.compile(r"(\d+(\.\d+)? ?s (CPU|wall)|CPU [\d.]+ ?s|wall [\d.]+ ?s|"
                            r"casadrone \d[\w.+-]*|20\d\d-\d\d-\d\d[T ][\d:.]+\S*)")
+#: The checkout's own path in printed file names (each run names its own copy of a shipped file).
+CHECKOUT = re.compile(r"/\S*?/casadrone/(?=data/)")
+#: Binary files: the run's resumable state (a pickle of live objects, whose classes may move
+#: without the run's answer changing) is not an output; the history database is compared by
+#: its rows.
+SKIPPED = re.compile(r"checkpoint(\.prev)?\.pkl$")
+
+
+def content(path: Path) -> str:
+    """What is compared of a file: its rows for an SQLite database, else its text."""
+    if path.suffix == ".sqlite":
+        import sqlite3
+
+        with sqlite3.connect(path) as db:
+            return "\n".join(db.iterdump())
+    return path.read_text(encoding="utf-8", errors="replace")
 
 
 def scrub(value: object) -> object:
@@ -66,7 +82,8 @@ def scrub(value: object) -> object:
 
 def normalise(text: str) -> str:
     """A command's output with its volatile fields removed: parsed and re-dumped when it is
-    JSON, else line by line with times, dates and versions masked."""
+    JSON, else line by line with times, dates, versions and the checkout's path masked."""
+    text = CHECKOUT.sub("<checkout>/casadrone/", text)
     try:
         return json.dumps(scrub(json.loads(text)), indent=1, sort_keys=True)
     except ValueError:
@@ -97,7 +114,8 @@ def record(checkout: Path, out: Path, only: list[str] | None) -> None:
 def files(folder: Path) -> dict[str, Path]:
     """Relative path → file under ``folder``, stderr and logs of timings aside."""
     return {str(p.relative_to(folder)): p for p in sorted(folder.rglob("*"))
-            if p.is_file() and not re.search(r"(timings|progress|\.log$|\.lock$)", p.name)}
+            if p.is_file() and not re.search(r"(timings|progress|\.log$|\.lock$)", p.name)
+            and not SKIPPED.search(p.name)}
 
 
 def compare(before: Path, after: Path) -> int:
@@ -114,8 +132,7 @@ def compare(before: Path, after: Path) -> int:
             outcome = f"different files: {sorted(set(fa) ^ set(fb))}"
         else:
             for rel in fa:
-                ta, tb = (normalise(p.read_text(encoding="utf-8", errors="replace"))
-                          for p in (fa[rel], fb[rel]))
+                ta, tb = (normalise(content(p)) for p in (fa[rel], fb[rel]))
                 if ta != tb:
                     first = next((i for i, (x, y) in enumerate(
                         zip(ta.splitlines(), tb.splitlines(), strict=False)) if x != y), None)

@@ -53,6 +53,22 @@ VOLATILE_KEYS = re.compile(r"(cpu|wall|time_s$|_s_cpu|seconds|date|created|versi
                            r"git|host|elapsed|timings?$)", re.I)
 VOLATILE_TEXT = re.compile(r"(\d+(\.\d+)? ?s (CPU|wall)|CPU [\d.]+ ?s|wall [\d.]+ ?s|"
                            r"casadrone \d[\w.+-]*|20\d\d-\d\d-\d\d[T ][\d:.]+\S*)")
+#: The checkout's own path in printed file names (each run names its own copy of a shipped file).
+CHECKOUT = re.compile(r"/\S*?/casadrone/(?=data/)")
+#: Binary files: the run's resumable state (a pickle of live objects, whose classes may move
+#: without the run's answer changing) is not an output; the history database is compared by
+#: its rows.
+SKIPPED = re.compile(r"checkpoint(\.prev)?\.pkl$")
+
+
+def content(path: Path) -> str:
+    """What is compared of a file: its rows for an SQLite database, else its text."""
+    if path.suffix == ".sqlite":
+        import sqlite3
+
+        with sqlite3.connect(path) as db:
+            return "\n".join(db.iterdump())
+    return path.read_text(encoding="utf-8", errors="replace")
 
 
 def scrub(value: object) -> object:
@@ -66,7 +82,8 @@ def scrub(value: object) -> object:
 
 def normalise(text: str) -> str:
     """A command's output with its volatile fields removed: parsed and re-dumped when it is
-    JSON, else line by line with times, dates and versions masked."""
+    JSON, else line by line with times, dates, versions and the checkout's path masked."""
+    text = CHECKOUT.sub("<checkout>/casadrone/", text)
     try:
         return json.dumps(scrub(json.loads(text)), indent=1, sort_keys=True)
     except ValueError:
@@ -97,12 +114,15 @@ def record(checkout: Path, out: Path, only: list[str] | None) -> None:
 def files(folder: Path) -> dict[str, Path]:
     """Relative path → file under ``folder``, stderr and logs of timings aside."""
     return {str(p.relative_to(folder)): p for p in sorted(folder.rglob("*"))
-            if p.is_file() and not re.search(r"(timings|progress|\.log$|\.lock$)", p.name)}
+            if p.is_file() and not re.search(r"(timings|progress|\.log$|\.lock$)", p.name)
+            and not SKIPPED.search(p.name)}
 
 
-def compare(before: Path, after: Path) -> int:
-    """Print the table; 1 when any command's output or files differ."""
-    print("| command | files compared | outcome |\n|---|---|---|")
+def compare(before: Path, after: Path, results: Path | None = None,
+            revisions: str = "") -> int:
+    """Print the table (and write it to ``results``, opening with its dated summary); 1 when any
+    command's output or files differ."""
+    lines = ["| command | files compared | outcome |", "|---|---|---|"]
     bad = 0
     for name in COMMANDS:
         a, b = before / name, after / name
@@ -114,16 +134,45 @@ def compare(before: Path, after: Path) -> int:
             outcome = f"different files: {sorted(set(fa) ^ set(fb))}"
         else:
             for rel in fa:
-                ta, tb = (normalise(p.read_text(encoding="utf-8", errors="replace"))
-                          for p in (fa[rel], fb[rel]))
+                ta, tb = (normalise(content(p)) for p in (fa[rel], fb[rel]))
                 if ta != tb:
-                    first = next((i for i, (x, y) in enumerate(
-                        zip(ta.splitlines(), tb.splitlines(), strict=False)) if x != y), None)
-                    outcome = f"{rel} differs at line {first}"
+                    la, lb = ta.splitlines(), tb.splitlines()
+                    i = next((i for i, (x, y) in enumerate(zip(la, lb, strict=False))
+                              if x != y), min(len(la), len(lb)))
+                    was, now = (lines_[i].strip()[:60] if i < len(lines_) else "(end)"
+                                for lines_ in (la, lb))
+                    outcome = f"{rel} differs at line {i + 1}: `{was}` became `{now}`"
                     break
         bad += outcome != "identical"
-        print(f"| `casadrone {' '.join(COMMANDS[name])}` | {len(fa)} | {outcome} |")
+        lines.append(f"| `casadrone {' '.join(COMMANDS[name])}` | {len(fa)} | {outcome} |")
+    print("\n".join(lines))
+    if results is not None:
+        write_results(results, lines, bad, revisions)
     return 1 if bad else 0
+
+
+def write_results(path: Path, table: list[str], bad: int, revisions: str) -> None:
+    """``path``: the table under the dated summary every results file opens with."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from machine import markdown, with_summary
+
+    n = len(table) - 2
+    figure = (f"{n - bad} of {n} commands identical" + (f", {bad} differ" if bad else "")
+              + (f" ({revisions})" if revisions else ""))
+    text = "\n".join([
+        "# Every shipped command's output, before and after", "",
+        "What was measured: each command of `benchmarks/byte_identity.py` run in a fresh process "
+        "on two checkouts, stdout and every written file compared byte for byte after removing "
+        "what measures the machine (CPU and wall times, dates, the version stamped into files, "
+        "the checkout's own path); SQLite files by their rows; the run's pickled resumable "
+        "state (`checkpoint.pkl`) is not an output and is not compared. "
+        + (f"Revisions: {revisions}." if revisions else ""), "",
+        *table, "", "Machine:", "", markdown(), ""])
+    path.write_text(with_summary(text, [(
+        "every shipped command's output, before and after", figure,
+        "`python benchmarks/byte_identity.py record --checkout OLD --out A`, the same with NEW "
+        "into B, then `python benchmarks/byte_identity.py compare A B --results FILE`")]),
+        encoding="utf-8")
 
 
 def main() -> int:
@@ -136,11 +185,13 @@ def main() -> int:
     cmp = sub.add_parser("compare")
     cmp.add_argument("before", type=Path)
     cmp.add_argument("after", type=Path)
+    cmp.add_argument("--results", type=Path, help="also write the table as a results file")
+    cmp.add_argument("--revisions", default="", help="what OLD and NEW are, for the file")
     args = parser.parse_args()
     if args.what == "record":
         record(args.checkout, args.out, args.only)
         return 0
-    return compare(args.before, args.after)
+    return compare(args.before, args.after, args.results, args.revisions)
 
 
 if __name__ == "__main__":

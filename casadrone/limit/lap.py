@@ -59,7 +59,7 @@ import numpy as np
 from casadrone.airframe import Airframe
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.track import TrackConfig
-from casadrone.limit import events
+from casadrone.limit import events, parallel
 from casadrone.limit.choose import (
     CERTAIN_REL,
     best,
@@ -122,6 +122,7 @@ from casadrone.limit.starts import (
     prepare,
     run_starts,
 )
+from casadrone.pool import Pool
 from casadrone.propulsion import max_static_thrust, propulsion_model
 
 #: The limit lap's names, wherever their step lives (``from casadrone.limit.lap import ...``).
@@ -140,21 +141,28 @@ BANG_BANG_TOL = 0.02  # a command within this of 0 or 1 counts as saturated
 
 
 def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
-              options: LimitLapOptions = LimitLapOptions()) -> LimitLap:
+              options: LimitLapOptions = LimitLapOptions(), pool: Pool | None = None
+              ) -> LimitLap:
     """The minimum-time lap of ``airframe`` on ``track``; never raises for a bad airframe.
 
     Given an :class:`AirframeConfig`, the result also carries ``sensitivities`` over its
     decision-variable keys (chain θ → p through the same build as the evaluation), and
-    ``cpu_time_s`` beside ``wall_time_s``: what the whole call cost this process (every start,
-    check and grid round; a compiler the first solve runs is another process).
+    ``cpu_time_s`` beside ``wall_time_s``: what the whole call cost this process and the
+    ``pool``'s workers (every start, check and grid round; a compiler the first solve runs is
+    another process). With a ``pool`` of more than one worker the independent cold starts, then
+    each grid round's solves, run side by side on it (:mod:`casadrone.limit.parallel`); the lap
+    is the same.
     """
-    cpu = time.process_time()
-    lap = _limit_lap(airframe, track, options)
-    return replace(lap, cpu_time_s=time.process_time() - cpu)
+    cpu, worker_cpu = time.process_time(), pool.worker_cpu_s() if pool is not None else 0.0
+    lap = _limit_lap(airframe, track, options, pool)
+    if pool is not None:
+        worker_cpu = pool.worker_cpu_s() - worker_cpu
+    return replace(lap, cpu_time_s=time.process_time() - cpu + worker_cpu,
+                   workers=pool.workers if pool is not None else 1)
 
 
 def _limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
-               options: LimitLapOptions) -> LimitLap:
+               options: LimitLapOptions, pool: Pool | None = None) -> LimitLap:
     from casadrone.airframe import build_airframe
 
     start = time.perf_counter()
@@ -178,8 +186,10 @@ def _limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
             grid_laps[n] = min(grid_laps.get(n, math.inf), lap.lap_time_s)
         return lap
 
-    solves = run_starts(pb, lap_on_grid)
-    misses = resimulation_misses(pb, solves)
+    sd = parallel.side(pool, airframe, pb, clearance_m, limit_lap, grid_laps)
+    known: dict[str, float] = {}  # misses the workers re-simulated
+    solves = run_starts(pb, lap_on_grid) if sd is None else parallel.run_starts(sd, pb, known)
+    misses = resimulation_misses(pb, solves, known)
     good = verified(solves, misses, options)
     events.verified(len(good), sum(s.success for _, s in solves), len(solves))
     if solves and not good and (fallback := events.solved(
@@ -194,7 +204,7 @@ def _limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
         reason, starts = failure(solves, misses, options)
         return _failed(reason, start, starts=starts, layout=pb.layout)
     if options.grid_rounds:
-        misses = grid_rounds(airframe, track, options, pb, solves, misses, lap_on_grid)
+        misses = grid_rounds(airframe, track, options, pb, solves, misses, lap_on_grid, sd)
         good = verified(solves, misses, options)
     result = assemble_lap(pb, good, solves, misses, grid_laps)
     if options.sensitivities and cfg is not None:
@@ -203,10 +213,11 @@ def _limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
 
 
 def grid_rounds(airframe, track: TrackConfig, options: LimitLapOptions, pb: Problem,
-                solves: list[StartSolve], misses: dict[str, float], lap_on_grid
-                ) -> dict[str, float]:
+                solves: list[StartSolve], misses: dict[str, float], lap_on_grid,
+                sd: parallel.Side | None = None) -> dict[str, float]:
     """Grid continuation, at most ``options.grid_rounds`` rounds; returns the re-simulation
-    misses with the new solves' (appended to ``solves``).
+    misses with the new solves' (appended to ``solves``). A round's solves are independent: with
+    ``sd`` they run side by side (:func:`casadrone.limit.parallel.round_solves`).
 
     A round resamples a verified lap onto the coarse- and fine-grid starts' grids
     (:func:`~casadrone.limit.starts.coarse_intervals`, :func:`~casadrone.limit.starts.
@@ -228,17 +239,18 @@ def grid_rounds(airframe, track: TrackConfig, options: LimitLapOptions, pb: Prob
         good = verified(solves, misses, options)
         before = best(good)[1].objective
         sources = _distinct(good) if r == 1 else [best(good)]
-        for name, sol in sources:
-            here = assemble_lap(pb, [(name, sol)], solves, misses)
-            tag = f"round-{r}-{name}" if r == 1 else f"round-{r}"
-            for g in grids:
-                with events.start(f"grid-{g}-{tag}", n) as done:
-                    other = lap_on_grid(airframe, track, inner_options(
-                        options, intervals=g, starts=(), warm_starts=(here,)))
-                    if other.completed:
-                        solves.append((f"grid-{g}-{tag}",
-                                       pb.solve(guess_from_lap(pb.full, other, pb.x0))))
-                        done(solves[-1][1])
+        jobs = [(f"grid-{g}-" + (f"round-{r}-{name}" if r == 1 else f"round-{r}"),
+                 assemble_lap(pb, [(name, sol)], solves, misses), g)
+                for name, sol in sources for g in grids]
+        if sd is not None:
+            solves += parallel.round_solves(sd, pb, jobs, misses)
+        for tag, here, g in jobs if sd is None else ():
+            with events.start(tag, n) as done:
+                other = lap_on_grid(airframe, track, inner_options(
+                    options, intervals=g, starts=(), warm_starts=(here,)))
+                if other.completed:
+                    solves.append((tag, pb.solve(guess_from_lap(pb.full, other, pb.x0))))
+                    done(solves[-1][1])
         misses = resimulation_misses(pb, solves, misses)
         after = best(verified(solves, misses, options))[1].objective
         events.round_done(r, before, after, len(solves) - count, time.process_time() - cpu0)

@@ -24,6 +24,8 @@ FLOORS: tuple[str, ...] = (
     "casadrone.codegen",
     "casadrone.heap",  # the process's malloc settings (the command line calls them)
     "casadrone.parentdeath",  # child processes that die with their parent
+    "casadrone.lifeline",  # pool workers that end with their coordinator
+    "casadrone.pool",  # independent tasks side by side: processes here, a Dask cluster beyond
     "casadrone.results",
     "casadrone.numtext",  # numbers as printed text (no negative zero): every table's
     "casadrone.massprops",

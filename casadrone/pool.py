@@ -157,6 +157,22 @@ class DaskPool:
             self.cluster.close()
 
 
+def pool_spec(text: str) -> tuple[int, str | None]:
+    """(workers, Dask scheduler address or None) of a command line's ``--workers``: a whole
+    number of processes (at least 1), or a scheduler's address (``tcp://host:port``: its
+    cluster's workers). ValueError says what is wrong."""
+    if "://" in text:
+        return 1, text
+    try:
+        n = int(text)
+    except ValueError:
+        raise ValueError(f"{text!r} is neither a number of processes nor a Dask scheduler "
+                         "address (tcp://host:port)") from None
+    if n < 1:
+        raise ValueError(f"{n}: at least 1 process")
+    return n, None
+
+
 def make_pool(workers: int = 1, scheduler: str | None = None) -> Pool:
     """The pool of ``workers`` (1: this process; more: spawned processes), or of the Dask
     scheduler at ``scheduler`` ("local": a LocalCluster of ``workers`` processes)."""

@@ -75,6 +75,11 @@ def limit_lap_command(
         min=0, max=5, help="rounds that solve the lap again on a coarser and a finer grid to "
         "escape a slower local optimum, stopping at the first round that gains less than 0.1 "
         f"%; default 0 on the fast path, {COMMAND_GRID_ROUNDS} with --certify")] = None,
+    workers: Annotated[str | None, typer.Option(
+        help="processes that solve the independent starts and grid rounds side by side: a "
+        "number (default: this machine's cores with --certify, 1 on the fast path, whose two "
+        "starts are unequal and whose CPU is the figure), or a Dask scheduler's address "
+        "(tcp://host:port) to solve on its cluster; the lap is the same whatever it is")] = None,
     rotor_step: Annotated[str, typer.Option(
         help="how the rotor speeds are stepped: rk4 (like every other state) or exponential "
              "(their decay followed exactly, which allows coarser time steps; opt-in, see the "
@@ -137,6 +142,7 @@ def limit_lap_command(
     if attitude == "quaternion" and tilt == "axes":
         raise ConfigError(["--tilt axes bounds Euler angles: with --attitude quaternion use cone "
                        "or none"])
+    n_workers, scheduler = _workers(workers, certify)
     options = search_options(
         "certify" if certify else "fast",
         LimitLapOptions(intervals=intervals, attitude=cast("Attitude", attitude),
@@ -154,8 +160,14 @@ def limit_lap_command(
                                                                cfg.prop_diameter_mm / 1000))
     if impossible:  # known before any solve: bad input, not a failed lap
         raise bad_input([f"{track_path}: {impossible} (refused before any solve)"])
+    from casadrone.pool import make_pool
+
     with progress_lines("limit-lap", quiet):
-        lap = limit_lap(cfg, trk, options)
+        pool = make_pool(n_workers, scheduler)
+        try:
+            lap = limit_lap(cfg, trk, options, pool)
+        finally:
+            pool.close()
     result = lap.as_dict()
     from casadrone.airframe import build_airframe
     from casadrone.limit.check import lap_propulsion
@@ -170,6 +182,27 @@ def limit_lap_command(
         print_json(result)
         return
     typer.echo(_text(cfg.name, trk.name, result, frame.propulsion))
+
+
+def _workers(text: str | None, certify: bool) -> tuple[int, str | None]:
+    """(processes, Dask scheduler address or None) of ``--workers`` (its default: this
+    machine's cores with ``--certify``, else 1); ConfigError naming the option for a bad value
+    or an address without the dask extra."""
+    import importlib.util
+
+    from casadrone.config.io import ConfigError
+    from casadrone.pool import pool_spec, usable_cores
+
+    if text is None:
+        return (usable_cores() if certify else 1), None
+    try:
+        n, scheduler = pool_spec(text)
+    except ValueError as exc:
+        raise ConfigError([f"--workers {exc}"]) from None
+    if scheduler is not None and importlib.util.find_spec("distributed") is None:
+        raise ConfigError([f"--workers {text}: a Dask scheduler needs the dask extra: pip "
+                           "install 'casadrone[dask]'"])
+    return n, scheduler
 
 
 def named_parameters(values: Iterable[float], propulsion: str) -> dict[str, float]:
@@ -270,7 +303,9 @@ def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
         f"({_reference_text(r['point_mass_reference_s'], r['lap_time_s'])}; "
         f"start {r['start']}, {r['certainty']})",
         f"  solve: the chosen start's took {r['iterations']} iterations; the whole limit lap "
-        f"(every start, check and grid round) {cost}",
+        f"(every start, check and grid round) {cost}"
+        + (f" on {r['workers']} processes (CPU: all of them)" if r.get("workers", 1) > 1
+           else ""),
         *_status_text(r),
         f"  split times (s): {splits}",
         f"  lap times (s): {', '.join(f'{t:.3f}' for t in r['lap_times_s'])}",

@@ -257,6 +257,7 @@ HEAVY: dict[str, str] = {
     "matplotlib": "figures: only --plot, reports and the docs draw",
     "scipy": "linear algebra and optimisers of the design stages",
     "dask": "the distributed backend, an optional extra",
+    "distributed": "dask's cluster client (casadrone.pool), the same optional extra",
     "ezdxf": "DXF export, an optional extra",
 }
 
@@ -279,6 +280,7 @@ PATCHED_POLISH = ("tests replace polish_member and prepared in casadrone.codesig
 LAZY_ALLOWED: dict[tuple[str, str], str] = {
     ("casadrone.cli.limit", "casadrone.limit.search"): CLI,
     ("casadrone.cli.limit", "casadrone.limit.sensitivity"): CLI,
+    ("casadrone.cli.limit", "casadrone.pool"): CLI,
     ("casadrone.limit.lap", "casadrone.limit.sensitivity"): LIMIT,
     ("casadrone.cli.codesign", "casadrone.codesign.design"): CLI,
     ("casadrone.cli.common", "casadrone.progress"): CLI,

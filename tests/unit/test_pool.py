@@ -97,3 +97,52 @@ def test_limit_lap_refuses_bad_workers_in_one_line_before_any_solve(value):
     assert len(lines) == 1 and lines[0].startswith("--workers"), out.output
     assert "Traceback" not in out.output
     assert time.process_time() - t0 < 5  # refused before the NLP is built
+
+
+def pid_after(seconds: float) -> int:
+    """This process's pid, after ``seconds`` (so that two tasks take both workers)."""
+    time.sleep(seconds)
+    return os.getpid()
+
+
+#: A parent that starts a two-process pool, prints its workers' pids and waits to be killed.
+PARENT = """
+import sys, time
+from casadrone.pool import ProcessPool
+from tests.unit.test_pool import pid_after
+pool = ProcessPool(2)
+print(*sorted(set(pool.map(pid_after, [(0.5,), (0.5,)]))), flush=True)
+time.sleep(600)
+"""
+
+
+def test_the_workers_end_when_their_parent_is_killed():
+    """SIGKILL, which the parent cannot handle: the kernel ends its workers
+    (casadrone.lifeline.worker_init, prctl PDEATHSIG) instead of leaving them running."""
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    parent = subprocess.Popen([sys.executable, "-c", PARENT], stdout=subprocess.PIPE, text=True,
+                              cwd=root, env={**os.environ, "PYTHONPATH": str(root)})
+    try:
+        pids = [int(p) for p in parent.stdout.readline().split()]  # type: ignore[union-attr]
+        assert len(pids) == 2 and all(_alive(p) for p in pids)
+    finally:
+        parent.send_signal(signal.SIGKILL)
+        parent.wait(timeout=30)
+    deadline = time.monotonic() + 10
+    while any(_alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(_alive(p) for p in pids)
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, dead but not yet reaped, counts as ended)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False

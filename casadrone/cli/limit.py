@@ -165,7 +165,7 @@ def limit_lap_command(
     with progress_lines("limit-lap", quiet):
         pool = make_pool(n_workers, scheduler)
         try:
-            lap = limit_lap(cfg, trk, options, pool)
+            lap = limit_lap(cfg, trk, options, pool=pool)
         finally:
             pool.close()
     result = lap.as_dict()

@@ -121,7 +121,7 @@ def test_cli_rotor_step_and_substeps_reach_the_options(monkeypatch, cli_runner):
 
     seen = []
 
-    def fake(cfg, track, options):
+    def fake(cfg, track, options, pool=None):
         seen.append((options.rotor_step, options.substeps, options.intervals))
         return LimitLap(status="failed", reason="not solved: the options were recorded")
 

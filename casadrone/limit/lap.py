@@ -123,6 +123,7 @@ from casadrone.limit.starts import (
     run_starts,
 )
 from casadrone.pool import Pool
+from casadrone.progress import counting
 from casadrone.propulsion import max_static_thrust, propulsion_model
 
 #: The limit lap's names, wherever their step lives (``from casadrone.limit.lap import ...``).
@@ -154,8 +155,11 @@ def limit_lap(airframe: Airframe | AirframeConfig, track: TrackConfig,
     is the same.
     """
     cpu, worker_cpu = time.process_time(), pool.worker_cpu_s() if pool is not None else 0.0
-    lap = _limit_lap(airframe, track, options, pool)
-    if pool is not None:
+    if pool is None:
+        lap = _limit_lap(airframe, track, options)
+    else:
+        with counting(pool.worker_cpu_s):  # the progress lines' CPU counts the workers
+            lap = _limit_lap(airframe, track, options, pool)
         worker_cpu = pool.worker_cpu_s() - worker_cpu
     return replace(lap, cpu_time_s=time.process_time() - cpu + worker_cpu,
                    workers=pool.workers if pool is not None else 1)
@@ -234,8 +238,11 @@ def grid_rounds(airframe, track: TrackConfig, options: LimitLapOptions, pb: Prob
     (benchmarks/RESULTS-limitlap-issue19.md, "Grid rounds as the command's default")."""
     n = pb.layout.intervals
     grids = sorted({coarse_intervals(n), fine_intervals(n)} - {n})
+    def cpu() -> float:  # this process's and the pool's workers'
+        return time.process_time() + (sd.pool.worker_cpu_s() if sd is not None else 0.0)
+
     for r in range(1, options.grid_rounds + 1):
-        cpu0, count = time.process_time(), len(solves)
+        cpu0, count = cpu(), len(solves)
         good = verified(solves, misses, options)
         before = best(good)[1].objective
         sources = _distinct(good) if r == 1 else [best(good)]
@@ -253,7 +260,7 @@ def grid_rounds(airframe, track: TrackConfig, options: LimitLapOptions, pb: Prob
                     done(solves[-1][1])
         misses = resimulation_misses(pb, solves, misses)
         after = best(verified(solves, misses, options))[1].objective
-        events.round_done(r, before, after, len(solves) - count, time.process_time() - cpu0)
+        events.round_done(r, before, after, len(solves) - count, cpu() - cpu0)
         if after > (1 - CERTAIN_REL) * before:
             break
     return misses

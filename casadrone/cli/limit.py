@@ -292,6 +292,14 @@ def _reference_text(seconds: float, lap_s: float) -> str:
     return f"point-mass reference {seconds:.3f} s"
 
 
+def _processes_cost(r: dict) -> str:
+    """The limit lap's CPU and wall time, and on how many processes when more than one solved
+    (the CPU is then theirs together: casadrone.limit.parallel)."""
+    cost = cost_text(r["cpu_time_s"], r["wall_time_s"])
+    n = r.get("workers", 1)
+    return cost if n <= 1 else f"{cost} on {n} processes (CPU: all of them together)"
+
+
 def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
 
     cost = cost_text(r["cpu_time_s"], r["wall_time_s"])
@@ -303,9 +311,7 @@ def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
         f"({_reference_text(r['point_mass_reference_s'], r['lap_time_s'])}; "
         f"start {r['start']}, {r['certainty']})",
         f"  solve: the chosen start's took {r['iterations']} iterations; the whole limit lap "
-        f"(every start, check and grid round) {cost}"
-        + (f" on {r['workers']} processes (CPU: all of them)" if r.get("workers", 1) > 1
-           else ""),
+        f"(every start, check and grid round) {_processes_cost(r)}",
         *_status_text(r),
         f"  split times (s): {splits}",
         f"  lap times (s): {', '.join(f'{t:.3f}' for t in r['lap_times_s'])}",

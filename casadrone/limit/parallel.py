@@ -160,10 +160,11 @@ def grid_round_task(s: Setting, name: str, here: LimitLap, intervals: int) -> So
 
 
 #: Cold starts by their CPU, most first, so that the longest runs from the beginning and the
-#: others fill the second worker: SY250 on the paper track, 40 intervals, one process
-#: (benchmarks/RESULTS-limitlap-fastpath.md, "Side by side"): fine-grid 44 s, point-mass 21 s,
-#: closed-loop 9.3 s, coarse-grid 9.0 s. Only the order the tasks are handed out in: the results
-#: are taken in the serial order.
+#: others fill the second worker: SY250 on the paper track, 40 intervals (the progress lines of
+#: ``casadrone limit-lap SY250 --certify`` in one process, 2026-12-07, at load average ~11):
+#: fine-grid 44 s, point-mass 21 s, closed-loop 9.3 s, coarse-grid 9.0 s; on two processes the
+#: cold starts then took as long as the fine-grid start alone (38 s of 73). Only the order the
+#: tasks are handed out in: the results are taken in the serial order.
 COST_RANK: dict[str, int] = {"fine-grid": 0, "point-mass": 1, "relaxed-tolerance": 1,
                              "closed-loop": 2, "coarse-grid": 3}
 

@@ -72,6 +72,19 @@ DESIGNS = [
 ]
 
 
+#: What the side-by-side rows measure (casadrone.limit.parallel).
+SIDE = [
+    "`--workers N` runs the four cold starts, then each grid round's solves, in N spawned "
+    "processes (the longest first: fine-grid, point-mass, closed-loop, coarse-grid; the finer "
+    "grid's round solves first), and takes their results in the serial order, so the lap, the "
+    "chosen start and the JSON are those of one process (tests/integration/"
+    "test_limitlap_parallel.py). CPU: the process and its workers (their imports and NLP "
+    "builds included); wall: the call's. On a machine whose two cores are shared with other "
+    "jobs the wall time measures the load more than the command: the load average is in the "
+    "row.",
+]
+
+
 def children_cpu() -> float:
     """CPU seconds (user + system) of every waited-for child process and its descendants."""
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -79,8 +92,9 @@ def children_cpu() -> float:
 
 
 def command(case: str, mode: str, extra: list[str]) -> list[str]:
-    """The command of a case: ``fast`` and ``certify`` the user's (``fast:OPT,VALUE,...`` the
-    fast path with more options, e.g. ``fast:--grid-rounds,1``); ``recipe:STARTS:SOLVER``
+    """The command of a case: ``fast`` and ``certify`` the user's (``fast:OPT,VALUE,...`` and
+    ``certify:OPT,VALUE,...`` with more options, e.g. ``fast:--grid-rounds,1``,
+    ``certify:--workers,2``); ``recipe:STARTS:SOLVER``
     (starts comma-separated) a limit lap from those cold starts alone with that solver and no
     grid rounds, as the library runs it (:func:`one_recipe`), the designs tried for the fast
     path."""
@@ -89,9 +103,10 @@ def command(case: str, mode: str, extra: list[str]) -> list[str]:
         _, starts, solver = mode.split(":")
         return [sys.executable, str(Path(__file__).resolve()), "--one", frame,
                 track or "paper-rectangle", starts, solver]
-    more = mode.split(":", 1)[1].split(",") if mode.startswith("fast:") else []
+    search, _, options = mode.partition(":")
+    more = options.split(",") if options else []
     return (["casadrone", "limit-lap", frame, "--json"] + (["--track", track] if track else [])
-            + (["--certify"] if mode == "certify" else []) + more + extra)
+            + (["--certify"] if search == "certify" else []) + more + extra)
 
 
 def one_recipe(frame: str, track: str, starts: str, solver: str) -> None:
@@ -125,7 +140,8 @@ def run(case: str, mode: str, extra: list[str]) -> dict:
     return row | {"status": r["status"], "lap_time_s": r["lap_time_s"], "start": r["start"],
                   "ending": r.get("ending", ""), "return_status": r.get("return_status", ""),
                   "certainty": r["certainty"], "spread_s": r["spread_s"],
-                  "iterations": r["iterations"],
+                  "iterations": r["iterations"], "workers": r.get("workers", 1),
+                  "lap_cpu_s": r["cpu_time_s"], "lap_wall_s": r["wall_time_s"],
                   "all_iterations": sum(s["iterations"] for s in r["starts"]),
                   "solves": len(r["starts"]), "miss_m": r["resimulation_miss_m"],
                   "starts": [(s["start"], s.get("ending", ""), s["lap_time_s"],
@@ -175,6 +191,19 @@ def starts_table(rows: list[dict]) -> list[str]:
     return out
 
 
+def side_by_side(rows: list[dict]) -> list[str]:
+    """``--certify`` in one process and with ``--workers N``: lap, CPU (the process and its
+    workers), wall, their ratio (the acceptance: ≤ 0.6 on two cores) and the load at the end."""
+    out = ["| case | mode | lap (s) | chosen start | CPU (s) | wall (s) | wall / CPU | load "
+           "average (1, 5, 15 min) at the end |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if r["mode"].startswith("certify") and "lap_time_s" in r:
+            out.append(f"| {r['case']} | {r['mode']} | {r['lap_time_s']:.4f} | {r['start']} | "
+                       f"{r['cpu_s']:.1f} | {r['wall_s']:.0f} | {r['wall_s'] / r['cpu_s']:.2f} "
+                       f"| {r['load'].removeprefix('load average ')} |")
+    return out
+
+
 def latest(rows: list[dict]) -> list[dict]:
     """The last row of each (case, mode), in CASES order then fast before certify."""
     last = {(r["case"], r["mode"]): r for r in rows}
@@ -219,6 +248,8 @@ def report(log: Path, out: Path) -> None:
         "Machine (at the report; each row's own date, revision and load are in "
         "`benchmarks/limitlap-fastpath.jsonl`):", "", markdown(), "",
         "## Laps, CPU and iterations", "", *table(rows), "", *DESIGNS, "",
+        "## Side by side: `--certify` on more than one process", "", *SIDE, "",
+        *side_by_side(rows), "",
         "## Every solve", "", *starts_table(rows), ""]
     out.write_text(with_summary("\n".join(lines), summary(rows), dates[-1]), encoding="utf-8")
 

@@ -1,5 +1,5 @@
 """A process that the kernel ends when its parent dies (Linux), for the processes casadrone
-forks or spawns: pool workers (:mod:`casadrone.optimise.lifeline`) and guarded solves
+forks or spawns: pool workers (:mod:`casadrone.lifeline`) and guarded solves
 (:mod:`casadrone.limit.watchdog`)."""
 
 from __future__ import annotations

@@ -103,9 +103,27 @@ def nested() -> Iterator[None]:
 
 def cpu_seconds() -> float:
     """CPU seconds of this process and of the children it has waited for (a compiler, a
-    finished worker), user and system: what the command has cost so far."""
+    finished worker), user and system, and of the live workers a :func:`counting` block
+    declares: what the command has cost so far."""
     t = os.times()
-    return t.user + t.system + children_cpu_seconds()
+    return t.user + t.system + children_cpu_seconds() + sum(f() for f in _WORKERS)
+
+
+#: CPU (s) of live worker processes, one function per pool in a :func:`counting` block.
+_WORKERS: list[Callable[[], float]] = []
+
+
+@contextmanager
+def counting(worker_cpu_s: Callable[[], float]) -> Iterator[None]:
+    """Count ``worker_cpu_s()`` (the CPU so far of workers this process has not waited for:
+    a live pool's, :meth:`casadrone.pool.ProcessPool.worker_cpu_s`) in :func:`cpu_seconds`
+    during the block, so that the progress lines' CPU is the command's, not this process's
+    alone. The pool is closed after the block: its reaped workers then count as children."""
+    _WORKERS.append(worker_cpu_s)
+    try:
+        yield
+    finally:
+        _WORKERS.remove(worker_cpu_s)
 
 
 def children_cpu_seconds() -> float:

@@ -4,6 +4,7 @@ load (the airframe, the track and the limit lap's settings,
 
 from __future__ import annotations
 
+import importlib.util
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
@@ -46,6 +47,7 @@ from casadrone.limit.race import race, race_text
 from casadrone.limit.search import lap_options
 from casadrone.limit.sensitivity import percent_of_range
 from casadrone.model import param_names, rotor_states
+from casadrone.pool import make_pool, pool_spec, usable_cores
 from casadrone.propulsion import max_static_thrust
 
 #: What the propulsion did (:func:`casadrone.limit.check.lap_propulsion`), added to ``--json``.
@@ -123,6 +125,11 @@ def limit_lap_command(
     rotor_step: Annotated[str | None, _choice("rotor_step")] = None,
     substeps: Annotated[int | None, _number("substeps")] = None,
     resimulation: Annotated[str | None, _choice("resimulation")] = None,
+    workers: Annotated[str | None, typer.Option(
+        help="processes that solve the independent starts and grid rounds side by side: a "
+        "number (default: this machine's cores with --certify, 1 on the fast path, whose two "
+        "starts are unequal and whose CPU is the figure), or a Dask scheduler's address "
+        "(tcp://host:port) to solve on its cluster; the lap is the same whatever it is")] = None,
     laps: Annotated[int | None, typer.Option(
         min=1, max=20, help="laps of the race, flown from the track's start (default: the "
         "track's laps); with a pack capacity (battery.capacity_ah) the state of charge is "
@@ -162,8 +169,13 @@ def limit_lap_command(
                        {k: v for k, v in given.items() if v is not None})
     if laps is not None:
         setup = replace(setup, track=setup.track.model_copy(update={"laps": laps}))
+    n_workers, scheduler = _workers(workers, certify or setup.options.grid_rounds > 0)
     with progress_lines("limit-lap", quiet):
-        flown = race(setup.config, setup.track, setup.options, frame=setup.frame)
+        pool = make_pool(n_workers, scheduler)
+        try:
+            flown = race(setup.config, setup.track, setup.options, frame=setup.frame, pool=pool)
+        finally:
+            pool.close()
     result = lap_result(setup, flown.lap, plot)
     if flown.energy is not None:
         result["race"] = flown.as_dict()
@@ -174,6 +186,22 @@ def limit_lap_command(
         return
     typer.echo("\n".join([_text(setup.config.name, setup.track.name, result,
                                 setup.frame.propulsion), *race_text(flown)]))
+
+
+def _workers(text: str | None, certify: bool) -> tuple[int, str | None]:
+    """(processes, Dask scheduler address or None) of ``--workers`` (its default: this
+    machine's cores with ``--certify``, else 1); ConfigError naming the option for a bad value
+    or an address without the dask extra."""
+    if text is None:
+        return (usable_cores() if certify else 1), None
+    try:
+        n, scheduler = pool_spec(text)
+    except ValueError as exc:
+        raise ConfigError([f"--workers {exc}"]) from None
+    if scheduler is not None and importlib.util.find_spec("distributed") is None:
+        raise ConfigError([f"--workers {text}: a Dask scheduler needs the dask extra: pip "
+                           "install 'casadrone[dask]'"])
+    return n, scheduler
 
 
 def load_setup(airframe: str, overrides: list[str], track: str | None,
@@ -289,6 +317,14 @@ def _reference_text(seconds: float, lap_s: float) -> str:
     return f"point-mass reference {seconds:.3f} s"
 
 
+def _processes_cost(r: dict) -> str:
+    """The limit lap's CPU and wall time, and on how many processes when more than one solved
+    (the CPU is then theirs together: casadrone.limit.parallel)."""
+    cost = cost_text(r["cpu_time_s"], r["wall_time_s"])
+    n = r.get("workers", 1)
+    return cost if n <= 1 else f"{cost} on {n} processes (CPU: all of them together)"
+
+
 def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
 
     cost = cost_text(r["cpu_time_s"], r["wall_time_s"])
@@ -300,7 +336,7 @@ def _text(name: str, track: str, r: dict, propulsion: str = "paper") -> str:
         f"({_reference_text(r['point_mass_reference_s'], r['lap_time_s'])}; "
         f"start {r['start']}, {r['certainty']})",
         f"  solve: the chosen start's took {r['iterations']} iterations; the whole limit lap "
-        f"(every start, check and grid round) {cost}",
+        f"(every start, check and grid round) {_processes_cost(r)}",
         *_status_text(r),
         f"  split times (s): {splits}",
         f"  lap times (s): {', '.join(f'{t:.3f}' for t in r['lap_times_s'])}",

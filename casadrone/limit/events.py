@@ -40,10 +40,12 @@ def start(name: str, intervals: int) -> Iterator[Callable[[NlpSolution], None]]:
     with nested():
         yield got.append
     for sol in got:  # at the caller's depth, not the nested block's
-        _solved(name, intervals, sol, time.process_time() - c0)
+        reported(name, intervals, sol, time.process_time() - c0)
 
 
-def _solved(name: str, intervals: int, sol: NlpSolution, cpu_s: float) -> None:
+def reported(name: str, intervals: int, sol: NlpSolution, cpu_s: float) -> None:
+    """Start ``name`` solved (here, or in a worker process that took ``cpu_s``:
+    :mod:`casadrone.limit.parallel` reports its tasks in the parent as they return)."""
     emit("start", f"start {name} on {intervals} intervals: {solve_text(sol)}, {cpu_s:.1f} s "
          "CPU", lap_s=sol.objective, iterations=sol.iterations, cpu_s=cpu_s)
 
@@ -56,7 +58,7 @@ def solved(intervals: int, solve: Callable[[], tuple[str, NlpSolution] | None]
     with nested():
         out = solve()
     if out is not None:
-        _solved(out[0], intervals, out[1], time.process_time() - c0)
+        reported(out[0], intervals, out[1], time.process_time() - c0)
     return out
 
 

@@ -63,7 +63,7 @@ from casadrone.airframe import Airframe, build_airframe
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.limitlap import COMMAND_GRID_ROUNDS, MAX_INTERVALS
 from casadrone.config.track import TrackConfig
-from casadrone.limit import events
+from casadrone.limit import events, parallel
 from casadrone.limit.check import bang_bang_fraction, theta_sensitivities
 from casadrone.limit.choose import (
     CERTAIN_REL,
@@ -128,6 +128,8 @@ from casadrone.limit.starts import (
     run_starts,
 )
 from casadrone.model import param_names
+from casadrone.pool import Pool
+from casadrone.progress import counting
 from casadrone.propulsion import max_static_thrust, propulsion_model
 
 #: The limit lap's names, wherever their step lives (``from casadrone.limit.lap import ...``).
@@ -153,41 +155,58 @@ BARE_PROP_DIAMETER_M = 0.127
 
 def limit_lap(airframe: Airframe, track: TrackConfig,
               options: LimitLapOptions = LimitLapOptions(),
-              seeds: LapSeeds = LapSeeds()) -> LimitLap:
+              seeds: LapSeeds = LapSeeds(), pool: Pool | None = None) -> LimitLap:
     """The minimum-time lap of ``airframe`` on ``track``; never raises for a bad airframe.
 
     The result carries ``cpu_time_s`` beside ``wall_time_s``: what the whole call cost this
-    process (every start, check and grid round; a compiler the first solve runs is another
-    process). ``seeds``: what the starts may use beside the cold starts (earlier laps as warm
-    starts, the frame's closed-loop lap if flown, the controller that flies it).
-    :func:`design_limit_lap` flies the airframe of a config and adds dT/dθ.
+    process and the ``pool``'s workers (every start, check and grid round; a compiler the first
+    solve runs is another process). ``seeds``: what the starts may use beside the cold starts
+    (earlier laps as warm starts, the frame's closed-loop lap if flown, the controller that
+    flies it). With a ``pool`` of more than one worker the independent cold starts, then each
+    grid round's solves, run side by side on it (:mod:`casadrone.limit.parallel`); the lap is
+    the same. :func:`design_limit_lap` flies the airframe of a config and adds dT/dθ.
     """
     if not isinstance(airframe, Airframe):
         raise TypeError(f"limit_lap takes an Airframe, not {type(airframe).__name__} "
                         "(design_limit_lap takes an AirframeConfig)")
-    return _timed(airframe, None, track, options, seeds)
+    return _timed(airframe, None, track, options, seeds, pool)
 
 
 def design_limit_lap(config: AirframeConfig, track: TrackConfig,
                      options: LimitLapOptions = LimitLapOptions(),
-                     seeds: LapSeeds = LapSeeds(), frame: Airframe | None = None) -> LimitLap:
+                     seeds: LapSeeds = LapSeeds(), frame: Airframe | None = None,
+                     pool: Pool | None = None) -> LimitLap:
     """The limit lap of the airframe ``config`` builds (``frame``, where built already), as
     :func:`limit_lap`, with what only the config knows: ``sensitivities`` over its
     decision-variable keys (chain θ → p through the same build as the evaluation; with
     ``options.sensitivities``) and the gate clearance of its own propeller diameter."""
     return _timed(frame if frame is not None else build_airframe(config), config, track,
-                  options, seeds)
+                  options, seeds, pool)
+
+
+def round_lap(frame: Airframe, cfg: AirframeConfig | None, track: TrackConfig,
+              options: LimitLapOptions, seeds: LapSeeds) -> LimitLap:
+    """The limit lap of ``frame`` (and its config, where given) in one process: a grid round's
+    lap on another grid, here or in a pool's worker (:mod:`casadrone.limit.parallel`)."""
+    return _timed(frame, cfg, track, options, seeds)
 
 
 def _timed(frame: Airframe, cfg: AirframeConfig | None, track: TrackConfig,
-           options: LimitLapOptions, seeds: LapSeeds) -> LimitLap:
-    cpu = time.process_time()
-    lap = _limit_lap(frame, cfg, track, options, seeds)
-    return replace(lap, cpu_time_s=time.process_time() - cpu)
+           options: LimitLapOptions, seeds: LapSeeds, pool: Pool | None = None) -> LimitLap:
+    cpu, worker_cpu = time.process_time(), pool.worker_cpu_s() if pool is not None else 0.0
+    if pool is None:
+        lap = _limit_lap(frame, cfg, track, options, seeds)
+    else:
+        with counting(pool.worker_cpu_s):  # the progress lines' CPU counts the workers
+            lap = _limit_lap(frame, cfg, track, options, seeds, pool)
+        worker_cpu = pool.worker_cpu_s() - worker_cpu
+    return replace(lap, cpu_time_s=time.process_time() - cpu + worker_cpu,
+                   workers=pool.workers if pool is not None else 1)
 
 
 def _limit_lap(frame: Airframe, cfg: AirframeConfig | None, track: TrackConfig,
-               options: LimitLapOptions, seeds: LapSeeds) -> LimitLap:
+               options: LimitLapOptions, seeds: LapSeeds, pool: Pool | None = None
+               ) -> LimitLap:
     start = time.perf_counter()
     if options.intervals is None:
         options = replace(options, intervals=DEFAULT_INTERVALS.get(frame.propulsion, 40))
@@ -212,10 +231,12 @@ def _limit_lap(frame: Airframe, cfg: AirframeConfig | None, track: TrackConfig,
 
     def again(opts: LimitLapOptions, warm: LimitLap) -> LimitLap:
         """This airframe (and config) and track, from ``warm``, with other options."""
-        return _timed(frame, cfg, track, opts, replace(seeds, warm_starts=(warm,)))
+        return round_lap(frame, cfg, track, opts, replace(seeds, warm_starts=(warm,)))
 
-    solves = run_starts(pb, lap_on_grid)
-    misses = resimulation_misses(pb, solves)
+    sd = parallel.side(pool, frame, cfg, seeds, pb, clearance_m, grid_laps, limit_lap, round_lap)
+    known: dict[str, float] = {}  # misses the workers re-simulated
+    solves = run_starts(pb, lap_on_grid) if sd is None else parallel.run_starts(sd, pb, known)
+    misses = resimulation_misses(pb, solves, known)
     good = verified(solves, misses, options)
     events.verified(len(good), sum(s.success for _, s in solves), len(solves))
     if solves and not good and (fallback := events.solved(
@@ -231,7 +252,7 @@ def _limit_lap(frame: Airframe, cfg: AirframeConfig | None, track: TrackConfig,
         return _failed(reason, start, starts=starts, layout=pb.layout)
     if options.grid_rounds:
         misses = grid_rounds(lambda opts, warm: on_grid(again(opts, warm)), options, pb,
-                             solves, misses)
+                             solves, misses, sd)
         good = verified(solves, misses, options)
     result = assemble_lap(pb, good, solves, misses, grid_laps)
     if options.sensitivities and cfg is not None:
@@ -241,10 +262,11 @@ def _limit_lap(frame: Airframe, cfg: AirframeConfig | None, track: TrackConfig,
 
 def grid_rounds(lap_on_grid: Callable[[LimitLapOptions, LimitLap], LimitLap],
                 options: LimitLapOptions,
-                pb: Problem, solves: list[StartSolve], misses: dict[str, float]
-                ) -> dict[str, float]:
+                pb: Problem, solves: list[StartSolve], misses: dict[str, float],
+                sd: parallel.Side | None = None) -> dict[str, float]:
     """Grid continuation, at most ``options.grid_rounds`` rounds; returns the re-simulation
-    misses with the new solves' (appended to ``solves``).
+    misses with the new solves' (appended to ``solves``). A round's solves are independent: with
+    ``sd`` they run side by side (:func:`casadrone.limit.parallel.round_solves`).
 
     A round resamples a verified lap onto the coarse- and fine-grid starts' grids
     (:func:`~casadrone.limit.starts.coarse_intervals`, :func:`~casadrone.limit.starts.
@@ -262,25 +284,28 @@ def grid_rounds(lap_on_grid: Callable[[LimitLapOptions, LimitLap], LimitLap],
     (benchmarks/RESULTS-limitlap-issue19.md, "Grid rounds as the command's default")."""
     n = pb.layout.intervals
     grids = sorted({coarse_intervals(n), fine_intervals(n)} - {n})
+    def cpu() -> float:  # this process's and the pool's workers'
+        return time.process_time() + (sd.pool.worker_cpu_s() if sd is not None else 0.0)
+
     for r in range(1, options.grid_rounds + 1):
-        cpu0, count = time.process_time(), len(solves)
+        cpu0, count = cpu(), len(solves)
         good = verified(solves, misses, options)
         before = best(good)[1].objective
         sources = _distinct(good) if r == 1 else [best(good)]
-        for name, sol in sources:
-            here = assemble_lap(pb, [(name, sol)], solves, misses)
-            tag = f"round-{r}-{name}" if r == 1 else f"round-{r}"
-            for g in grids:
-                with events.start(f"grid-{g}-{tag}", n) as done:
-                    other = lap_on_grid(inner_options(options, intervals=g, starts=()),
-                                        here)
-                    if other.completed:
-                        solves.append((f"grid-{g}-{tag}",
-                                       pb.solve(guess_from_lap(pb.full, other, pb.x0))))
-                        done(solves[-1][1])
+        jobs = [(f"grid-{g}-" + (f"round-{r}-{name}" if r == 1 else f"round-{r}"),
+                 assemble_lap(pb, [(name, sol)], solves, misses), g)
+                for name, sol in sources for g in grids]
+        if sd is not None:
+            solves += parallel.round_solves(sd, pb, jobs, misses)
+        for tag, here, g in jobs if sd is None else ():
+            with events.start(tag, n) as done:
+                other = lap_on_grid(inner_options(options, intervals=g, starts=()), here)
+                if other.completed:
+                    solves.append((tag, pb.solve(guess_from_lap(pb.full, other, pb.x0))))
+                    done(solves[-1][1])
         misses = resimulation_misses(pb, solves, misses)
         after = best(verified(solves, misses, options))[1].objective
-        events.round_done(r, before, after, len(solves) - count, time.process_time() - cpu0)
+        events.round_done(r, before, after, len(solves) - count, cpu() - cpu0)
         if after > (1 - CERTAIN_REL) * before:
             break
     return misses

@@ -34,6 +34,7 @@ from casadrone.config.track import TrackConfig
 from casadrone.limit.energy import RaceEnergy, flight_energy, race_energy
 from casadrone.limit.lap import design_limit_lap
 from casadrone.limit.result import LapSeeds, LimitLap, LimitLapOptions
+from casadrone.pool import Pool
 from casadrone.propulsion.electric import Pack, pack_of
 from casadrone.results import AsDict
 
@@ -91,19 +92,21 @@ def with_open_circuit_voltage(cfg: AirframeConfig, volts: float) -> AirframeConf
 
 
 def race(cfg: AirframeConfig, track: TrackConfig,
-         options: LimitLapOptions = LimitLapOptions(), frame: Airframe | None = None) -> Race:
+         options: LimitLapOptions = LimitLapOptions(), frame: Airframe | None = None,
+         pool: Pool | None = None) -> Race:
     """The race of ``track.laps`` laps (module docstring); without a pack capacity, the limit
-    lap alone (of ``frame``, where ``cfg`` is built already)."""
+    lap alone (of ``frame``, where ``cfg`` is built already); each lap's independent solves on
+    ``pool`` where given."""
     pack = pack_of(cfg.propulsion.battery)
     if pack is None:
-        return Race(design_limit_lap(cfg, track, options, frame=frame))
+        return Race(design_limit_lap(cfg, track, options, frame=frame, pool=pool))
     passes: list[Pass] = []
     soc, lap, account = pack.start_soc, None, None
     volts = pack.open_circuit_voltage_v  # the first pass: the section's own
     for _ in range(MAX_PASSES):
         flown = with_open_circuit_voltage(cfg, volts)
         seeds = LapSeeds() if lap is None else LapSeeds(warm_starts=(lap,))
-        lap = design_limit_lap(flown, track, options, seeds)
+        lap = design_limit_lap(flown, track, options, seeds, pool=pool)
         if not lap.completed:
             return Race(lap, None, tuple(passes))
         account = account_of(flown, lap, pack)

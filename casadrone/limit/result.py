@@ -261,7 +261,9 @@ class LimitLap(AsDict):
     u: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     iterations: int = 0  # of the chosen start's solve
     wall_time_s: float = 0.0  # of the whole limit lap: every start, check and grid round
-    cpu_time_s: float = 0.0  # this process's CPU time over the same
+    # CPU time over the same: this process's and, with a pool, its workers' (casadrone.pool)
+    cpu_time_s: float = 0.0
+    workers: int = 1  # processes that solved side by side (casadrone.limit.parallel)
     bang_bang_fraction: float = math.nan
     point_mass_reference_s: float = math.nan  # best local optimum found, not a bound
     lap_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))  # time of each lap

@@ -8,18 +8,16 @@ the evaluation chain once per process (:func:`casadrone.optimise.problem.study_s
 from __future__ import annotations
 
 import contextlib
-import multiprocessing
 import os
 import pickle
-from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 import numpy as np
 
 from casadrone.config.problem import BackendConfig
-from casadrone.optimise.lifeline import worker_init
 from casadrone.optimise.mainguard import SpawnWithoutMainContext
 from casadrone.optimise.problem import Study, evaluate_rows, study_setup
+from casadrone.pool import dask_client, spawn_executor
 from casadrone.results import Record
 
 
@@ -75,7 +73,6 @@ class SerialBackend:
 def _warm(study: Study, linger_s: float = 0.0) -> int:
     """Build (and load the compiled lap of) the chain in this worker; return its pid. ``linger_s``
     keeps a fast worker busy so that the others take the remaining warm-up tasks."""
-    import os
     import time
 
     if study.problem.test_problem is None:
@@ -100,10 +97,7 @@ class ProcessBackend:
 
     def __init__(self, workers: int, without_main: bool = False):
         self.workers = workers
-        context = (SpawnWithoutMainContext() if without_main
-                   else multiprocessing.get_context("spawn"))
-        self.pool = ProcessPoolExecutor(workers, mp_context=context, initializer=worker_init,
-                                        initargs=(os.getpid(),))
+        self.pool = spawn_executor(workers, SpawnWithoutMainContext() if without_main else None)
         self.warm_for: set[str] = set()
 
     def warm(self, study: Study) -> None:
@@ -189,15 +183,7 @@ class DaskBackend:
     name = "dask"
 
     def __init__(self, workers: int, scheduler: str | None = None):
-        from distributed import Client, LocalCluster
-
-        self.cluster = None
-        if scheduler:
-            self.client = Client(scheduler)
-        else:
-            self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                        dashboard_address=None)
-            self.client = Client(self.cluster)
+        self.client, self.cluster = dask_client(workers, scheduler)
         self.workers = max(1, len(self.client.scheduler_info()["workers"]))
         self.warm_for: set[str] = set()
         self.scattered: dict = {}  # study key -> future of the scattered study, kept alive

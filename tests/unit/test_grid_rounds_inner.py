@@ -5,6 +5,7 @@ rounds on 45 and 90 intervals)."""
 
 from __future__ import annotations
 
+import os
 from types import SimpleNamespace
 
 from casadrone.config.io import load
@@ -51,24 +52,30 @@ def test_the_command_runs_grid_rounds_with_certify_and_the_library_does_not(monk
     stays 0 rounds."""
     from typer.testing import CliRunner
 
-    import casadrone.cli.limit as command
+    import casadrone.limit.race as race_module
     from casadrone.cli import app
     from casadrone.config.limitlap import COMMAND_GRID_ROUNDS
     from casadrone.limit.result import LimitLap
     from casadrone.limit.search import SEARCHES
 
-    seen = []
+    seen, workers = [], []
 
-    def fake(cfg, track, options, frame=None):
+    def fake(cfg, track, options, seeds=None, frame=None, pool=None):
         seen.append((options.starts, options.grid_rounds))
+        workers.append(pool.workers)
         return LimitLap(status="failed", reason="not solved: the options were recorded")
 
-    monkeypatch.setattr(command, "design_limit_lap", fake)
+    monkeypatch.setattr(race_module, "design_limit_lap", fake)
     runner = CliRunner()
-    for args in ([], ["--certify"], ["--certify", "--grid-rounds", "0"], ["--grid-rounds", "2"]):
+    for args in ([], ["--certify"], ["--certify", "--grid-rounds", "0"], ["--grid-rounds", "2"],
+                 ["--certify", "--workers", "1"], ["--workers", "3"]):
         r = runner.invoke(app, ["limit-lap", "SY250", "--json", *args])
         assert r.exit_code == 0, r.output
     fast, every = SEARCHES["fast"].starts, LimitLapOptions.starts
-    assert seen == [(fast, 0), (every, COMMAND_GRID_ROUNDS), (every, 0), (fast, 2)]
+    assert seen == [(fast, 0), (every, COMMAND_GRID_ROUNDS), (every, 0), (fast, 2),
+                    (every, COMMAND_GRID_ROUNDS), (fast, 0)]
+    # processes: the cores this process may use with --certify, one on the fast path, or as told
+    cores = len(os.sched_getaffinity(0))
+    assert workers == [1, cores, cores, 1, 1, 3]
     assert COMMAND_GRID_ROUNDS > 0 and len(every) > len(fast)
     assert LimitLapOptions().grid_rounds == 0

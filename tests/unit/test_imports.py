@@ -24,6 +24,8 @@ FLOORS: tuple[str, ...] = (
     "casadrone.codegen",
     "casadrone.heap",  # the process's malloc settings (the command line calls them)
     "casadrone.parentdeath",  # child processes that die with their parent
+    "casadrone.lifeline",  # pool workers that end with their coordinator
+    "casadrone.pool",  # independent tasks side by side: processes here, a Dask cluster beyond
     "casadrone.results",
     "casadrone.numtext",  # numbers as printed text (no negative zero): every table's
     "casadrone.num",  # Num, a number or a CasADi expression: the model's and propulsion's values
@@ -257,6 +259,7 @@ HEAVY: dict[str, str] = {
     "matplotlib": "figures: only --plot, reports and the docs draw",
     "scipy": "linear algebra and optimisers of the design stages",
     "dask": "the distributed backend, an optional extra",
+    "distributed": "dask's cluster client (casadrone.pool), the same optional extra",
     "ezdxf": "DXF export, an optional extra",
 }
 

@@ -114,3 +114,12 @@ def test_text_of_one_optimum_points_to_certify():
 
     text = "\n".join(_sensitivity_text(_result(sensitivity_table({"beta_deg": 4e-3}, []))))
     assert "--certify" in text and "+1.000" in text and "±" not in text
+
+
+def test_text_names_the_processes_whose_cpu_it_sums():
+    from casadrone.cli.limit import _processes_cost
+
+    one = _processes_cost({"cpu_time_s": 162.0, "wall_time_s": 300.0, "workers": 1})
+    two = _processes_cost({"cpu_time_s": 138.2, "wall_time_s": 80.0, "workers": 2})
+    assert one == "CPU 162.0 s, wall 300.0 s"
+    assert two.startswith("CPU 138.2 s, wall 80.0 s on 2 processes")

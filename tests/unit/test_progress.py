@@ -106,3 +106,16 @@ def test_the_fallback_start_is_reported_by_its_own_name_with_its_inner_lap_neste
         (1, "start closed-loop on 40 intervals"), (0, "start reference-SY250 on 40 intervals")]
     assert seen[1].values["lap_s"] == 3.8795 and seen[1].values["iterations"] == 61
     assert "lap 3.8795 s, 61 iterations" in seen[1].text
+
+
+def test_counting_adds_live_workers_cpu_to_the_commands_cpu_only_inside_the_block():
+    """A pool's live workers are not children this process has waited for: inside
+    ``counting`` their CPU (here a declared 100 s) is part of cpu_seconds, after it not."""
+    from casadrone.progress import counting, cpu_seconds
+
+    before = cpu_seconds()
+    with counting(lambda: 100.0):
+        inside = cpu_seconds()
+    after = cpu_seconds()
+    assert 100.0 <= inside - before < 100.5
+    assert 0.0 <= after - before < 0.5

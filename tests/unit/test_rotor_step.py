@@ -115,17 +115,17 @@ def test_cli_rotor_step_and_substeps_reach_the_options(monkeypatch, cli_runner):
     """`casadrone limit-lap --rotor-step exponential --substeps 4` reaches the limit lap as
     those options (the grid the propeller kind's exponential step is measured on); without them
     the library's defaults (classical RK4, 3 steps) are kept."""
-    import casadrone.cli.limit as command
+    import casadrone.limit.race as race_module
     from casadrone.cli import app
     from casadrone.limit.result import LimitLap, LimitLapOptions
 
     seen = []
 
-    def fake(cfg, track, options, frame=None):
+    def fake(cfg, track, options, seeds=None, frame=None, pool=None):
         seen.append((options.rotor_step, options.substeps, options.intervals))
         return LimitLap(status="failed", reason="not solved: the options were recorded")
 
-    monkeypatch.setattr(command, "design_limit_lap", fake)
+    monkeypatch.setattr(race_module, "design_limit_lap", fake)
     for args in ([], ["--rotor-step", "exponential", "--substeps", "4", "--intervals", "40"]):
         r = cli_runner.invoke(app, ["limit-lap", "SY250-propeller", "--json", *args])
         assert r.exit_code == 0, r.output

@@ -104,6 +104,7 @@ class LapSetup:
     track_path: Path
     track: TrackConfig
     options: LimitLapOptions
+    search: str = "fast"  # the settings' search (casadrone.limit.search.SEARCHES)
 
 
 @app.command("limit-lap")
@@ -169,7 +170,7 @@ def limit_lap_command(
                        {k: v for k, v in given.items() if v is not None})
     if laps is not None:
         setup = replace(setup, track=setup.track.model_copy(update={"laps": laps}))
-    n_workers, scheduler = _workers(workers, certify or setup.options.grid_rounds > 0)
+    n_workers, scheduler = _workers(workers, setup.search == "certify")
     with progress_lines("limit-lap", quiet):
         pool = make_pool(n_workers, scheduler)
         try:
@@ -222,7 +223,7 @@ def load_setup(airframe: str, overrides: list[str], track: str | None,
                                                                cfg.prop_diameter_mm / 1000))
     if impossible:  # known before any solve: bad input, not a failed lap
         raise ConfigError([f"{track_path}: {impossible} (refused before any solve)"])
-    return LapSetup(cfg, frame, track_path, trk, options)
+    return LapSetup(cfg, frame, track_path, trk, options, settings.search)
 
 
 def lap_result(setup: LapSetup, lap: LimitLap, plot: Path | None) -> dict[str, Any]:

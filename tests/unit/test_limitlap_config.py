@@ -96,16 +96,16 @@ def test_defaults_are_the_fast_path():
 @pytest.fixture
 def recorded(monkeypatch):
     """The options ``casadrone limit-lap`` hands the solve (which is not run)."""
-    import casadrone.cli.limit as command
+    import casadrone.limit.race as race_module
     from casadrone.limit.result import LimitLap
 
     seen = []
 
-    def fake(cfg, track, options, frame=None):
+    def fake(cfg, track, options, seeds=None, frame=None, pool=None):
         seen.append(options)
         return LimitLap(status="failed", reason="not solved: the options were recorded")
 
-    monkeypatch.setattr(command, "design_limit_lap", fake)
+    monkeypatch.setattr(race_module, "design_limit_lap", fake)
     return seen
 
 

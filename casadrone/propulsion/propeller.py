@@ -75,6 +75,7 @@ from collections.abc import Mapping
 from functools import cache
 from typing import Any
 
+from casadrone.drag import DRAG_PARAM_NAMES
 from casadrone.propulsion.base import RotorStates, register_propulsion_model
 from casadrone.propulsion.data import (
     DIAMETER_RTOL,
@@ -404,9 +405,10 @@ def full_static_thrust(cfg: PropulsionConfig, rho: float) -> float:
 
 
 def airframe_values(airframe) -> dict[str, float]:
-    """The propeller parameters of a ``propeller`` airframe (the tail of its p) and the air
-    density, as floats."""
-    tail = airframe.p[len(airframe.p) - len(PROPELLER_PARAM_NAMES):]
+    """The propeller parameters of a ``propeller`` airframe (its p after the paper's names, before
+    the body-drag switch) and the air density, as floats."""
+    start = len(airframe.p) - len(PROPELLER_PARAM_NAMES) - len(DRAG_PARAM_NAMES)
+    tail = airframe.p[start:start + len(PROPELLER_PARAM_NAMES)]
     return {"rho": float(airframe.air_density),
             **{k: float(v) for k, v in zip(PROPELLER_PARAM_NAMES, tail, strict=True)}}
 
@@ -567,6 +569,8 @@ class Propeller:
     #: instead (``mu_min`` 1e-7) took 25 and 15 but stops on the barrier's bias (laps 0.003 %
     #: slower; 3e-7: 0.009 %). ``paper`` keeps IPOPT's default: its results stay bit-identical.
     warm_ipopt: Mapping[str, float] = {"sigma_min": 1e-3}
+    #: the airframe's drag_model chooses the body-drag form (casadrone.drag)
+    drag_forms = True
 
     def pack(self, section: PropulsionConfig, rho: float) -> list[float]:
         return propeller_params(section, rho)

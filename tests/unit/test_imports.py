@@ -27,6 +27,7 @@ FLOORS: tuple[str, ...] = (
     "casadrone.results",
     "casadrone.numtext",  # numbers as printed text (no negative zero): every table's
     "casadrone.massprops",
+    "casadrone.drag",  # the body-drag forms: propulsion models and the airframe schema read them
     "casadrone.propulsion",  # the propulsion models: the airframe schema reads their kinds
     "casadrone.targets",  # the limit lap's target kinds: the track schema reads their shapes
     "casadrone.config",

@@ -433,12 +433,12 @@ def advance_ratio_limit(cfg: PropulsionConfig) -> float | None:
 
 
 def fit_coefficients(J, y, degree: int = 2) -> list[float]:
-    """Least-squares polynomial coefficients c_0…c_degree of y(J) (relative residuals weighted
-    equally: each point weighted by 1/|y|)."""
+    """Least-squares polynomial coefficients c_0…c_degree of y(J), every point weighted alike
+    (absolute residuals: a sweep to its end crosses C_T = 0, where weights 1/|y| would fit that
+    one point and nothing else)."""
     import numpy as np
 
-    c = np.polynomial.polynomial.polyfit(np.asarray(J), np.asarray(y), degree,
-                                         w=1 / np.abs(np.asarray(y)))
+    c = np.polynomial.polynomial.polyfit(np.asarray(J), np.asarray(y), degree)
     return [float(v) for v in c]
 
 

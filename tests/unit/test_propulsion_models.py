@@ -16,6 +16,7 @@ import pytest
 from casadrone.airframe import build_airframe
 from casadrone.config.airframe import load_airframe
 from casadrone.config.io import ConfigError
+from casadrone.drag import DRAG_PARAM_NAMES
 from casadrone.model import NP, NX, THR, param_names, quadrotor_model, rotor_thrusts, state_names
 from casadrone.propulsion import (
     PROPULSION_MODELS,
@@ -60,8 +61,9 @@ def test_the_example_is_registered_beside_the_built_ins():
 def test_parameter_layout_and_state_names_are_the_models(name):
     model, frame = PROPULSION_MODELS[name], frame_of(name)
     assert frame.propulsion == name
-    assert len(frame.p) == NP + len(model.param_names) == len(param_names(name))
-    assert param_names(name)[NP:] == model.param_names
+    drag = DRAG_PARAM_NAMES if model.drag_forms else ()  # the body-drag switch after them
+    assert len(frame.p) == NP + len(model.param_names) + len(drag) == len(param_names(name))
+    assert param_names(name)[NP:] == model.param_names + drag
     assert state_names(name)[12:] == model.rotor_states.names
     assert quadrotor_model(name).state_names == state_names(name)
 

@@ -149,3 +149,16 @@ def test_a_form_the_model_cannot_fly_is_refused_in_one_line(tmp_path, cli_runner
     assert result.exit_code == 2, (result.stdout, result.stderr)
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"{path}: drag_model: "), lines
+
+
+def test_the_racing_preset_trims_fast_level_flight_from_its_own_drag():
+    """The trim's analytic start balances the airframe's own drag form at the attitude it
+    pitches to: SY250-propeller (isotropic) at 30 m/s level trims with IPOPT to Newton's root
+    (nose-on drag alone started it 6° short, on a root with the rotors turning backwards)."""
+    from casadrone.trim import trim
+
+    frame = build_airframe(load_airframe("SY250-propeller"))
+    ip, nt = trim(frame, "forward", 30.0, "ipopt"), trim(frame, "forward", 30.0, "newton")
+    assert ip.success and nt.success, (ip.message, nt.message)
+    np.testing.assert_allclose(ip.u0, nt.u0, rtol=1e-6)
+    assert math.degrees(ip.x0[10]) == pytest.approx(70.4, abs=0.1)

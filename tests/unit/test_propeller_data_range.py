@@ -203,9 +203,8 @@ def test_a_range_that_is_no_range_exits_2_naming_file_and_key(tmp_path, value):
 def test_a_trim_beyond_the_data_says_so():
     """The trim solves the model as it is and says when a rotor flies beyond the data: at 30 m/s
     level SY250-propeller's rotors meet J = v_a/(nD) ≈ 0.59 (numpy from the trimmed state), beyond
-    a range set to 0.5 and inside the shipped 0.854; at 10 m/s (J ≈ 0.19) nothing is said. (The
-    paper's per-axis drag: the racing preset's isotropic drag trims 30 m/s only from Newton's
-    start, test_propulsion.)"""
+    a range set to 0.5 and inside the shipped 0.854; at 10 m/s (J ≈ 0.19) nothing is said (the
+    paper's per-axis drag, whose pitch gives these J)."""
     from casadrone.trim import trim
 
     tight = build_airframe(load_airframe("SY250-propeller", [

@@ -334,7 +334,7 @@ def test_components_variant_hovers_at_sy250_mass():
 def test_lap_propulsion_summary(frame):
     """limit-lap's propulsion figures on hand-made nodes: climbing at 20 then 35 m/s at
     2000 rad/s gives J = v/(nD) and a thrust ratio CT(J)/CT(0) of the shipped quadratic at any
-    command (here 0.5), the lowest at 35 m/s, where J is beyond the data's 0.618 (half the
+    command (here 0.5), the lowest at 35 m/s, where J is above 0.618 (half the
     rotor-nodes); a stopped rotor has no ratio (0/0) and is left out; the paper model has no
     advance ratio and a ratio of 1."""
     from casadrone.limit.check import lap_propulsion

@@ -11,10 +11,11 @@ differ in between, which a racing lap (pitched 40-70° into the flow at 20-45 m/
   "RotorPy: A Python-based multirotor simulator with aerodynamics for education and research",
   arXiv:2306.04485, 2023; ``rotorpy/vehicles/multirotor.py``: D = −‖v‖ C_D v with
   C_D = diag(c_Dx, c_Dy, c_Dz) in N/(m/s)², i.e. c_D,i = ½ ρ C_d·A_i here). Each axis's force grows
-  with the whole airspeed, so a body area's drag scales with the dynamic pressure ½ρ|v|² whatever
-  the incidence, as the normal force of a bluff plate past stall does, instead of with the square
-  of the normal component alone. |v| is smoothed as √(|v|² + ε²) − ε (exactly 0 at rest, within
-  ε of |v|, smooth for IPOPT): along an axis the force is (1 − ε/|v|) of the per-axis one.
+  with the whole airspeed: an area's normal force falls with the flow's incidence α as sin α
+  (per-axis: sin² α, half of it at 45°), nearer flat plates inclined to the flow, whose normal
+  force past stall falls no faster than sin α (Hoerner, Fluid-Dynamic Drag, 1965, ch. 3). |v| is
+  smoothed as √(|v|² + ε²) − ε (exactly 0 at rest, within ε of |v|, smooth for IPOPT): along an
+  axis the force is (1 − ε/|v|) of the per-axis one.
 
 The form enters the parameter vector p as one switch (:data:`DRAG_PARAM_NAMES`) for the propulsion
 models that declare ``drag_forms`` (``propeller``); the paper's model has none and keeps the

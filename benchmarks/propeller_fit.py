@@ -20,12 +20,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from casadrone.config import load_airframe  # noqa: E402
 from casadrone.propulsion import (  # noqa: E402
-    FIT_MAX_J,
-    coefficients,
+    data_advance_ratio,
     fit_coefficients,
     fit_points,
     propeller_data,
 )
+from casadrone.propulsion.propeller import coefficients  # noqa: E402
 
 
 def main() -> None:
@@ -44,9 +44,10 @@ def main() -> None:
     Jf = np.linspace(0, 0.9, 200)
     for ax, col, name, ship in zip(axes, (2, 3), ("CT", "CP"), shipped, strict=True):
         c = fit_coefficients(pts[:, 0], pts[:, col])
-        res = np.polynomial.polynomial.polyval(pts[:, 0], c) / pts[:, col] - 1
-        print(f"{name}: refit {np.round(c, 5).tolist()}, shipped {ship}, largest relative "
-              f"residual {100 * np.max(np.abs(res)):.2f} % over {len(pts)} points")
+        res = np.polynomial.polynomial.polyval(pts[:, 0], c) - pts[:, col]
+        print(f"{name}: refit {np.round(c, 5).tolist()}, shipped {ship}, largest residual "
+              f"{np.max(np.abs(res)):.4f} ({100 * np.max(np.abs(res)) / c[0]:.1f} % of the static "
+              f"value) over {len(pts)} points")
         for rpm in np.unique(data[data[:, 0] > 0, 1]):
             sel = (data[:, 1] == rpm) & (data[:, 0] > 0)
             ax.plot(data[sel, 0], data[sel, col], "o", ms=3, label=f"tunnel, {rpm:.0f} rpm")
@@ -55,7 +56,7 @@ def main() -> None:
         ax.plot(pts[:, 0], pts[:, col], "kx", ms=6, label="points fitted")
         ax.plot(Jf, np.polynomial.polynomial.polyval(Jf, ship), "r-", lw=1.5,
                 label="shipped quadratic")
-        ax.axvline(FIT_MAX_J, color="grey", ls=":", lw=0.8)
+        ax.axvline(data_advance_ratio(), color="grey", ls=":", lw=0.8)
         ax.set_xlabel("advance ratio J = V/(nD)")
         ax.set_ylabel(name)
         ax.grid(True, alpha=0.3)

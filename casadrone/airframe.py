@@ -15,6 +15,7 @@ import numpy as np
 
 from casadrone.config.airframe import TABLE1_BOUNDS, AirframeConfig
 from casadrone.config.io import ConfigError, field_adapter, format_errors
+from casadrone.drag import DEFAULT_DRAG, drag_params
 from casadrone.massprops import mass_properties, rotor_positions_mm
 from casadrone.propulsion import advance_ratio_limit, propulsion_model
 from casadrone.propulsion.base import PaperParams
@@ -88,12 +89,16 @@ class Airframe:
     #: keeps every node within (:func:`casadrone.propulsion.electric.current_limits`); None: none
     max_pack_current_a: float | None = None
     max_motor_current_a: float | None = None
+    #: body-drag form (:mod:`casadrone.drag`); its switch follows the propulsion parameters in p
+    #: when the propulsion model has ``drag_forms``
+    drag_model: str = DEFAULT_DRAG
 
     @cached_property
     def p(self) -> np.ndarray:
         """Model parameter vector, ordered as :data:`PARAM_NAMES` followed, for a ``propeller``
-        airframe, by :data:`casadrone.propulsion.PROPELLER_PARAM_NAMES` (computed once,
-        read-only)."""
+        airframe, by :data:`casadrone.propulsion.PROPELLER_PARAM_NAMES` and the body-drag switch
+        :data:`casadrone.drag.DRAG_PARAM_NAMES` (:func:`casadrone.model.param_names`; computed
+        once, read-only)."""
         J = self.inertia
         p = np.concatenate(
             [
@@ -104,6 +109,8 @@ class Airframe:
                 self.drag_area,
                 [self.air_density, self.thrust_gain, self.thrust_time_constant, self.gravity],
                 self.propulsion_params,
+                drag_params(self.drag_model)
+                if getattr(propulsion_model(self.propulsion), "drag_forms", False) else (),
             ]
         ).astype(float)
         p.flags.writeable = False
@@ -171,6 +178,7 @@ def build_airframe(cfg: AirframeConfig) -> Airframe:
         max_advance_ratio=advance_ratio_limit(cfg.propulsion),
         max_pack_current_a=limits[0],
         max_motor_current_a=limits[1],
+        drag_model=cfg.drag_model,
     )
 
 

@@ -19,8 +19,9 @@ from typing import Literal, cast, overload
 import casadi as ca
 
 from casadrone.airframe import PARAM_NAMES
+from casadrone.drag import body_drag
 from casadrone.num import Num
-from casadrone.propulsion import RotorStates, motor_currents, propulsion_model
+from casadrone.propulsion import RotorStates, appended_names, motor_currents, propulsion_model
 from casadrone.propulsion.base import PaperParams
 from casadrone.propulsion.propeller import PropellerParams, propeller_terms
 
@@ -115,7 +116,8 @@ class AirframeTerms:
 
     Attributes:
         thrust: rotor force on the body (N, body frame; the paper's model: Σ T_i along body z).
-        drag: airframe drag (N, body frame; −½ ρ CdA_i |v_i| v_i per body axis).
+        drag: airframe drag (N, body frame; the airframe's form, :func:`casadrone.drag.body_drag`:
+            −½ ρ CdA_i |v_i| v_i per body axis with the paper's model).
         torque: rotor torque on the body (N·m; thrust moments r_i × T_i e_z and yaw reaction
             torques s_i κ T_i e_z).
         rotor_residual: the rotor states' implicit dynamics, zero along a flight (the paper's
@@ -129,9 +131,10 @@ class AirframeTerms:
 
 
 def param_names(kind: str = "paper") -> tuple[str, ...]:
-    """The names of the parameter vector p of propulsion ``kind`` (the paper's first, then the
-    model's own)."""
-    return PARAM_NAMES + propulsion_model(kind).param_names
+    """The names of the parameter vector p of propulsion ``kind``: the paper's first, then the
+    model's own and its body-drag switch if it has one
+    (:func:`casadrone.propulsion.appended_names`)."""
+    return PARAM_NAMES + appended_names(propulsion_model(kind))
 
 
 @overload
@@ -166,9 +169,9 @@ def airframe_terms(vel: Num, omega: Num, rotor: Num, rotor_dot: Num, u: Num, p: 
     """
     model = propulsion_model(propulsion)
     g, _, r, s, cda = unpack_params(p)
-    force, torque, residual = model.terms(vel, omega, rotor, rotor_dot, u, named(p, propulsion),
-                                          r, s)
-    return AirframeTerms(thrust=force, drag=-0.5 * g["rho"] * cda * ca.fabs(vel) * vel,
+    q = named(p, propulsion)
+    force, torque, residual = model.terms(vel, omega, rotor, rotor_dot, u, q, r, s)
+    return AirframeTerms(thrust=force, drag=body_drag(vel, g["rho"], cda, q),
                          torque=torque, rotor_residual=residual)
 
 

@@ -58,6 +58,7 @@ import numpy as np
 from casadrone.airframe import Airframe
 from casadrone.codegen import ZeroCopyCall
 from casadrone.conditions import CONDITION_REGISTRY, CONDITIONS, operating_vector
+from casadrone.drag import DEFAULT_DRAG, drag_force
 from casadrone.model import (
     EUL,
     INPUT_NAMES,
@@ -408,6 +409,29 @@ Solver = str
 # ---------------------------------------------------------------------------------------------
 
 
+#: Damped fixed-point steps of :func:`_attitude_balance` (the attitude settles in ~10 at 35 m/s).
+ATTITUDE_BALANCE_STEPS = 40
+
+
+def _attitude_balance(a: Airframe, v_world: np.ndarray, fy: float, theta: float, phi: float
+                      ) -> tuple[float, float, float]:
+    """(θ, φ, F_z) of the point-mass balance F = m g e_z + m a_c − D(attitude) with the airframe's
+    own body-drag form evaluated at the attitude the thrust tilts to (world velocity ``v_world``,
+    m/s; ``fy`` the centripetal force, N), by damped fixed-point steps from (θ, φ). A form whose
+    drag depends on the attitude (``isotropic``: more drag pitched into the flow than nose-on)
+    otherwise starts the trim so far below its pitch that it lands on a backward-turning root."""
+    weight = a.mass * a.gravity
+    fz = weight
+    for _ in range(ATTITUDE_BALANCE_STEPS):
+        R = np.asarray(rotation_matrix(phi, theta, 0.0), float)
+        d = R @ np.array(drag_force(tuple(R.T @ v_world), a.air_density, tuple(a.drag_area),
+                                    a.drag_model))
+        fx, fz = -d[0], weight - d[2]
+        theta = 0.5 * theta + 0.5 * math.atan2(fx, fz)
+        phi = 0.5 * phi + 0.5 * (0.0 - math.atan2(fy, math.hypot(fx, fz)))
+    return theta, phi, fz
+
+
 def initial_guess(
     airframe: Airframe, speed_mps: float = 0.0, *, climb_angle_deg: float = 0.0,
     turn_rate_dps: float = 0.0,
@@ -430,6 +454,9 @@ def initial_guess(
     fz = weight + drag * math.sin(gamma)
     theta = math.atan2(fx, fz)
     phi = 0.0 - math.atan2(fy, math.hypot(fx, fz))  # 0.0 - : no negative zero in level flight
+    if a.drag_model != DEFAULT_DRAG:  # the form's own drag at the attitude it pitches to
+        theta, phi, fz = _attitude_balance(a, V * np.array([math.cos(gamma), 0.0,
+                                                             math.sin(gamma)]), fy, theta, phi)
     delta = a.hover_thrusts() / (math.cos(theta) * math.cos(phi)) * (fz / weight)
     rotors, commands = hover_rotors(a, delta)  # the static rotor states and commands
     if n_unknowns(a.propulsion) > 6:  # the rotor states are unknowns too

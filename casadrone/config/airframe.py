@@ -18,6 +18,7 @@ from pydantic import Field
 
 from casadrone.config.io import Schema, has_keys, load, resolve_config
 from casadrone.config.propulsion import PropulsionConfig
+from casadrone.drag import DEFAULT_DRAG, DRAG_MODELS
 from casadrone.massprops import inertia_tensor, mass_properties_of, rotor_positions_mm
 from casadrone.propulsion import PROPULSION_MODELS, airframe_problems
 
@@ -195,6 +196,10 @@ class AirframeConfig(Schema):
     drag_area_m2: tuple[DragArea, DragArea, DragArea] = Field(
         (0.012, 0.012, 0.025), description="C_d·A along body x, y, z (m²)"
     )
+    drag_model: Literal[tuple(DRAG_MODELS)] = Field(  # type: ignore[valid-type]
+        DEFAULT_DRAG, description="body-drag form on drag_area_m2 (casadrone.drag): "
+        + "; ".join(f"{m.name}: {m.description}" for m in DRAG_MODELS.values())
+        + "; isotropic needs a propulsion model with drag forms (propeller)")
     kappa_m: float = Field(0.016, gt=0, le=1, description="rotor yaw torque per unit thrust (m)")
     battery_voltage_v: float = Field(
         14.8, gt=0, le=1000,
@@ -252,6 +257,11 @@ class AirframeConfig(Schema):
                 prop, mass_kg=mass, rho=v.get("air_density_kgm3"),
                 prop_diameter_mm=v.get("prop_diameter_mm"),
                 mass_key="mass_kg" if v.get("mass_model") == "free" else "components")
+        if (prop is not None and v.get("drag_model", DEFAULT_DRAG) != DEFAULT_DRAG
+                and not getattr(PROPULSION_MODELS[prop.model], "drag_forms", False)):
+            found.append(("drag_model", f"{v['drag_model']} needs a propulsion model with drag "
+                          f"forms (propeller); the {prop.model} model keeps the paper's "
+                          f"{DEFAULT_DRAG} drag"))
         thrust = v.get("thrust")
         if (thrust is not None and thrust.time_constant_s == 0 and prop is not None
                 and not PROPULSION_MODELS[prop.model].lagless):

@@ -34,6 +34,7 @@ import numpy as np
 
 from casadrone.codegen import compile_recipe, compile_with_reverse, recipe_fingerprint, vector_flags
 from casadrone.config.limitlap import SOLVERS
+from casadrone.drag import body_drag
 from casadrone.limit.attitude import QUAT, quat_rotation, quaternion_f
 from casadrone.limit.gates import (  # noqa: F401 (re-exported: the NLP's target layout)
     TARGET_SIZE,
@@ -143,7 +144,8 @@ ATTITUDE_MODELS: dict[str, Callable[..., OcpModel]] = {
 def point_mass_ocp_model(propulsion: str = "paper") -> OcpModel:
     """Attitude dynamics removed: state (world position, world velocity), controls (φ, θ, ψ,
     total thrust). The attitude and total thrust change instantly; mass, gravity and the *same*
-    body-axis quadratic drag (evaluated at the commanded attitude) act as in the full model.
+    body drag (the airframe's form, :func:`casadrone.drag.body_drag`, evaluated at the
+    commanded attitude) act as in the full model.
 
     Every flight of the full model is a flight of this one (take its attitude and Σ T_i as the
     controls; Σ T_i ≤ 4K because each lagged thrust stays below K; with the ``propeller``
@@ -163,7 +165,7 @@ def point_mass_ocp_model(propulsion: str = "paper") -> OcpModel:
     g, _, _, _, cda = unpack_params(p)
     R = rotation_matrix(u[0], u[1], u[2])
     vb = R.T @ x[3:6]
-    drag_b = -0.5 * g["rho"] * cda * ca.fabs(vb) * vb
+    drag_b = body_drag(vb, g["rho"], cda, named(p, propulsion))
     acc = R @ (ca.vertcat(0, 0, u[3]) + drag_b) / g["mass"] - ca.vertcat(0, 0, g["g"])
     f = ca.Function("f_point_mass", [x, u, p], [ca.vertcat(x[3:6], acc)],
                     ["x", "u", "p"], ["xdot"])

@@ -7,6 +7,7 @@ import numpy as np
 
 from casadrone.airframe import Airframe
 from casadrone.config.track import TrackConfig
+from casadrone.drag import DRAG_PARAM_NAMES
 from casadrone.limit.guesses import straight_guess
 from casadrone.limit.nlp import Nlp, NlpSolution, solve
 from casadrone.limit.problem import Targets, bounds, row_bounds
@@ -17,7 +18,7 @@ from casadrone.propulsion import PROPELLER_PARAM_NAMES
 #: Constant speeds (m/s) of the straight-line starts of the point-mass reference (best of them).
 REFERENCE_SPEEDS_MPS = (5.0, 10.0, 20.0)
 #: Entries of p the point-mass model reads (casadrone.limit.nlp.point_mass_ocp_model).
-POINT_MASS_PARAMS = ("mass", "g", "rho", "CdA_x", "CdA_y", "CdA_z")
+POINT_MASS_PARAMS = ("mass", "g", "rho", "CdA_x", "CdA_y", "CdA_z") + DRAG_PARAM_NAMES
 _POINT_MASS: dict[bytes, NlpSolution | None] = {}
 
 

@@ -8,8 +8,9 @@ the states and commands of hover). Every stage reads the model of an airframe fr
 by its name (``Airframe.propulsion``, ``propulsion.model`` in YAML); none compares the name.
 Adding a model is one module that registers one entry (docs/architecture.md#new-propulsion-model).
 
-This module imports nothing of casadrone: the schema (:mod:`casadrone.config.propulsion`) takes
-its choices from the registry, so the registry sits below it.
+This module imports nothing of casadrone but the body-drag forms' names (:mod:`casadrone.drag`):
+the schema (:mod:`casadrone.config.propulsion`) takes its choices from the registry, so the
+registry sits below it.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol, TypedDict
 
+from casadrone.drag import DRAG_PARAM_NAMES
 from casadrone.num import Num
 
 #: The model of an airframe whose ``propulsion:`` section names none.
@@ -120,6 +122,10 @@ class PropulsionModel(Protocol):
     suffix: str
     #: IPOPT settings added to a warm-started limit-lap solve.
     warm_ipopt: Mapping[str, float]
+    #: The airframe's ``drag_model`` may choose its body-drag form (:mod:`casadrone.drag`): p
+    #: carries :data:`casadrone.drag.DRAG_PARAM_NAMES` after :attr:`param_names`. False (the
+    #: paper's model): the per-axis form only, p unchanged.
+    drag_forms: bool
 
     def pack(self, section: Any, rho: float) -> list[float]:
         """The :attr:`param_names` values of an airframe's section at air density ``rho``."""
@@ -221,9 +227,15 @@ def propulsion_model(name: str) -> PropulsionModel:
                          f"{', '.join(PROPULSION_MODELS)}") from None
 
 
+def appended_names(model: PropulsionModel) -> tuple[str, ...]:
+    """The names ``model`` appends to the paper's parameter vector: its own, then the body-drag
+    switch when it declares ``drag_forms``."""
+    return model.param_names + (DRAG_PARAM_NAMES if getattr(model, "drag_forms", False) else ())
+
+
 def model_of_length(n_extra: int) -> str:
     """The name of the model that appends ``n_extra`` parameters to the paper's vector."""
     for name, model in PROPULSION_MODELS.items():
-        if len(model.param_names) == n_extra:
+        if len(appended_names(model)) == n_extra:
             return name
     raise ValueError(f"no propulsion model appends {n_extra} parameters to the paper's vector")

@@ -131,11 +131,11 @@ def momentum_problem(ct: list[float], cp: list[float], j_max: float | None) -> s
 
 #: The shipped 5-inch propeller: UIUC Propeller Database, Vol. 2, DA4022 5.0x3.75, 3 blades.
 SHIPPED_PROPELLER = "uiuc-da4022-5x3.75-3blade"
-#: The points the shipped fit uses: the static points at ≥ 5000 rpm and the wind-tunnel sweep
-#: at the highest rpm (6034), the nearest the database comes to a racing propeller's Reynolds
-#: number, over J ≤ 0.62 (CT down to a third of its static value: 40 m/s of axial inflow at
-#: 30 000 rpm is J = 0.63).
-FIT_MIN_STATIC_RPM, FIT_SWEEP_RPM, FIT_MAX_J = 5000.0, 6034.0, 0.62
+#: The points the shipped fit uses: the static points at ≥ 5000 rpm and the whole wind-tunnel
+#: sweep at the highest rpm (6034), the nearest the database comes to a racing propeller's
+#: Reynolds number, to its last point (J = 0.854, where C_T is already negative: the fit's
+#: zero-thrust J is 0.815; 40 m/s of axial inflow at 30 000 rpm is J = 0.63).
+FIT_MIN_STATIC_RPM, FIT_SWEEP_RPM = 5000.0, 6034.0
 
 
 def propeller_data(name: str = SHIPPED_PROPELLER):
@@ -150,16 +150,15 @@ def propeller_data(name: str = SHIPPED_PROPELLER):
 
 
 def fit_points(data):
-    """The rows of :func:`propeller_data` the shipped fit uses (see :data:`FIT_MAX_J`)."""
+    """The rows of :func:`propeller_data` the shipped fit uses (see :data:`FIT_SWEEP_RPM`)."""
     J, rpm = data[:, 0], data[:, 1]
-    return data[((J == 0) & (rpm >= FIT_MIN_STATIC_RPM))
-                | ((rpm == FIT_SWEEP_RPM) & (J > 0) & (J <= FIT_MAX_J))]
+    return data[((J == 0) & (rpm >= FIT_MIN_STATIC_RPM)) | ((rpm == FIT_SWEEP_RPM) & (J > 0))]
 
 
 @cache
 def data_advance_ratio(name: str = SHIPPED_PROPELLER) -> float:
     """The largest advance ratio of the points a shipped dataset's fit uses
-    (:func:`fit_points`): where its CT(J), CP(J) are measured, 0.618 for the shipped propeller.
+    (:func:`fit_points`): the end of its measured sweep, 0.854 for the shipped propeller.
     Read once per process (package data; every propeller airframe build asks for it)."""
     return float(fit_points(propeller_data(name))[:, 0].max())
 

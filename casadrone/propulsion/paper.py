@@ -30,6 +30,7 @@ class PaperThrust:
     lagless = True
     suffix = ""
     warm_ipopt: Mapping[str, float] = {}
+    drag_forms = False  # the paper's per-axis drag only: p, and every result, as they were
 
     def pack(self, section: Any, rho: float) -> list[float]:
         return []

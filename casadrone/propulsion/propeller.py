@@ -75,6 +75,7 @@ from collections.abc import Mapping
 from functools import cache
 from typing import Any, TypedDict
 
+from casadrone.drag import DRAG_PARAM_NAMES
 from casadrone.num import Num
 from casadrone.propulsion.base import PaperParams, RotorStates, register_propulsion_model
 from casadrone.propulsion.data import (
@@ -120,9 +121,16 @@ class PropellerTail(TypedDict):
     batt_R: Num  # battery internal resistance (Ω)
 
 
-class PropellerParams(PaperParams, PropellerTail):
+class DragSwitch(TypedDict):
+    """The body-drag switch a model with ``drag_forms`` appends after its own parameters
+    (:data:`casadrone.drag.DRAG_PARAM_NAMES`)."""
+
+    drag_isotropic: Num  # 1: isotropic body drag, 0: the paper's per-axis form (casadrone.drag)
+
+
+class PropellerParams(PaperParams, PropellerTail, DragSwitch):
     """The airframe vector p of the ``propeller`` kind by name (:func:`casadrone.model.named`):
-    the paper's parameters, then :class:`PropellerTail`'s."""
+    the paper's parameters, then :class:`PropellerTail`'s, then the :class:`DragSwitch`."""
 
 
 #: Appended to the paper's parameter vector: the fields of :class:`PropellerTail`, in order.
@@ -422,9 +430,10 @@ def full_static_thrust(cfg: PropulsionConfig, rho: float) -> float:
 
 
 def airframe_values(airframe) -> dict[str, float]:
-    """The propeller parameters of a ``propeller`` airframe (the tail of its p) and the air
-    density, as floats."""
-    tail = airframe.p[len(airframe.p) - len(PROPELLER_PARAM_NAMES):]
+    """The propeller parameters of a ``propeller`` airframe (its p after the paper's names, before
+    the body-drag switch) and the air density, as floats."""
+    start = len(airframe.p) - len(PROPELLER_PARAM_NAMES) - len(DRAG_PARAM_NAMES)
+    tail = airframe.p[start:start + len(PROPELLER_PARAM_NAMES)]
     return {"rho": float(airframe.air_density),
             **{k: float(v) for k, v in zip(PROPELLER_PARAM_NAMES, tail, strict=True)}}
 
@@ -448,10 +457,11 @@ def advance_ratio_limit(cfg: PropulsionConfig) -> float | None:
     return None
 
 
-def fit_coefficients(J, y, degree: int = 2, relative: bool = True) -> list[float]:
-    """Least-squares polynomial coefficients c_0…c_degree of y(J): relative residuals weighted
-    equally (each point weighted by 1/|y|), or with ``relative=False`` absolute residuals (every
-    point weighted alike: data that cross zero, a J sweep run to its windmill end)."""
+def fit_coefficients(J, y, degree: int = 2, relative: bool = False) -> list[float]:
+    """Least-squares polynomial coefficients c_0…c_degree of y(J), every point weighted alike
+    (absolute residuals: a sweep to its end crosses C_T = 0, where weights 1/|y| would fit that
+    one point and nothing else), or with ``relative=True`` relative residuals weighted equally
+    (each point weighted by 1/|y|: data that stay away from zero)."""
     import numpy as np
 
     y = np.asarray(y)
@@ -587,6 +597,8 @@ class Propeller:
     #: instead (``mu_min`` 1e-7) took 25 and 15 but stops on the barrier's bias (laps 0.003 %
     #: slower; 3e-7: 0.009 %). ``paper`` keeps IPOPT's default: its results stay bit-identical.
     warm_ipopt: Mapping[str, float] = {"sigma_min": 1e-3}
+    #: the airframe's drag_model chooses the body-drag form (casadrone.drag)
+    drag_forms = True
 
     def pack(self, section: PropulsionConfig, rho: float) -> list[float]:
         return propeller_params(section, rho)

@@ -154,7 +154,7 @@ def test_trim_json_names_the_propeller_states_rotor_speeds(cli_runner):
     assert res["success"] is True
     assert not {"T1", "T2", "T3", "T4"} & set(res["x0"])
     omega = np.array([res["x0"][f"omega{i}"] for i in range(1, 5)])
-    ct0, diameter, rho = 0.20894, 0.127, 1.225  # SY250-propeller.yaml; ISA sea level
+    ct0, diameter, rho = 0.20939, 0.127, 1.225  # SY250-propeller.yaml; ISA sea level
     static = ct0 * rho * (omega / (2 * np.pi)) ** 2 * diameter ** 4
     np.testing.assert_allclose(static, res["thrusts_N"], rtol=1e-3)
     np.testing.assert_allclose(sum(res["thrusts_N"]), 0.32 * 9.81, rtol=1e-9)

@@ -30,6 +30,7 @@ FLOORS: tuple[str, ...] = (
     "casadrone.numtext",  # numbers as printed text (no negative zero): every table's
     "casadrone.num",  # Num, a number or a CasADi expression: the model's and propulsion's values
     "casadrone.massprops",
+    "casadrone.drag",  # the body-drag forms: propulsion models and the airframe schema read them
     "casadrone.propulsion",  # the propulsion models: the airframe schema reads their kinds
     "casadrone.parts",  # the parts catalogue (static data): config.parts makes sections of it
     "casadrone.targets",  # the limit lap's target kinds: the track schema reads their shapes

@@ -46,16 +46,52 @@ def _csv_rows():
     return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(lines)]
 
 
-def test_the_range_is_the_largest_fitted_advance_ratio_of_the_data(frame):
-    """The shipped frames' J_max is read from the package data: the largest J of the 6034 rpm
-    wind-tunnel sweep up to 0.62 that the YAML's comment says the fit uses (csv module, not the
-    fitting code); a paper frame has none; an explicit value wins."""
-    sweep = [r["J"] for r in _csv_rows() if r["rpm"] == 6034.0 and 0 < r["J"] <= 0.62]
-    assert len(sweep) >= 5 and frame.max_advance_ratio == max(sweep)
-    assert 0.6 < frame.max_advance_ratio <= 0.62
+def test_the_range_is_the_end_of_the_measured_sweep(frame):
+    """The shipped frames' J_max is the last point of the 6034 rpm wind-tunnel sweep (csv module,
+    not the fitting code): J = 0.854119, where the measured C_T is already negative; a paper frame
+    has none; an explicit value wins."""
+    sweep = [r for r in _csv_rows() if r["rpm"] == 6034.0 and r["J"] > 0]
+    last = max(sweep, key=lambda r: r["J"])
+    assert len(sweep) == 17 and frame.max_advance_ratio == last["J"] == 0.854119
+    assert last["CT"] < 0
     assert build_airframe(load_airframe("SY250")).max_advance_ratio is None
     given = load_airframe("SY250-propeller", ["propulsion.propeller.max_advance_ratio=0.5"])
     assert build_airframe(given).max_advance_ratio == 0.5
+
+
+#: The refit's stated largest residuals (SY250-propeller.yaml): over all fitted points (the
+#: static scatter at J = 0 sets them) and over the sweep alone.
+CT_RESIDUAL, CP_RESIDUAL = 0.0061, 0.0031
+CT_SWEEP_RESIDUAL, CP_SWEEP_RESIDUAL = 0.0028, 0.0025
+
+
+@pytest.mark.parametrize("name", ["SY250-propeller", "HS200-propeller", "HS210-propeller",
+                                  "NSY200-propeller", "SY220-propeller",
+                                  "SY250-components-propeller"])
+def test_the_shipped_fit_holds_to_the_end_of_the_sweep(name):
+    """The YAML's C_T(J), C_P(J) (read as YAML, not through the schema) against the raw points
+    (csv module): within the stated residuals at every static point at ≥ 5000 rpm and every
+    sweep point to J = 0.854; the least-squares quadratic of those points (numpy, not
+    casadrone's fit) to the YAML's five digits; C_T's zero between the last two measured points,
+    where the measured C_T changes sign."""
+    import yaml
+
+    prop = yaml.safe_load(resolve_config(name, "airframes").read_text("utf-8"))
+    prop = prop["propulsion"]["propeller"]
+    rows = [r for r in _csv_rows() if (r["J"] == 0 and r["rpm"] >= 5000)
+            or (r["rpm"] == 6034.0 and r["J"] > 0)]
+    J = np.array([r["J"] for r in rows])
+    for key, col, worst, worst_sweep in (("ct_coefficients", "CT", CT_RESIDUAL, CT_SWEEP_RESIDUAL),
+                                         ("cp_coefficients", "CP", CP_RESIDUAL, CP_SWEEP_RESIDUAL)):
+        c = prop[key]
+        y = np.array([r[col] for r in rows])
+        res = np.abs(np.polynomial.polynomial.polyval(J, c) - y)
+        assert res.max() <= worst and res[J > 0].max() <= worst_sweep, (key, res.max())
+        np.testing.assert_allclose(c, np.polynomial.polynomial.polyfit(J, y, 2), rtol=2e-4)
+    ct = np.polynomial.polynomial.Polynomial(prop["ct_coefficients"])
+    sweep = sorted((r["J"], r["CT"]) for r in rows if r["J"] > 0)
+    (j1, t1), (j2, t2) = sweep[-2:]
+    assert t1 > 0 > t2 and ct(j1) > 0 > ct(j2)
 
 
 def _numpy_rows(frame, X, j_max):
@@ -167,12 +203,13 @@ def test_a_range_that_is_no_range_exits_2_naming_file_and_key(tmp_path, value):
 def test_a_trim_beyond_the_data_says_so():
     """The trim solves the model as it is and says when a rotor flies beyond the data: at 30 m/s
     level SY250-propeller's rotors meet J = v_a/(nD) ≈ 0.59 (numpy from the trimmed state), beyond
-    a range set to 0.5 and inside the shipped 0.618; at 10 m/s (J ≈ 0.19) nothing is said."""
+    a range set to 0.5 and inside the shipped 0.854; at 10 m/s (J ≈ 0.19) nothing is said (the
+    paper's per-axis drag, whose pitch gives these J)."""
     from casadrone.trim import trim
 
-    tight = build_airframe(load_airframe("SY250-propeller",
-                                         ["propulsion.propeller.max_advance_ratio=0.5"]))
-    shipped = build_airframe(load_airframe("SY250-propeller"))
+    tight = build_airframe(load_airframe("SY250-propeller", [
+        "propulsion.propeller.max_advance_ratio=0.5", "drag_model=per-axis"]))
+    shipped = build_airframe(load_airframe("SY250-propeller", ["drag_model=per-axis"]))
     for frame, speed, beyond in ((tight, 30.0, True), (tight, 10.0, False),
                                  (shipped, 30.0, False)):
         tp = trim(frame, "forward", speed)

@@ -66,7 +66,8 @@ def test_static_thrust_and_torque_equal_the_static_curves(frame):
 
 def test_ct_cp_at_the_wind_tunnel_points(frame):
     """Steady axial inflow (climb along body z) at the data's J: the model's CT and CP match
-    the UIUC points the fit used within 3 % (observed 2.8 % CT, 2.2 % CP, the fit residual)."""
+    the UIUC points the fit used, to the end of the sweep (J = 0.854, C_T < 0), within the fit's
+    stated residual: 0.0061 in C_T, 0.0031 in C_P (2.9 % and 2.3 % of the static values)."""
     q = airframe_values(frame)
     out = propeller_outputs()
     n = 400.0  # rev/s, a racing rotor speed
@@ -80,15 +81,15 @@ def test_ct_cp_at_the_wind_tunnel_points(frame):
         x = _state(vel=(0, 0, v_body), w=(2 * math.pi * n,) * 4)
         T, vin, Jm, _, _ = (np.asarray(a).ravel() for a in out(x, np.zeros(4), frame.p))
         assert Jm[0] == pytest.approx(J, abs=2e-3)
-        worst_ct = max(worst_ct, abs(T[0] / (RHO * n**2 * D**4) / CT - 1))
+        worst_ct = max(worst_ct, abs(T[0] / (RHO * n**2 * D**4) - CT))
         # torque: the steady rotor's motor torque equals the shaft torque; read it from the
         # model's rotor residual at zero rotor acceleration via the DC relation Q = P / (2π n)
         res = quadrotor_model("propeller").F(np.zeros(16), x, np.zeros(4), frame.p)
         q_motor_zero_cmd = -(q["motor_I0"] + 2 * math.pi * n / (q["motor_kv"] * q["motor_R"]
                              * (1 + 0))) / q["motor_kv"]  # δ = 0: no sag
         Q = float(np.asarray(res).ravel()[12]) + q_motor_zero_cmd
-        worst_cp = max(worst_cp, abs(Q * 2 * math.pi / (RHO * n**2 * D**5) / CP - 1))
-    assert worst_ct <= 0.03 and worst_cp <= 0.03
+        worst_cp = max(worst_cp, abs(Q * 2 * math.pi / (RHO * n**2 * D**5) - CP))
+    assert worst_ct <= 0.0061 and worst_cp <= 0.0031
 
 
 def test_thrust_falls_with_climb_speed_as_momentum_theory_says(frame):
@@ -137,10 +138,15 @@ def test_thrust_falls_with_climb_speed_as_momentum_theory_says(frame):
         assert 0.3 * fall_ideal <= fall_model <= fall_ideal
 
 
-@pytest.mark.parametrize("speed", [10.0, 20.0, 30.0, 40.0])
-def test_forward_flight_trims_below_static_thrust(frame, speed):
+@pytest.mark.parametrize(("speed", "drag"), [(10.0, "isotropic"), (20.0, "isotropic"),
+                                           (30.0, "isotropic"), (40.0, "per-axis")])
+def test_forward_flight_trims_below_static_thrust(frame, speed, drag):
     """Level flight trims (Newton) at 10-40 m/s: each rotor's thrust is below the static thrust
-    at the same rotor speed (the inflow unloads the propeller), increasingly with speed."""
+    at the same rotor speed (the inflow unloads the propeller), increasingly with speed. 40 m/s
+    with the paper's per-axis drag: the preset's isotropic drag has no level trim above 34.8 m/s
+    at full command (per-axis 36.8 m/s: its drag between the axes is the smaller)."""
+    if drag != frame.drag_model:
+        frame = build_airframe(load_airframe("SY250-propeller", [f"drag_model={drag}"]))
     tp = trim(frame, "forward", speed, "newton")
     assert tp.success, tp.message
     assert np.all(tp.x0[THR] > 0)  # the physical root (a backward one is refused, below)
@@ -201,7 +207,10 @@ def _linear_inflow_frame():
         "propulsion.propeller.ct_coefficients=null", "propulsion.propeller.cp_coefficients=null",
         f"propulsion.propeller.linear_inflow={{k_eta_n_s2: {K_ETA}, k_z_n_s2_per_m: {K_Z}, "
         f"k_m_n_m_s2: {K_M}}}", f"propulsion.propeller.rotor_drag_n_s2_per_m={K_D}",
-        "propulsion.motor.kind=first-order", f"propulsion.motor.time_constant_s={TAU}"])
+        "propulsion.motor.kind=first-order", f"propulsion.motor.time_constant_s={TAU}",
+        # the literature's form: no wind-tunnel range (its climb power is not the data's), the
+        # paper's per-axis body drag (the independent model below writes that one)
+        "propulsion.propeller.data=null", "drag_model=per-axis"])
     return build_airframe(cfg)
 
 
@@ -325,7 +334,7 @@ def test_components_variant_hovers_at_sy250_mass():
 def test_lap_propulsion_summary(frame):
     """limit-lap's propulsion figures on hand-made nodes: climbing at 20 then 35 m/s at
     2000 rad/s gives J = v/(nD) and a thrust ratio CT(J)/CT(0) of the shipped quadratic at any
-    command (here 0.5), the lowest at 35 m/s, where J is beyond the data's 0.618 (half the
+    command (here 0.5), the lowest at 35 m/s, where J is above 0.618 (half the
     rotor-nodes); a stopped rotor has no ratio (0/0) and is left out; the paper model has no
     advance ratio and a ratio of 1."""
     from casadrone.limit.check import lap_propulsion
@@ -395,8 +404,8 @@ def test_point_mass_thrust_bound_holds_over_steady_flight(frame):
     model itself: over 300 random steady states (commands in [0, 1]⁴, axial airspeed −10…60 m/s,
     body rates up to ±8 rad/s so the rotors see unequal inflows; the rotor speeds found by scipy's
     root finder on the model's rotor rates) the total thrust never exceeds it, and it is reached
-    (within 0.1 %) at full command at rest. Unequal commands let one rotor exceed T_b (less sag)
-    but never the sum. Observed: full command at rest 0.9991 of the bound (the bound adds the
+    (within 0.2 %) at full command at rest. Unequal commands let one rotor exceed T_b (less sag)
+    but never the sum. Observed: full command at rest 0.9989 of the bound (the bound adds the
     smoothing's −ε/2 of inflow), the largest random ΣT 0.93 of it; one rotor alone 1.46 T_b."""
     from casadrone.propulsion import box_thrust_bound, rotor_thrust_bound
 
@@ -415,7 +424,9 @@ def test_point_mass_thrust_bound_holds_over_steady_flight(frame):
         totals.append(T.sum())
         singles.append(T.max())
     assert max(totals) <= 4 * Tb * (1 + 1e-9)
-    assert totals[0] == pytest.approx(4 * Tb, rel=1e-3)  # reached at full command at rest
+    # reached at full command at rest, within 0.2 %: the bound's grid starts at the smoothed
+    # inflow's floor −ε/2, where the refit's C_T slope adds 0.11 %
+    assert totals[0] == pytest.approx(4 * Tb, rel=2e-3)
     assert max(singles[2:3]) > Tb  # one rotor alone does exceed it (the sag argument matters)
     assert totals[1] < totals[0]  # 20 m/s of axial inflow: less thrust at full command
     assert Tb < box_thrust_bound(airframe_values(frame)) / 2  # far tighter than the box bound

@@ -179,7 +179,7 @@ def test_linear_inflow_breaking_momentum_theory_in_climb_is_refused(tmp_path, cl
     # the same rotor given as CT/CP coefficients was refused already, naming its own key
     assert load_airframe(_linear_frame(tmp_path, max_advance_ratio=0.3)) is not None
     # the range the limit lap flies may also come from the dataset the section names (its
-    # largest J, 0.618 here, advance_ratio_limit): the same rotor is refused by that range too
+    # largest J, 0.854 here, advance_ratio_limit): the same rotor is refused by that range too
     line = _trim_refused(cli_runner, _linear_frame(tmp_path, data="uiuc-da4022-5x3.75-3blade"),
                          "propulsion.propeller.linear_inflow.k_m_n_m_s2")
     assert "climb" in line

@@ -16,6 +16,7 @@ import pytest
 from casadrone.airframe import build_airframe
 from casadrone.config.airframe import load_airframe
 from casadrone.config.io import ConfigError
+from casadrone.drag import DRAG_PARAM_NAMES
 from casadrone.model import NP, NX, THR, param_names, quadrotor_model, rotor_thrusts, state_names
 from casadrone.propulsion import (
     PROPULSION_MODELS,
@@ -60,8 +61,9 @@ def test_the_example_is_registered_beside_the_built_ins():
 def test_parameter_layout_and_state_names_are_the_models(name):
     model, frame = PROPULSION_MODELS[name], frame_of(name)
     assert frame.propulsion == name
-    assert len(frame.p) == NP + len(model.param_names) == len(param_names(name))
-    assert param_names(name)[NP:] == model.param_names
+    drag = DRAG_PARAM_NAMES if model.drag_forms else ()  # the body-drag switch after them
+    assert len(frame.p) == NP + len(model.param_names) + len(drag) == len(param_names(name))
+    assert param_names(name)[NP:] == model.param_names + drag
     assert state_names(name)[12:] == model.rotor_states.names
     assert quadrotor_model(name).state_names == state_names(name)
 
@@ -196,7 +198,8 @@ def test_the_typed_parameter_record_names_the_entries_of_p():
     assert q["kappa"] == frame.kappa and q["CdA_y"] == frame.drag_area[1]
     assert (q["rho"], q["K"], q["tau"], q["g"]) == (frame.air_density, frame.thrust_gain,
                                                     frame.thrust_time_constant, frame.gravity)
-    assert q["prop_D"] == 0.127 and q["ct1"] == -0.095082 and q["cp2"] == -0.14669  # the YAML's
+    assert q["prop_D"] == 0.127 and q["ct1"] == -0.10647 and q["cp2"] == -0.16208  # the YAML's
+    assert q["drag_isotropic"] == 1.0  # drag_model: isotropic, the racing preset's
     assert q["motor_kv"] == pytest.approx(2300 * 2 * math.pi / 60, rel=1e-15)  # rpm/V → rad/s/V
     assert (q["motor_R"], q["motor_I0"], q["batt_Voc"], q["batt_R"]) == (0.075, 1.4, 16.8, 0.040)
     assert q["rotor_J"] == 6.4e-6 and q["rotor_kd"] == 8.0e-6 and q["motor_dc"] == 1.0

@@ -213,8 +213,9 @@ def test_the_section_is_read_by_the_airframe_schema_and_hovers(tmp_path, log_fil
     points = fit_points(propeller_data(SHIPPED_PROPELLER))
     static = points[points[:, 0] == 0, 2].mean()
     sweep = points[points[:, 0] > 0]
-    # observed: within 1.2 % at every sweep point
-    np.testing.assert_allclose(ct(sweep[:, 0], c) / c[0], sweep[:, 2] / static, rtol=0.03)
+    # observed: within 0.013 of the static value at every sweep point, to the sweep's end (J =
+    # 0.854, where C_T < 0: a relative bound means nothing there)
+    np.testing.assert_allclose(ct(sweep[:, 0], c) / c[0], sweep[:, 2] / static, atol=0.03)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -32,7 +32,8 @@ def codesign_command(
     problem: Annotated[str, typer.Argument(help="co-design problem YAML, or a shipped name "
                                            "(codesign-paper, codesign-season)")],
     overrides: Annotated[list[str] | None, typer.Argument(
-        help="dotted key=value overrides, e.g. codesign.starts=2 codesign.intervals=20")] = None,
+        help="dotted key=value overrides, e.g. codesign.starts=2 limit_lap.intervals=20 "
+        "limit_lap.starts=[point-mass]")] = None,
     out: Annotated[Path | None, typer.Option(help="folder for result.json (and a front's run "
                                              "directory); must be new or empty")] = None,
     as_json: JsonOpt = False,

@@ -12,7 +12,7 @@ certificate (passed, lap gap, re-simulation miss).
 
 Run: ``python benchmarks/bench_codesign_command.py codesign-paper --json out.json`` (the shipped
 problem with 5 random starts, and its template start alone), or with variants:
-``--variant full codesign.lap_starts=[closed-loop,point-mass,coarse-grid]``.
+``--variant full limit_lap.starts=[closed-loop,point-mass,coarse-grid]``.
 
 ``--template-laps point-mass closed-loop coarse-grid`` instead times, in this process, the
 template's limit lap on the problem's (first) track from each start alone (``a+b``: several),
@@ -104,7 +104,7 @@ def template_laps(problem: str, starts: list[str], keep: bool = False) -> None:
     lower = np.array([v.lower for v in cfg.variables])
     upper = np.array([v.upper for v in cfg.variables])
     _, tracks, _ = driver._tracks(cfg)
-    base = LimitLapOptions(intervals=cfg.codesign.intervals, sensitivities=False,
+    base = LimitLapOptions(intervals=cfg.limit_lap.intervals, sensitivities=False,
                            point_mass_reference=False,
                            gate_clearance_m=driver.gate_clearance(template, lower, upper, keys))
     for names in starts:

@@ -9,7 +9,7 @@ miss; and the intervals whose one-interval defect is largest (CVODES from the NL
 against the NLP's next node, body velocity and rates), with their commands and rotor states.
 
 Run: ``python benchmarks/bench_codesign_miss.py codesign-paper
-airframe=configs/airframes/SY250-components-propeller.yaml codesign.intervals=80``.
+airframe=configs/airframes/SY250-components-propeller.yaml limit_lap.intervals=80``.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 Runs ``casadrone codesign --json`` on ``codesign-season`` (the sum of both limit laps),
 ``codesign-paper`` and ``codesign-gates`` (each track alone) with the same overrides (default
-``codesign.starts=0 codesign.intervals=20``: the template start, 20 intervals per leg), each under
+``codesign.starts=0 limit_lap.intervals=20``: the template start, 20 intervals per leg), each under
 ``/usr/bin/time`` (CPU = user + system), into ``--dir``; then prints, per track, the season
 frame's lap beside the single-track optimum's, both frames' θ, and why each frame is what it is:
 the certificate's variable states and reduced gradients and the active constraints with their
@@ -124,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
                     "other tracks instead")
     ap.add_argument("--intervals", type=int, default=40, help="intervals per leg of --cross")
     ap.add_argument("overrides", nargs="*",
-                    default=["codesign.starts=0", "codesign.intervals=20"])
+                    default=["codesign.starts=0", "limit_lap.intervals=20"])
     args = ap.parse_args(argv)
     if args.cross:
         cross(args.cross, args.intervals)

@@ -32,7 +32,8 @@ def codesign_command(
     problem: Annotated[str, typer.Argument(help="co-design problem YAML, or a shipped name "
                                            "(codesign-paper, codesign-season)")],
     overrides: Annotated[list[str] | None, typer.Argument(
-        help="dotted key=value overrides, e.g. codesign.starts=2 codesign.intervals=20")] = None,
+        help="dotted key=value overrides, e.g. codesign.starts=2 limit_lap.intervals=20 "
+        "limit_lap.starts=[point-mass]")] = None,
     out: Annotated[Path | None, typer.Option(help="folder for result.json (and a front's run "
                                              "directory); must be new or empty")] = None,
     as_json: JsonOpt = False,
@@ -53,7 +54,8 @@ def codesign_command(
 
     Exit codes: 0 for a co-design that converged; 2 for bad input, refused before any solve
     (one line naming the file and key: a closed-loop index (J1-J5, Jp), an objective with
-    sense: max, a gate no frame of the box can pass, an --out that cannot be a new folder);
+    sense: max, a gate no frame of the box can pass, a limit_lap setting co-design cannot pose
+    (it reads limit_lap.intervals and limit_lap.starts), an --out that cannot be a new folder);
     3 (EXIT_FAILED) when no start converged: the result, status "failed" with its reason, is
     still printed and written to --out.
     """

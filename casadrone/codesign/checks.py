@@ -11,14 +11,23 @@ poses every frame with) is refused as ``validate``, ``run`` and ``limit-lap`` re
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from casadrone.airframe import build_airframe, with_theta
 from casadrone.config.airframe import AirframeConfig, load_airframe
-from casadrone.config.codesign import FRONT_MEASURES, LAP_INDEX, CodesignProblemConfig
+from casadrone.config.codesign import (
+    DEFAULT_LAP_STARTS,
+    FRONT_MEASURES,
+    LAP_INDEX,
+    CodesignProblemConfig,
+)
 from casadrone.config.io import ConfigError, load, problem_lines, resolve_config
 from casadrone.config.track import TrackConfig
+
+if TYPE_CHECKING:  # the limit lap's options are imported when built (CasADi)
+    from casadrone.limit.result import LimitLapOptions
 
 
 def codesign_index_problems(objectives, constraints) -> list[tuple[str, str]]:
@@ -79,6 +88,28 @@ def gate_clearance(template: AirframeConfig, lower: np.ndarray, upper: np.ndarra
                                                 template.prop_diameter_mm / 1000))
 
 
+def codesign_lap_options(problem: CodesignProblemConfig, template: AirframeConfig,
+                         gate_clearance_m: float) -> LimitLapOptions:
+    """The limit lap's options co-design poses every lap with, from the problem's ``limit_lap:``
+    section: its ``intervals`` (default: the limit lap's own grid for the template's propulsion
+    kind, :data:`~casadrone.limit.result.DEFAULT_INTERVALS`: a propeller lap on the paper's 40
+    intervals misses its re-simulation) and its ``starts`` for the template's lap and the
+    certificate's cold re-solve (default: co-design's :data:`DEFAULT_LAP_STARTS`); no
+    sensitivities, no point-mass reference unless a start needs it
+    (:func:`casadrone.codesign.driver.template_lap`) and no grid refinement inside the limit lap:
+    every lap here is on the co-design NLP's grid, which co-design refines itself (design.py).
+    Every frame is posed with ``gate_clearance_m`` (:func:`gate_clearance`). The settings
+    co-design cannot honour were refused with the problem
+    (:func:`casadrone.config.codesign.codesign_lap_problems`)."""
+    from casadrone.limit.result import DEFAULT_INTERVALS, LimitLapOptions
+
+    lap = problem.limit_lap
+    return LimitLapOptions(intervals=lap.intervals or DEFAULT_INTERVALS[template.propulsion.model],
+                           sensitivities=False, starts=lap.starts or DEFAULT_LAP_STARTS,
+                           point_mass_reference=False, gate_clearance_m=gate_clearance_m,
+                           refinements=0)
+
+
 def codesign_track_problems(problem: CodesignProblemConfig) -> list[tuple[str, str]]:
     """Each track no frame of the box can fly, as (key, message): a gate narrower than twice
     the clearance the co-design NLP poses every frame with (the largest over the box's corners,
@@ -86,7 +117,6 @@ def codesign_track_problems(problem: CodesignProblemConfig) -> list[tuple[str, s
     (:func:`casadrone.limit.problem.check_inputs`, the check of ``limit-lap``). Found before any
     solve: co-design only learnt it when every start failed ("start frame has no limit lap")."""
     from casadrone.limit.problem import check_inputs
-    from casadrone.limit.result import DEFAULT_INTERVALS, LimitLapOptions
 
     try:
         template = template_of(problem)
@@ -95,9 +125,8 @@ def codesign_track_problems(problem: CodesignProblemConfig) -> list[tuple[str, s
     keys = tuple(v.name for v in problem.variables)
     lower = np.array([v.lower for v in problem.variables])
     upper = np.array([v.upper for v in problem.variables])
-    intervals = problem.codesign.intervals or DEFAULT_INTERVALS[template.propulsion.model]
-    options = LimitLapOptions(intervals=intervals,
-                              gate_clearance_m=gate_clearance(template, lower, upper, keys))
+    options = codesign_lap_options(problem, template,
+                                   gate_clearance(template, lower, upper, keys))
     tracks: dict[str, Path | None] = {f"codesign.tracks.{k}.track": t.track
                                       for k, t in problem.codesign.tracks.items()}
     tracks = tracks or {"track": problem.track}

@@ -27,7 +27,7 @@ import numpy as np
 from casadrone.airframe import build_airframe, random_thetas, with_theta
 from casadrone.codesign import events
 from casadrone.codesign.budget import STOPPED
-from casadrone.codesign.checks import gate_clearance, template_of
+from casadrone.codesign.checks import codesign_lap_options, gate_clearance, template_of
 from casadrone.codesign.frame import CODESIGN_KEYS, SymbolicFrame
 from casadrone.codesign.nlp import CodesignNlp, TrackPart, build_codesign_nlp
 from casadrone.config.airframe import AirframeConfig
@@ -35,7 +35,6 @@ from casadrone.config.codesign import DEFAULT_LAP_STARTS, FRONT_MEASURES, Codesi
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
 from casadrone.limit.lap import (
-    DEFAULT_INTERVALS,
     LapSeeds,
     LimitLap,
     LimitLapOptions,
@@ -186,7 +185,7 @@ def _part(template: AirframeConfig, track: TrackConfig, options: LimitLapOptions
 def template_lap(template: AirframeConfig, track: TrackConfig,
                  options: LimitLapOptions) -> LimitLap:
     """The template's limit lap, the co-design's first start and every other frame's warm
-    start: from ``options.starts`` (``codesign.lap_starts``), and where those give no verified
+    start: from ``options.starts`` (``limit_lap.starts``), and where those give no verified
     lap from the schema's default starts (:data:`DEFAULT_LAP_STARTS`) not tried yet (each start
     is its own solve, so the ones tried would fail again). No point-mass reference unless a
     start needs it: co-design does not report it, and it is three point-mass solves (13 s of the
@@ -212,16 +211,8 @@ def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Pr
     lower = np.array([v.lower for v in problem.variables])
     upper = np.array([v.upper for v in problem.variables])
     labels, tracks, weights = _tracks(problem)
-    # the limit lap's own grid for the frame's propulsion kind unless the problem names one:
-    # a propeller lap on the paper's 40 intervals misses its re-simulation (DEFAULT_INTERVALS)
-    intervals = problem.codesign.intervals or DEFAULT_INTERVALS[template.propulsion.model]
-    # The template's lap and the certificate's cold re-solve use ``codesign.lap_starts`` and no
-    # point-mass reference (see template_lap). No grid refinement inside the limit lap: every
-    # lap here is on the co-design NLP's grid, which co-design refines itself (design.py).
-    options = LimitLapOptions(intervals=intervals, sensitivities=False,
-                              starts=problem.codesign.lap_starts, point_mass_reference=False,
-                              gate_clearance_m=gate_clearance(template, lower, upper, keys),
-                              refinements=0)
+    options = codesign_lap_options(problem, template,
+                                   gate_clearance(template, lower, upper, keys))
     # the problem is read and valid (a ConfigError is raised before any progress line)
     events.preparing(problem.name, len(tracks), len(keys))
     parts = tuple(_part(template, t, options, w) for t, w in zip(tracks, weights, strict=True))
@@ -239,7 +230,7 @@ def _built(problem, template, keys, lower, upper, tracks, weights, parts, frame,
     """The co-design NLP of this shape, built once per process."""
     key = (template.model_dump_json(), keys, tuple(lower), tuple(upper),
            tuple(t.model_dump_json() for t in tracks), weights, problem.codesign.combine,
-           problem.codesign.intervals, epsilon, problem.codesign.expand)
+           problem.limit_lap.intervals, epsilon, problem.codesign.expand)
     if key not in _BUILT:
         _BUILT[key] = build_codesign_nlp(parts, frame, problem.codesign.combine, epsilon,
                                          expand=problem.codesign.expand)
@@ -251,8 +242,8 @@ def refined(prep: Prepared, intervals: int) -> Prepared:
     co-design NLP around them (built once per process); the template's limit laps are kept
     (they warm-start a frame's limit lap on any grid of the same legs)."""
     options = replace(prep.options, intervals=intervals)
-    settings = prep.problem.codesign.model_copy(update={"intervals": intervals})
-    problem = prep.problem.model_copy(update={"codesign": settings})
+    settings = prep.problem.limit_lap.model_copy(update={"intervals": intervals})
+    problem = prep.problem.model_copy(update={"limit_lap": settings})
     parts = tuple(_part(prep.template, t, options, w)
                   for t, w in zip(prep.tracks, prep.weights, strict=True))
     nlp = _built(problem, prep.template, prep.keys, prep.lower, prep.upper, prep.tracks,

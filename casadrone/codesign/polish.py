@@ -69,8 +69,11 @@ def polish_problem(problem, intervals: int | None = None):
     data = problem.model_dump()
     data["algorithm"] = {"name": problem.algorithm.name}
     # the template's lap from the closed-loop start alone: the evaluation chain's own cold
-    # start for J3_limit (casadrone.optimise.problem); the default three cost three times more
-    data["codesign"] = {"starts": 0, "intervals": intervals, "lap_starts": ["closed-loop"]}
+    # start for J3_limit (casadrone.optimise.problem); the default three cost three times more.
+    # The polish poses its laps as co-design does (CODESIGN_LAP_FIXED), whatever else the
+    # optimiser's limit_lap section says.
+    data["codesign"] = {"starts": 0}
+    data["limit_lap"] = {"intervals": intervals, "starts": ["closed-loop"]}
     return CodesignProblemConfig.model_validate(data)
 
 

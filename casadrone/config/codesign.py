@@ -15,10 +15,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
-from casadrone.config.io import Schema
-from casadrone.config.limitlap import Start
+from casadrone.config.io import Problems, Schema
+from casadrone.config.limitlap import LimitLapConfig, Start
 from casadrone.config.problem import ProblemConfig
 
 #: Front objectives the co-design NLP holds as ε-constraints, with their units and why.
@@ -33,7 +33,8 @@ FRONT_MEASURES = {
 #: The limit lap's cold starts (declared once, :data:`casadrone.config.limitlap.Start`).
 LapStart = Start
 #: The template's lap from these cold starts unless a problem names others
-#: (``codesign.lap_starts``), and where those give no verified lap. Not the fine-grid start:
+#: (``limit_lap.starts``), and where those give no verified lap: co-design's default, not the
+#: limit lap's fast-path two (coarse-grid, fine-grid). Not the fine-grid start:
 #: with it as well, the certificate's cold re-solve of the short-track frame
 #: (tests/integration/test_codesign.py) found a lap 0.86 % faster than the co-design point
 #: (0.7849 against 0.7918 s): co-design's NLP stops in a slower local optimum there.
@@ -44,6 +45,34 @@ LAP_INDEX = "J3_limit"
 #: and the front measures that are registered indices of the evaluation chain (mass and span are
 #: co-design measures only).
 POLISH_INDICES = (LAP_INDEX, "effort")
+#: Keys of ``codesign:`` that moved to the problem's ``limit_lap:`` section (one declaration of
+#: the limit lap's settings, :class:`casadrone.config.limitlap.LimitLapConfig`), and where to.
+MOVED_KEYS = {"intervals": "limit_lap.intervals", "lap_starts": "limit_lap.starts"}
+#: The limit lap's settings the co-design NLP poses its laps with and cannot change, each with
+#: the values it takes and why. Co-design builds one NLP of the limit lap's transcription around
+#: θ (:mod:`casadrone.codesign.nlp`) with its θ-derivative blocks compiled for rk4 steps
+#: (:mod:`casadrone.codesign.blocks`), solves it with IPOPT, refines its own grid
+#: (:mod:`casadrone.codesign.design`) and checks its point with its own certificate
+#: (:mod:`casadrone.codesign.certificate`, the whole lap re-simulated).
+CODESIGN_LAP_FIXED: dict[str, tuple[tuple[Any, ...], str]] = {
+    "search": (("fast",), "co-design checks its point with its own certificate"),
+    "attitude": (("euler",), "co-design flies euler only"),
+    "tilt": (("axes",), "co-design limits the tilt per axis (axes) only"),
+    "solver": ((None, "ipopt"), "co-design solves its one NLP with ipopt"),
+    "grid_rounds": ((None, 0), "co-design refines its own grid instead"),
+    "rotor_step": (("rk4",), "co-design's θ-derivative blocks step the rotors with rk4"),
+    "substeps": ((3,), "co-design's θ-derivative blocks take 3 steps per interval"),
+    "resimulation": (("lap",), "co-design's certificate re-simulates the whole lap"),
+}
+
+
+def codesign_lap_problems(lap: LimitLapConfig) -> list[tuple[str, str]]:
+    """The ``limit_lap:`` settings co-design cannot honour (:data:`CODESIGN_LAP_FIXED`), as
+    (key, message); co-design reads ``intervals`` and ``starts`` alone."""
+    return [(f"limit_lap.{key}", f"{why} (give {' or '.join(give)} or leave it out)")
+            for key, (allowed, why) in CODESIGN_LAP_FIXED.items()
+            if getattr(lap, key) not in allowed
+            for give in [[str(a) for a in allowed if a is not None]]]
 
 
 class TrackWeight(Schema):
@@ -82,16 +111,6 @@ class CodesignSettings(Schema):
         "sum", description="sum: Σ weight·lap; worst: the largest weight·lap")
     starts: int = Field(5, ge=0, le=100, description="random feasible frames started from, "
                         "beside the template's own geometry")
-    intervals: int | None = Field(None, ge=2, le=400, description="shooting intervals per "
-                                  "leg; default: the limit lap's for the airframe's propulsion "
-                                  "kind (40 paper, 80 propeller)")
-    lap_starts: tuple[LapStart, ...] = Field(
-        DEFAULT_LAP_STARTS, min_length=1, description="the limit "
-        "lap's cold starts for the template's lap (the co-design's first start and every other "
-        "frame's warm start; the default three where the given ones fail) and for the "
-        "certificate's cold fixed-frame re-solve. Which start leads to the best co-design "
-        "optimum depends on the track (benchmarks/RESULTS-codesign.md: the closed-loop start "
-        "on the paper track, the point-mass start on the short test track)")
     expand: bool = Field(False, description="expand the co-design NLP to CasADi SX before "
                          "solving: a one-off build cost per process for cheaper iterations "
                          "(short test track, 8 intervals: build 12.6 s, solve 1.6 s instead of "
@@ -99,12 +118,34 @@ class CodesignSettings(Schema):
     front: FrontConfig = Field(default_factory=FrontConfig,
                                description="the design front (a measure among the objectives)")
 
+    @model_validator(mode="before")
+    @classmethod
+    def _moved(cls, data: Any) -> Any:
+        """Refuse a key that moved to ``limit_lap:`` (:data:`MOVED_KEYS`), naming its place."""
+        moved = [(k, f"moved: use {new}") for k, new in MOVED_KEYS.items()
+                 if isinstance(data, dict) and k in data]
+        if moved:
+            raise Problems(moved)
+        return data
+
 
 class CodesignProblemConfig(ProblemConfig):
     """A problem with a ``codesign:`` section (see the module docstring)."""
 
     codesign: CodesignSettings = Field(default_factory=CodesignSettings,
                                        description="how the co-design NLP is posed and started")
+    limit_lap: LimitLapConfig = Field(
+        default_factory=LimitLapConfig,
+        description="the limit lap's settings co-design reads: intervals (default: the limit "
+        "lap's for the airframe's propulsion, 40 paper, 80 propeller) and starts, the cold "
+        "starts of the template's lap (the co-design's first start and every other frame's warm "
+        "start; the default three where the given ones fail) and of the certificate's cold "
+        "fixed-frame re-solve. Co-design's default starts differ from the limit lap's: "
+        "closed-loop, point-mass, coarse-grid (with fine-grid as well, the certificate found a "
+        "0.86 % faster lap than the co-design point on the short test track: the NLP stops in a "
+        "slower local optimum there); which start leads to the best optimum depends on the track "
+        "(benchmarks/RESULTS-codesign.md). Every other key is refused unless it is the one "
+        "value co-design poses (euler, axes, ipopt, rk4, 3 substeps, lap, fast, no grid rounds)")
 
     @classmethod
     def problems(cls, v: dict[str, Any]) -> list[tuple[str, str]]:
@@ -114,4 +155,6 @@ class CodesignProblemConfig(ProblemConfig):
             found.append(("track", "give track (or codesign.tracks)"))
         if settings is not None and settings.tracks and v.get("track") is not None:
             found.append(("codesign.tracks", "give track or codesign.tracks, not both"))
+        if v.get("limit_lap") is not None:
+            found += codesign_lap_problems(v["limit_lap"])
         return found

@@ -33,7 +33,7 @@ def _problem(track: Path, starts: int, intervals: int) -> CodesignProblemConfig:
         "name": "short", "airframe": str(ROOT / "configs/airframes/SY250-components.yaml"),
         "track": str(track), "objectives": [{"index": "J3_limit"}],
         "variables": [{"name": k, "lower": lo, "upper": hi} for k, lo, hi in BOX],
-        "codesign": {"starts": starts, "intervals": intervals}})
+        "limit_lap": {"intervals": intervals}, "codesign": {"starts": starts}})
 
 
 @pytest.fixture(scope="module")
@@ -122,7 +122,7 @@ def test_paper_track_codesign_beats_random_frames():
 def short_front(tmp_path_factory):
     data = _problem(SHORT, starts=0, intervals=8).model_dump()
     data["objectives"] = [{"index": "J3_limit"}, {"index": "effort"}]
-    data["codesign"] = {"starts": 0, "intervals": 8, "front": {"points": 3, "lowest": 0.7}}
+    data["codesign"] = {"starts": 0, "front": {"points": 3, "lowest": 0.7}}
     problem = CodesignProblemConfig.model_validate(data)
     out = tmp_path_factory.mktemp("front") / "run"
     return codesign(problem, certify=True, run_dir=out), out
@@ -279,7 +279,7 @@ def test_propeller_effort_front_meets_its_bounds(tmp_path):
     data = _problem(SHORT, starts=0, intervals=16).model_dump()
     data["airframe"] = str(ROOT / "configs/airframes/SY250-components-propeller.yaml")
     data["objectives"] = [{"index": "J3_limit"}, {"index": "effort"}]
-    data["codesign"] = {"starts": 0, "intervals": 16, "front": {"points": 3, "lowest": 0.8}}
+    data["codesign"] = {"starts": 0, "front": {"points": 3, "lowest": 0.8}}
     result = codesign(CodesignProblemConfig.model_validate(data), certify=True,
                       run_dir=tmp_path / "run")
     front = result.front
@@ -328,7 +328,7 @@ def test_grid_refined_when_the_resimulation_misses():
     from casadrone.codesign.checks import load_codesign_problem
 
     r = codesign(load_codesign_problem(str(ROOT / "tests/data/codesign/short-propeller.yaml"),
-                                       ["codesign.intervals=8"]))
+                                       ["limit_lap.intervals=8"]))
     assert r.status == "completed", r.reason
     assert r.intervals == 12 and "refined-12" in [s.label for s in r.starts]
     assert r.certificate.passed, r.certificate.text()
@@ -366,14 +366,14 @@ def test_template_lap_falls_back_to_the_default_starts(monkeypatch):
 
 @pytest.mark.slow
 def test_paper_problem_lap_start_reaches_the_default_starts_optimum():
-    """codesign-paper's template lap from the closed-loop start alone (its lap_starts) leads the
-    template start to the same frame and lap as the default three starts (measured: the same
-    lap to 1e-16, benchmarks/RESULTS-codesign.md), and the certificate still passes."""
+    """codesign-paper's template lap from the closed-loop start alone (its limit_lap.starts)
+    leads the template start to the same frame and lap as the default three starts (measured:
+    the same lap to 1e-16, benchmarks/RESULTS-codesign.md), and the certificate still passes."""
     from casadrone.codesign.checks import load_codesign_problem
 
     one = codesign(load_codesign_problem("codesign-paper", ["codesign.starts=0"]))
     three = codesign(load_codesign_problem("codesign-paper", [
-        "codesign.starts=0", "codesign.lap_starts=[closed-loop,point-mass,coarse-grid]"]),
+        "codesign.starts=0", "limit_lap.starts=[closed-loop,point-mass,coarse-grid]"]),
         certify=False)
     assert one.certificate.passed, one.certificate.text()
     assert one.best.objective == pytest.approx(three.best.objective, rel=1e-9)

@@ -41,7 +41,7 @@ def _problem() -> CodesignProblemConfig:
         "variables": [{"name": k, "lower": lo, "upper": hi} for k, lo, hi in
                       [("lambda_a_mm", 100.0, 150.0), ("lambda_b_mm", 100.0, 150.0),
                        ("alpha_deg", 65.0, 90.0), ("beta_deg", 65.0, 90.0)]],
-        "codesign": {"starts": 0, "intervals": INTERVALS}})
+        "limit_lap": {"intervals": INTERVALS}, "codesign": {"starts": 0}})
 
 
 def _own_lap(prep, theta):
@@ -244,7 +244,8 @@ def test_propeller_polish_holds_the_members_effort():
 
     data = _problem().model_dump()
     data["airframe"] = str(ROOT / "configs/airframes/SY250-components-propeller.yaml")
-    data["codesign"] = {"starts": 0, "intervals": 16}
+    data["limit_lap"] = {"intervals": 16}
+    data["codesign"] = {"starts": 0}
     prep = prepared(CodesignProblemConfig.model_validate(data))
 
     def own(theta):

@@ -83,7 +83,7 @@ def test_codesign_prints_each_start_and_its_certificate_and_nothing_with_quiet(c
     as it ends (its objective as the JSON reports it), the certificate's stage and verdict."""
     from casadrone.cli import app
 
-    args = ["codesign", str(SHORT_PROBLEM), "codesign.starts=1", "codesign.intervals=6",
+    args = ["codesign", str(SHORT_PROBLEM), "codesign.starts=1", "limit_lap.intervals=6",
             "--json"]
     r = cli_runner.invoke(app, args)
     assert r.exit_code == 0, r.output

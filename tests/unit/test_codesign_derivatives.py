@@ -38,7 +38,7 @@ def _built(airframe: str, epsilon: tuple[str, ...], intervals: int = 4):
         "name": "derivatives", "airframe": str(ROOT / "configs/airframes" / airframe),
         "track": str(SHORT), "objectives": [{"index": "J3_limit"}],
         "variables": [{"name": k, "lower": lo, "upper": hi} for k, lo, hi in BOX],
-        "codesign": {"starts": 0, "intervals": intervals}})
+        "limit_lap": {"intervals": intervals}, "codesign": {"starts": 0}})
     template = template_of(problem)
     options = LimitLapOptions(intervals=intervals, sensitivities=False, gate_clearance_m=0.3)
     track = load(TrackConfig, SHORT)

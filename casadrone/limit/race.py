@@ -43,10 +43,10 @@ from casadrone.results import AsDict
 SOC_TOL = 0.01
 #: Most solves of one race (the first at the start's voltage).
 MAX_PASSES = 3
-#: How far (relative) a re-simulated sample's current may exceed its limit: the limit lap
-#: bounds the currents at the nodes of its RK4 grid to the solver's tolerance, and CVODES
-#: flies the same commands a little differently between them.
-CURRENT_TOL = 1e-3
+#: How far (relative) a re-simulated sample's current may exceed its limit: none (the limit
+#: lap's rows sit casadrone.limit.nlp.CURRENT_MARGIN below the limits for the re-simulation's
+#: excess between and at its nodes).
+CURRENT_TOL = 0.0
 
 
 @dataclass(frozen=True)

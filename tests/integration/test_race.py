@@ -39,6 +39,7 @@ def test_the_solved_race_keeps_every_sample_within_the_current_limits():
     assert e.peak_pack_current_a <= 65.0 * (1 + CURRENT_TOL)
     assert e.peak_motor_current_a <= 25.0 * (1 + CURRENT_TOL)
     assert max(e.peak_pack_current_a / 65.0, e.peak_motor_current_a / 25.0) > 0.98  # binding
+    assert e.pack_current_margin_a >= 0 and e.motor_current_margin_a >= 0
     assert e.energy_balance_error < 5e-3
     assert 0 < e.end_soc < 1 and e.capacity_used_pct == pytest.approx(100 * (1 - e.end_soc))
     assert np.isfinite(e.energy_left_wh) and e.energy_left_wh > 0

@@ -19,7 +19,7 @@ from casadrone.cli import app
 from casadrone.config.airframe import load_airframe
 from casadrone.limit.check import fly
 from casadrone.limit.energy import flight_energy, race_energy
-from casadrone.limit.nlp import Layout, current_rows, quadrotor_ocp_model
+from casadrone.limit.nlp import CURRENT_MARGIN, Layout, current_rows, quadrotor_ocp_model
 from casadrone.model import named
 from casadrone.propulsion import hover_rotors
 from casadrone.propulsion.electric import SMOOTHING_SHARE, Pack, ocv_cell, soc_of_voltage
@@ -164,7 +164,8 @@ def test_current_rows_are_the_currents_at_both_ends_of_every_interval(frame):
     limited = replace(layout, max_pack_current_a=40.0, max_motor_current_a=30.0)
     (g, lo, hi), = current_rows(model, limited, X, U, p)
     assert g.numel() == 2 * 3 * 5 and np.all(np.isinf(lo))
-    np.testing.assert_array_equal(hi[:5], [40.0, 30.0, 30.0, 30.0, 30.0])
+    np.testing.assert_allclose(hi[:5], np.array([40.0, 30.0, 30.0, 30.0, 30.0])
+                               * (1 - CURRENT_MARGIN), rtol=1e-15)
     t, x0, u = hover(frame, 0.03, intervals=3)
     u[1] = 0.6
     energy = flight_energy(frame, t, x0, u)

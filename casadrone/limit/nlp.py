@@ -630,7 +630,8 @@ def interval_blocks(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Fun
         names = tuple(f"limit_{part}_{_block_tag(model, substeps)}"
                       for part in ("jac", "hess", "hess_pattern"))
         jac, hess, pattern = compile_recipe(
-            names, recipe_fingerprint(rk4_step(model, substeps), interval_block_functions),
+            names, recipe_fingerprint(rk4_step(model, substeps), interval_block_functions,
+                                      substep_block_functions, hessian_pattern),
             lambda: interval_block_functions(model, substeps), BLOCK_FLAGS)
         rows, cols = (np.asarray(a, dtype=int).ravel() for a in pattern.call([]))
         _BLOCKS[key] = (jac, hess, rows, cols)
@@ -643,27 +644,92 @@ def _block_tag(model: OcpModel, substeps: int) -> str:
 
 def interval_block_functions(model: OcpModel, substeps: int
                              ) -> tuple[ca.Function, ca.Function, ca.Function]:
-    """:func:`interval_blocks`' functions as SX (uncompiled): ``jac``, ``hess`` and
+    """:func:`interval_blocks`' functions (uncompiled): ``jac``, ``hess`` and
     ``hess_pattern() -> (rows, cols)``, H's structural nonzeros' indices in z as constants (kept
-    in the compiled library, so that a process which finds it cached builds no Hessian)."""
+    in the compiled library, so that a process which finds it cached builds no Hessian).
+
+    ``jac`` and ``hess`` are the chain rule over the interval's ``substeps`` RK4 steps, each step
+    one call of the two small functions of :func:`substep_block_functions` (generated as C once,
+    called ``substeps`` times). With y_k = [S, u, x_k], D_k = ∂y_k/∂z, A_k = ∂x_{k+1}/∂y_k:
+
+    - forward: D_{k+1} = [[I, 0]; A_k D_k], so ∂x_next/∂z = A_{K-1} D_{K-1};
+    - adjoint: μ_K = lam, μ_k = (∂x_{k+1}/∂x_k)ᵀ μ_{k+1};
+    - H = Σ_k D_kᵀ ∇²_y(μ_{k+1}·x_{k+1})(y_k) D_k (the exact Hessian of lam·x_next).
+
+    The same derivatives as CasADi's symbolic Hessian of the whole step (to rounding, ~1e-16
+    relative; tests/unit/test_codegen.py), in a quarter of the C: the quadrotor's paper block is
+    1.1 MB instead of 4.4, and compiles at -O2 in ~23 s of CPU instead of ~2 min
+    (benchmarks/RESULTS-limitlap-compile.md)."""
     nx, nu = model.nx, model.nu
-    z = ca.SX.sym("z", 1 + nu + nx)
-    p = ca.SX.sym("p", model.np)
-    inv_n = ca.SX.sym("inv_n")
-    lam = ca.SX.sym("lam", nx)
-    step = rk4_step(model, substeps)
-    x_next = step(z[1 + nu:], z[1:1 + nu], p, z[0] * inv_n)
-    H = ca.triu(ca.hessian(ca.dot(lam, x_next), z)[0])
-    rows, cols = H.sparsity().get_triplet()
+    per = 1 + nu + nx
+    sub_jac, sub_hess = substep_block_functions(model, substeps)
+    z = ca.MX.sym("z", per)
+    p = ca.MX.sym("p", model.np)
+    inv_n = ca.MX.sym("inv_n")
+    lam = ca.MX.sym("lam", nx)
+    head = ca.horzcat(ca.DM.eye(1 + nu), ca.DM(1 + nu, nx))  # ∂(S, u)/∂z
+    y, dx = z, ca.MX(ca.horzcat(ca.DM(nx, 1 + nu), ca.DM.eye(nx)))  # y_0 = z, ∂x_0/∂z
+    points, dys, steps = [], [], []
+    for _ in range(substeps):
+        dy = ca.vertcat(head, dx)
+        x_k, A = sub_jac(y, p, inv_n)
+        points.append(y)
+        dys.append(dy)
+        steps.append(A)
+        dx = ca.mtimes(A, dy)
+        y = ca.vertcat(z[:1 + nu], x_k)
+    H, mu = ca.MX(per, per), lam
+    for y_k, dy, A in zip(reversed(points), reversed(dys), reversed(steps), strict=True):
+        H = H + ca.mtimes(dy.T, ca.mtimes(sub_hess(y_k, p, inv_n, mu), dy))
+        mu = ca.mtimes(A[:, 1 + nu:].T, mu)
+    rows, cols = hessian_pattern(model, substeps)
     tag = _block_tag(model, substeps)
-    jac = ca.Function(f"limit_jac_{tag}", [z, p, inv_n], [x_next, ca.densify(
-        ca.jacobian(x_next, z))], ["z", "p", "inv_n"], ["x_next", "J"])
-    nonzeros = ca.vertcat(*H.nonzeros())  # type: ignore[call-overload]  # SXElem: not in stubs
-    hess = ca.Function(f"limit_hess_{tag}", [z, p, inv_n, lam], [nonzeros],
+    jac = ca.Function(f"limit_jac_{tag}", [z, p, inv_n], [y[1 + nu:], ca.densify(dx)],
+                      ["z", "p", "inv_n"], ["x_next", "J"])
+    hess = ca.Function(f"limit_hess_{tag}", [z, p, inv_n, lam],
+                       [ca.densify(H).nz[(rows + per * cols).tolist()]],
                        ["z", "p", "inv_n", "lam"], ["H"])
     pattern = ca.Function(f"limit_hess_pattern_{tag}", [], [ca.DM(rows), ca.DM(cols)],
                           [], ["rows", "cols"])
     return jac, hess, pattern
+
+
+def substep_block_functions(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Function]:
+    """One of an interval's ``substeps`` RK4 steps (:func:`rk4_step`, h = S · inv_n / substeps)
+    on y = [S, u, x], as SX:
+
+    - ``sub_jac(y, p, inv_n) -> (x_next, A)``: the step and A = ∂x_next/∂y (dense);
+    - ``sub_hess(y, p, inv_n, mu) -> H``: ∇²_y(mu·x_next), full (both triangles).
+
+    What :func:`interval_block_functions` chains over the substeps."""
+    nx, nu = model.nx, model.nu
+    y = ca.SX.sym("y", 1 + nu + nx)
+    p = ca.SX.sym("p", model.np)
+    inv_n = ca.SX.sym("inv_n")
+    mu = ca.SX.sym("mu", nx)
+    x_next = rk4_step(model, 1)(y[1 + nu:], y[1:1 + nu], p, y[0] * inv_n / substeps)
+    tag = _block_tag(model, substeps)
+    sub_jac = ca.Function(f"limit_subjac_{tag}", [y, p, inv_n],
+                          [x_next, ca.densify(ca.jacobian(x_next, y))],
+                          ["y", "p", "inv_n"], ["x_next", "A"])
+    sub_hess = ca.Function(f"limit_subhess_{tag}", [y, p, inv_n, mu],
+                           [ca.hessian(ca.dot(mu, x_next), y)[0]],
+                           ["y", "p", "inv_n", "mu"], ["H"])
+    return sub_jac, sub_hess
+
+
+def hessian_pattern(model: OcpModel, substeps: int) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, cols) of the structural nonzeros of triu(∂²(lam·x_next)/∂z²) of one interval
+    (:func:`rk4_step`, z = [S, u, x]), column by column: from CasADi's symbolic Hessian of the
+    whole step (a fraction of a second; its C is never generated)."""
+    nx, nu = model.nx, model.nu
+    z = ca.SX.sym("z", 1 + nu + nx)
+    lam = ca.SX.sym("lam", nx)
+    x_next = rk4_step(model, substeps)(z[1 + nu:], z[1:1 + nu], ca.SX.sym("p", model.np),
+                                       z[0] * ca.SX.sym("inv_n"))
+    H = ca.triu(ca.hessian(ca.dot(lam, x_next), z)[0])
+    rows, cols = H.sparsity().get_triplet()
+    return np.asarray(rows, dtype=int), np.asarray(cols, dtype=int)
 
 
 _STEPS: dict[tuple, ca.Function] = {}

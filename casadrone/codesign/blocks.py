@@ -25,14 +25,14 @@ from __future__ import annotations
 import casadi as ca
 
 from casadrone.codegen import compile_recipe, recipe_fingerprint
-from casadrone.limit.nlp import BLOCK_FLAGS, OcpModel, rk4_step
+from casadrone.limit.nlp import BLOCK_FLAGS, OcpModel, chained_substeps, rk4_step
 
 _THETA_BLOCKS: dict[tuple, tuple[ca.Function, ca.Function]] = {}
 
 
 def theta_block_functions(model: OcpModel, substeps: int, n_dir: int
                           ) -> tuple[ca.Function, ca.Function]:
-    """The two interval functions, as SX (uncompiled):
+    """The two interval functions (uncompiled):
 
     - ``jac(z, p, inv_n, D) -> Js``: (∂x_next/∂p · D)ᵀ, nθ × nx;
     - ``hess(z, p, inv_n, lam, D) -> (Hzs, Hss, gp)``: (∂²L/∂z∂p · D)ᵀ (nθ × (1+nu+nx)),
@@ -40,33 +40,62 @@ def theta_block_functions(model: OcpModel, substeps: int, n_dir: int
 
     z = [S, u, x] in the model's units, h = S · inv_n (as :func:`casadrone.limit.nlp.
     interval_blocks`). Transposed outputs: a map over intervals then stacks them by rows.
-    """
+
+    Built as the limit lap's blocks are (:func:`casadrone.limit.nlp.chained_substeps`): one RK4
+    step's derivatives on v = [S, u, σ, x] (p + Dσ the step's parameters; its Hessian only
+    along the nθ directions σ), generated once and chained over the ``substeps`` steps, at
+    σ = 0; ∂L/∂p sums each step's p-gradient along the adjoints. The same numbers as CasADi's
+    symbolic derivatives of the whole step, to rounding (tests/unit/test_codegen.py), in a
+    fraction of its C (benchmarks/RESULTS-limitlap-compile.md)."""
     nx, nu = model.nx, model.nu
-    z = ca.SX.sym("z", 1 + nu + nx)
-    p = ca.SX.sym("p", model.np)
-    inv_n = ca.SX.sym("inv_n")
-    lam = ca.SX.sym("lam", nx)
-    D = ca.SX.sym("D", model.np, n_dir)
-    sig = ca.SX.sym("sig", n_dir)
-    step = rk4_step(model, substeps)
-    x_next = step(z[1 + nu:], z[1:1 + nu], p + ca.mtimes(D, sig), z[0] * inv_n)
-    L = ca.dot(lam, x_next)
-    zs = ca.vertcat(z, sig)
-    grad = ca.gradient(L, zs)
-    Hcols = ca.jacobian(grad, sig)  # ((1+nu+nx) + nθ) × nθ: only the σ columns
-    Js = ca.jacobian(x_next, sig)
-    zero = ca.DM.zeros(n_dir)
-    Hzs, Hss, Js = ca.substitute([Hcols[:z.numel(), :], Hcols[z.numel():, :], Js], [sig],
-                                 [zero])
-    x0_next = step(z[1 + nu:], z[1:1 + nu], p, z[0] * inv_n)
-    gp = ca.gradient(ca.dot(lam, x0_next), p)
+    n_head = 1 + nu + n_dir
+    sub_jac, sub_hess, sub_gp = theta_substep_functions(model, substeps, n_dir)
+    z = ca.MX.sym("z", 1 + nu + nx)
+    p = ca.MX.sym("p", model.np)
+    inv_n = ca.MX.sym("inv_n")
+    lam = ca.MX.sym("lam", nx)
+    D = ca.MX.sym("D", model.np, n_dir)
+    v = ca.vertcat(z[:1 + nu], ca.MX(n_dir, 1), z[1 + nu:])
+    args = (p, inv_n, D)
+    sig = list(range(1 + nu, n_head))
+    _, J, Hs, chain = chained_substeps(sub_jac, sub_hess, v, n_head, args, lam, substeps, sig)
+    zi = list(range(1 + nu)) + list(range(n_head, n_head + nx))
+    gp = sum((sub_gp(y_k, *args, mu) for y_k, mu in chain), ca.MX(model.np, 1))
     tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
-    jac = ca.Function(f"codesign_jac_{tag}", [z, p, inv_n, D], [ca.densify(Js.T)],
+    jac = ca.Function(f"codesign_jac_{tag}", [z, p, inv_n, D], [ca.densify(J[:, sig].T)],
                       ["z", "p", "inv_n", "D"], ["Js"])
     hess = ca.Function(f"codesign_hess_{tag}", [z, p, inv_n, lam, D],
-                       [ca.densify(Hzs.T), ca.densify(Hss), ca.densify(gp)],
+                       [ca.densify(Hs[zi, :].T), ca.densify(Hs[sig, :]), ca.densify(gp)],
                        ["z", "p", "inv_n", "lam", "D"], ["Hzs", "Hss", "gp"])
     return jac, hess
+
+
+def theta_substep_functions(model: OcpModel, substeps: int, n_dir: int
+                            ) -> tuple[ca.Function, ca.Function, ca.Function]:
+    """One of an interval's ``substeps`` RK4 steps (h = S · inv_n / substeps) on
+    y = [S, u, σ, x] with parameters p + Dσ, as SX: ``sub_jac(y, p, inv_n, D) -> (x_next, A)``
+    (A = ∂x_next/∂y, dense), ``sub_hess(y, p, inv_n, D, mu, V) -> ∇²_y(mu·x_next) V`` (V:
+    nθ directions in y) and
+    ``sub_gp(y, p, inv_n, D, mu) -> ∂(mu·x_next)/∂p``."""
+    nx, nu = model.nx, model.nu
+    y = ca.SX.sym("y", 1 + nu + n_dir + nx)
+    p = ca.SX.sym("p", model.np)
+    inv_n = ca.SX.sym("inv_n")
+    D = ca.SX.sym("D", model.np, n_dir)
+    mu = ca.SX.sym("mu", nx)
+    V = ca.SX.sym("V", y.numel(), n_dir)
+    sig = y[1 + nu:1 + nu + n_dir]
+    x_next = rk4_step(model, 1)(y[1 + nu + n_dir:], y[1:1 + nu], p + ca.mtimes(D, sig),
+                                y[0] * inv_n / substeps)
+    L = ca.dot(mu, x_next)
+    tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+    ins, names = [y, p, inv_n, D], ["y", "p", "inv_n", "D"]
+    return (ca.Function(f"codesign_subjac_{tag}", ins, [x_next, ca.densify(ca.jacobian(
+                x_next, y))], names, ["x_next", "A"]),
+            ca.Function(f"codesign_subhess_{tag}", [*ins, mu, V], [ca.jtimes(
+                ca.gradient(L, y), y, V)], [*names, "mu", "V"], ["HV"]),
+            ca.Function(f"codesign_subgp_{tag}", [*ins, mu], [ca.substitute(
+                ca.gradient(L, p), sig, ca.DM.zeros(n_dir))], [*names, "mu"], ["gp"]))
 
 
 def theta_blocks(model: OcpModel, substeps: int, n_dir: int) -> tuple[ca.Function, ca.Function]:
@@ -77,7 +106,8 @@ def theta_blocks(model: OcpModel, substeps: int, n_dir: int) -> tuple[ca.Functio
         tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
         jac, hess = compile_recipe(
             (f"codesign_jac_{tag}", f"codesign_hess_{tag}"),
-            recipe_fingerprint(rk4_step(model, substeps), theta_block_functions),
+            recipe_fingerprint(rk4_step(model, substeps), theta_block_functions,
+                               theta_substep_functions, chained_substeps),
             lambda: theta_block_functions(model, substeps, n_dir), BLOCK_FLAGS)
         _THETA_BLOCKS[key] = (jac, hess)
     return _THETA_BLOCKS[key]

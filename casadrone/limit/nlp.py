@@ -631,7 +631,8 @@ def interval_blocks(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Fun
                       for part in ("jac", "hess", "hess_pattern"))
         jac, hess, pattern = compile_recipe(
             names, recipe_fingerprint(rk4_step(model, substeps), interval_block_functions,
-                                      substep_block_functions, hessian_pattern),
+                                      substep_block_functions, hessian_pattern,
+                                      chained_substeps),
             lambda: interval_block_functions(model, substeps), BLOCK_FLAGS)
         rows, cols = (np.asarray(a, dtype=int).ravel() for a in pattern.call([]))
         _BLOCKS[key] = (jac, hess, rows, cols)
@@ -667,24 +668,11 @@ def interval_block_functions(model: OcpModel, substeps: int
     p = ca.MX.sym("p", model.np)
     inv_n = ca.MX.sym("inv_n")
     lam = ca.MX.sym("lam", nx)
-    head = ca.horzcat(ca.DM.eye(1 + nu), ca.DM(1 + nu, nx))  # ∂(S, u)/∂z
-    y, dx = z, ca.MX(ca.horzcat(ca.DM(nx, 1 + nu), ca.DM.eye(nx)))  # y_0 = z, ∂x_0/∂z
-    points, dys, steps = [], [], []
-    for _ in range(substeps):
-        dy = ca.vertcat(head, dx)
-        x_k, A = sub_jac(y, p, inv_n)
-        points.append(y)
-        dys.append(dy)
-        steps.append(A)
-        dx = ca.mtimes(A, dy)
-        y = ca.vertcat(z[:1 + nu], x_k)
-    H, mu = ca.MX(per, per), lam
-    for y_k, dy, A in zip(reversed(points), reversed(dys), reversed(steps), strict=True):
-        H = H + ca.mtimes(dy.T, ca.mtimes(sub_hess(y_k, p, inv_n, mu), dy))
-        mu = ca.mtimes(A[:, 1 + nu:].T, mu)
+    x_next, dx, H, _ = chained_substeps(sub_jac, sub_hess, z, 1 + nu, (p, inv_n), lam,
+                                        substeps)
     rows, cols = hessian_pattern(model, substeps)
     tag = _block_tag(model, substeps)
-    jac = ca.Function(f"limit_jac_{tag}", [z, p, inv_n], [y[1 + nu:], ca.densify(dx)],
+    jac = ca.Function(f"limit_jac_{tag}", [z, p, inv_n], [x_next, ca.densify(dx)],
                       ["z", "p", "inv_n"], ["x_next", "J"])
     hess = ca.Function(f"limit_hess_{tag}", [z, p, inv_n, lam],
                        [ca.densify(H).nz[(rows + per * cols).tolist()]],
@@ -692,6 +680,40 @@ def interval_block_functions(model: OcpModel, substeps: int
     pattern = ca.Function(f"limit_hess_pattern_{tag}", [], [ca.DM(rows), ca.DM(cols)],
                           [], ["rows", "cols"])
     return jac, hess, pattern
+
+
+def chained_substeps(sub_jac: ca.Function, sub_hess: ca.Function, v: ca.MX, n_head: int,
+                     args: tuple, lam: ca.MX, substeps: int, columns: list[int] | None = None
+                     ) -> tuple[ca.MX, ca.MX, ca.MX, list]:
+    """The chain rule of :func:`interval_block_functions` over ``substeps`` steps: with
+    v = [head (``n_head`` entries held over the interval), x_0], ``sub_jac(y, *args) -> (x_next,
+    ∂x_next/∂y)`` and ``sub_hess(y, *args, mu) -> ∇²_y(mu·x_next)`` of one step, returns
+    (x_K, ∂x_K/∂v, ∇²_v(lam·x_K) (full), [(y_k, μ_{k+1})]: each step's point and adjoint, for
+    other first derivatives along the chain). With ``columns`` only those columns of the
+    Hessian, from ``sub_hess(y, *args, mu, V) -> ∇²_y(mu·x_next) V`` (Hessian-vector products
+    along the columns V of ∂y_k/∂v: less C than the whole step Hessian when they are few)."""
+    nv = v.numel()
+    nx = nv - n_head
+    head = ca.horzcat(ca.DM.eye(n_head), ca.DM(n_head, nx))  # ∂(head)/∂v
+    y, dx = v, ca.MX(ca.horzcat(ca.DM(nx, n_head), ca.DM.eye(nx)))  # y_0 = v, ∂x_0/∂v
+    points, dys, steps = [], [], []
+    for _ in range(substeps):
+        dy = ca.vertcat(head, dx)
+        x_k, A = sub_jac(y, *args)
+        points.append(y)
+        dys.append(dy)
+        steps.append(A)
+        dx = ca.mtimes(A, dy)
+        y = ca.vertcat(v[:n_head], x_k)
+    H, mu, adjoints = ca.MX(nv, nv if columns is None else len(columns)), lam, []
+    for y_k, dy, A in zip(reversed(points), reversed(dys), reversed(steps), strict=True):
+        adjoints.append(mu)
+        if columns is None:
+            H = H + ca.mtimes(dy.T, ca.mtimes(sub_hess(y_k, *args, mu), dy))
+        else:
+            H = H + ca.mtimes(dy.T, sub_hess(y_k, *args, mu, dy[:, columns]))
+        mu = ca.mtimes(A[:, n_head:].T, mu)
+    return y[n_head:], dx, H, list(zip(points, reversed(adjoints), strict=True))
 
 
 def substep_block_functions(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Function]:

@@ -25,14 +25,60 @@ from __future__ import annotations
 import casadi as ca
 
 from casadrone.codegen import compile_recipe, recipe_fingerprint
-from casadrone.limit.nlp import BLOCK_FLAGS, OcpModel, chained_substeps, rk4_step
+from casadrone.limit.nlp import (
+    BLOCK_FLAGS,
+    OcpModel,
+    block_design,
+    chained_substeps,
+    rk4_step,
+)
 
 _THETA_BLOCKS: dict[tuple, tuple[ca.Function, ca.Function]] = {}
 
 
 def theta_block_functions(model: OcpModel, substeps: int, n_dir: int
                           ) -> tuple[ca.Function, ca.Function]:
-    """The two interval functions (uncompiled):
+    """The two interval functions, as SX (uncompiled):
+
+    - ``jac(z, p, inv_n, D) -> Js``: (∂x_next/∂p · D)ᵀ, nθ × nx;
+    - ``hess(z, p, inv_n, lam, D) -> (Hzs, Hss, gp)``: (∂²L/∂z∂p · D)ᵀ (nθ × (1+nu+nx)),
+      Dᵀ ∂²L/∂p² D (nθ × nθ, full) and ∂L/∂p (np), L = lam·x_next.
+
+    z = [S, u, x] in the model's units, h = S · inv_n (as :func:`casadrone.limit.nlp.
+    interval_blocks`). Transposed outputs: a map over intervals then stacks them by rows.
+    """
+    nx, nu = model.nx, model.nu
+    z = ca.SX.sym("z", 1 + nu + nx)
+    p = ca.SX.sym("p", model.np)
+    inv_n = ca.SX.sym("inv_n")
+    lam = ca.SX.sym("lam", nx)
+    D = ca.SX.sym("D", model.np, n_dir)
+    sig = ca.SX.sym("sig", n_dir)
+    step = rk4_step(model, substeps)
+    x_next = step(z[1 + nu:], z[1:1 + nu], p + ca.mtimes(D, sig), z[0] * inv_n)
+    L = ca.dot(lam, x_next)
+    zs = ca.vertcat(z, sig)
+    grad = ca.gradient(L, zs)
+    Hcols = ca.jacobian(grad, sig)  # ((1+nu+nx) + nθ) × nθ: only the σ columns
+    Js = ca.jacobian(x_next, sig)
+    zero = ca.DM.zeros(n_dir)
+    Hzs, Hss, Js = ca.substitute([Hcols[:z.numel(), :], Hcols[z.numel():, :], Js], [sig],
+                                 [zero])
+    x0_next = step(z[1 + nu:], z[1:1 + nu], p, z[0] * inv_n)
+    gp = ca.gradient(ca.dot(lam, x0_next), p)
+    tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+    jac = ca.Function(f"codesign_jac_{tag}", [z, p, inv_n, D], [ca.densify(Js.T)],
+                      ["z", "p", "inv_n", "D"], ["Js"])
+    hess = ca.Function(f"codesign_hess_{tag}", [z, p, inv_n, lam, D],
+                       [ca.densify(Hzs.T), ca.densify(Hss), ca.densify(gp)],
+                       ["z", "p", "inv_n", "lam", "D"], ["Hzs", "Hss", "gp"])
+    return jac, hess
+
+
+def chained_theta_block_functions(model: OcpModel, substeps: int, n_dir: int
+                                  ) -> tuple[ca.Function, ca.Function]:
+    """:func:`theta_block_functions` in the ``substep-chain`` design
+    (:data:`casadrone.limit.nlp.BLOCK_DESIGNS`), uncompiled:
 
     - ``jac(z, p, inv_n, D) -> Js``: (∂x_next/∂p · D)ᵀ, nθ × nx;
     - ``hess(z, p, inv_n, lam, D) -> (Hzs, Hss, gp)``: (∂²L/∂z∂p · D)ᵀ (nθ × (1+nu+nx)),
@@ -98,16 +144,24 @@ def theta_substep_functions(model: OcpModel, substeps: int, n_dir: int
                 ca.gradient(L, p), sig, ca.DM.zeros(n_dir))], [*names, "mu"], ["gp"]))
 
 
-def theta_blocks(model: OcpModel, substeps: int, n_dir: int) -> tuple[ca.Function, ca.Function]:
+def theta_blocks(model: OcpModel, substeps: int, n_dir: int, design: str | None = None
+                 ) -> tuple[ca.Function, ca.Function]:
     """:func:`theta_block_functions` compiled (once per machine, disk-cached; once per process
-    in memory)."""
-    key = (model.name, model.scale, substeps, n_dir)
+    in memory), in ``design`` (default :func:`casadrone.limit.nlp.block_design`)."""
+    design = block_design() if design is None else design
+    key = (model.name, model.scale, substeps, n_dir, design)
     if key not in _THETA_BLOCKS:
         tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+        step = rk4_step(model, substeps)
+        if design == "whole-step":  # the fingerprint of the blocks compiled before the chain
+            fingerprint, build = recipe_fingerprint(step, theta_block_functions), \
+                theta_block_functions
+        else:
+            fingerprint, build = recipe_fingerprint(
+                step, chained_theta_block_functions, theta_substep_functions,
+                chained_substeps), chained_theta_block_functions
         jac, hess = compile_recipe(
-            (f"codesign_jac_{tag}", f"codesign_hess_{tag}"),
-            recipe_fingerprint(rk4_step(model, substeps), theta_block_functions,
-                               theta_substep_functions, chained_substeps),
-            lambda: theta_block_functions(model, substeps, n_dir), BLOCK_FLAGS)
+            (f"codesign_jac_{tag}", f"codesign_hess_{tag}"), fingerprint,
+            lambda: build(model, substeps, n_dir), BLOCK_FLAGS)
         _THETA_BLOCKS[key] = (jac, hess)
     return _THETA_BLOCKS[key]

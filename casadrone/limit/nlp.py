@@ -25,6 +25,7 @@ candidate on a track layout (number and kind of legs), and ``lam_p`` of the solu
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
@@ -606,9 +607,32 @@ NEAR_VIOLATION = 0.5
 _NLPS: dict[tuple, Nlp] = {}
 _BLOCKS: dict[tuple, tuple] = {}
 
+#: How the interval blocks are generated (:func:`interval_blocks`):
+#:
+#: - ``whole-step``: CasADi's symbolic Jacobian and Hessian of the whole interval (its RK4 steps
+#:   in one SX graph; :func:`interval_block_functions`): the quadrotor's paper block is 4.4 MB of
+#:   C, 198 s of CPU to compile at -O2 -mavx2, 31 MB for every shipped block;
+#: - ``substep-chain``: one RK4 step's derivatives chained over the steps
+#:   (:func:`chained_block_functions`): 1.1 MB, 18-23 s, 9.8 MB for every shipped block; the same
+#:   derivatives to rounding (~1e-16), but not to the last bit, and IPOPT's path from a cold
+#:   start follows the last bits: SY250's fast path then ended at 3.8800 s instead of 3.8914 s,
+#:   HS210's at 3.8833 s instead of 3.8307 s (benchmarks/RESULTS-limitlap-compile.md).
+#:
+#: The default is ``whole-step`` (every lap as before, to the bit); ``$CASADRONE_BLOCKS`` chooses.
+BLOCK_DESIGNS: tuple[str, ...] = ("whole-step", "substep-chain")
 
-def interval_blocks(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Function,
-                                                             np.ndarray, np.ndarray]:
+
+def block_design() -> str:
+    """The interval blocks' design: ``$CASADRONE_BLOCKS`` or ``whole-step``
+    (:data:`BLOCK_DESIGNS`). Raises ValueError naming the variable for another value."""
+    design = os.environ.get("CASADRONE_BLOCKS") or BLOCK_DESIGNS[0]
+    if design not in BLOCK_DESIGNS:
+        raise ValueError(f"CASADRONE_BLOCKS: {design!r} is not one of {', '.join(BLOCK_DESIGNS)}")
+    return design
+
+
+def interval_blocks(model: OcpModel, substeps: int, design: str | None = None
+                    ) -> tuple[ca.Function, ca.Function, np.ndarray, np.ndarray]:
     """Compiled derivatives of one shooting interval, the same for every interval and layout.
 
     With ``z = [S, u, x]`` (the interval's leg duration, command and start node, in the order of
@@ -621,19 +645,26 @@ def interval_blocks(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Fun
     C and compiled once per machine (:mod:`casadrone.codegen`); the NLP maps them over its
     intervals, so the compiled code is one interval's, whatever the number of intervals (the
     whole NLP's Hessian as generated C is hundreds of MB; evaluated by CasADi's virtual machine
-    it costs ~0.1 s per IPOPT iteration, most of a solve).
+    it costs ~0.1 s per IPOPT iteration, most of a solve). ``design``: one of
+    :data:`BLOCK_DESIGNS` (default :func:`block_design`).
     """
-    key = (model.name, substeps)
+    design = block_design() if design is None else design
+    key = (model.name, substeps, design)
     if key not in _BLOCKS:
         from casadrone.codegen import compile_recipe, recipe_fingerprint
 
         names = tuple(f"limit_{part}_{_block_tag(model, substeps)}"
                       for part in ("jac", "hess", "hess_pattern"))
-        jac, hess, pattern = compile_recipe(
-            names, recipe_fingerprint(rk4_step(model, substeps), interval_block_functions,
-                                      substep_block_functions, hessian_pattern,
-                                      chained_substeps),
-            lambda: interval_block_functions(model, substeps), BLOCK_FLAGS)
+        step = rk4_step(model, substeps)
+        if design == "whole-step":  # the fingerprint of the blocks compiled before the chain
+            fingerprint, build = recipe_fingerprint(step, interval_block_functions), \
+                interval_block_functions
+        else:
+            fingerprint, build = recipe_fingerprint(
+                step, chained_block_functions, substep_block_functions, hessian_pattern,
+                chained_substeps), chained_block_functions
+        jac, hess, pattern = compile_recipe(names, fingerprint, lambda: build(model, substeps),
+                                            BLOCK_FLAGS)
         rows, cols = (np.asarray(a, dtype=int).ravel() for a in pattern.call([]))
         _BLOCKS[key] = (jac, hess, rows, cols)
     return _BLOCKS[key]
@@ -645,11 +676,34 @@ def _block_tag(model: OcpModel, substeps: int) -> str:
 
 def interval_block_functions(model: OcpModel, substeps: int
                              ) -> tuple[ca.Function, ca.Function, ca.Function]:
-    """:func:`interval_blocks`' functions (uncompiled): ``jac``, ``hess`` and
+    """:func:`interval_blocks`' functions as SX (uncompiled): ``jac``, ``hess`` and
     ``hess_pattern() -> (rows, cols)``, H's structural nonzeros' indices in z as constants (kept
-    in the compiled library, so that a process which finds it cached builds no Hessian).
+    in the compiled library, so that a process which finds it cached builds no Hessian)."""
+    nx, nu = model.nx, model.nu
+    z = ca.SX.sym("z", 1 + nu + nx)
+    p = ca.SX.sym("p", model.np)
+    inv_n = ca.SX.sym("inv_n")
+    lam = ca.SX.sym("lam", nx)
+    step = rk4_step(model, substeps)
+    x_next = step(z[1 + nu:], z[1:1 + nu], p, z[0] * inv_n)
+    H = ca.triu(ca.hessian(ca.dot(lam, x_next), z)[0])
+    rows, cols = H.sparsity().get_triplet()
+    tag = _block_tag(model, substeps)
+    jac = ca.Function(f"limit_jac_{tag}", [z, p, inv_n], [x_next, ca.densify(
+        ca.jacobian(x_next, z))], ["z", "p", "inv_n"], ["x_next", "J"])
+    nonzeros = ca.vertcat(*H.nonzeros())  # type: ignore[call-overload]  # SXElem: not in stubs
+    hess = ca.Function(f"limit_hess_{tag}", [z, p, inv_n, lam], [nonzeros],
+                       ["z", "p", "inv_n", "lam"], ["H"])
+    pattern = ca.Function(f"limit_hess_pattern_{tag}", [], [ca.DM(rows), ca.DM(cols)],
+                          [], ["rows", "cols"])
+    return jac, hess, pattern
 
-    ``jac`` and ``hess`` are the chain rule over the interval's ``substeps`` RK4 steps, each step
+
+def chained_block_functions(model: OcpModel, substeps: int
+                            ) -> tuple[ca.Function, ca.Function, ca.Function]:
+    """:func:`interval_block_functions` as the ``substep-chain`` design builds them (the same
+    inputs, outputs and Hessian pattern): ``jac`` and ``hess`` are the chain rule over the
+    interval's ``substeps`` RK4 steps, each step
     one call of the two small functions of :func:`substep_block_functions` (generated as C once,
     called ``substeps`` times). With y_k = [S, u, x_k], D_k = ∂y_k/∂z, A_k = ∂x_{k+1}/∂y_k:
 

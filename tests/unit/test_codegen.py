@@ -271,7 +271,7 @@ def test_chained_interval_blocks_are_the_whole_steps_derivatives(which):
              "quadrotor-propeller-etd": lambda: nlp.exponential_rotor(
                  nlp.quadrotor_ocp_model("propeller"))}[which]()
     nx, nu = model.nx, model.nu
-    jac, hess, pattern = nlp.interval_block_functions(model, 3)
+    jac, hess, pattern = nlp.chained_block_functions(model, 3)
     z = ca.SX.sym("z", 1 + nu + nx)
     p, inv_n, lam = ca.SX.sym("p", model.np), ca.SX.sym("inv_n"), ca.SX.sym("lam", nx)
     x_next = nlp.rk4_step(model, 3)(z[1 + nu:], z[1:1 + nu], p, z[0] * inv_n)
@@ -299,12 +299,12 @@ def test_chained_theta_blocks_are_the_whole_steps_derivatives(which):
     """Co-design's θ-blocks, chained over the interval's three RK4 steps, against CasADi's
     symbolic derivatives of the whole interval along the directions D (p + Dσ, σ = 0): the
     same numbers to rounding at random points."""
-    from casadrone.codesign.blocks import theta_block_functions
+    from casadrone.codesign.blocks import chained_theta_block_functions
     from casadrone.limit import nlp
 
     model = nlp.point_mass_ocp_model() if which == "point-mass" else nlp.quadrotor_ocp_model()
     nx, nu, nd = model.nx, model.nu, 4
-    jac, hess = theta_block_functions(model, 3, nd)
+    jac, hess = chained_theta_block_functions(model, 3, nd)
     z = ca.SX.sym("z", 1 + nu + nx)
     p, inv_n, lam = ca.SX.sym("p", model.np), ca.SX.sym("inv_n"), ca.SX.sym("lam", nx)
     D, sig = ca.SX.sym("D", model.np, nd), ca.SX.sym("sig", nd)
@@ -327,3 +327,17 @@ def test_chained_theta_blocks_are_the_whole_steps_derivatives(which):
         for a, b in zip(got, want, strict=True):
             assert a.shape == b.shape and np.abs(b).max() > 1e-6
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
+
+
+def test_the_blocks_design_is_whole_step_unless_chosen(monkeypatch):
+    """``$CASADRONE_BLOCKS`` chooses the interval blocks' design; unset, the whole-step blocks
+    (every lap as before, to the bit); another value is refused naming the variable."""
+    from casadrone.limit import nlp
+
+    monkeypatch.delenv("CASADRONE_BLOCKS", raising=False)
+    assert nlp.block_design() == "whole-step"
+    monkeypatch.setenv("CASADRONE_BLOCKS", "substep-chain")
+    assert nlp.block_design() == "substep-chain"
+    monkeypatch.setenv("CASADRONE_BLOCKS", "chain")
+    with pytest.raises(ValueError, match="CASADRONE_BLOCKS"):
+        nlp.block_design()

@@ -83,9 +83,9 @@ def whole_step_functions(model, substeps: int):
 def substep_chain_functions(model, substeps: int):
     import casadi as ca
 
-    from casadrone.limit.nlp import interval_block_functions
+    from casadrone.limit.nlp import chained_block_functions
 
-    jac, hess, _ = interval_block_functions(model, substeps)
+    jac, hess, _ = chained_block_functions(model, substeps)
     return (ca.Function("bench_jac", jac.mx_in(), jac.call(jac.mx_in())),
             ca.Function("bench_hess", hess.mx_in(), hess.call(hess.mx_in())))
 
@@ -168,19 +168,22 @@ def measure_first(checkout: Path) -> list[dict]:
 
 #: Run in the checkout measured: the bytes of C of every shipped block (as precompile builds it)
 SIZES_SNIPPET = """
-import json, casadi as ca
+import json, sys, casadi as ca
 from casadrone.precompile import SHIPPED
 from casadrone.limit import nlp
 from casadrone.limit.lagless import without_lag
-from casadrone.codesign.blocks import theta_block_functions
+import casadrone.codesign.blocks as cb
+chain = sys.argv[1] == "substep-chain"
+limit_blocks = nlp.chained_block_functions if chain else nlp.interval_block_functions
+theta_blocks = cb.chained_theta_block_functions if chain else cb.theta_block_functions
 out = {}
 for b in SHIPPED:
     maker = {"quadrotor": nlp.quadrotor_ocp_model, "point-mass": nlp.point_mass_ocp_model}
     model = maker[b.model](b.propulsion)
     if b.lagless:
         model = without_lag(model)
-    funs = (theta_block_functions(model, b.substeps, b.n_dir) if b.kind == "codesign"
-            else nlp.interval_block_functions(model, b.substeps))
+    funs = (theta_blocks(model, b.substeps, b.n_dir) if b.kind == "codesign"
+            else limit_blocks(model, b.substeps))
     gen = ca.CodeGenerator("sizes", {"with_header": False})
     for f in funs:
         gen.add(f)
@@ -189,12 +192,14 @@ print(json.dumps(out))
 """
 
 
-def measure_sizes(checkout: Path) -> dict:
-    """Bytes of C of every shipped block's derivatives in ``checkout`` (nothing compiled)."""
+def measure_sizes(checkout: Path, design: str) -> dict:
+    """Bytes of C of every shipped block's derivatives in ``checkout`` and ``design`` (nothing
+    compiled; a checkout before the chain has only ``whole-step``)."""
     env = dict(os.environ, PYTHONPATH=str(checkout))
-    out = subprocess.run([sys.executable, "-c", SIZES_SNIPPET], capture_output=True, text=True,
-                         check=True, env=env, cwd=checkout)
-    return {"kind": "sizes", "checkout": git_rev(checkout), "bytes": json.loads(out.stdout)}
+    out = subprocess.run([sys.executable, "-c", SIZES_SNIPPET, design], capture_output=True,
+                         text=True, check=True, env=env, cwd=checkout)
+    return {"kind": "sizes", "checkout": f"{git_rev(checkout)} {design}",
+            "bytes": json.loads(out.stdout)}
 
 
 def measure_precompile(checkout: Path) -> dict:
@@ -297,7 +302,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.first:
             found += measure_first(args.checkout.resolve())
         if args.sizes:
-            found.append(measure_sizes(args.checkout.resolve()))
+            found += [measure_sizes(args.checkout.resolve(), d) for d in args.designs]
         if args.precompile:
             found.append(measure_precompile(args.checkout.resolve()))
     with args.log.open("a", encoding="utf-8") as log:

@@ -24,11 +24,12 @@ from __future__ import annotations
 
 import casadi as ca
 
-from casadrone.codegen import compile_recipe, recipe_fingerprint
+from casadrone.codegen import compile_recipe
 from casadrone.limit.nlp import (
     BLOCK_FLAGS,
     OcpModel,
     block_design,
+    block_recipe,
     chained_substeps,
     rk4_step,
 )
@@ -152,14 +153,9 @@ def theta_blocks(model: OcpModel, substeps: int, n_dir: int, design: str | None 
     key = (model.name, model.scale, substeps, n_dir, design)
     if key not in _THETA_BLOCKS:
         tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
-        step = rk4_step(model, substeps)
-        if design == "whole-step":  # the fingerprint of the blocks compiled before the chain
-            fingerprint, build = recipe_fingerprint(step, theta_block_functions), \
-                theta_block_functions
-        else:
-            fingerprint, build = recipe_fingerprint(
-                step, chained_theta_block_functions, theta_substep_functions,
-                chained_substeps), chained_theta_block_functions
+        fingerprint, build = block_recipe(
+            design, rk4_step(model, substeps), theta_block_functions,
+            (chained_theta_block_functions, theta_substep_functions, chained_substeps))
         jac, hess = compile_recipe(
             (f"codesign_jac_{tag}", f"codesign_hess_{tag}"), fingerprint,
             lambda: build(model, substeps, n_dir), BLOCK_FLAGS)

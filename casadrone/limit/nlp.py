@@ -651,23 +651,31 @@ def interval_blocks(model: OcpModel, substeps: int, design: str | None = None
     design = block_design() if design is None else design
     key = (model.name, substeps, design)
     if key not in _BLOCKS:
-        from casadrone.codegen import compile_recipe, recipe_fingerprint
+        from casadrone.codegen import compile_recipe
 
         names = tuple(f"limit_{part}_{_block_tag(model, substeps)}"
                       for part in ("jac", "hess", "hess_pattern"))
-        step = rk4_step(model, substeps)
-        if design == "whole-step":  # the fingerprint of the blocks compiled before the chain
-            fingerprint, build = recipe_fingerprint(step, interval_block_functions), \
-                interval_block_functions
-        else:
-            fingerprint, build = recipe_fingerprint(
-                step, chained_block_functions, substep_block_functions, hessian_pattern,
-                chained_substeps), chained_block_functions
+        fingerprint, build = block_recipe(
+            design, rk4_step(model, substeps), interval_block_functions,
+            (chained_block_functions, substep_block_functions, hessian_pattern, chained_substeps))
         jac, hess, pattern = compile_recipe(names, fingerprint, lambda: build(model, substeps),
                                             BLOCK_FLAGS)
         rows, cols = (np.asarray(a, dtype=int).ravel() for a in pattern.call([]))
         _BLOCKS[key] = (jac, hess, rows, cols)
     return _BLOCKS[key]
+
+
+def block_recipe(design: str, step: ca.Function, whole_step: Callable, chained: tuple
+                 ) -> tuple[str, Callable]:
+    """(fingerprint, builder) of a block library in ``design`` (:data:`BLOCK_DESIGNS`):
+    ``whole_step``, fingerprinted as before the chain existed (the same cache names), or
+    ``chained[0]`` with the helpers ``chained[1:]`` in its fingerprint (a change to any of them
+    is a new library)."""
+    from casadrone.codegen import recipe_fingerprint
+
+    if design == "whole-step":
+        return recipe_fingerprint(step, whole_step), whole_step
+    return recipe_fingerprint(step, *chained), chained[0]
 
 
 def _block_tag(model: OcpModel, substeps: int) -> str:

@@ -137,8 +137,10 @@ def measure_blocks(design: str, flags_name: str) -> dict:
             "per_solve_s": SOLVE_ITERATIONS * (per_call["jac"] + per_call["hess"])}
 
 
-def run_cli(cmd: list[str], checkout: Path, cache: Path) -> tuple[float, float, str]:
-    env = dict(os.environ, PYTHONPATH=str(checkout), CASADRONE_CACHE=str(cache))
+def run_cli(cmd: list[str], checkout: Path, cache: Path, design: str = "whole-step"
+            ) -> tuple[float, float, str]:
+    env = dict(os.environ, PYTHONPATH=str(checkout), CASADRONE_CACHE=str(cache),
+               CASADRONE_BLOCKS=design)
     c0, w0 = children_cpu(), time.perf_counter()
     out = subprocess.run(cmd, capture_output=True, text=True, check=False, env=env,
                          cwd=checkout)
@@ -152,15 +154,17 @@ def git_rev(checkout: Path) -> str:
                           capture_output=True, text=True, check=False).stdout.strip()
 
 
-def measure_first(checkout: Path) -> list[dict]:
-    """``limit-lap SY250`` on an empty cache, then with it filled."""
+def measure_first(checkout: Path, design: str) -> list[dict]:
+    """``limit-lap SY250`` on an empty cache, then with it filled, with the blocks of ``design``
+    (``$CASADRONE_BLOCKS``; a checkout before the chain has only the whole-step blocks)."""
     rows = []
     cmd = ["casadrone", "limit-lap", "SY250", "--json"]
     with tempfile.TemporaryDirectory() as cache:
         for which in ("empty cache", "cache filled"):
-            cpu, wall, out = run_cli(cmd, checkout, Path(cache))
+            cpu, wall, out = run_cli(cmd, checkout, Path(cache), design)
             lap = json.loads(out)["lap_time_s"]
-            rows.append({"kind": "first", "which": which, "checkout": git_rev(checkout),
+            rows.append({"kind": "first", "which": which,
+                         "checkout": f"{git_rev(checkout)} {design}",
                          "command": " ".join(cmd[:3]), "cpu_s": cpu, "wall_s": wall,
                          "lap_time_s": lap})
     return rows
@@ -300,7 +304,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.blocks:
             found += [measure_blocks(d, f) for d in args.designs for f in args.flags]
         if args.first:
-            found += measure_first(args.checkout.resolve())
+            for d in args.designs:
+                found += measure_first(args.checkout.resolve(), d)
         if args.sizes:
             found += [measure_sizes(args.checkout.resolve(), d) for d in args.designs]
         if args.precompile:

@@ -55,6 +55,59 @@ SOLVE_ITERATIONS = 69  # one Jacobian and one Hessian call per iteration (70 and
 ISSUE_BEFORE = {"first": 256.0, "precompile_min": 14.7}
 
 
+#: What was measured by hand on the way (each with its command), kept with the report.
+NOTES = [
+    "## Where a solve's CPU goes (profile)", "",
+    "IPOPT's timing statistics (`print_timing_statistics yes`) and CasADi's per-function CPU, "
+    "`casadrone limit-lap SY250` from the fine-grid start alone (`LimitLapOptions(starts="
+    "('fine-grid',), grid_rounds=0)`, whole-step blocks), the machine at load 10-12:", "",
+    "| solve | iterations | CPU (s) | linear solver (MUMPS: factorisation and back-solves) | "
+    "Hessian blocks | Jacobian blocks | constraints | rest |",
+    "|---|---|---|---|---|---|---|---|",
+    "| full model, 40 intervals per leg (the lap's own solve) | 68 | 3.43 | 1.73 (50 %) | "
+    "1.02 (30 %) | 0.37 (11 %) | 0.05 | 0.26 |",
+    "| full model, 60 per leg (the fine-grid continuation) | 180 | 12.0 | 6.77 (56 %) | "
+    "3.46 (29 %) | 1.15 (10 %) | 0.15 | 0.5 |",
+    "| point mass, 60 per leg (reference of the fine-grid start; 1 of 3) | 535 | 10.2 | – | "
+    "2.38 | 0.80 | 0.18 | – |",
+    "| point mass, 40 per leg (the result's reference; 3 solves) | 435, 433, 471 | 5.2, 6.2, "
+    "5.5 | 2.96-3.70 (PD system) | 1.1-1.3 | 0.39-0.44 | 0.1 | – |", "",
+    "The fine-grid start alone took 62 s CPU: the six point-mass solves (three straight-line "
+    "starts on each of 60 and 40 intervals, 430-600 iterations each) are most of it, not the "
+    "full-model solves (15.5 s). In a full-model solve MUMPS is half, the compiled blocks 40 %.",
+    "",
+    "## The designs tried for the blocks", "",
+    "- **substep-chain** (`CASADRONE_BLOCKS=substep-chain`): one RK4 step's Jacobian and Hessian "
+    "(SX, 11.4 k and 33.8 k instructions against the whole step's 45.7 k and 143 k), chained "
+    "over the three steps in generated MX code: 1.07 MB of C instead of 4.38 MB, the same "
+    "derivatives to ~1e-16 (tests/unit/test_codegen.py). Compiler CPU of that C by hand "
+    "(`gcc FLAGS -shared -fPIC`): -O2 -mavx2 23.2 s, -O1 18.1 s, -O0 2.8 s; the whole step "
+    "-O2 -mavx2 198.1 s (1.5 GB of memory).",
+    "- **CasADi's own MX derivatives of a step built from calls** (not kept): RK4 in MX calling "
+    "one step (SX) 5.37 MB of C; calling the model's f (SX) 1.74 MB, 55.6 s at -O2 -mavx2, "
+    "5.7 s at -O0.",
+    "- **-O0** (not kept): 2.8 s to compile the chain, but its Hessian block runs ~4x slower "
+    "(53 ms against 13 ms per 120 intervals): about +3 s per 68-iteration solve.",
+    "- **The first limit lap on an empty cache**, by hand (`CASADRONE_CACHE=<empty dir> "
+    "/usr/bin/time casadrone limit-lap SY250 --json`, user + sys): before (whole-step, "
+    "e31799a) 260.1 s CPU, of which the compiler 177.1 s for the quadrotor block, lap "
+    "3.8914275 s; substep-chain 106.0 s CPU, the compiler 18.2 s for that block, lap "
+    "3.8799666 s (the fine-grid start took 115 iterations instead of 68).",
+    "- **Why whole-step stays the default**: the chain's derivatives differ from the whole "
+    "step's in the last bits, and IPOPT's path from a cold start follows the last bits. With "
+    "the chain (blocks compiled, by hand as above): SY250 3.8800 s (3.8914 s before), "
+    "HS210 3.8833 s (3.8307 s before: above its 3.8346 s target), the gate track 2.1603 s "
+    "(the same). The fast path's lap depends on which basin a cold start falls in, as it "
+    "does between machines (3.8800 s on an Intel VM, 3.8914 s on this AMD one: "
+    "RESULTS-limitlap-fastpath.md); a cheaper compile must wait for a start that lands in "
+    "the best basin reliably.",
+    "- **The point-mass reference with a limited-memory Hessian** (not kept): all three "
+    "straight-line starts on 40 intervals hit the 1000-iteration limit (30.0 s CPU) where the "
+    "exact Hessian converges in 461-520 iterations (16.2 s CPU for the three, best 3.6967 s).",
+    "",
+]
+
+
 def children_cpu() -> float:
     ch = resource.getrusage(resource.RUSAGE_CHILDREN)
     return ch.ru_utime + ch.ru_stime
@@ -266,6 +319,7 @@ def report(log: Path, out: Path) -> None:
                   for k in labels]
         lines.append("| all | " + " | ".join(f"{sum(r['bytes'].values()):,}" for r in sizes)
                      + " |")
+    lines += ["", *NOTES]
     summary = []
     chain = {r["flags"]: r for r in blocks if r["design"] == "substep-chain"}
     whole = {r["flags"]: r for r in blocks if r["design"] == "whole-step"}
@@ -277,11 +331,17 @@ def report(log: Path, out: Path) -> None:
                         f"{a['compile_cpu_s']:.0f} → {b['compile_cpu_s']:.0f} s; "
                         f"{a['per_solve_s']:.2f} → {b['per_solve_s']:.2f} s",
                         "`python benchmarks/bench_limitlap_compile.py --blocks`"))
+    if sizes:
+        summary.append(("C of every shipped block's derivatives (`python -m casadrone.precompile` "
+                        "compiles them), by revision and design",
+                        "; ".join(f"rev {r['checkout']}: {sum(r['bytes'].values()) / 1e6:.1f} MB"
+                                  for r in sizes),
+                        "`python benchmarks/bench_limitlap_compile.py --sizes [--checkout DIR]`"))
     for r in firsts:
         summary.append((f"first `casadrone limit-lap SY250` ({r['which']}), rev {r['checkout']}",
                         f"{r['lap_time_s']:.7f} s lap in {r['cpu_s']:.1f} s CPU",
                         "`python benchmarks/bench_limitlap_compile.py --first`"))
-    text = "\n".join(lines) + "\n"
+    text = "\n".join(lines).rstrip("\n") + "\n"
     out.write_text(with_summary(text, summary, dates[-1] if dates else None), encoding="utf-8")
 
 

@@ -101,6 +101,15 @@ NOTES = [
     "does between machines (3.8800 s on an Intel VM, 3.8914 s on this AMD one: "
     "RESULTS-limitlap-fastpath.md); a cheaper compile must wait for a start that lands in "
     "the best basin reliably.",
+    "- **The whole step at -O0 for a first answer** (not built): 7.9 s to compile instead of "
+    "157 s (the table above), at +3.1 s of block CPU per 68-iteration solve; without FMA or "
+    "reassociation at either level it should give -O2's numbers to the bit (not checked), so "
+    "a first call on -O0 blocks with -O2 compiled in the background for later processes would "
+    "keep every lap. The fast path's first call has four full-model solves (~+12-20 s).",
+    "- **The gate track with the chain** (by hand, blocks compiled, `CASADRONE_CACHE=<dir> "
+    "/usr/bin/time casadrone limit-lap SY250 --track multigp-cdra-gates --json`): 2.1603 s "
+    "from the coarse-grid start, 66.6 s CPU (67.5 s before: RESULTS-limitlap-fastpath.md); "
+    "HS210 the same way 3.8833 s in 102.7 s CPU.",
     "- **The point-mass reference with a limited-memory Hessian** (not kept): all three "
     "straight-line starts on 40 intervals hit the 1000-iteration limit (30.0 s CPU) where the "
     "exact Hessian converges in 461-520 iterations (16.2 s CPU for the three, best 3.6967 s).",

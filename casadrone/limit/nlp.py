@@ -721,7 +721,7 @@ def chained_block_functions(model: OcpModel, substeps: int
 
     The same derivatives as CasADi's symbolic Hessian of the whole step (to rounding, ~1e-16
     relative; tests/unit/test_codegen.py), in a quarter of the C: the quadrotor's paper block is
-    1.1 MB instead of 4.4, and compiles at -O2 -mavx2 in 18-23 s of CPU instead of 157-198 s
+    1.1 MB instead of 4.4, and compiles at -O2 in ~23 s of CPU instead of ~2 min
     (benchmarks/RESULTS-limitlap-compile.md)."""
     nx, nu = model.nx, model.nu
     per = 1 + nu + nx

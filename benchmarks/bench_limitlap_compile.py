@@ -351,7 +351,8 @@ def report(log: Path, out: Path) -> None:
     for r in firsts:
         summary.append((f"first `casadrone limit-lap SY250` ({r['which']}), rev {r['checkout']}",
                         f"{r['lap_time_s']:.7f} s lap in {r['cpu_s']:.1f} s CPU",
-                        "`python benchmarks/bench_limitlap_compile.py --first`"))
+                        "`python benchmarks/bench_limitlap_compile.py --first --designs "
+                        f"{r['checkout'].split()[-1]}` (`--checkout DIR`: another revision)"))
     text = "\n".join(lines).rstrip("\n") + "\n"
     out.write_text(with_summary(text, summary, dates[-1] if dates else None), encoding="utf-8")
 

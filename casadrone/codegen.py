@@ -14,7 +14,7 @@ SIGKILL, which it cannot see, the kernel signals the group's leader, a small she
 whole process group (:data:`GROUP_LEADER`): no ``cc1`` runs on alone. The temporary directory is
 removed on every such exit; one that a SIGKILLed process left behind, and a staged file in the
 cache, are removed by a later compile once an hour old. The first compile of a large source
-says what it does on stderr (the limit lap's Hessian block takes about a minute). Without a C
+says what it does on stderr (the limit lap's interval blocks take up to a few minutes). Without a C
 compiler :class:`NoCompiler` says so; the closed-loop lap then runs on CasADi's virtual machine
 (slower), the limit lap needs one.
 """
@@ -88,9 +88,9 @@ def casadi_source(fun: ca.Function, extra: str = "") -> str:
 
 
 #: Sources at least this long (characters) are announced on stderr when compiled: the limit lap's
-#: Hessian block (~10⁵ lines) takes about a minute; the closed loop's few seconds stay silent
-#: unless stderr is a terminal.
-ANNOUNCE_CHARS = 1_000_000
+#: interval blocks (0.3-11 MB of C) take 5 s to a few minutes; the closed loop's few seconds stay
+#: silent unless stderr is a terminal.
+ANNOUNCE_CHARS = 500_000
 TEMP_PREFIX = "casadrone-cc-"
 
 
@@ -128,7 +128,7 @@ def _build(name: str, src: str, flags: tuple[str, ...], target: Path) -> None:
     announce = len(src) >= ANNOUNCE_CHARS or sys.stderr.isatty()
     if announce:
         emit("compile", f"compiling {name} ({len(src) // 1000} kB of C from CasADi) once for "
-             f"this machine, cached in {cache}; a large one takes a minute or two")
+             f"this machine, cached in {cache}; a large one takes a minute or more")
     cpu0 = children_cpu_seconds()  # the compiler is a child process
     try:
         with tempfile.TemporaryDirectory(prefix=TEMP_PREFIX) as tmp:  # removed on any exit

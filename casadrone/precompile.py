@@ -2,9 +2,9 @@
 
 The limit lap and co-design compile one shooting interval's derivatives as C the first time a
 model is used (:mod:`casadrone.codegen`): one to four minutes of one core each for the
-quadrotor's models, one after the other as a process comes to need them. A fresh machine that
-will use them all (a cluster node, a CI runner, the test suite) can compile them side by side
-instead, one process per library, the largest first::
+quadrotor's models (the whole-step blocks, the default), one after the other as a process comes
+to need them. A fresh machine that will use them all (a cluster node, a CI runner, the test
+suite) can compile them side by side instead, one process per library, the largest first::
 
     python -m casadrone.precompile [--jobs N]
 
@@ -48,8 +48,11 @@ class Block:
 
 
 #: What the shipped problems compile, the largest first (CPU of one compile at -O2 -mavx2 on the
-#: project's AMD VM: codesign propeller ~4 min, limit propeller ~3.5, codesign paper ~2.5, limit
-#: paper ~2, the lag-free paper model ~1.5; the point-mass blocks take seconds).
+#: project's AMD VM, the default whole-step blocks: codesign propeller ~4 min, limit propeller
+#: ~3.5, codesign paper ~2.5, limit paper ~2.5 (157-198 s measured), the lag-free paper model
+#: ~1.5; the point-mass blocks take seconds; 31 MB of C in all. With
+#: ``CASADRONE_BLOCKS=substep-chain`` (:data:`casadrone.limit.nlp.BLOCK_DESIGNS`) 9.8 MB, in the
+#: same order, the limit paper block 18 s: benchmarks/RESULTS-limitlap-compile.md).
 SHIPPED: tuple[Block, ...] = (
     Block("codesign", "quadrotor", "propeller"),
     Block("limit", "quadrotor", "propeller"),

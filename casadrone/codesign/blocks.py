@@ -24,8 +24,15 @@ from __future__ import annotations
 
 import casadi as ca
 
-from casadrone.codegen import compile_recipe, recipe_fingerprint
-from casadrone.limit.nlp import BLOCK_FLAGS, OcpModel, rk4_step
+from casadrone.codegen import compile_recipe
+from casadrone.limit.nlp import (
+    BLOCK_FLAGS,
+    OcpModel,
+    block_design,
+    block_recipe,
+    chained_substeps,
+    rk4_step,
+)
 
 _THETA_BLOCKS: dict[tuple, tuple[ca.Function, ca.Function]] = {}
 
@@ -69,15 +76,88 @@ def theta_block_functions(model: OcpModel, substeps: int, n_dir: int
     return jac, hess
 
 
-def theta_blocks(model: OcpModel, substeps: int, n_dir: int) -> tuple[ca.Function, ca.Function]:
+def chained_theta_block_functions(model: OcpModel, substeps: int, n_dir: int
+                                  ) -> tuple[ca.Function, ca.Function]:
+    """:func:`theta_block_functions` in the ``substep-chain`` design
+    (:data:`casadrone.limit.nlp.BLOCK_DESIGNS`), uncompiled:
+
+    - ``jac(z, p, inv_n, D) -> Js``: (∂x_next/∂p · D)ᵀ, nθ × nx;
+    - ``hess(z, p, inv_n, lam, D) -> (Hzs, Hss, gp)``: (∂²L/∂z∂p · D)ᵀ (nθ × (1+nu+nx)),
+      Dᵀ ∂²L/∂p² D (nθ × nθ, full) and ∂L/∂p (np), L = lam·x_next.
+
+    z = [S, u, x] in the model's units, h = S · inv_n (as :func:`casadrone.limit.nlp.
+    interval_blocks`). Transposed outputs: a map over intervals then stacks them by rows.
+
+    Built as the limit lap's blocks are (:func:`casadrone.limit.nlp.chained_substeps`): one RK4
+    step's derivatives on v = [S, u, σ, x] (p + Dσ the step's parameters; its Hessian only
+    along the nθ directions σ), generated once and chained over the ``substeps`` steps, at
+    σ = 0; ∂L/∂p sums each step's p-gradient along the adjoints. The same numbers as CasADi's
+    symbolic derivatives of the whole step, to rounding (tests/unit/test_codegen.py), in a
+    fraction of its C (benchmarks/RESULTS-limitlap-compile.md)."""
+    nx, nu = model.nx, model.nu
+    n_head = 1 + nu + n_dir
+    sub_jac, sub_hess, sub_gp = theta_substep_functions(model, substeps, n_dir)
+    z = ca.MX.sym("z", 1 + nu + nx)
+    p = ca.MX.sym("p", model.np)
+    inv_n = ca.MX.sym("inv_n")
+    lam = ca.MX.sym("lam", nx)
+    D = ca.MX.sym("D", model.np, n_dir)
+    v = ca.vertcat(z[:1 + nu], ca.MX(n_dir, 1), z[1 + nu:])
+    args = (p, inv_n, D)
+    sig = list(range(1 + nu, n_head))
+    _, J, Hs, chain = chained_substeps(sub_jac, sub_hess, v, n_head, args, lam, substeps, sig)
+    zi = list(range(1 + nu)) + list(range(n_head, n_head + nx))
+    gp = sum((sub_gp(y_k, *args, mu) for y_k, mu in chain), ca.MX(model.np, 1))
+    tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+    jac = ca.Function(f"codesign_jac_{tag}", [z, p, inv_n, D], [ca.densify(J[:, sig].T)],
+                      ["z", "p", "inv_n", "D"], ["Js"])
+    hess = ca.Function(f"codesign_hess_{tag}", [z, p, inv_n, lam, D],
+                       [ca.densify(Hs[zi, :].T), ca.densify(Hs[sig, :]), ca.densify(gp)],
+                       ["z", "p", "inv_n", "lam", "D"], ["Hzs", "Hss", "gp"])
+    return jac, hess
+
+
+def theta_substep_functions(model: OcpModel, substeps: int, n_dir: int
+                            ) -> tuple[ca.Function, ca.Function, ca.Function]:
+    """One of an interval's ``substeps`` RK4 steps (h = S · inv_n / substeps) on
+    y = [S, u, σ, x] with parameters p + Dσ, as SX: ``sub_jac(y, p, inv_n, D) -> (x_next, A)``
+    (A = ∂x_next/∂y, dense), ``sub_hess(y, p, inv_n, D, mu, V) -> ∇²_y(mu·x_next) V`` (V:
+    nθ directions in y) and
+    ``sub_gp(y, p, inv_n, D, mu) -> ∂(mu·x_next)/∂p``."""
+    nx, nu = model.nx, model.nu
+    y = ca.SX.sym("y", 1 + nu + n_dir + nx)
+    p = ca.SX.sym("p", model.np)
+    inv_n = ca.SX.sym("inv_n")
+    D = ca.SX.sym("D", model.np, n_dir)
+    mu = ca.SX.sym("mu", nx)
+    V = ca.SX.sym("V", y.numel(), n_dir)
+    sig = y[1 + nu:1 + nu + n_dir]
+    x_next = rk4_step(model, 1)(y[1 + nu + n_dir:], y[1:1 + nu], p + ca.mtimes(D, sig),
+                                y[0] * inv_n / substeps)
+    L = ca.dot(mu, x_next)
+    tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+    ins, names = [y, p, inv_n, D], ["y", "p", "inv_n", "D"]
+    return (ca.Function(f"codesign_subjac_{tag}", ins, [x_next, ca.densify(ca.jacobian(
+                x_next, y))], names, ["x_next", "A"]),
+            ca.Function(f"codesign_subhess_{tag}", [*ins, mu, V], [ca.jtimes(
+                ca.gradient(L, y), y, V)], [*names, "mu", "V"], ["HV"]),
+            ca.Function(f"codesign_subgp_{tag}", [*ins, mu], [ca.substitute(
+                ca.gradient(L, p), sig, ca.DM.zeros(n_dir))], [*names, "mu"], ["gp"]))
+
+
+def theta_blocks(model: OcpModel, substeps: int, n_dir: int, design: str | None = None
+                 ) -> tuple[ca.Function, ca.Function]:
     """:func:`theta_block_functions` compiled (once per machine, disk-cached; once per process
-    in memory)."""
-    key = (model.name, model.scale, substeps, n_dir)
+    in memory), in ``design`` (default :func:`casadrone.limit.nlp.block_design`)."""
+    design = block_design() if design is None else design
+    key = (model.name, model.scale, substeps, n_dir, design)
     if key not in _THETA_BLOCKS:
         tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+        fingerprint, build = block_recipe(
+            design, rk4_step(model, substeps), theta_block_functions,
+            (chained_theta_block_functions, theta_substep_functions, chained_substeps))
         jac, hess = compile_recipe(
-            (f"codesign_jac_{tag}", f"codesign_hess_{tag}"),
-            recipe_fingerprint(rk4_step(model, substeps), theta_block_functions),
-            lambda: theta_block_functions(model, substeps, n_dir), BLOCK_FLAGS)
+            (f"codesign_jac_{tag}", f"codesign_hess_{tag}"), fingerprint,
+            lambda: build(model, substeps, n_dir), BLOCK_FLAGS)
         _THETA_BLOCKS[key] = (jac, hess)
     return _THETA_BLOCKS[key]

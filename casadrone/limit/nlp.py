@@ -25,6 +25,7 @@ candidate on a track layout (number and kind of legs), and ``lam_p`` of the solu
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
@@ -655,9 +656,32 @@ NEAR_VIOLATION = 0.5
 _NLPS: dict[tuple, Nlp] = {}
 _BLOCKS: dict[tuple, tuple] = {}
 
+#: How the interval blocks are generated (:func:`interval_blocks`):
+#:
+#: - ``whole-step``: CasADi's symbolic Jacobian and Hessian of the whole interval (its RK4 steps
+#:   in one SX graph; :func:`interval_block_functions`): the quadrotor's paper block is 4.4 MB of
+#:   C, 198 s of CPU to compile at -O2 -mavx2, 31 MB for every shipped block;
+#: - ``substep-chain``: one RK4 step's derivatives chained over the steps
+#:   (:func:`chained_block_functions`): 1.1 MB, 18-23 s, 9.8 MB for every shipped block; the same
+#:   derivatives to rounding (~1e-16), but not to the last bit, and IPOPT's path from a cold
+#:   start follows the last bits: SY250's fast path then ended at 3.8800 s instead of 3.8914 s,
+#:   HS210's at 3.8833 s instead of 3.8307 s (benchmarks/RESULTS-limitlap-compile.md).
+#:
+#: The default is ``whole-step`` (every lap as before, to the bit); ``$CASADRONE_BLOCKS`` chooses.
+BLOCK_DESIGNS: tuple[str, ...] = ("whole-step", "substep-chain")
 
-def interval_blocks(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Function,
-                                                             np.ndarray, np.ndarray]:
+
+def block_design() -> str:
+    """The interval blocks' design: ``$CASADRONE_BLOCKS`` or ``whole-step``
+    (:data:`BLOCK_DESIGNS`). Raises ValueError naming the variable for another value."""
+    design = os.environ.get("CASADRONE_BLOCKS") or BLOCK_DESIGNS[0]
+    if design not in BLOCK_DESIGNS:
+        raise ValueError(f"CASADRONE_BLOCKS: {design!r} is not one of {', '.join(BLOCK_DESIGNS)}")
+    return design
+
+
+def interval_blocks(model: OcpModel, substeps: int, design: str | None = None
+                    ) -> tuple[ca.Function, ca.Function, np.ndarray, np.ndarray]:
     """Compiled derivatives of one shooting interval, the same for every interval and layout.
 
     With ``z = [S, u, x]`` (the interval's leg duration, command and start node, in the order of
@@ -670,18 +694,33 @@ def interval_blocks(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Fun
     C and compiled once per machine (:mod:`casadrone.codegen`); the NLP maps them over its
     intervals, so the compiled code is one interval's, whatever the number of intervals (the
     whole NLP's Hessian as generated C is hundreds of MB; evaluated by CasADi's virtual machine
-    it costs ~0.1 s per IPOPT iteration, most of a solve).
+    it costs ~0.1 s per IPOPT iteration, most of a solve). ``design``: one of
+    :data:`BLOCK_DESIGNS` (default :func:`block_design`).
     """
-    key = (model.name, substeps)
+    design = block_design() if design is None else design
+    key = (model.name, substeps, design)
     if key not in _BLOCKS:
         names = tuple(f"limit_{part}_{_block_tag(model, substeps)}"
                       for part in ("jac", "hess", "hess_pattern"))
-        jac, hess, pattern = compile_recipe(
-            names, recipe_fingerprint(rk4_step(model, substeps), interval_block_functions),
-            lambda: interval_block_functions(model, substeps), BLOCK_FLAGS)
+        fingerprint, build = block_recipe(
+            design, rk4_step(model, substeps), interval_block_functions,
+            (chained_block_functions, substep_block_functions, hessian_pattern, chained_substeps))
+        jac, hess, pattern = compile_recipe(names, fingerprint, lambda: build(model, substeps),
+                                            BLOCK_FLAGS)
         rows, cols = (np.asarray(a, dtype=int).ravel() for a in pattern.call([]))
         _BLOCKS[key] = (jac, hess, rows, cols)
     return _BLOCKS[key]
+
+
+def block_recipe(design: str, step: ca.Function, whole_step: Callable, chained: tuple
+                 ) -> tuple[str, Callable]:
+    """(fingerprint, builder) of a block library in ``design`` (:data:`BLOCK_DESIGNS`):
+    ``whole_step``, fingerprinted as before the chain existed (the same cache names), or
+    ``chained[0]`` with the helpers ``chained[1:]`` in its fingerprint (a change to any of them
+    is a new library)."""
+    if design == "whole-step":
+        return recipe_fingerprint(step, whole_step), whole_step
+    return recipe_fingerprint(step, *chained), chained[0]
 
 
 def _block_tag(model: OcpModel, substeps: int) -> str:
@@ -711,6 +750,115 @@ def interval_block_functions(model: OcpModel, substeps: int
     pattern = ca.Function(f"limit_hess_pattern_{tag}", [], [ca.DM(rows), ca.DM(cols)],
                           [], ["rows", "cols"])
     return jac, hess, pattern
+
+
+def chained_block_functions(model: OcpModel, substeps: int
+                            ) -> tuple[ca.Function, ca.Function, ca.Function]:
+    """:func:`interval_block_functions` as the ``substep-chain`` design builds them (the same
+    inputs, outputs and Hessian pattern): ``jac`` and ``hess`` are the chain rule over the
+    interval's ``substeps`` RK4 steps, each step
+    one call of the two small functions of :func:`substep_block_functions` (generated as C once,
+    called ``substeps`` times). With y_k = [S, u, x_k], D_k = ∂y_k/∂z, A_k = ∂x_{k+1}/∂y_k:
+
+    - forward: D_{k+1} = [[I, 0]; A_k D_k], so ∂x_next/∂z = A_{K-1} D_{K-1};
+    - adjoint: μ_K = lam, μ_k = (∂x_{k+1}/∂x_k)ᵀ μ_{k+1};
+    - H = Σ_k D_kᵀ ∇²_y(μ_{k+1}·x_{k+1})(y_k) D_k (the exact Hessian of lam·x_next).
+
+    The same derivatives as CasADi's symbolic Hessian of the whole step (to rounding, ~1e-16
+    relative; tests/unit/test_codegen.py), in a quarter of the C: the quadrotor's paper block is
+    1.1 MB instead of 4.4, and compiles at -O2 in ~23 s of CPU instead of ~2 min
+    (benchmarks/RESULTS-limitlap-compile.md)."""
+    nx, nu = model.nx, model.nu
+    per = 1 + nu + nx
+    sub_jac, sub_hess = substep_block_functions(model, substeps)
+    z = ca.MX.sym("z", per)
+    p = ca.MX.sym("p", model.np)
+    inv_n = ca.MX.sym("inv_n")
+    lam = ca.MX.sym("lam", nx)
+    x_next, dx, H, _ = chained_substeps(sub_jac, sub_hess, z, 1 + nu, (p, inv_n), lam,
+                                        substeps)
+    rows, cols = hessian_pattern(model, substeps)
+    tag = _block_tag(model, substeps)
+    jac = ca.Function(f"limit_jac_{tag}", [z, p, inv_n], [x_next, ca.densify(dx)],
+                      ["z", "p", "inv_n"], ["x_next", "J"])
+    hess = ca.Function(f"limit_hess_{tag}", [z, p, inv_n, lam],
+                       [ca.densify(H).nz[(rows + per * cols).tolist()]],
+                       ["z", "p", "inv_n", "lam"], ["H"])
+    pattern = ca.Function(f"limit_hess_pattern_{tag}", [], [ca.DM(rows), ca.DM(cols)],
+                          [], ["rows", "cols"])
+    return jac, hess, pattern
+
+
+def chained_substeps(sub_jac: ca.Function, sub_hess: ca.Function, v: ca.MX, n_head: int,
+                     args: tuple, lam: ca.MX, substeps: int, columns: list[int] | None = None
+                     ) -> tuple[ca.MX, ca.MX, ca.MX, list]:
+    """The chain rule of :func:`interval_block_functions` over ``substeps`` steps: with
+    v = [head (``n_head`` entries held over the interval), x_0], ``sub_jac(y, *args) -> (x_next,
+    ∂x_next/∂y)`` and ``sub_hess(y, *args, mu) -> ∇²_y(mu·x_next)`` of one step, returns
+    (x_K, ∂x_K/∂v, ∇²_v(lam·x_K) (full), [(y_k, μ_{k+1})]: each step's point and adjoint, for
+    other first derivatives along the chain). With ``columns`` only those columns of the
+    Hessian, from ``sub_hess(y, *args, mu, V) -> ∇²_y(mu·x_next) V`` (Hessian-vector products
+    along the columns V of ∂y_k/∂v: less C than the whole step Hessian when they are few)."""
+    nv = v.numel()
+    nx = nv - n_head
+    head = ca.horzcat(ca.DM.eye(n_head), ca.DM(n_head, nx))  # ∂(head)/∂v
+    y, dx = v, ca.MX(ca.horzcat(ca.DM(nx, n_head), ca.DM.eye(nx)))  # y_0 = v, ∂x_0/∂v
+    points, dys, steps = [], [], []
+    for _ in range(substeps):
+        dy = ca.vertcat(head, dx)
+        x_k, A = sub_jac(y, *args)
+        points.append(y)
+        dys.append(dy)
+        steps.append(A)
+        dx = ca.mtimes(A, dy)
+        y = ca.vertcat(v[:n_head], x_k)
+    H, mu, adjoints = ca.MX(nv, nv if columns is None else len(columns)), lam, []
+    for y_k, dy, A in zip(reversed(points), reversed(dys), reversed(steps), strict=True):
+        adjoints.append(mu)
+        if columns is None:
+            H = H + ca.mtimes(dy.T, ca.mtimes(sub_hess(y_k, *args, mu), dy))
+        else:
+            H = H + ca.mtimes(dy.T, sub_hess(y_k, *args, mu, dy[:, columns]))
+        mu = ca.mtimes(A[:, n_head:].T, mu)
+    return y[n_head:], dx, H, list(zip(points, reversed(adjoints), strict=True))
+
+
+def substep_block_functions(model: OcpModel, substeps: int) -> tuple[ca.Function, ca.Function]:
+    """One of an interval's ``substeps`` RK4 steps (:func:`rk4_step`, h = S · inv_n / substeps)
+    on y = [S, u, x], as SX:
+
+    - ``sub_jac(y, p, inv_n) -> (x_next, A)``: the step and A = ∂x_next/∂y (dense);
+    - ``sub_hess(y, p, inv_n, mu) -> H``: ∇²_y(mu·x_next), full (both triangles).
+
+    What :func:`interval_block_functions` chains over the substeps."""
+    nx, nu = model.nx, model.nu
+    y = ca.SX.sym("y", 1 + nu + nx)
+    p = ca.SX.sym("p", model.np)
+    inv_n = ca.SX.sym("inv_n")
+    mu = ca.SX.sym("mu", nx)
+    x_next = rk4_step(model, 1)(y[1 + nu:], y[1:1 + nu], p, y[0] * inv_n / substeps)
+    tag = _block_tag(model, substeps)
+    sub_jac = ca.Function(f"limit_subjac_{tag}", [y, p, inv_n],
+                          [x_next, ca.densify(ca.jacobian(x_next, y))],
+                          ["y", "p", "inv_n"], ["x_next", "A"])
+    sub_hess = ca.Function(f"limit_subhess_{tag}", [y, p, inv_n, mu],
+                           [ca.hessian(ca.dot(mu, x_next), y)[0]],
+                           ["y", "p", "inv_n", "mu"], ["H"])
+    return sub_jac, sub_hess
+
+
+def hessian_pattern(model: OcpModel, substeps: int) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, cols) of the structural nonzeros of triu(∂²(lam·x_next)/∂z²) of one interval
+    (:func:`rk4_step`, z = [S, u, x]), column by column: from CasADi's symbolic Hessian of the
+    whole step (a fraction of a second; its C is never generated)."""
+    nx, nu = model.nx, model.nu
+    z = ca.SX.sym("z", 1 + nu + nx)
+    lam = ca.SX.sym("lam", nx)
+    x_next = rk4_step(model, substeps)(z[1 + nu:], z[1:1 + nu], ca.SX.sym("p", model.np),
+                                       z[0] * ca.SX.sym("inv_n"))
+    H = ca.triu(ca.hessian(ca.dot(lam, x_next), z)[0])
+    rows, cols = H.sparsity().get_triplet()
+    return np.asarray(rows, dtype=int), np.asarray(cols, dtype=int)
 
 
 _STEPS: dict[tuple, ca.Function] = {}

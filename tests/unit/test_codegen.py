@@ -255,3 +255,89 @@ def test_the_quadrotor_blocks_in_vector_registers_keep_every_bit():
     sx_step = nlp.rk4_step(model, 3)
     np.testing.assert_array_equal(np.array(step.map(n)(x, u, p, z[0] * 0.025)),
                                   np.array(sx_step.map(n)(x, u, p, z[0] * 0.025)))
+
+
+@pytest.mark.parametrize("which", ["point-mass", "quadrotor", pytest.param(
+    "quadrotor-propeller-etd", marks=pytest.mark.slow)])
+def test_chained_interval_blocks_are_the_whole_steps_derivatives(which):
+    """The interval blocks chain one RK4 step's derivatives over the interval's three steps;
+    CasADi's symbolic Jacobian and Hessian of the whole interval (three steps in one SX graph:
+    an independent oracle) give the same numbers to rounding, at random points, for classical
+    RK4 and for the exponential rotor step (ETDRK4), whose h also enters the φ functions."""
+    from casadrone.limit import nlp
+
+    model = {"point-mass": lambda: nlp.point_mass_ocp_model(),
+             "quadrotor": lambda: nlp.quadrotor_ocp_model(),
+             "quadrotor-propeller-etd": lambda: nlp.exponential_rotor(
+                 nlp.quadrotor_ocp_model("propeller"))}[which]()
+    nx, nu = model.nx, model.nu
+    jac, hess, pattern = nlp.chained_block_functions(model, 3)
+    z = ca.SX.sym("z", 1 + nu + nx)
+    p, inv_n, lam = ca.SX.sym("p", model.np), ca.SX.sym("inv_n"), ca.SX.sym("lam", nx)
+    x_next = nlp.rk4_step(model, 3)(z[1 + nu:], z[1:1 + nu], p, z[0] * inv_n)
+    H = ca.triu(ca.hessian(ca.dot(lam, x_next), z)[0])
+    oracle = ca.Function("oracle", [z, p, inv_n, lam],
+                         [x_next, ca.jacobian(x_next, z), ca.vertcat(*H.nonzeros())])
+    r, c = H.sparsity().get_triplet()
+    rows, cols = (np.asarray(a, dtype=int).ravel() for a in pattern.call([]))
+    np.testing.assert_array_equal(rows, r)
+    np.testing.assert_array_equal(cols, c)
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        zz = rng.uniform(-1.0, 1.0, 1 + nu + nx)
+        zz[0] = rng.uniform(0.5, 4.0)  # leg duration (s)
+        args = (zz, rng.uniform(0.5, 1.5, model.np), 0.025, rng.normal(size=nx))
+        want = [np.array(v) for v in oracle(*args)]
+        got = [np.array(v) for v in (*jac(*args[:3]), hess(*args))]
+        assert np.abs(want[2]).max() > 1e-3
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
+
+
+@pytest.mark.parametrize("which", ["point-mass", "quadrotor"])
+def test_chained_theta_blocks_are_the_whole_steps_derivatives(which):
+    """Co-design's θ-blocks, chained over the interval's three RK4 steps, against CasADi's
+    symbolic derivatives of the whole interval along the directions D (p + Dσ, σ = 0): the
+    same numbers to rounding at random points."""
+    from casadrone.codesign.blocks import chained_theta_block_functions
+    from casadrone.limit import nlp
+
+    model = nlp.point_mass_ocp_model() if which == "point-mass" else nlp.quadrotor_ocp_model()
+    nx, nu, nd = model.nx, model.nu, 4
+    jac, hess = chained_theta_block_functions(model, 3, nd)
+    z = ca.SX.sym("z", 1 + nu + nx)
+    p, inv_n, lam = ca.SX.sym("p", model.np), ca.SX.sym("inv_n"), ca.SX.sym("lam", nx)
+    D, sig = ca.SX.sym("D", model.np, nd), ca.SX.sym("sig", nd)
+    x_next = nlp.rk4_step(model, 3)(z[1 + nu:], z[1:1 + nu], p + ca.mtimes(D, sig),
+                                    z[0] * inv_n)
+    L = ca.dot(lam, x_next)
+    H = ca.hessian(L, ca.vertcat(z, sig))[0]
+    outs = [ca.jacobian(x_next, sig).T, H[:z.numel(), z.numel():].T, H[z.numel():, z.numel():],
+            ca.gradient(L, p)]
+    oracle = ca.Function("oracle", [z, p, inv_n, lam, D, sig], outs)
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        zz = rng.uniform(-1.0, 1.0, 1 + nu + nx)
+        zz[0] = rng.uniform(0.5, 4.0)
+        pp, ll, dd = rng.uniform(0.5, 1.5, model.np), rng.normal(size=nx), \
+            rng.normal(size=(model.np, nd))
+        want = [np.array(v) for v in oracle(zz, pp, 0.025, ll, dd, np.zeros(nd))]
+        got = [np.array(jac(zz, pp, 0.025, dd)), *(np.array(v) for v in hess(zz, pp, 0.025,
+                                                                               ll, dd))]
+        for a, b in zip(got, want, strict=True):
+            assert a.shape == b.shape and np.abs(b).max() > 1e-6
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
+
+
+def test_the_blocks_design_is_whole_step_unless_chosen(monkeypatch):
+    """``$CASADRONE_BLOCKS`` chooses the interval blocks' design; unset, the whole-step blocks
+    (every lap as before, to the bit); another value is refused naming the variable."""
+    from casadrone.limit import nlp
+
+    monkeypatch.delenv("CASADRONE_BLOCKS", raising=False)
+    assert nlp.block_design() == "whole-step"
+    monkeypatch.setenv("CASADRONE_BLOCKS", "substep-chain")
+    assert nlp.block_design() == "substep-chain"
+    monkeypatch.setenv("CASADRONE_BLOCKS", "chain")
+    with pytest.raises(ValueError, match="CASADRONE_BLOCKS"):
+        nlp.block_design()

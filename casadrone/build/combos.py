@@ -98,7 +98,9 @@ def combination_airframe(template: AirframeConfig, combo: Combination,
         cfg = airframe_with_parts(AirframeConfig.model_validate(data), combo.propeller,
                                   combo.motor, combo.pack)
     except ValueError as exc:  # pydantic's ValidationError: the airframe's own checks
-        raise ConfigError([f"{combo.label}: {str(exc).splitlines()[-1].strip()}"]) from exc
+        errors = getattr(exc, "errors", None)
+        first = errors()[0]["msg"] if callable(errors) else str(exc)
+        raise ConfigError([f"{combo.label}: {first}"]) from exc
     data = cfg.model_dump(exclude_none=True)
     pack = combo.pack
     data["battery_voltage_v"] = pack.full_voltage_v
@@ -176,10 +178,12 @@ def refusal(template: AirframeConfig, combo: Combination, settings: BuildSetting
     largest current."""
     p, m, b = combo.propeller, combo.motor, combo.pack
     try:
-        frames = valid_frames(start_airframe(template, combo, settings, keys, lower, upper),
-                              keys, lower, upper)
-    except ConfigError:
-        frames = []
+        cfg = start_airframe(template, combo, settings, keys, lower, upper)
+    except ConfigError as exc:
+        if "overlap" not in exc.lines[0]:
+            return f"the template cannot take these parts: {exc.lines[0]}"
+        cfg = None
+    frames = [] if cfg is None else valid_frames(cfg, keys, lower, upper)
     if not frames:
         return (f"propeller diameter {p.diameter_m * 1000:.0f} mm: no frame of the geometry box "
                 "keeps the propellers apart")

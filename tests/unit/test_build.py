@@ -17,7 +17,7 @@ from casadrone.build.checks import load_build_problem
 from casadrone.build.combos import Combination, combination_airframe, combinations, refusal
 from casadrone.cli import app
 from casadrone.codesign.checks import template_of
-from casadrone.config.io import ConfigError, DATA_DIR
+from casadrone.config.io import DATA_DIR, ConfigError
 from casadrone.export import export
 from casadrone.export.bom import bom_lines
 from casadrone.export.source import ExportSource

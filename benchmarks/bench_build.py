@@ -7,9 +7,11 @@ against every co-designed race (bound over race time ≤ 1 where the bound holds
 Usage (from the checkout)::
 
     python benchmarks/bench_build.py                      # build-small (3 x 3 x 3)
-    python benchmarks/bench_build.py --propellers 2 --motors 1 --packs 2   # a corner of it
+    python benchmarks/bench_build.py --propellers 2 --motors 1 --packs 2 --short
 
-``--propellers/--motors/--packs N`` keep the first N of each kind of build-small. CPU is
+``--propellers/--motors/--packs N`` keep the first N of each kind of build-small; ``--short``
+flies the co-design tests' short track (tests/data/codesign/short-track.yaml) on 16 intervals
+instead of the paper track. CPU is
 ``time.process_time`` of this process (the co-design and race solves run in it: serial
 backend), so the figures do not depend on what else the machine runs; wall time does. Writes
 ``benchmarks/RESULTS-build.md`` (dated summary first) and prints the same.
@@ -30,6 +32,7 @@ from casadrone.build.search import build, ranking, screened  # noqa: E402
 from casadrone.build.solve import solve_combination  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "RESULTS-build.md"
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def problem_of(args: argparse.Namespace):
@@ -40,6 +43,10 @@ def problem_of(args: argparse.Namespace):
             "motors": list(b.motors)[:args.motors], "packs": list(b.packs)[:args.packs]}
     over = [f"build.{k}=[{', '.join(v)}]" for k, v in pick.items()]
     over += ["backend.name=serial", "build.certify=false", f"build.rank={args.rank}"]
+    if args.short:  # the co-design tests' short track on their propeller grid
+        over += [f"track={ROOT / 'tests/data/codesign/short-track.yaml'}",
+                 "codesign.intervals=16",
+                 "codesign.lap_starts=[closed-loop, point-mass, coarse-grid]"]
     return load_build_problem("build-small", over), over
 
 
@@ -56,6 +63,8 @@ def main() -> None:
     for kind, n in (("propellers", 3), ("motors", 3), ("packs", 3)):
         ap.add_argument(f"--{kind}", type=int, default=n)
     ap.add_argument("--rank", type=int, default=3)
+    ap.add_argument("--short", action="store_true", help="the short test track instead of "
+                    "build-small's paper track")
     args = ap.parse_args()
     problem, over = problem_of(args)
     wall0 = time.perf_counter()
@@ -74,7 +83,8 @@ def main() -> None:
     size = f"{args.propellers}x{args.motors}x{args.packs}"
     cmd = "python benchmarks/bench_build.py" + (
         "" if size == "3x3x3" else
-        f" --propellers {args.propellers} --motors {args.motors} --packs {args.packs}")
+        f" --propellers {args.propellers} --motors {args.motors} --packs {args.packs}") + (
+        " --short" if args.short else "")
     lines = [f"# casadrone build against brute force ({size} catalogue of build-small)", "",
              f"Problem: build-small with {' '.join(over)}.", "",
              "| | CPU s | wall s | combinations co-designed |", "|---|---|---|---|",

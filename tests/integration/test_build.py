@@ -1,11 +1,12 @@
 """casadrone build solved (slow): on a catalogue small enough to co-design every combination
-alone (2 propellers x 1 motor x 2 packs of build-small), the bound is below every co-designed
+alone (2 propellers x 1 motor x 2 packs of build-small, on the short test track), the bound is below every co-designed
 race, the branch and bound returns brute force's winner and ranking, and two processes rank as
 one."""
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 
@@ -14,11 +15,15 @@ from casadrone.build.search import bound_of, build, ranking, screened
 from casadrone.build.solve import solve_combination
 
 pytestmark = pytest.mark.slow
+ROOT = Path(__file__).resolve().parents[2]
 
 TINY = ["build.propellers=[uiuc-da4022-5x3.75-3blade, uiuc-nr640-5x3.16-3blade]",
         "build.motors=[tmotor-velox-v2207-v2-1750kv]",
         "build.packs=[cnhl-ministar-650mah-4s, cnhl-black-v2-1300mah-4s]",
-        "build.certify=false"]
+        "build.certify=false",
+        # the short test track of the co-design tests, on their propeller grid (16 intervals)
+        f"track={ROOT / 'tests/data/codesign/short-track.yaml'}", "codesign.intervals=16",
+        "codesign.lap_starts=[closed-loop, point-mass, coarse-grid]"]
 
 
 def tiny(*more: str):

@@ -1,7 +1,7 @@
 """casadrone build solved (slow): on a catalogue small enough to co-design every combination
-alone (2 propellers x 1 motor x 2 packs of build-small, on the short test track), the bound is below every co-designed
-race, the branch and bound returns brute force's winner and ranking, and two processes rank as
-one."""
+alone (2 propellers x 1 motor x 2 packs of build-small, on the short test track), the bound is
+below every co-designed race, the branch and bound returns brute force's winner and ranking, and
+two processes rank as one."""
 
 from __future__ import annotations
 

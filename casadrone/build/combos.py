@@ -64,15 +64,16 @@ def chosen(catalogue: Catalogue, settings: BuildSettings, kind: str) -> tuple[An
              "pack": settings.packs}[kind]
     if names != "all":
         return tuple(catalogue.get(n, kind) for n in names)
-    parts = catalogue.of_kind(kind)
     if kind == "propeller":
         lo, hi = settings.diameter_in or (0.0, math.inf)
-        parts = tuple(p for p in parts if lo <= p.diameter_m / M_PER_INCH + 1e-9
-                      and p.diameter_m / M_PER_INCH - 1e-9 <= hi
-                      and (settings.blades is None or p.blades == settings.blades))
-    if kind == "pack" and settings.cells is not None:
-        parts = tuple(p for p in parts if p.cells == settings.cells)
-    return parts
+        return tuple(p for p in catalogue.propellers
+                     if lo <= p.diameter_m / M_PER_INCH + 1e-9
+                     and p.diameter_m / M_PER_INCH - 1e-9 <= hi
+                     and (settings.blades is None or p.blades == settings.blades))
+    if kind == "pack":
+        return tuple(p for p in catalogue.packs
+                     if settings.cells is None or p.cells == settings.cells)
+    return catalogue.motors
 
 
 def combinations(catalogue: Catalogue, settings: BuildSettings) -> list[Combination]:

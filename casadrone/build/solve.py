@@ -18,7 +18,7 @@ from typing import Any, Literal
 import numpy as np
 
 from casadrone.airframe import with_theta
-from casadrone.build.combos import Combination, Hover, hover_of, start_airframe
+from casadrone.build.combos import Combination, hover_of, start_airframe
 from casadrone.codesign.checks import gate_clearance, template_of
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.build import BuildProblemConfig
@@ -108,9 +108,11 @@ def lap_options(problem: CodesignProblemConfig, template: AirframeConfig) -> Lim
 
 def codesign_problem(problem: BuildProblemConfig, cfg: AirframeConfig) -> CodesignProblemConfig:
     """The co-design problem of one combination: the build's problem with the combination's
-    airframe as its ``fixed`` values (every key of it)."""
+    airframe as its ``fixed`` values (every key of it but the decision variables, which start
+    at the template's values)."""
     data = problem.model_dump(exclude={"build"})
-    data["fixed"] = cfg.model_dump(exclude_none=True)
+    keys = {v.name for v in problem.variables}
+    data["fixed"] = {k: v for k, v in cfg.model_dump(exclude_none=True).items() if k not in keys}
     data["name"] = f"{problem.name}:{cfg.name}"
     return CodesignProblemConfig.model_validate(data)
 
@@ -139,9 +141,11 @@ def solve_combination(problem: BuildProblemConfig, combo: Combination, laps: int
     frame = with_theta(cfg, best.theta)
     track = race_track(problem, laps)
     raced = race(frame, track, lap_options(problem, template_of(problem)))
+    hover = hover_of(frame)
     out = replace(base, outcome="raced", laps=track.laps, theta=dict(best.theta),
                   lap_s=best.objective, mass_kg=best.mass_kg, point=best,
-                  **hover_fields(hover_of(frame)))
+                  thrust_to_weight=hover.thrust_to_weight, hover_throttle=hover.throttle,
+                  hover_pack_current_a=hover.pack_current_a)
     if not raced.lap.completed:
         return replace(out, reason=f"race: {raced.reason}", cpu_s=time.process_time() - c0)
     e = raced.energy
@@ -153,9 +157,3 @@ def solve_combination(problem: BuildProblemConfig, combo: Combination, laps: int
                    motor_current_margin_a=e.motor_current_margin_a,
                    energy_used_wh=e.energy_used_wh, energy_left_wh=e.energy_left_wh,
                    end_soc=e.end_soc, cpu_s=time.process_time() - c0)
-
-
-def hover_fields(h: Hover) -> dict[str, float]:
-    """A hover's figures as :class:`BuildResult` fields."""
-    return {"thrust_to_weight": h.thrust_to_weight, "hover_throttle": h.throttle,
-            "hover_pack_current_a": h.pack_current_a}

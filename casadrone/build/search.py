@@ -45,6 +45,7 @@ from casadrone.codesign.checks import template_of
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.build import BuildProblemConfig
 from casadrone.config.parts import load_parts
+from casadrone.progress import emit
 from casadrone.results import AsDict
 
 
@@ -166,10 +167,22 @@ def certified(problem: BuildProblemConfig, ranked: tuple[BuildResult, ...]
     return tuple(out)
 
 
+def announced(record: Callable[[BuildResult], None]) -> Callable[[BuildResult], None]:
+    """``record`` after a progress line for the result (outcome, combination, race or why)."""
+    def both(r: BuildResult) -> None:
+        fig = f"race {r.race_s:.4f} s, " if math.isfinite(r.race_s) else ""
+        emit("combination", f"{r.outcome} {r.label}: {fig}{r.reason or 'flies it'}"
+             f" ({r.cpu_s:.1f} s CPU)", cpu_s=r.cpu_s)
+        record(r)
+    return both
+
+
 def build(problem: BuildProblemConfig, laps: int | None = None,
           record: Callable[[BuildResult], None] = lambda r: None) -> Build:
     """The build of ``problem`` (module docstring) for a race of ``laps`` laps (the
-    ``build.laps`` or the track's when None) on the problem's ``backend``."""
+    ``build.laps`` or the track's when None) on the problem's ``backend``; ``record`` sees
+    each combination's result as it is known (and a progress line reports it)."""
+    record = announced(record)
     wall0, cpu0 = time.perf_counter(), time.process_time()
     laps = laps or problem.build.laps
     kept, refused = screened(problem)

@@ -7,6 +7,7 @@ import csv
 import io
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -74,8 +75,9 @@ def build_command(
     """
     check_out_folder(out)
     cfg = load_build_problem(problem, overrides or [])
+    record = recorder(out)
     with progress_lines("build", quiet):
-        result = build(cfg, laps)
+        result = build(cfg, laps, record)
     data = result.as_dict()
     if out is not None:
         write_outputs(out, result)
@@ -85,6 +87,18 @@ def build_command(
         typer.echo(text(result))
     if not result.ranking:
         raise typer.Exit(EXIT_FAILED)
+
+
+def recorder(folder: Path | None) -> Callable[[BuildResult], None]:
+    """Each combination's result appended to ``folder/combinations.jsonl`` as it is known (a
+    result is on disk whatever happens to the later ones); nothing without a folder."""
+    def record(r: BuildResult) -> None:
+        if folder is None:
+            return
+        folder.mkdir(parents=True, exist_ok=True)
+        with (folder / "combinations.jsonl").open("a") as f:
+            f.write(json.dumps(jsonable(r.as_dict())) + "\n")
+    return record
 
 
 def write_outputs(folder: Path, result: Build) -> None:

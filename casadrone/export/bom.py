@@ -54,7 +54,7 @@ def bom_lines(src: ExportSource) -> list[BomLine]:
     parts = cfg.components
     motor = cfg.propulsion.motor if cfg.propulsion.model == "propeller" else None
     if parts is None or motor is None or motor.mass_kg is None:
-        raise ValueError(f"{cfg.name}: a bill of materials needs mass_model: components and a "
+        raise ValueError("a bill of materials needs mass_model: components and a "
                          "propeller propulsion section with the motor's mass")
     prop_g = 1000 * (parts.motor_mass_kg - motor.mass_kg)
     battery = cfg.propulsion.battery

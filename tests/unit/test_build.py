@@ -151,3 +151,11 @@ def test_the_loader_raises_one_line_per_problem():
     with pytest.raises(ConfigError) as info:
         load_build_problem(SMALL, ["build.motors=[a-motor, tmotor-velox-v2207-v2-1750kv]"])
     assert len(info.value.lines) == 1 and "build.motors.0" in info.value.lines[0]
+
+
+def test_a_bill_of_an_airframe_without_parts_is_refused_in_one_line():
+    """SY250 gives its mass as a number (no components mass model): no parts to list."""
+    result = cli("export", "SY250", "--format", "bom")
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    assert len(result.stderr.splitlines()) == 1
+    assert "needs mass_model: components" in result.stderr

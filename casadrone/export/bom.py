@@ -48,14 +48,14 @@ def _part_and_source(data: str | None) -> tuple[str, str]:
 
 
 def bom_lines(src: ExportSource) -> list[BomLine]:
-    """The bill of ``src`` (module docstring); ValueError for an airframe without the
-    components mass model or the propeller kind's motor (no parts to list)."""
+    """The bill of ``src`` (module docstring); an airframe without the components mass model
+    or the propeller kind's motor mass has no parts to list: one line, the whole airframe."""
     cfg = src.config
     parts = cfg.components
     motor = cfg.propulsion.motor if cfg.propulsion.model == "propeller" else None
     if parts is None or motor is None or motor.mass_kg is None:
-        raise ValueError("a bill of materials needs mass_model: components and a "
-                         "propeller propulsion section with the motor's mass")
+        return [BomLine("airframe (no parts listed: its mass is one figure)", 1,
+                        1000 * src.airframe.mass, cfg.name, "the airframe file")]
     prop_g = 1000 * (parts.motor_mass_kg - motor.mass_kg)
     battery = cfg.propulsion.battery
     total_g = 1000 * src.airframe.mass
@@ -80,8 +80,10 @@ def _rows(src: ExportSource) -> list[list[str]]:
 
 
 def bom_csv(src: ExportSource) -> str:
-    """The bill as CSV (:data:`COLUMNS`, then a total line)."""
+    """The bill as CSV after the export's provenance lines (``#`` comments): :data:`COLUMNS`,
+    then a total line."""
     buf = io.StringIO()
+    buf.writelines(f"# {line}\n" for line in src.header_lines("bill of materials"))
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(COLUMNS)
     w.writerows(_rows(src))

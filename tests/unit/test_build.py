@@ -4,6 +4,7 @@ catalogue's rows and the URDF read by a second parser."""
 
 from __future__ import annotations
 
+import csv
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import replace
@@ -118,7 +119,7 @@ def test_bill_of_materials_adds_up_to_the_urdf_mass(problem):
     root = ET.fromstring(export(src, "urdf"))
     urdf_g = 1000 * sum(float(m.get("value")) for m in root.iter("mass"))
     assert total == pytest.approx(urdf_g, rel=1e-6)
-    table = export(src, "bom-csv").splitlines()
+    table = [line for line in export(src, "bom-csv").splitlines() if not line.startswith("#")]
     assert table[0].startswith("item,quantity") and table[-1].startswith("total")
 
 
@@ -153,9 +154,11 @@ def test_the_loader_raises_one_line_per_problem():
     assert len(info.value.lines) == 1 and "build.motors.0" in info.value.lines[0]
 
 
-def test_a_bill_of_an_airframe_without_parts_is_refused_in_one_line():
-    """SY250 gives its mass as a number (no components mass model): no parts to list."""
-    result = cli("export", "SY250", "--format", "bom")
-    assert result.exit_code == 2 and "Traceback" not in result.output
-    assert len(result.stderr.splitlines()) == 1
-    assert "needs mass_model: components" in result.stderr
+def test_a_bill_of_an_airframe_without_parts_is_the_airframe_whole():
+    """SY250 gives its mass as one figure (mass_kg: 0.32 in SY250.yaml): one line of 320 g."""
+    result = cli("export", "SY250", "--format", "bom-csv")
+    assert result.exit_code == 0, result.output
+    rows = list(csv.reader(line for line in result.stdout.splitlines()
+                           if line and not line.startswith("#")))
+    assert rows[0][:4] == ["item", "quantity", "unit_mass_g", "mass_g"]
+    assert [r[3] for r in rows[1:]] == ["320.0", "320.0"]  # the airframe, the total

@@ -162,3 +162,32 @@ def test_a_bill_of_an_airframe_without_parts_is_the_airframe_whole():
                            if line and not line.startswith("#")))
     assert rows[0][:4] == ["item", "quantity", "unit_mass_g", "mass_g"]
     assert [r[3] for r in rows[1:]] == ["320.0", "320.0"]  # the airframe, the total
+
+
+def _square(x: int) -> int:
+    return x * x
+
+
+@pytest.mark.parametrize("backend", [
+    {"name": "serial"},
+    pytest.param({"name": "processes", "workers": 2}, marks=pytest.mark.slow),
+    pytest.param({"name": "dask", "workers": 2}, marks=pytest.mark.slow),
+])
+def test_every_pool_returns_every_task_once(backend):
+    """The build's pool on each backend: every submitted task's result comes back once, however
+    the tasks finish."""
+    from casadrone.build.pool import Pool
+    from casadrone.config.problem import BackendConfig
+
+    pool = Pool(BackendConfig(**backend))
+    try:
+        running = [pool.submit(_square, k) for k in range(5)]
+        got = []
+        while running:
+            done = pool.first_done(running)
+            assert done
+            running = [f for f in running if f not in done]
+            got += [f.result() for f in done]
+    finally:
+        pool.close()
+    assert sorted(got) == [0, 1, 4, 9, 16]

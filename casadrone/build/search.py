@@ -64,7 +64,7 @@ class Build(AsDict):
     winner_airframe: AirframeConfig | None = None  # the winner's combination at its frame
 
     _omit = ("winner_airframe",)
-    _properties = ("counts", "winner")
+    _properties = ("counts", "winner", "fronts")
 
     @property
     def counts(self) -> dict[str, int]:
@@ -77,6 +77,28 @@ class Build(AsDict):
     @property
     def winner(self) -> str | None:
         return self.ranking[0].label if self.ranking else None
+
+    @property
+    def fronts(self) -> dict[str, list[str]]:
+        """The race time against the mass (lower is better) and against the energy left
+        (higher is better): the co-designed feasible builds no other beats in both, fastest
+        first (:func:`front`). Pruned builds are not on it: their race is not known."""
+        return {"mass_kg": front(self.results, lambda r: r.mass_kg),
+                "energy_left_wh": front(self.results, lambda r: -r.energy_left_wh)}
+
+
+def front(results: tuple[BuildResult, ...], measure: Callable[[BuildResult], float]
+          ) -> list[str]:
+    """Labels of the feasible races not dominated in (race time, ``measure``), both minimised,
+    fastest first."""
+    ok = sorted((r for r in results if r.outcome == "raced" and r.feasible),
+                key=lambda r: (r.race_s, measure(r)))
+    out, best = [], math.inf
+    for r in ok:
+        if measure(r) < best:
+            out.append(r.label)
+            best = measure(r)
+    return out
 
 
 def screened(problem: BuildProblemConfig) -> tuple[list[Combination], list[BuildResult]]:
@@ -162,8 +184,11 @@ def certified(problem: BuildProblemConfig, ranked: tuple[BuildResult, ...]
 
     out = []
     for r in ranked:
-        prep = prepare(codesign_problem(problem, combination_start(problem, r.combination)))
-        out.append(replace(r, certificate=certify(prep, r.point)))
+        try:
+            prep = prepare(codesign_problem(problem, combination_start(problem, r.combination)))
+            out.append(replace(r, certificate=certify(prep, r.point)))
+        except (RuntimeError, ValueError) as exc:  # a solver's error, a bad frame: say so
+            out.append(replace(r, reason=f"certificate not made: {str(exc).splitlines()[0]}"))
     return tuple(out)
 
 

@@ -158,6 +158,8 @@ def text(result: Build) -> str:
                   f"(margin {r.motor_current_margin_a:.1f} A); energy used "
                   f"{r.energy_used_wh:.2f} Wh, left {r.energy_left_wh:.2f} Wh (soc "
                   f"{r.end_soc:.3f})"]
+    for measure, labels in result.fronts.items():
+        lines.append(f"  front of race time against {measure}: " + (" > ".join(labels) or "-"))
     ranked = {r.label for r in result.ranking}
     lines.append("  others:")
     for r in sorted(result.results, key=lambda r: (r.outcome, _key(r))):

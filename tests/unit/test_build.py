@@ -191,3 +191,42 @@ def test_every_pool_returns_every_task_once(backend):
     finally:
         pool.close()
     assert sorted(got) == [0, 1, 4, 9, 16]
+
+
+def _raced(label_combo: Combination, race_s: float, mass_kg: float = 0.5,
+           left_wh: float = 5.0, bound_s: float = math.nan):
+    from casadrone.build.solve import BuildResult
+
+    return BuildResult(label_combo, "raced", race_s=race_s, feasible=True, mass_kg=mass_kg,
+                       energy_left_wh=left_wh, bound_s=bound_s)
+
+
+def test_branch_and_bound_prunes_above_the_rank_th_race_and_keeps_the_rest(problem,
+                                                                          monkeypatch):
+    """A stand-in co-design whose race is 1.1 x the bound: with rank 1, bounds 1.0 and 1.05 are
+    co-designed (1.05 < 1.1, the best race when it is reached), 2.0 and 3.0 pruned."""
+    from casadrone.build import search
+    from casadrone.build.pool import Pool
+    from casadrone.config.problem import BackendConfig
+
+    combos = combinations(shipped_catalogue(), problem.build)[:4]
+    monkeypatch.setattr(search, "solve_combination",
+                        lambda prob, c, laps, bound: _raced(c, 1.1 * bound, bound_s=bound))
+    order = list(zip([1.0, 1.05, 2.0, 3.0], combos, strict=True))
+    strict = problem.model_copy(update={"build": problem.build.model_copy(update={"rank": 1})})
+    results = search.branch_and_bound(strict, order, None, Pool(BackendConfig()))
+    outcome = {r.combination.label: r.outcome for r in results}
+    assert [outcome[c.label] for c in combos] == ["raced", "raced", "pruned", "pruned"]
+    assert search.ranking(results, 1)[0].race_s == pytest.approx(1.1)
+
+
+def test_fronts_keep_the_builds_no_other_beats_in_both():
+    """Race 1, 2, 3 s with masses 0.6, 0.5, 0.55 kg: the 3 s build is heavier than the 2 s one,
+    so it is off the mass front; energy left 1, 3, 2 Wh: the same."""
+    from casadrone.build.search import front
+
+    combos = combinations(shipped_catalogue(), load_build_problem(SMALL).build)[:3]
+    rs = (_raced(combos[0], 1.0, 0.60, 1.0), _raced(combos[1], 2.0, 0.50, 3.0),
+          _raced(combos[2], 3.0, 0.55, 2.0))
+    assert front(rs, lambda r: r.mass_kg) == [combos[0].label, combos[1].label]
+    assert front(rs, lambda r: -r.energy_left_wh) == [combos[0].label, combos[1].label]

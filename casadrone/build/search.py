@@ -118,10 +118,10 @@ def screened(problem: BuildProblemConfig) -> tuple[list[Combination], list[Build
 def bound_of(problem: BuildProblemConfig, combo: Combination, laps: int | None) -> float:
     """The combination's point-mass race (s) at the least mass of the box."""
     keys, lower, upper = geometry_box(problem)
-    frames = valid_frames(combination_start(problem, combo), keys, lower, upper)
-    light = min(frames, key=lambda f: least_mass_kg([f]))
+    cfg = combination_start(problem, combo)
+    light = min(valid_frames(cfg, keys, lower, upper), key=lambda f: least_mass_kg([f]))
     return point_mass_bound(light, least_mass_kg([light]), race_track(problem, laps),
-                            lap_options(problem, template_of(problem)))
+                            lap_options(problem, cfg))
 
 
 def bounded(problem: BuildProblemConfig, combos: list[Combination], laps: int | None

@@ -96,9 +96,9 @@ def race_track(problem: CodesignProblemConfig, laps: int | None) -> TrackConfig:
 
 
 def lap_options(problem: CodesignProblemConfig, template: AirframeConfig) -> LimitLapOptions:
-    """The limit lap as co-design poses it (:func:`casadrone.codesign.driver.prepare`): the
-    problem's grid and lap starts, one gate clearance for every frame of the box, no point-mass
-    reference, no grid refinement."""
+    """The limit lap as co-design poses it for ``template`` (a combination's airframe;
+    :func:`casadrone.codesign.driver.prepare`): the problem's grid and lap starts, one gate
+    clearance for every frame of the box, no point-mass reference, no grid refinement."""
     keys, lower, upper = geometry_box(problem)
     return LimitLapOptions(
         intervals=problem.codesign.intervals or DEFAULT_INTERVALS[template.propulsion.model],
@@ -140,7 +140,7 @@ def solve_combination(problem: BuildProblemConfig, combo: Combination, laps: int
     best = result.best
     frame = with_theta(cfg, best.theta)
     track = race_track(problem, laps)
-    raced = race(frame, track, lap_options(problem, template_of(problem)))
+    raced = race(frame, track, lap_options(problem, cfg))
     hover = hover_of(frame)
     out = replace(base, outcome="raced", laps=track.laps, theta=dict(best.theta),
                   lap_s=best.objective, mass_kg=best.mass_kg, point=best,

@@ -63,7 +63,7 @@ class BuildResult(AsDict):
     certificate: Any = None  # casadrone.codesign.certificate.Certificate of a ranked build
 
     _omit = ("point", "certificate")
-    _properties = ("label", "bound_ratio", "certified")
+    _properties = ("label", "bound_ratio", "certified", "certificate_report")
 
     @property
     def label(self) -> str:
@@ -73,6 +73,11 @@ class BuildResult(AsDict):
     def bound_ratio(self) -> float:
         """The bound over the race time: at most 1 where the bound holds (NaN unraced)."""
         return self.bound_s / self.race_s if self.race_s > 0 else math.nan
+
+    @property
+    def certificate_report(self) -> dict[str, Any] | None:
+        """The certificate as ``casadrone codesign --json`` gives it (None: not certified)."""
+        return None if self.certificate is None else self.certificate.as_dict()
 
     @property
     def certified(self) -> bool | None:

@@ -20,6 +20,7 @@ from __future__ import annotations
 # Importing the command modules registers their commands on ``app``; their order is the order of
 # ``casadrone --help``. Only ``app`` is public here: import anything else from its module.
 from casadrone.cli import (  # noqa: F401 (importing registers the commands)
+    build,
     codesign,
     design,
     export,

@@ -85,7 +85,8 @@ app = _App(
     "design problem (run, resume), choose designs on its front (decide) and compare and "
     "report them (compare, report); find the fastest frame in one solve (codesign); compare "
     "the trim solvers (trim-study); fit a thrust-stand log (fit-propulsion); list the cited "
-    "propellers, motors and packs (parts); export a design "
+    "propellers, motors and packs (parts) and choose them with the frame for a race (build); "
+    "export a design "
     "for flight firmware or a 1:1 plate (export).",
     no_args_is_help=True,
     add_completion=False,

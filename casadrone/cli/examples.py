@@ -8,6 +8,8 @@ fits one line of an 80-column terminal). A command's docstring holds no examples
 from __future__ import annotations
 
 EXAMPLES: dict[str, tuple[str, ...]] = {
+    "build": ("casadrone build build-small --out build-out",
+              "casadrone build build-small --laps 3 build.rank=5 --json"),
     "codesign": ("casadrone codesign codesign-paper --out codesign-out",
                  "casadrone codesign codesign-season codesign.starts=2 --json"),
     "validate": ("casadrone validate configs problems",

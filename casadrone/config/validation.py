@@ -15,6 +15,7 @@ from typing import Any
 from pydantic import BaseModel
 
 from casadrone.config.airframe import AirframeConfig
+from casadrone.config.build import BuildProblemConfig
 from casadrone.config.codesign import CodesignProblemConfig
 from casadrone.config.controller import ControllerConfig
 from casadrone.config.io import (
@@ -48,6 +49,7 @@ SCHEMAS_BY_KEY: dict[str, type[BaseModel]] = {
     "gain_policy": ControllerConfig,
     "waypoints_m": TrackConfig,
     "gates": TrackConfig,
+    "build": BuildProblemConfig,
     "codesign": CodesignProblemConfig,
     "objectives": ProblemConfig,
     "propellers": PartsConfig,
@@ -61,6 +63,8 @@ def detect_schema(path: Path, data: dict[str, Any]) -> type[BaseModel] | None:
     else the known schema sharing the most top-level keys (so misspelt files are still checked)."""
     for part in reversed(Path(path).resolve().parts[:-1]):
         if part in SCHEMAS_BY_FOLDER:
+            if SCHEMAS_BY_FOLDER[part] is ProblemConfig and "build" in data:
+                return BuildProblemConfig  # a problem with a build: section
             if SCHEMAS_BY_FOLDER[part] is ProblemConfig and "codesign" in data:
                 return CodesignProblemConfig  # a problem with a codesign: section
             return SCHEMAS_BY_FOLDER[part]

@@ -12,6 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from casadrone.export.bom import bom_csv, bom_markdown
 from casadrone.export.mixers import betaflight, px4, px4_shell
 from casadrone.export.plate import PlateOptions, dxf, svg
 from casadrone.export.source import ExportSource
@@ -42,6 +43,10 @@ FORMATS: dict[str, ExportFormat] = {
                          lambda src, _: urdf(src)),
     "svg": ExportFormat(".svg", "the frame plate, 1:1 SVG outline (mm)", svg),
     "dxf": ExportFormat(".dxf", "the frame plate, 1:1 DXF outline (mm)", dxf),
+    "bom": ExportFormat(".md", "bill of materials (frame, motors, propellers, pack), Markdown",
+                        lambda src, _: bom_markdown(src)),
+    "bom-csv": ExportFormat(".csv", "bill of materials (frame, motors, propellers, pack), CSV",
+                            lambda src, _: bom_csv(src)),
 }
 
 

@@ -55,6 +55,7 @@ FLOORS: tuple[str, ...] = (
     "casadrone.codesign",
     "casadrone.precompile",  # compiles the limit lap's and co-design's blocks side by side
     "casadrone.optimise",  # ev-MOGA's polish (optimise.hybrid) is the co-design NLP
+    "casadrone.build",  # parts chosen with the frame: co-design per combination on a pool
     "casadrone.benchmark",
     "casadrone.compare",
     "casadrone.verdict",  # candidates against the baseline, with the evaluation's noise

@@ -1,0 +1,63 @@
+"""The bound of a combination: a point-mass race no co-designed frame of it can beat.
+
+The bound of a combination is the point-mass relaxation of the limit lap
+(:func:`casadrone.limit.pointmass.point_mass_reference`) flown by the combination at the
+*least mass* of the geometry box, on the race's track and grid. Why it is below the race time
+of every frame of the box:
+
+1. **Relaxation of the model.** The point mass keeps the full model's translational dynamics
+   (mass, gravity, the same body drag) and replaces the attitude, body-rate and rotor dynamics
+   by a thrust vector whose size is at most four times the propeller's largest steady
+   full-command thrust over every airspeed (:func:`casadrone.propulsion.thrust_bound`, which
+   argues why) and whose tilt is bounded per axis by the track's tilt limit, which contains the
+   full model's cone; the current, advance-ratio and tilt-cone rows are dropped. Every flight of
+   a frame of the combination is therefore a flight of its point mass.
+2. **Least mass.** The geometry moves a frame's mass (the components mass model) and its
+   inertia, not its thrust or drag. The point mass reads the inertia nowhere; a lighter point
+   mass with the same thrust bound reaches every acceleration a heavier one does (the thrust it
+   needs is the heavier one's scaled by m'/m < 1, plus a share of the drag), so the least mass
+   of the box, found at its corners (:func:`casadrone.build.combos.least_mass_kg`), gives the
+   smallest point-mass lap.
+3. **The race is slower than its lap model.** The race flies at the open-circuit voltage of its
+   end state of charge, the lowest of the flight (:mod:`casadrone.limit.race`): a lower voltage
+   lowers the thrust bound no further than the full pack's, which the bound uses.
+
+What is *not* certified by the argument: IPOPT returns local optima, of the point mass as of
+the full model, and the two are on their own grids. The bound is the best of the point mass's
+straight-line starts, so a poor local optimum of the point mass could lie above the full
+model's lap. That is why the inequality is tested, combination by combination, against the
+co-designed race on the build's small catalogue (tests/integration/test_build.py) and
+reported by every build (``bound_ratio``: bound over race time, at most 1 where it holds).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+from casadrone.airframe import build_airframe
+from casadrone.config.airframe import AirframeConfig
+from casadrone.config.track import TrackConfig
+from casadrone.limit.result import LimitLapOptions
+from casadrone.limit.starts import prepare as prepare_lap
+from casadrone.results import AsDict
+
+
+@dataclass(frozen=True)
+class Bound(AsDict):
+    """The point-mass race time (s) of a combination at its least mass (kg); NaN where no
+    point-mass start converged (then the combination is never pruned)."""
+
+    race_s: float
+    mass_kg: float
+    cpu_s: float
+
+
+def point_mass_bound(frame_cfg: AirframeConfig, mass_kg: float, track: TrackConfig,
+                     options: LimitLapOptions) -> float:
+    """The point-mass race (s) of ``frame_cfg`` with its mass set to ``mass_kg`` on ``track``
+    (module docstring); NaN where no start converged."""
+    light = replace(build_airframe(frame_cfg), mass=mass_kg)  # p follows the mass
+    pb = prepare_lap(light, track, options, options.gate_clearance_m or 0.0)
+    ref = pb.reference
+    return math.nan if ref is None else float(ref.objective)

@@ -1,0 +1,238 @@
+"""The build's search: every combination screened, bounded, and the promising ones co-designed
+best-first, side by side, with the others pruned by their bound (branch and bound).
+
+1. :func:`screened`: the combinations of the ``build:`` section, each refused without a solve
+   where no frame of the box can fly it (:func:`casadrone.build.combos.refusal`);
+2. :func:`bounded`: each other's point-mass race (:mod:`casadrone.build.bound`);
+3. :func:`branch_and_bound`: in the order of their bounds, each combination is co-designed and
+   raced (:func:`casadrone.build.solve.solve_combination`) on the pool, unless its bound is
+   above the ``rank``-th best race time found so far (pruned: if the bound holds, it cannot
+   enter the ranking). A combination whose bound is NaN is never pruned.
+4. :func:`ranking`: the feasible races, fastest first, the first ``rank`` of them exact.
+
+With more workers than one, a combination may be co-designed that one worker would have pruned
+(its bound was below the threshold when it was handed out); the ranking is the same.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+from casadrone.airframe import with_theta
+from casadrone.build.bound import point_mass_bound
+from casadrone.build.combos import (
+    Combination,
+    combinations,
+    least_mass_kg,
+    refusal,
+    valid_frames,
+)
+from casadrone.build.pool import Pool
+from casadrone.build.solve import (
+    BuildResult,
+    codesign_problem,
+    combination_start,
+    geometry_box,
+    lap_options,
+    race_track,
+    solve_combination,
+)
+from casadrone.codesign.checks import template_of
+from casadrone.config.airframe import AirframeConfig
+from casadrone.config.build import BuildProblemConfig
+from casadrone.config.parts import load_parts
+from casadrone.progress import emit
+from casadrone.results import AsDict
+
+
+@dataclass(frozen=True)
+class Build(AsDict):
+    """A build: every combination's result (screened, pruned or raced), the ranking, the CPU."""
+
+    problem: str
+    laps: int
+    results: tuple[BuildResult, ...]
+    ranking: tuple[BuildResult, ...]
+    backend: str
+    workers: int
+    cpu_s: float  # this process and every worker's co-design CPU together
+    wall_time_s: float
+    winner_airframe: AirframeConfig | None = None  # the winner's combination at its frame
+
+    _omit = ("winner_airframe",)
+    _properties = ("counts", "winner", "fronts")
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """How many combinations ended each way."""
+        out: dict[str, int] = {}
+        for r in self.results:
+            out[r.outcome] = out.get(r.outcome, 0) + 1
+        return out
+
+    @property
+    def winner(self) -> str | None:
+        return self.ranking[0].label if self.ranking else None
+
+    @property
+    def fronts(self) -> dict[str, list[str]]:
+        """The race time against the mass (lower is better) and against the energy left
+        (higher is better): the co-designed feasible builds no other beats in both, fastest
+        first (:func:`front`). Pruned builds are not on it: their race is not known."""
+        return {"mass_kg": front(self.results, lambda r: r.mass_kg),
+                "energy_left_wh": front(self.results, lambda r: -r.energy_left_wh)}
+
+
+def front(results: tuple[BuildResult, ...], measure: Callable[[BuildResult], float]
+          ) -> list[str]:
+    """Labels of the feasible races not dominated in (race time, ``measure``), both minimised,
+    fastest first."""
+    ok = sorted((r for r in results if r.outcome == "raced" and r.feasible),
+                key=lambda r: (r.race_s, measure(r)))
+    out, best = [], math.inf
+    for r in ok:
+        if measure(r) < best:
+            out.append(r.label)
+            best = measure(r)
+    return out
+
+
+def screened(problem: BuildProblemConfig) -> tuple[list[Combination], list[BuildResult]]:
+    """(the combinations a frame of the box may fly, the refused ones as results)."""
+    template = template_of(problem)
+    keys, lower, upper = geometry_box(problem)
+    kept, refused = [], []
+    for combo in combinations(load_parts(problem.build.parts_file), problem.build):
+        why = refusal(template, combo, problem.build, keys, lower, upper)
+        if why:
+            refused.append(BuildResult(combo, "refused", reason=why))
+        else:
+            kept.append(combo)
+    return kept, refused
+
+
+def bound_of(problem: BuildProblemConfig, combo: Combination, laps: int | None) -> float:
+    """The combination's point-mass race (s) at the least mass of the box."""
+    keys, lower, upper = geometry_box(problem)
+    cfg = combination_start(problem, combo)
+    light = min(valid_frames(cfg, keys, lower, upper), key=lambda f: least_mass_kg([f]))
+    return point_mass_bound(light, least_mass_kg([light]), race_track(problem, laps),
+                            lap_options(problem, cfg))
+
+
+def bounded(problem: BuildProblemConfig, combos: list[Combination], laps: int | None
+            ) -> list[tuple[float, Combination]]:
+    """Each combination with its bound, lowest first (NaN bounds last, in catalogue order)."""
+    pairs = [(bound_of(problem, c, laps), c) for c in combos]
+    return sorted(pairs, key=lambda p: (math.isnan(p[0]), p[0] if not math.isnan(p[0]) else 0))
+
+
+def threshold(raced: list[BuildResult], rank: int) -> float:
+    """The ``rank``-th best feasible race time so far (inf while fewer are known)."""
+    times = sorted(r.race_s for r in raced if r.feasible and math.isfinite(r.race_s))
+    return times[rank - 1] if len(times) >= rank else math.inf
+
+
+def branch_and_bound(problem: BuildProblemConfig, order: list[tuple[float, Combination]],
+                     laps: int | None, pool: Pool,
+                     record: Callable[[BuildResult], None] = lambda r: None
+                     ) -> list[BuildResult]:
+    """Co-design the combinations of ``order`` best-first on ``pool`` (module docstring);
+    ``record`` sees each result as it is known."""
+    done: list[BuildResult] = []
+    running: dict[Any, float] = {}
+    for bound, combo in order:
+        while len(running) >= pool.workers:
+            _collect(pool, running, done, record)
+        if bound > threshold(done, problem.build.rank):
+            done.append(BuildResult(combo, "pruned", bound_s=bound, reason=(
+                f"bound {bound:.4f} s is above the {problem.build.rank}-th best race "
+                f"{threshold(done, problem.build.rank):.4f} s")))
+            record(done[-1])
+            continue
+        running[pool.submit(solve_combination, problem, combo, laps, bound)] = bound
+    while running:
+        _collect(pool, running, done, record)
+    return done
+
+
+def _collect(pool: Pool, running: dict[Any, float], done: list[BuildResult],
+             record: Callable[[BuildResult], None]) -> None:
+    for fut in pool.first_done(list(running)):
+        running.pop(fut)
+        done.append(fut.result())
+        record(done[-1])
+
+
+def ranking(results: list[BuildResult], rank: int) -> tuple[BuildResult, ...]:
+    """The feasible races, fastest first (ties by label), the first ``rank``."""
+    ok = [r for r in results if r.outcome == "raced" and r.feasible]
+    return tuple(sorted(ok, key=lambda r: (r.race_s, r.label))[:rank])
+
+
+def certified(problem: BuildProblemConfig, ranked: tuple[BuildResult, ...]
+              ) -> tuple[BuildResult, ...]:
+    """The ranked builds with the certificate of their co-design point
+    (:func:`casadrone.codesign.certificate.certify`: the lap re-solved with the frame fixed,
+    the reduced gradient, the re-simulation)."""
+    from casadrone.codesign.certificate import certify
+    from casadrone.codesign.driver import prepare
+
+    out = []
+    for r in ranked:
+        try:
+            prep = prepare(codesign_problem(problem, combination_start(problem, r.combination)))
+            out.append(replace(r, certificate=certify(prep, r.point)))
+        except (RuntimeError, ValueError) as exc:  # a solver's error, a bad frame: say so
+            out.append(replace(r, reason=f"certificate not made: {str(exc).splitlines()[0]}"))
+    return tuple(out)
+
+
+def announced(record: Callable[[BuildResult], None]) -> Callable[[BuildResult], None]:
+    """``record`` after a progress line for the result (outcome, combination, race or why)."""
+    def both(r: BuildResult) -> None:
+        fig = f"race {r.race_s:.4f} s, " if math.isfinite(r.race_s) else ""
+        emit("combination", f"{r.outcome} {r.label}: {fig}{r.reason or 'flies it'}"
+             f" ({r.cpu_s:.1f} s CPU)", cpu_s=r.cpu_s)
+        record(r)
+    return both
+
+
+def build(problem: BuildProblemConfig, laps: int | None = None,
+          record: Callable[[BuildResult], None] = lambda r: None) -> Build:
+    """The build of ``problem`` (module docstring) for a race of ``laps`` laps (the
+    ``build.laps`` or the track's when None) on the problem's ``backend``; ``record`` sees
+    each combination's result as it is known (and a progress line reports it)."""
+    record = announced(record)
+    wall0, cpu0 = time.perf_counter(), time.process_time()
+    laps = laps or problem.build.laps
+    kept, refused = screened(problem)
+    for r in refused:
+        record(r)
+    order = bounded(problem, kept, laps)
+    pool = Pool(problem.backend)
+    try:
+        results = branch_and_bound(problem, order, laps, pool, record)
+    finally:
+        pool.close()
+    ranked = ranking(results, problem.build.rank)
+    if problem.build.certify:
+        ranked = certified(problem, ranked)
+    worker_cpu = sum(r.cpu_s for r in results) if pool.name != "serial" else 0.0
+    return Build(problem.name, race_track(problem, laps).laps, tuple(refused + results), ranked,
+                 pool.name, pool.workers, time.process_time() - cpu0 + worker_cpu,
+                 time.perf_counter() - wall0, winner_airframe(problem, ranked))
+
+
+def winner_airframe(problem: BuildProblemConfig, ranked: tuple[BuildResult, ...]
+                    ) -> AirframeConfig | None:
+    """The first ranked build's airframe: its parts at its co-designed frame (None without)."""
+    if not ranked:
+        return None
+    first = ranked[0]
+    cfg = with_theta(combination_start(problem, first.combination), first.theta)
+    return cfg.model_copy(update={"name": f"{problem.name}-winner"})

@@ -1,0 +1,164 @@
+"""One combination of a build: its frame geometry co-designed (:func:`casadrone.codesign.
+codesign`, the problem's ``variables`` and ``codesign`` settings, the combination's parts), then
+the co-designed frame raced over the build's laps with its pack (:func:`casadrone.limit.race.
+race`): the race time, and what the race leaves of the pack.
+
+Every function here is picklable and runs in a worker process as in this one: a combination
+that fails (no co-design start converged, a race the pack cannot fly) is a result with its
+reason, never an exception.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal
+
+import numpy as np
+
+from casadrone.airframe import with_theta
+from casadrone.build.combos import Combination, hover_of, start_airframe
+from casadrone.codesign.checks import gate_clearance, template_of
+from casadrone.config.airframe import AirframeConfig
+from casadrone.config.build import BuildProblemConfig
+from casadrone.config.codesign import CodesignProblemConfig
+from casadrone.config.io import ConfigError, load
+from casadrone.config.track import TrackConfig
+from casadrone.limit.race import race
+from casadrone.limit.result import DEFAULT_INTERVALS, LimitLapOptions
+from casadrone.results import AsDict
+
+#: What became of a combination: refused before any solve, pruned by its bound, co-designed and
+#: raced (feasible or not: ``feasible``), or failed (no co-design start converged).
+Outcome = Literal["refused", "pruned", "raced", "failed"]
+
+
+@dataclass(frozen=True)
+class BuildResult(AsDict):
+    """A combination's result (NaN where the stage that gives a figure was not reached)."""
+
+    combination: Combination
+    outcome: Outcome
+    reason: str = ""
+    bound_s: float = math.nan
+    race_s: float = math.nan
+    lap_s: float = math.nan  # the co-designed lap (the track as given)
+    laps: int = 0
+    feasible: bool = False  # the pack flies the race within its limits
+    theta: dict[str, float] = field(default_factory=dict)
+    mass_kg: float = math.nan
+    thrust_to_weight: float = math.nan
+    hover_throttle: float = math.nan
+    hover_pack_current_a: float = math.nan
+    peak_pack_current_a: float = math.nan
+    peak_motor_current_a: float = math.nan
+    pack_current_margin_a: float = math.nan
+    motor_current_margin_a: float = math.nan
+    energy_used_wh: float = math.nan
+    energy_left_wh: float = math.nan
+    end_soc: float = math.nan
+    cpu_s: float = 0.0
+    point: Any = None  # casadrone.codesign.driver.CodesignPoint, for the certificate
+    certificate: Any = None  # casadrone.codesign.certificate.Certificate of a ranked build
+
+    _omit = ("point", "certificate")
+    _properties = ("label", "bound_ratio", "certified", "certificate_report")
+
+    @property
+    def label(self) -> str:
+        return self.combination.label
+
+    @property
+    def bound_ratio(self) -> float:
+        """The bound over the race time: at most 1 where the bound holds (NaN unraced)."""
+        return self.bound_s / self.race_s if self.race_s > 0 else math.nan
+
+    @property
+    def certificate_report(self) -> dict[str, Any] | None:
+        """The certificate as ``casadrone codesign --json`` gives it (None: not certified)."""
+        return None if self.certificate is None else self.certificate.as_dict()
+
+    @property
+    def certified(self) -> bool | None:
+        """Whether the co-design point's certificate passed (None: not certified)."""
+        return None if self.certificate is None else bool(self.certificate.passed)
+
+
+def geometry_box(problem: CodesignProblemConfig) -> tuple[tuple[str, ...], np.ndarray,
+                                                          np.ndarray]:
+    """(keys, lower, upper) of the problem's geometry variables."""
+    return (tuple(v.name for v in problem.variables),
+            np.array([v.lower for v in problem.variables], float),
+            np.array([v.upper for v in problem.variables], float))
+
+
+def race_track(problem: CodesignProblemConfig, laps: int | None) -> TrackConfig:
+    """The problem's track flown ``laps`` times (its own laps when None)."""
+    assert problem.track is not None  # a build names one track (BuildProblemConfig)
+    track = load(TrackConfig, problem.track)
+    return track if laps is None else track.model_copy(update={"laps": laps})
+
+
+def lap_options(problem: CodesignProblemConfig, template: AirframeConfig) -> LimitLapOptions:
+    """The limit lap as co-design poses it for ``template`` (a combination's airframe;
+    :func:`casadrone.codesign.driver.prepare`): the problem's grid and lap starts, one gate
+    clearance for every frame of the box, no point-mass reference, no grid refinement."""
+    keys, lower, upper = geometry_box(problem)
+    return LimitLapOptions(
+        intervals=problem.codesign.intervals or DEFAULT_INTERVALS[template.propulsion.model],
+        sensitivities=False, starts=problem.codesign.lap_starts, point_mass_reference=False,
+        gate_clearance_m=gate_clearance(template, lower, upper, keys), refinements=0)
+
+
+def codesign_problem(problem: BuildProblemConfig, cfg: AirframeConfig) -> CodesignProblemConfig:
+    """The co-design problem of one combination: the build's problem with the combination's
+    airframe as its ``fixed`` values (every key of it but the decision variables, which start
+    at the template's values)."""
+    data = problem.model_dump(exclude={"build"})
+    keys = {v.name for v in problem.variables}
+    data["fixed"] = {k: v for k, v in cfg.model_dump(exclude_none=True).items() if k not in keys}
+    data["name"] = f"{problem.name}:{cfg.name}"
+    return CodesignProblemConfig.model_validate(data)
+
+
+def combination_start(problem: BuildProblemConfig, combo: Combination) -> AirframeConfig:
+    """The combination's airframe the co-design starts from (the template's geometry, or the
+    box's largest corner where its propellers overlap there)."""
+    keys, lower, upper = geometry_box(problem)
+    return start_airframe(template_of(problem), combo, problem.build, keys, lower, upper)
+
+
+def solve_combination(problem: BuildProblemConfig, combo: Combination, laps: int | None,
+                      bound_s: float = math.nan) -> BuildResult:
+    """Co-design ``combo``'s frame and race it (module docstring); the CPU of this process."""
+    from casadrone.codesign.design import codesign
+    c0 = time.process_time()
+    base = BuildResult(combo, "failed", bound_s=bound_s)
+    try:
+        cfg = combination_start(problem, combo)
+        result = codesign(codesign_problem(problem, cfg), certify=False)
+    except ConfigError as exc:
+        return replace(base, reason=exc.lines[0], cpu_s=time.process_time() - c0)
+    if result.best is None:
+        return replace(base, reason=result.reason, cpu_s=time.process_time() - c0)
+    best = result.best
+    frame = with_theta(cfg, best.theta)
+    track = race_track(problem, laps)
+    raced = race(frame, track, lap_options(problem, cfg))
+    hover = hover_of(frame)
+    out = replace(base, outcome="raced", laps=track.laps, theta=dict(best.theta),
+                  lap_s=best.objective, mass_kg=best.mass_kg, point=best,
+                  thrust_to_weight=hover.thrust_to_weight, hover_throttle=hover.throttle,
+                  hover_pack_current_a=hover.pack_current_a)
+    if not raced.lap.completed:
+        return replace(out, reason=f"race: {raced.reason}", cpu_s=time.process_time() - c0)
+    e = raced.energy
+    assert e is not None  # a combination's pack has a capacity (combination_airframe)
+    return replace(out, race_s=raced.lap.lap_time_s, feasible=raced.feasible,
+                   reason=raced.reason, peak_pack_current_a=e.peak_pack_current_a,
+                   peak_motor_current_a=e.peak_motor_current_a,
+                   pack_current_margin_a=e.pack_current_margin_a,
+                   motor_current_margin_a=e.motor_current_margin_a,
+                   energy_used_wh=e.energy_used_wh, energy_left_wh=e.energy_left_wh,
+                   end_soc=e.end_soc, cpu_s=time.process_time() - c0)

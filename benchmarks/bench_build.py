@@ -50,8 +50,8 @@ def problem_of(args: argparse.Namespace):
     over += ["backend.name=serial", "build.certify=false", f"build.rank={args.rank}"]
     if args.short:  # the co-design tests' short track on their propeller grid
         over += [f"track={ROOT / 'tests/data/codesign/short-track.yaml'}",
-                 "codesign.intervals=16",
-                 "codesign.lap_starts=[closed-loop, point-mass, coarse-grid]"]
+                 "limit_lap.intervals=16",
+                 "limit_lap.starts=[closed-loop, point-mass, coarse-grid]"]
     return load_build_problem("build-small", over), over
 
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -34,6 +34,7 @@ from casadrone.propulsion import (
     hover_commands,
     motor_currents,
 )
+from casadrone.propulsion.propeller import PropellerParams
 from casadrone.results import AsDict
 
 #: Metres per inch, for the propeller diameter filter.
@@ -161,7 +162,7 @@ def hover_of(cfg: AirframeConfig, mass_kg: float | None = None) -> Hover:
     weight = m * frame.gravity
     q = airframe_values(frame)
     w, u = hover_commands(q, [weight / 4] * 4)
-    _, currents = motor_currents(ca.DM(w), ca.DM(u), q)
+    _, currents = motor_currents(ca.DM(w), ca.DM(u), cast("PropellerParams", q))
     motor = np.asarray(currents, float).ravel()
     thrust = 4 * full_static_thrust(cfg.propulsion, frame.air_density)
     ok = all(0.0 <= x <= 1.0 for x in u)

@@ -15,7 +15,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from typing import Any
 
 from casadrone.config.problem import BackendConfig
-from casadrone.optimise.lifeline import worker_init
+from casadrone.lifeline import worker_init
 
 
 class Pool:

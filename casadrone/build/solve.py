@@ -19,14 +19,14 @@ import numpy as np
 
 from casadrone.airframe import with_theta
 from casadrone.build.combos import Combination, hover_of, start_airframe
-from casadrone.codesign.checks import gate_clearance, template_of
+from casadrone.codesign.checks import codesign_lap_options, gate_clearance, template_of
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.build import BuildProblemConfig
 from casadrone.config.codesign import CodesignProblemConfig
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
 from casadrone.limit.race import race
-from casadrone.limit.result import DEFAULT_INTERVALS, LimitLapOptions
+from casadrone.limit.result import LimitLapOptions
 from casadrone.results import AsDict
 
 #: What became of a combination: refused before any solve, pruned by its bound, co-designed and
@@ -105,10 +105,7 @@ def lap_options(problem: CodesignProblemConfig, template: AirframeConfig) -> Lim
     :func:`casadrone.codesign.driver.prepare`): the problem's grid and lap starts, one gate
     clearance for every frame of the box, no point-mass reference, no grid refinement."""
     keys, lower, upper = geometry_box(problem)
-    return LimitLapOptions(
-        intervals=problem.codesign.intervals or DEFAULT_INTERVALS[template.propulsion.model],
-        sensitivities=False, starts=problem.codesign.lap_starts, point_mass_reference=False,
-        gate_clearance_m=gate_clearance(template, lower, upper, keys), refinements=0)
+    return codesign_lap_options(problem, template, gate_clearance(template, lower, upper, keys))
 
 
 def codesign_problem(problem: BuildProblemConfig, cfg: AirframeConfig) -> CodesignProblemConfig:

@@ -22,8 +22,8 @@ TINY = ["build.propellers=[uiuc-da4022-5x3.75-3blade, uiuc-nr640-5x3.16-3blade]"
         "build.packs=[cnhl-ministar-650mah-4s, cnhl-black-v2-1300mah-4s]",
         "build.certify=false",
         # the short test track of the co-design tests, on their propeller grid (16 intervals)
-        f"track={ROOT / 'tests/data/codesign/short-track.yaml'}", "codesign.intervals=16",
-        "codesign.lap_starts=[closed-loop, point-mass, coarse-grid]"]
+        f"track={ROOT / 'tests/data/codesign/short-track.yaml'}", "limit_lap.intervals=16",
+        "limit_lap.starts=[closed-loop, point-mass, coarse-grid]"]
 
 
 def tiny(*more: str):

@@ -139,7 +139,7 @@ def main() -> None:
               "\n".join(f"- {k}: {v}" for k, v in describe().items())]
     rows = [(f"build of a {size} catalogue against brute force co-design, one process each",
              f"{bb['cpu_s']:.0f} s CPU against {brute['cpu_s']:.0f} s "
-             f"({bb['cpu_s'] / brute['cpu_s']:.2f}x); same ranking: {same}", cmd)]
+             f"({bb['cpu_s'] / brute['cpu_s']:.2f}x); same ranking: {same}", f"`{cmd}`")]
     text = with_summary("\n".join(lines) + "\n", rows)
     RESULTS.write_text(text)
     print(text)

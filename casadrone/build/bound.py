@@ -26,7 +26,7 @@ What is *not* certified by the argument: IPOPT returns local optima, of the poin
 the full model, and the two are on their own grids. The bound is the best of the point mass's
 straight-line starts, so a poor local optimum of the point mass could lie above the full
 model's lap. That is why the inequality is tested, combination by combination, against the
-co-designed race on the build's small catalogue (tests/integration/test_build.py) and
+co-designed race on the build's small catalogue (tests/integration/test_build_search.py) and
 reported by every build (``bound_ratio``: bound over race time, at most 1 where it holds).
 """
 

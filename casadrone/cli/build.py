@@ -48,7 +48,7 @@ def build_command(
     problem: Annotated[str, typer.Argument(help="build problem YAML, or a shipped name "
                                            "(build-small)")],
     overrides: Annotated[list[str] | None, typer.Argument(
-        help="dotted key=value overrides, e.g. build.rank=5 codesign.intervals=20")] = None,
+        help="dotted key=value overrides, e.g. build.rank=5 limit_lap.intervals=20")] = None,
     laps: Annotated[int | None, typer.Option(min=1, max=20, help="laps of the race (default: "
                                              "build.laps, else the track's)")] = None,
     out: Annotated[Path | None, typer.Option(help="folder for result.json, ranking.csv and the "

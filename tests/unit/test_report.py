@@ -289,7 +289,7 @@ def test_candidate_exports_are_linked_and_written(report):
     require_front(run_dir)
     links = re.findall(r'<a href="exports/(candidate-([ABC]+)-([\w-]+)\.\w+)">', html)
     assert {fmt for _, _, fmt in links} == {"betaflight", "px4", "px4-shell", "urdf", "svg",
-                                            "dxf"}
+                                            "dxf", "bom", "bom-csv"}
     for name, label, _ in links:
         text = (run_dir / "exports" / name).read_text(encoding="utf-8")
         assert f"candidate: {'='.join(label)} (" in text and "casadrone" in text

@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from casadrone.limit import watchdog
 from casadrone.limit.watchdog import beat, run_guarded
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="the guard needs os.fork")
@@ -81,7 +80,7 @@ def test_errors_and_deaths_are_results_not_exceptions():
 def test_stalled_fatrop_solve_falls_back_to_ipopt(monkeypatch):
     """fatrop replaced by a solve that hangs in C: the limit-lap solve gives it up after the
     limit, says so, and returns IPOPT's optimum of the same NLP from the same start."""
-    from casadrone.limit import stagewise
+    from casadrone.limit import nlp as nlp_module
     from casadrone.limit.nlp import solve
     from tests.unit.test_limitlap_stagewise import out_and_back
 
@@ -92,8 +91,8 @@ def test_stalled_fatrop_solve_falls_back_to_ipopt(monkeypatch):
         beat()
         select.select([], [], [], 60.0)
 
-    monkeypatch.setattr(stagewise, "solve_stagewise", hangs)
-    monkeypatch.setattr(watchdog, "STALL_S", 1.0)
+    monkeypatch.setattr(nlp_module, "solve_stagewise", hangs)  # where solve looks them up
+    monkeypatch.setattr(nlp_module, "STALL_S", 1.0)
     t0 = time.monotonic()
     sol = solve(nlp, w0, P, lbx, ubx, solver="fatrop")
     assert time.monotonic() - t0 < 20.0

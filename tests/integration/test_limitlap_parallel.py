@@ -16,7 +16,7 @@ import pytest
 
 from casadrone.cli.common import jsonable
 from casadrone.config.airframe import load_airframe
-from casadrone.limit.lap import LimitLapOptions, limit_lap
+from casadrone.limit.lap import LimitLapOptions, design_limit_lap
 from casadrone.limit.search import search_options
 from casadrone.pool import DaskPool, ProcessPool
 from tests.integration.test_limitlap_optimality import TRACK
@@ -36,7 +36,7 @@ def untimed(lap) -> str:
 
 @pytest.fixture(scope="module")
 def serial():
-    lap = limit_lap(load_airframe("SY250"), TRACK, OPTIONS)
+    lap = design_limit_lap(load_airframe("SY250"), TRACK, OPTIONS)
     assert lap.completed and lap.workers == 1, lap.reason
     assert any(s.start.startswith("grid-") for s in lap.starts)  # the rounds ran
     return lap
@@ -44,7 +44,7 @@ def serial():
 
 def _same_through(pool, serial) -> None:
     try:
-        lap = limit_lap(load_airframe("SY250"), TRACK, OPTIONS, pool)
+        lap = design_limit_lap(load_airframe("SY250"), TRACK, OPTIONS, pool=pool)
         worker_cpu = pool.worker_cpu_s()
     finally:
         pool.close()

@@ -1,6 +1,7 @@
 """Where a build's combinations are co-designed side by side: this process, a spawn process pool
-(as :class:`casadrone.optimise.backends.ProcessBackend`), or a Dask cluster (a scheduler's
-address, or a LocalCluster), chosen by the problem's ``backend`` section.
+or a Dask cluster (a scheduler's address, or a LocalCluster), made as the limit lap's and the
+optimiser's are (:func:`casadrone.pool.spawn_executor`, :func:`casadrone.pool.dask_client`),
+chosen by the problem's ``backend`` section.
 
 One interface for the three: :meth:`Pool.submit` a task, :meth:`Pool.first_done` waits for at
 least one and returns the finished ones; a task is a picklable function of picklable arguments.
@@ -8,14 +9,12 @@ least one and returns the finished ones; a task is a picklable function of pickl
 
 from __future__ import annotations
 
-import multiprocessing
-import os
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Future, wait
 from typing import Any
 
 from casadrone.config.problem import BackendConfig
-from casadrone.lifeline import worker_init
+from casadrone.pool import dask_client, spawn_executor
 
 
 class Pool:
@@ -28,18 +27,9 @@ class Pool:
         self.client: Any = None
         self.cluster: Any = None
         if backend.name == "processes":
-            self.executor = ProcessPoolExecutor(
-                backend.workers, mp_context=multiprocessing.get_context("spawn"),
-                initializer=worker_init, initargs=(os.getpid(),))
+            self.executor = spawn_executor(backend.workers)
         elif backend.name == "dask":
-            from distributed import Client, LocalCluster
-
-            if backend.scheduler:
-                self.client = Client(backend.scheduler)
-            else:
-                self.cluster = LocalCluster(n_workers=backend.workers, threads_per_worker=1,
-                                            processes=True, dashboard_address=None)
-                self.client = Client(self.cluster)
+            self.client, self.cluster = dask_client(backend.workers, backend.scheduler)
             self.workers = max(1, len(self.client.scheduler_info()["workers"]))
 
     def submit(self, fn: Callable[..., Any], *args: Any) -> Any:

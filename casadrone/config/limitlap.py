@@ -19,8 +19,10 @@ from pydantic import Field
 
 from casadrone.config.io import ConfigError, Schema, apply_overrides, validate_data
 
-#: The cold starts of the limit lap (:mod:`casadrone.limit.starts`).
-Start = Literal["closed-loop", "point-mass", "coarse-grid", "fine-grid", "relaxed-tolerance"]
+#: The starts of the limit lap (:mod:`casadrone.limit.starts`): the cold starts, and
+#: ``library``, the shipped best laps of the track (:mod:`casadrone.limit.library`).
+Start = Literal["closed-loop", "point-mass", "coarse-grid", "fine-grid", "relaxed-tolerance",
+                "library"]
 #: The attitude models of the limit lap, and the ways it limits the tilt.
 Attitude = Literal["euler", "quaternion"]
 TiltLimit = Literal["axes", "cone", "none"]
@@ -66,9 +68,11 @@ class LimitLapConfig(Schema):
     fatrop``); in a problem file, a key of its ``limit_lap:`` section."""
 
     search: Search = Field(
-        "fast", description="fast: two starts (coarse-grid, fine-grid), no grid rounds; "
-        "certify (--certify): solve from every start and run grid rounds: whether they agree "
-        "(certainty, spread) and how uncertain the sensitivities are over the optima found")
+        "fast", description="fast: one solve from the best lap shipped for the track "
+        "(the library start; the coarse-grid and fine-grid starts where none is shipped or it "
+        "gives no verified lap), no grid rounds; certify (--certify): solve from every start "
+        "and run grid rounds: whether they agree (certainty, spread) and how uncertain the "
+        "sensitivities are over the optima found")
     intervals: int | None = Field(
         None, ge=2, le=MAX_INTERVALS, description="time steps of the lap per leg: more is "
         "finer, slower and needs more memory; default 40 with the paper propulsion model, 80 "
@@ -84,8 +88,9 @@ class LimitLapConfig(Schema):
         "solved step by step along the lap; ipopt solves again where it fails; not with a "
         "periodic track); default: the search's (ipopt)")
     starts: tuple[Start, ...] | None = Field(
-        None, description="the cold starts solved (closed-loop, point-mass, "
-        "coarse-grid, fine-grid, relaxed-tolerance); default: the search's. An optimisation's "
+        None, description="the starts solved (closed-loop, point-mass, coarse-grid, "
+        "fine-grid, relaxed-tolerance; library: the laps shipped for the track); default: the "
+        "search's. An optimisation's "
         "evaluations start warm from the study's references and fall back to closed-loop and "
         "point-mass")
     grid_rounds: int | None = Field(

@@ -121,6 +121,7 @@ from casadrone.limit.starts import (
     Problem,
     StartSolve,
     coarse_intervals,
+    cold_solves,
     fallback_solve,
     fine_intervals,
     inner_options,
@@ -238,6 +239,11 @@ def _limit_lap(frame: Airframe, cfg: AirframeConfig | None, track: TrackConfig,
     solves = run_starts(pb, lap_on_grid) if sd is None else parallel.run_starts(sd, pb, known)
     misses = resimulation_misses(pb, solves, known)
     good = verified(solves, misses, options)
+    if not good and options.fallback_starts:  # the fast path's cold starts
+        solves += cold_solves(replace(pb, options=replace(
+            options, starts=options.fallback_starts, fallback_starts=())), lap_on_grid)
+        misses = resimulation_misses(pb, solves, misses)
+        good = verified(solves, misses, options)
     events.verified(len(good), sum(s.success for _, s in solves), len(solves))
     if solves and not good and (fallback := events.solved(
             pb.layout.intervals, lambda: fallback_solve(pb, limit_lap))) is not None:
@@ -440,7 +446,7 @@ def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],
     ends = np.cumsum(T)
     lap_ends = ends[list(pb.targets.lap_ends)]
     agreement, spread = certainty(good, tuple((grid_laps or {}).values()))
-    ref = pb.reference if pb.options.point_mass_reference else None
+    ref = pb.lap_reference(chosen.point.w) if pb.options.point_mass_reference else None
     return LimitLap(
         status="completed", reason="", lap_time_s=float(np.sum(T)),
         split_times_s=ends[pb.targets.first_timed:], leg_times_s=T,

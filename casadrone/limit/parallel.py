@@ -34,6 +34,7 @@ from casadrone.limit.starts import (
     Problem,
     StartSolve,
     inner_options,
+    library_solves,
     not_run,
     prepare,
     warm_solves,
@@ -221,7 +222,7 @@ def run_starts(sd: Side, pb: Problem, misses: dict[str, float]) -> list[StartSol
     for task in done:
         if task.reference and "reference" not in pb.__dict__:
             adopt_reference(pb, task.reference[0])
-    return _gathered(sd, done, pb.layout.intervals, misses) + warm_solves(pb)
+    return library_solves(pb) + _gathered(sd, done, pb.layout.intervals, misses) + warm_solves(pb)
 
 
 def _reference_here(pb: Problem, names: Sequence[str]) -> None:

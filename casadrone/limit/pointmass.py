@@ -31,6 +31,20 @@ def point_mass_p(airframe: Airframe) -> np.ndarray:
     return np.where(keep, airframe.p, 0.0)
 
 
+def point_mass_problem(pm: Nlp, airframe: Airframe, track: TrackConfig,
+                       options: LimitLapOptions, targets: Targets, x0: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                  np.ndarray]:
+    """The point-mass relaxation's P, box (lbx, ubx), row bounds (lbg, ubg) and start state
+    (position, world velocity) for the full model's start state ``x0`` (16 Euler states)."""
+    R = np.asarray(rotation_matrix(*x0[9:12])).reshape(3, 3)
+    x0_pm = np.concatenate([x0[0:3], R @ x0[3:6]])
+    P = np.concatenate([point_mass_p(airframe), x0_pm, targets.vector])
+    lbx, ubx = bounds(pm, airframe, track, options, point_mass=True)
+    lbg, ubg = row_bounds(pm, track, options)
+    return P, lbx, ubx, lbg, ubg, x0_pm
+
+
 def point_mass_reference(pm: Nlp, airframe: Airframe, track: TrackConfig,
                          options: LimitLapOptions, targets: Targets, x0: np.ndarray
                          ) -> NlpSolution | None:
@@ -41,11 +55,7 @@ def point_mass_reference(pm: Nlp, airframe: Airframe, track: TrackConfig,
     the full model is one of the point mass), so its *global* optimum bounds the lap from below,
     but IPOPT finds local optima, and the best of a few starts is only the best found.
     """
-    R = np.asarray(rotation_matrix(*x0[9:12])).reshape(3, 3)
-    x0_pm = np.concatenate([x0[0:3], R @ x0[3:6]])
-    P = np.concatenate([point_mass_p(airframe), x0_pm, targets.vector])
-    lbx, ubx = bounds(pm, airframe, track, options, point_mass=True)
-    lbg, ubg = row_bounds(pm, track, options)
+    P, lbx, ubx, lbg, ubg, x0_pm = point_mass_problem(pm, airframe, track, options, targets, x0)
     key = b"".join(np.ascontiguousarray(a, float).tobytes() for a in (P, lbx, ubx, lbg, ubg)) \
         + repr((pm.layout, options.tol, options.max_iter)).encode()
     if key not in _POINT_MASS:
@@ -56,3 +66,16 @@ def point_mass_reference(pm: Nlp, airframe: Airframe, track: TrackConfig,
         good = [s for s in sols if s.success]
         _POINT_MASS[key] = min(good, key=lambda s: s.objective) if good else None
     return _POINT_MASS[key]
+
+
+def point_mass_from(pm: Nlp, w_pm: np.ndarray, airframe: Airframe, track: TrackConfig,
+                    options: LimitLapOptions, targets: Targets, x0: np.ndarray
+                    ) -> NlpSolution | None:
+    """The point-mass relaxation solved from ``w_pm`` (the projection of a full-model lap:
+    :func:`casadrone.limit.guesses.point_mass_guess`), None when it does not converge. A
+    feasible lap of the full model is a feasible point of the relaxation, so this local optimum
+    lies at or below that lap: tens to a few hundred iterations where the straight-line starts
+    take 430-600 (benchmarks/RESULTS-limitlap-fastpath.md)."""
+    P, lbx, ubx, lbg, ubg, _ = point_mass_problem(pm, airframe, track, options, targets, x0)
+    sol = solve(pm, np.clip(w_pm, lbx, ubx), P, lbx, ubx, lbg=lbg, ubg=ubg)
+    return sol if sol.success else None

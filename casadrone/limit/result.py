@@ -127,6 +127,10 @@ class LimitLapOptions:
     # fine-grid start on another VM). The relaxed-tolerance start lands where the point-mass
     # start does.
     starts: tuple[Start, ...] = ("closed-loop", "point-mass", "coarse-grid", "fine-grid")
+    # Cold starts solved only when none of ``starts`` gave a verified lap: the fast path's
+    # ("library" first; the grid-continuation starts where no lap of the track is shipped or
+    # the shipped one does not lead to a verified lap: casadrone.limit.search).
+    fallback_starts: tuple[Start, ...] = ()
     ball_radius_m: float | None = None  # None: the track's acceptance radius
     # Kept from the gate's frame on each side (m); None: the frame's own size (the farthest
     # rotor plus a propeller radius, frame_clearance_m).

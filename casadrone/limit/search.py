@@ -30,6 +30,7 @@ class SearchSettings:
     starts: tuple[Start, ...]
     grid_rounds: int
     solver: Solver
+    fallback_starts: tuple[Start, ...] = ()  # solved only when ``starts`` verify no lap
 
 
 #: The searches. ``fast``: see docs/concepts/limit-lap.md ("Starts and checks") and
@@ -39,8 +40,9 @@ class SearchSettings:
 #: ``certify``: the four cold starts and COMMAND_GRID_ROUNDS rounds with IPOPT (the command's
 #: default before the fast path).
 SEARCHES: dict[Search, SearchSettings] = {
-    "fast": SearchSettings(("coarse-grid", "fine-grid"), 0, "ipopt"),
-    "certify": SearchSettings(LimitLapOptions.starts, COMMAND_GRID_ROUNDS, "ipopt"),
+    "fast": SearchSettings(("library",), 0, "ipopt", ("coarse-grid", "fine-grid")),
+    "certify": SearchSettings((*LimitLapOptions.starts, "library"), COMMAND_GRID_ROUNDS,
+                              "ipopt"),
 }
 
 
@@ -60,7 +62,7 @@ def search_options(search: Search, options: LimitLapOptions, periodic: bool,
     chosen = solver if solver is not None else s.solver
     if solver is None and chosen == "fatrop" and not fatrop_allowed(options, periodic):
         chosen = "ipopt"
-    return replace(options, starts=s.starts, solver=chosen,
+    return replace(options, starts=s.starts, solver=chosen, fallback_starts=s.fallback_starts,
                    grid_rounds=s.grid_rounds if grid_rounds is None else grid_rounds)
 
 
@@ -74,4 +76,5 @@ def lap_options(config: LimitLapConfig, periodic: bool,
                       rotor_step=config.rotor_step, substeps=config.substeps)
     options = search_options(config.search, options, periodic, solver=config.solver,
                              grid_rounds=config.grid_rounds)
-    return options if config.starts is None else replace(options, starts=config.starts)
+    return options if config.starts is None else replace(options, starts=config.starts,
+                                                         fallback_starts=())

@@ -28,9 +28,11 @@ from casadrone.limit.guesses import (
     guess_from_lap,
     guess_from_trajectory,
     lifted_guess,
+    point_mass_guess,
     straight_guess,
 )
 from casadrone.limit.lagless import is_lagless, with_guess_lag, without_lag
+from casadrone.limit.library import shipped_laps, usable
 from casadrone.limit.nlp import (
     ATTITUDE_MODELS,
     Layout,
@@ -42,7 +44,7 @@ from casadrone.limit.nlp import (
     point_mass_ocp_model,
     solve,
 )
-from casadrone.limit.pointmass import point_mass_reference
+from casadrone.limit.pointmass import point_mass_from, point_mass_reference
 from casadrone.limit.problem import (
     Targets,
     bounds,
@@ -108,6 +110,18 @@ class Problem:
     def reference(self) -> NlpSolution | None:
         return point_mass_reference(self.point_mass, self.frame, self.track, self.options,
                                     self.targets, self.x0_euler)
+
+    def lap_reference(self, w: np.ndarray) -> NlpSolution | None:
+        """The point-mass reference a lap reports: the relaxation solved from the lap ``w``'s
+        own path (:func:`~casadrone.limit.pointmass.point_mass_from`), or the straight-line
+        starts' reference (:attr:`reference`) where a start already solved it and it is
+        lower; None when neither converged."""
+        from_lap = point_mass_from(self.point_mass,
+                                   point_mass_guess(self.full, self.point_mass, w, self.frame),
+                                   self.frame, self.track, self.options, self.targets,
+                                   self.x0_euler)
+        found = [s for s in (from_lap, self.__dict__.get("reference")) if s is not None]
+        return min(found, key=lambda s: s.objective) if found else None
 
     @cached_property
     def lifted(self) -> np.ndarray | None:
@@ -270,6 +284,27 @@ def relaxed_then_tight(pb: Problem, w0: np.ndarray) -> NlpSolution:
                    wall_time_s=loose.wall_time_s + tight.wall_time_s)
 
 
+def library_solves(pb: Problem) -> list[StartSolve]:
+    """With the ``library`` start: one solve from each shipped lap of this track and
+    propulsion kind (:mod:`casadrone.limit.library`), ``library-<airframe>``: primal-dual on
+    the same layout, resampled on another grid; a failed ``library`` solve saying why when
+    none is shipped for this track."""
+    if "library" not in pb.options.starts:
+        return []
+    solves: list[StartSolve] = []
+    for s in shipped_laps(pb.track, pb.frame.propulsion):
+        how = usable(s, pb.layout, pb.full.model.attitude)
+        if how is None:
+            continue
+        with events.start(f"library-{s.name}", pb.layout.intervals) as done:
+            point = s.lap.solution  # a shipped lap always has its primal-dual point
+            sol = pb.solve(point.w, warm=point) if how == "warm" and point is not None else \
+                pb.solve(guess_from_lap(pb.full, s.lap, pb.x0))
+            done(sol)
+        solves.append((f"library-{s.name}", sol))
+    return solves or [("library", not_run(pb, "library"))]
+
+
 def warm_solves(pb: Problem) -> list[StartSolve]:
     """One solve per usable warm start: ``warm-i`` (primal-dual, same layout and attitude) or
     ``resampled-i`` (same legs and method, another grid or attitude)."""
@@ -289,6 +324,7 @@ NOT_RUN: dict[str, str] = {
     "coarse-grid": "not run: the coarse grid's own lap failed",
     "fine-grid": "not run: the fine grid's own lap failed",
     "point-mass": "not run: no point-mass reference converged",
+    "library": "not run: no lap of this track and propulsion kind is shipped",
 }
 
 
@@ -302,9 +338,9 @@ def not_run(pb: Problem, name: str) -> NlpSolution:
                        0, 0.0, pb.options.solver)
 
 
-def run_starts(pb: Problem, lap_of: LapOf) -> list[StartSolve]:
-    """Solve from each of the options' cold starts (registry order), then the warm starts; a
-    start without a guess is a failed solve saying why (:func:`not_run`)."""
+def cold_solves(pb: Problem, lap_of: LapOf) -> list[StartSolve]:
+    """One solve from each of the options' cold starts (registry order); a start without a
+    guess is a failed solve saying why (:func:`not_run`)."""
     solves: list[StartSolve] = []
     for name, start in COLD_STARTS.items():
         if name in pb.options.starts:
@@ -313,7 +349,13 @@ def run_starts(pb: Problem, lap_of: LapOf) -> list[StartSolve]:
                 sol = sol if sol is not None else not_run(pb, name)
                 done(sol)
             solves.append((name, sol))
-    return solves + warm_solves(pb)
+    return solves
+
+
+def run_starts(pb: Problem, lap_of: LapOf) -> list[StartSolve]:
+    """Solve from the shipped laps (the ``library`` start), the options' cold starts, then the
+    warm starts."""
+    return library_solves(pb) + cold_solves(pb, lap_of) + warm_solves(pb)
 
 
 # --------------------------------------------------------------------------------------------

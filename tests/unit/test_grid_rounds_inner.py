@@ -71,11 +71,12 @@ def test_the_command_runs_grid_rounds_with_certify_and_the_library_does_not(monk
                  ["--certify", "--workers", "1"], ["--workers", "3"]):
         r = runner.invoke(app, ["limit-lap", "SY250", "--json", *args])
         assert r.exit_code == 0, r.output
-    fast, every = SEARCHES["fast"].starts, LimitLapOptions.starts
+    fast, every = SEARCHES["fast"].starts, SEARCHES["certify"].starts
     assert seen == [(fast, 0), (every, COMMAND_GRID_ROUNDS), (every, 0), (fast, 2),
                     (every, COMMAND_GRID_ROUNDS), (fast, 0)]
     # processes: the cores this process may use with --certify, one on the fast path, or as told
     cores = len(os.sched_getaffinity(0))
     assert workers == [1, cores, cores, 1, 1, 3]
     assert COMMAND_GRID_ROUNDS > 0 and len(every) > len(fast)
+    assert set(fast) | set(SEARCHES["fast"].fallback_starts) <= set(every)  # certify ⊇ fast
     assert LimitLapOptions().grid_rounds == 0

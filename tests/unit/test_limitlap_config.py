@@ -77,13 +77,15 @@ def test_the_limit_laps_types_are_the_schemas():
 
 def test_defaults_are_the_fast_path():
     """The settings' defaults give the options the command flew before its settings were a
-    schema (typed in: the fast path's two grid-continuation starts, no rounds, IPOPT, RK4 with
+    schema (typed in: the fast path's shipped laps, the two grid-continuation starts where those
+    give no lap, no rounds, IPOPT, RK4 with
     3 steps, Euler angles, the axes tilt limit, the whole lap re-simulated)."""
     from casadrone.limit.result import LimitLapOptions
     from casadrone.limit.search import lap_options
 
     o = lap_options(LimitLapConfig(), periodic=False)
-    assert (o.starts, o.grid_rounds, o.solver) == (("coarse-grid", "fine-grid"), 0, "ipopt")
+    assert (o.starts, o.grid_rounds, o.solver) == (("library",), 0, "ipopt")
+    assert o.fallback_starts == ("coarse-grid", "fine-grid")
     assert (o.intervals, o.substeps, o.rotor_step) == (None, 3, "rk4")
     assert (o.attitude, o.tilt_limit, o.resimulation) == ("euler", "axes", "lap")
     library = LimitLapOptions()
@@ -91,6 +93,7 @@ def test_defaults_are_the_fast_path():
             library.resimulation) == (3, "rk4", "euler", "axes", "lap")
     certify = lap_options(LimitLapConfig(search="certify", starts=("fine-grid",)), False)
     assert certify.starts == ("fine-grid",) and certify.grid_rounds == 3
+    assert certify.fallback_starts == ()  # the starts a user names are the only ones
 
 
 @pytest.fixture
@@ -129,7 +132,7 @@ def test_options_and_keys_give_the_same_options(cli_runner, recorded):
     assert (by_key.intervals, by_key.attitude, by_key.tilt_limit, by_key.solver,
             by_key.grid_rounds, by_key.rotor_step, by_key.substeps, by_key.resimulation) == (
         30, "quaternion", "cone", "fatrop", 2, "exponential", 4, "legs")
-    assert len(by_key.starts) == 4  # certify: every cold start but the relaxed tolerance
+    assert len(by_key.starts) == 5  # certify: the cold starts but one, the library
 
 
 @pytest.mark.parametrize("key", [k for k in KEYS if choices(k) or k == "starts"])

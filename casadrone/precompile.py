@@ -1,10 +1,11 @@
 """Compile the solver blocks of casadrone's models for this machine, several at a time.
 
 The limit lap and co-design compile one shooting interval's derivatives as C the first time a
-model is used (:mod:`casadrone.codegen`): one to four minutes of one core each for the
-quadrotor's models (the whole-step blocks, the default), one after the other as a process comes
-to need them. A fresh machine that will use them all (a cluster node, a CI runner, the test
-suite) can compile them side by side instead, one process per library, the largest first::
+model is used (:mod:`casadrone.codegen`): 4-140 s of one core each for the quadrotor's models
+(the substep-chain blocks, the default, 290 s for all of them; one to four minutes each with
+``CASADRONE_BLOCKS=whole-step``), one after the other as a process comes to need them. A fresh
+machine that will use them all (a cluster node, a CI runner, the test suite) can compile them
+side by side instead, one process per library, the largest first::
 
     python -m casadrone.precompile [--jobs N]
 
@@ -47,12 +48,12 @@ class Block:
         return f"{self.kind} {self.model}{extra} {self.propulsion} rk4x{self.substeps}{tail}"
 
 
-#: What the shipped problems compile, the largest first (CPU of one compile at -O2 -mavx2 on the
-#: project's AMD VM, the default whole-step blocks: codesign propeller ~4 min, limit propeller
-#: ~3.5, codesign paper ~2.5, limit paper ~2.5 (157-198 s measured), the lag-free paper model
-#: ~1.5; the point-mass blocks take seconds; 31 MB of C in all. With
-#: ``CASADRONE_BLOCKS=substep-chain`` (:data:`casadrone.limit.nlp.BLOCK_DESIGNS`) 9.8 MB, in the
-#: same order, the limit paper block 18 s: benchmarks/RESULTS-limitlap-compile.md).
+#: What the shipped problems compile, the largest first (9.8 MB of C in all with the default
+#: substep-chain blocks, :data:`casadrone.limit.nlp.BLOCK_DESIGNS`: the limit paper block
+#: 14-18 s of CPU at -O2 -mavx2 on the project's AMD VM; with ``CASADRONE_BLOCKS=whole-step``
+#: 31 MB: codesign propeller ~4 min, limit propeller ~3.5, codesign paper ~2.5, limit paper
+#: ~2.5 (157-198 s measured), the lag-free paper model ~1.5; the point-mass blocks take
+#: seconds: benchmarks/RESULTS-limitlap-compile.md).
 SHIPPED: tuple[Block, ...] = (
     Block("codesign", "quadrotor", "propeller"),
     Block("limit", "quadrotor", "propeller"),

@@ -27,8 +27,10 @@ def begun(options: LimitLapOptions, warm_starts: int = 0) -> None:
     if active():
         starts = ", ".join(options.starts) or "none"
         warm = f" and {warm_starts} warm start(s)" if warm_starts else ""
+        fallback = (f" (where they give no lap: {', '.join(options.fallback_starts)})"
+                    if options.fallback_starts else "")
         emit("stage", f"limit lap on {options.intervals} intervals per leg ({options.solver}): "
-             f"cold starts {starts}{warm}, grid rounds up to {options.grid_rounds}")
+             f"starts {starts}{warm}{fallback}, grid rounds up to {options.grid_rounds}")
 
 
 @contextmanager

@@ -658,21 +658,26 @@ _BLOCKS: dict[tuple, tuple] = {}
 
 #: How the interval blocks are generated (:func:`interval_blocks`):
 #:
+#: - ``substep-chain`` (the default): one RK4 step's derivatives chained over the steps
+#:   (:func:`chained_block_functions`): the quadrotor's paper block is 1.1 MB of C, 14-23 s of
+#:   CPU to compile at -O2 -mavx2, 9.8 MB for every shipped block, at the whole step's cost per
+#:   solve (1.47 against 1.41 s of blocks per 68-iteration solve);
 #: - ``whole-step``: CasADi's symbolic Jacobian and Hessian of the whole interval (its RK4 steps
-#:   in one SX graph; :func:`interval_block_functions`): the quadrotor's paper block is 4.4 MB of
-#:   C, 198 s of CPU to compile at -O2 -mavx2, 31 MB for every shipped block;
-#: - ``substep-chain``: one RK4 step's derivatives chained over the steps
-#:   (:func:`chained_block_functions`): 1.1 MB, 18-23 s, 9.8 MB for every shipped block; the same
-#:   derivatives to rounding (~1e-16), but not to the last bit, and IPOPT's path from a cold
-#:   start follows the last bits: SY250's fast path then ended at 3.8800 s instead of 3.8914 s,
-#:   HS210's at 3.8833 s instead of 3.8307 s (benchmarks/RESULTS-limitlap-compile.md).
+#:   in one SX graph; :func:`interval_block_functions`): 4.4 MB, 157-198 s, 31 MB for every
+#:   shipped block (the default until the fast path started from the shipped laps).
 #:
-#: The default is ``whole-step`` (every lap as before, to the bit); ``$CASADRONE_BLOCKS`` chooses.
-BLOCK_DESIGNS: tuple[str, ...] = ("whole-step", "substep-chain")
+#: The two give the same derivatives to rounding (~1e-16), not to the last bit, and IPOPT's path
+#: from a cold start follows the last bits: SY250's fine-grid start ended at 3.8800 s with the
+#: chain and 3.8914 s with the whole step, HS210's at 3.8833 s and 3.8307 s
+#: (benchmarks/RESULTS-limitlap-compile.md). A warm start from a shipped lap does not: SY250
+#: 3.8795 s from either (casadrone.limit.library). So the chain is the default, for a first
+#: limit lap in about 25 s of CPU on an empty cache instead of four minutes;
+#: ``$CASADRONE_BLOCKS=whole-step`` gives every lap as before, to the bit.
+BLOCK_DESIGNS: tuple[str, ...] = ("substep-chain", "whole-step")
 
 
 def block_design() -> str:
-    """The interval blocks' design: ``$CASADRONE_BLOCKS`` or ``whole-step``
+    """The interval blocks' design: ``$CASADRONE_BLOCKS`` or ``substep-chain``
     (:data:`BLOCK_DESIGNS`). Raises ValueError naming the variable for another value."""
     design = os.environ.get("CASADRONE_BLOCKS") or BLOCK_DESIGNS[0]
     if design not in BLOCK_DESIGNS:

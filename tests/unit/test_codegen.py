@@ -234,8 +234,10 @@ def test_the_quadrotor_blocks_in_vector_registers_keep_every_bit():
     from casadrone.limit import nlp
 
     model = nlp.quadrotor_ocp_model()
-    jac, hess, _, _ = nlp.interval_blocks(model, 3)
-    sx_jac, sx_hess, _ = nlp.interval_block_functions(model, 3)
+    jac, hess, _, _ = nlp.interval_blocks(model, 3)  # the default design's, compiled
+    sx_jac, sx_hess, _ = {"substep-chain": nlp.chained_block_functions,
+                          "whole-step": nlp.interval_block_functions}[nlp.block_design()](
+        model, 3)
     step = nlp.step_block(model, 3)
     assert hess.class_name() == "External" and step.class_name() == "External"
     assert nlp.BLOCK_FLAGS[1:] == vector_flags()
@@ -329,15 +331,16 @@ def test_chained_theta_blocks_are_the_whole_steps_derivatives(which):
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
 
 
-def test_the_blocks_design_is_whole_step_unless_chosen(monkeypatch):
-    """``$CASADRONE_BLOCKS`` chooses the interval blocks' design; unset, the whole-step blocks
-    (every lap as before, to the bit); another value is refused naming the variable."""
+def test_the_blocks_design_is_the_substep_chain_unless_chosen(monkeypatch):
+    """``$CASADRONE_BLOCKS`` chooses the interval blocks' design; unset, the substep chain (a
+    fifth of the C); whole-step gives every lap as before, to the bit; another value is refused
+    naming the variable."""
     from casadrone.limit import nlp
 
     monkeypatch.delenv("CASADRONE_BLOCKS", raising=False)
-    assert nlp.block_design() == "whole-step"
-    monkeypatch.setenv("CASADRONE_BLOCKS", "substep-chain")
     assert nlp.block_design() == "substep-chain"
+    monkeypatch.setenv("CASADRONE_BLOCKS", "whole-step")
+    assert nlp.block_design() == "whole-step"
     monkeypatch.setenv("CASADRONE_BLOCKS", "chain")
     with pytest.raises(ValueError, match="CASADRONE_BLOCKS"):
         nlp.block_design()

@@ -31,7 +31,10 @@ from casadrone.limit.nlp import (
     block_design,
     block_recipe,
     chained_substeps,
+    chains_stages,
+    rk4_stages,
     rk4_step,
+    stage_functions,
 )
 
 _THETA_BLOCKS: dict[tuple, tuple[ca.Function, ca.Function]] = {}
@@ -96,7 +99,7 @@ def chained_theta_block_functions(model: OcpModel, substeps: int, n_dir: int
     fraction of its C (benchmarks/RESULTS-limitlap-compile.md)."""
     nx, nu = model.nx, model.nu
     n_head = 1 + nu + n_dir
-    sub_jac, sub_hess, sub_gp = theta_substep_functions(model, substeps, n_dir)
+    sub_jac, sub_hess, sub_gp = staged_theta_substep_functions(model, substeps, n_dir)
     z = ca.MX.sym("z", 1 + nu + nx)
     p = ca.MX.sym("p", model.np)
     inv_n = ca.MX.sym("inv_n")
@@ -145,6 +148,42 @@ def theta_substep_functions(model: OcpModel, substeps: int, n_dir: int
                 ca.gradient(L, p), sig, ca.DM.zeros(n_dir))], [*names, "mu"], ["gp"]))
 
 
+def staged_theta_substep_functions(model: OcpModel, substeps: int, n_dir: int
+                                   ) -> tuple[ca.Function, ca.Function, ca.Function]:
+    """:func:`theta_substep_functions` built from the four stages of classical RK4
+    (:func:`casadrone.limit.nlp.rk4_stages`, each stage's derivatives generated once): the same
+    ``sub_jac``, ``sub_hess`` and ``sub_gp``; the right-hand side on w = [ξ, u, σ] with
+    parameters p + Dσ, where :func:`casadrone.limit.nlp.chains_stages`; otherwise
+    :func:`theta_substep_functions`."""
+    if not chains_stages(model):
+        return theta_substep_functions(model, substeps, n_dir)
+    nx, nu = model.nx, model.nu
+    tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+    wx = ca.SX.sym("w", nx + nu + n_dir)
+    ps = ca.SX.sym("p", model.np)
+    Ds = ca.SX.sym("D", model.np, n_dir)
+    g = ca.Function("g", [wx, ps, Ds], [model.f(wx[:nx], wx[nx:nx + nu],
+                                                 ps + ca.mtimes(Ds, wx[nx + nu:]))],
+                    ["w", "p", "D"], ["k"])
+    stage_jac, stage_hess, stage_gp = stage_functions(g, f"codesign_{tag}", with_gp=True)
+    y = ca.MX.sym("y", 1 + nu + n_dir + nx)
+    p = ca.MX.sym("p", model.np)
+    inv_n = ca.MX.sym("inv_n")
+    D = ca.MX.sym("D", model.np, n_dir)
+    mu = ca.MX.sym("mu", nx)
+    V = ca.MX.sym("V", y.numel(), n_dir)
+    x_next, A, H, stages = rk4_stages(stage_jac, stage_hess, y, nu + n_dir, (p, D),
+                                      inv_n / substeps, mu)
+    assert H is not None  # given mu
+    gp = sum((stage_gp(w, p, D, a) for w, a in stages), ca.MX(model.np, 1))
+    ins, names = [y, p, inv_n, D], ["y", "p", "inv_n", "D"]
+    return (ca.Function(f"codesign_subjac_{tag}", ins, [x_next, ca.densify(A)], names,
+                        ["x_next", "A"]),
+            ca.Function(f"codesign_subhess_{tag}", [*ins, mu, V], [ca.mtimes(H, V)],
+                        [*names, "mu", "V"], ["HV"]),
+            ca.Function(f"codesign_subgp_{tag}", [*ins, mu], [gp], [*names, "mu"], ["gp"]))
+
+
 def theta_blocks(model: OcpModel, substeps: int, n_dir: int, design: str | None = None
                  ) -> tuple[ca.Function, ca.Function]:
     """:func:`theta_block_functions` compiled (once per machine, disk-cached; once per process
@@ -155,7 +194,8 @@ def theta_blocks(model: OcpModel, substeps: int, n_dir: int, design: str | None 
         tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
         fingerprint, build = block_recipe(
             design, rk4_step(model, substeps), theta_block_functions,
-            (chained_theta_block_functions, theta_substep_functions, chained_substeps))
+            (chained_theta_block_functions, staged_theta_substep_functions, chains_stages,
+             stage_functions, rk4_stages, theta_substep_functions, chained_substeps))
         jac, hess = compile_recipe(
             (f"codesign_jac_{tag}", f"codesign_hess_{tag}"), fingerprint,
             lambda: build(model, substeps, n_dir), BLOCK_FLAGS)

@@ -709,7 +709,8 @@ def interval_blocks(model: OcpModel, substeps: int, design: str | None = None
                       for part in ("jac", "hess", "hess_pattern"))
         fingerprint, build = block_recipe(
             design, rk4_step(model, substeps), interval_block_functions,
-            (chained_block_functions, substep_block_functions, hessian_pattern, chained_substeps))
+            (chained_block_functions, staged_substep_functions, chains_stages, stage_functions,
+             rk4_stages, substep_block_functions, hessian_pattern, chained_substeps))
         jac, hess, pattern = compile_recipe(names, fingerprint, lambda: build(model, substeps),
                                             BLOCK_FLAGS)
         rows, cols = (np.asarray(a, dtype=int).ravel() for a in pattern.call([]))
@@ -775,7 +776,7 @@ def chained_block_functions(model: OcpModel, substeps: int
     (benchmarks/RESULTS-limitlap-compile.md)."""
     nx, nu = model.nx, model.nu
     per = 1 + nu + nx
-    sub_jac, sub_hess = substep_block_functions(model, substeps)
+    sub_jac, sub_hess = staged_substep_functions(model, substeps)
     z = ca.MX.sym("z", per)
     p = ca.MX.sym("p", model.np)
     inv_n = ca.MX.sym("inv_n")
@@ -850,6 +851,134 @@ def substep_block_functions(model: OcpModel, substeps: int) -> tuple[ca.Function
                            [ca.hessian(ca.dot(mu, x_next), y)[0]],
                            ["y", "p", "inv_n", "mu"], ["H"])
     return sub_jac, sub_hess
+
+
+def stage_functions(g: ca.Function, name: str, with_gp: bool = False
+                    ) -> tuple[ca.Function, ...]:
+    """The derivatives of one evaluation of ``g(w, *q) -> k`` (an ODE right-hand side on
+    w = [ξ, c]: the state and what a step holds constant), as SX: ``{name}_stagejac(w, *q) ->
+    (k, G)`` (G = ∂k/∂w, sparse), ``{name}_stagehess(w, *q, a) -> ∇²_w(a·k)`` (sparse) and, with
+    ``with_gp``, ``{name}_stagegp(w, *q, a) -> ∂(a·k)/∂q₀``. What :func:`rk4_stages` calls four
+    times per RK4 step."""
+    w = ca.SX.sym("w", g.size1_in(0))
+    q = [ca.SX.sym(g.name_in(i), g.sparsity_in(i)) for i in range(1, g.n_in())]
+    a = ca.SX.sym("a", g.size1_out(0))
+    k = g(w, *q)
+    L = ca.dot(a, k)
+    names = ["w", *(g.name_in(i) for i in range(1, g.n_in()))]
+    # G and the Hessian keep their structural zeros: the chain's products skip them
+    out = [ca.Function(f"{name}_stagejac", [w, *q], [k, ca.jacobian(k, w)], names, ["k", "G"]),
+           ca.Function(f"{name}_stagehess", [w, *q, a], [ca.hessian(L, w)[0]], [*names, "a"],
+                       ["H"])]
+    if with_gp:
+        out.append(ca.Function(f"{name}_stagegp", [w, *q, a],
+                               [ca.densify(ca.gradient(L, q[0]))], [*names, "a"], ["gp"]))
+    return tuple(out)
+
+
+#: Classical RK4: ξ_{i+1} = x + RK4_NODES[i] h k_i, x_next = x + h Σ RK4_WEIGHTS[i] k_i.
+RK4_NODES = (0.5, 0.5, 1.0)
+RK4_WEIGHTS = (1 / 6, 1 / 3, 1 / 3, 1 / 6)
+
+
+def rk4_stages(stage_jac: ca.Function, stage_hess: ca.Function | None, y: ca.MX, nc: int,
+               q: tuple, h_per_s: ca.MX, mu: ca.MX | None = None
+               ) -> tuple[ca.MX, ca.MX, ca.MX | None, list[tuple[ca.MX, ca.MX]]]:
+    """One classical RK4 step of x' = g([x, c], *q) on y = [S, c, x] (step h = S · h_per_s),
+    its derivatives by the chain rule over the four stage evaluations k_i = g(w_i), w_i =
+    [ξ_i, c] (:func:`stage_functions`, each generated as C once instead of four nested copies
+    inside one step's symbolic derivatives). Returns (x_next, A = ∂x_next/∂y, H =
+    ∇²_y(mu·x_next) (full; None without ``mu``), [(w_i, ā_i)]: each stage's point and adjoint).
+
+    The step's only nonlinear operations are the four g's and the products h·k_i (h is linear
+    in S). With b_i the adjoint of h·k_i — b_4 = μ/6, b_i = w_i μ + n_i ξ̄_{i+1}
+    (RK4_WEIGHTS w, RK4_NODES n), ξ̄_i = G_{i,ξ}ᵀ ā_i, ā_i = h b_i the adjoint of k_i — the
+    Hessian is Σ_i W_iᵀ ∇²_w(ā_i·g)(w_i) W_i + eₛᵀ(b_iᵀ Dk_i) + (Dk_i)ᵀ b_i eₛ, W_i = ∂w_i/∂y,
+    Dk_i = G_i W_i, eₛ = ∂h/∂y: exact, the same derivatives as CasADi's symbolic Hessian of the
+    whole step to rounding (tests/unit/test_codegen.py)."""
+    ny = y.numel()
+    nx = ny - 1 - nc
+    c, x = y[1:1 + nc], y[1 + nc:]
+    h = y[0] * h_per_s
+    Ex = ca.MX(ca.horzcat(ca.DM(nx, 1 + nc), ca.DM.eye(nx)))
+    Ec = ca.MX(ca.horzcat(ca.DM(nc, 1), ca.DM.eye(nc), ca.DM(nc, nx)))
+    es = ca.horzcat(h_per_s, ca.MX(1, nc + nx))  # ∂h/∂y
+    xi, dxi = x, Ex
+    ws, Ws, ks, Dks, Gs = [], [], [], [], []
+    for i in range(4):
+        w, W = ca.vertcat(xi, c), ca.vertcat(dxi, Ec)
+        k, G = stage_jac(w, *q)
+        Dk = ca.mtimes(G, W)
+        ws.append(w)
+        Ws.append(W)
+        ks.append(k)
+        Dks.append(Dk)
+        Gs.append(G)
+        if i < 3:
+            xi = x + RK4_NODES[i] * h * k
+            dxi = Ex + RK4_NODES[i] * (h * Dk + ca.mtimes(k, es))
+    K = sum((wt * k for wt, k in zip(RK4_WEIGHTS, ks, strict=True)), ca.MX(nx, 1))
+    DK = sum((wt * Dk for wt, Dk in zip(RK4_WEIGHTS, Dks, strict=True)), ca.MX(nx, ny))
+    x_next = x + h * K
+    A = Ex + h * DK + ca.mtimes(K, es)
+    if mu is None or stage_hess is None:
+        return x_next, A, None, []
+    bs: list[ca.MX] = [ca.MX()] * 4
+    xibar = None
+    for i in reversed(range(4)):
+        bs[i] = RK4_WEIGHTS[i] * mu + (0 if xibar is None else RK4_NODES[i] * xibar)
+        xibar = ca.mtimes(Gs[i][:, :nx].T, h * bs[i])
+    H = ca.MX(ny, ny)
+    for w, W, Dk, b in zip(ws, Ws, Dks, bs, strict=True):
+        H = H + ca.mtimes(W.T, ca.mtimes(stage_hess(w, *q, h * b), W))
+        r = ca.mtimes(b.T, Dk)
+        H = H + ca.mtimes(es.T, r) + ca.mtimes(r.T, es)
+    return x_next, A, H, [(w, h * b) for w, b in zip(ws, bs, strict=True)]
+
+
+#: Right-hand sides of at least this many SX instructions get their RK4 steps' derivatives from
+#: the four stages (:func:`rk4_stages`), smaller ones from the whole step's SX (the chain's
+#: small dense products cost about the same per interval whatever the model). Measured on the
+#: compiled interval blocks, mapped over 200 intervals (a quiet AMD EPYC core): the propeller
+#: model (768 instructions) from its stages compiles every shipped propeller block in 28 s of
+#: CPU instead of 234 s, its Jacobian and Hessian blocks 18.3 and 58.6 ms per call against the
+#: whole step's 17.2 and 53.9; the paper model (301) from its stages ran 4x slower than the
+#: whole step (9.6 and 32.0 ms against 2.5 and 8.3), so it keeps the per-step chain
+#: (benchmarks/RESULTS-limitlap-compile.md).
+STAGE_CHAIN_MIN_INSTRUCTIONS = 500
+
+
+def chains_stages(model: OcpModel) -> bool:
+    """Whether ``model``'s interval blocks chain the RK4 stages (classical RK4 and a right-hand
+    side of at least STAGE_CHAIN_MIN_INSTRUCTIONS instructions; ETDRK4 steps do not)."""
+    return model.rotor_rate is None and \
+        model.f.n_instructions() >= STAGE_CHAIN_MIN_INSTRUCTIONS
+
+
+def staged_substep_functions(model: OcpModel, substeps: int
+                             ) -> tuple[ca.Function, ca.Function]:
+    """:func:`substep_block_functions` built from the four stages of classical RK4
+    (:func:`rk4_stages`) where :func:`chains_stages`: the same ``sub_jac`` and ``sub_hess``,
+    with the model's right-hand side and its derivatives generated once instead of inside the
+    step's symbolic derivatives; otherwise :func:`substep_block_functions`."""
+    if not chains_stages(model):
+        return substep_block_functions(model, substeps)
+    nx, nu = model.nx, model.nu
+    tag = _block_tag(model, substeps)
+    wx = ca.SX.sym("w", nx + nu)
+    ps = ca.SX.sym("p", model.np)
+    g = ca.Function("g", [wx, ps], [model.f(wx[:nx], wx[nx:], ps)], ["w", "p"], ["k"])
+    stage_jac, stage_hess = stage_functions(g, f"limit_{tag}")
+    y = ca.MX.sym("y", 1 + nu + nx)
+    p = ca.MX.sym("p", model.np)
+    inv_n = ca.MX.sym("inv_n")
+    mu = ca.MX.sym("mu", nx)
+    x_next, A, H, _ = rk4_stages(stage_jac, stage_hess, y, nu, (p,), inv_n / substeps, mu)
+    assert H is not None  # given mu
+    return (ca.Function(f"limit_subjac_{tag}", [y, p, inv_n], [x_next, ca.densify(A)],
+                        ["y", "p", "inv_n"], ["x_next", "A"]),
+            ca.Function(f"limit_subhess_{tag}", [y, p, inv_n, mu], [ca.densify(H)],
+                        ["y", "p", "inv_n", "mu"], ["H"]))
 
 
 def hessian_pattern(model: OcpModel, substeps: int) -> tuple[np.ndarray, np.ndarray]:

@@ -11,6 +11,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from casadrone.airframe import build_airframe
 from casadrone.codegen import (
     ZeroCopyCall,
     compile_function,
@@ -20,6 +21,7 @@ from casadrone.codegen import (
     recipe_fingerprint,
     vector_flags,
 )
+from casadrone.config.airframe import load_airframe
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -259,17 +261,21 @@ def test_the_quadrotor_blocks_in_vector_registers_keep_every_bit():
                                   np.array(sx_step.map(n)(x, u, p, z[0] * 0.025)))
 
 
-@pytest.mark.parametrize("which", ["point-mass", "quadrotor", pytest.param(
-    "quadrotor-propeller-etd", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("which", ["point-mass", "quadrotor", "quadrotor-propeller",
+                                   pytest.param("quadrotor-propeller-etd",
+                                                marks=pytest.mark.slow)])
 def test_chained_interval_blocks_are_the_whole_steps_derivatives(which):
-    """The interval blocks chain one RK4 step's derivatives over the interval's three steps;
-    CasADi's symbolic Jacobian and Hessian of the whole interval (three steps in one SX graph:
-    an independent oracle) give the same numbers to rounding, at random points, for classical
-    RK4 and for the exponential rotor step (ETDRK4), whose h also enters the φ functions."""
+    """The interval blocks chain one RK4 step's derivatives over the interval's three steps,
+    each step's from its four stages (the right-hand side's derivatives, chained); CasADi's
+    symbolic Jacobian and Hessian of the whole interval (three steps in one SX graph: an
+    independent oracle) give the same numbers to rounding, at random points, for classical RK4
+    (the paper's and the propeller's models) and for the exponential rotor step (ETDRK4, whose
+    h also enters the φ functions: chained by steps only)."""
     from casadrone.limit import nlp
 
     model = {"point-mass": lambda: nlp.point_mass_ocp_model(),
              "quadrotor": lambda: nlp.quadrotor_ocp_model(),
+             "quadrotor-propeller": lambda: nlp.quadrotor_ocp_model("propeller"),
              "quadrotor-propeller-etd": lambda: nlp.exponential_rotor(
                  nlp.quadrotor_ocp_model("propeller"))}[which]()
     nx, nu = model.nx, model.nu
@@ -285,10 +291,18 @@ def test_chained_interval_blocks_are_the_whole_steps_derivatives(which):
     np.testing.assert_array_equal(rows, r)
     np.testing.assert_array_equal(cols, c)
     rng = np.random.default_rng(3)
+    # the propeller model at SY250-propeller's parameters and rotor speeds near 2000 rad/s (its
+    # rotor states in krad/s, model.scale); random parameters of O(1) make its rotors diverge
+    p_of = (np.asarray(build_airframe(load_airframe("SY250-propeller")).p, float)
+            if model.propulsion == "propeller" else None)
     for _ in range(5):
         zz = rng.uniform(-1.0, 1.0, 1 + nu + nx)
         zz[0] = rng.uniform(0.5, 4.0)  # leg duration (s)
-        args = (zz, rng.uniform(0.5, 1.5, model.np), 0.025, rng.normal(size=nx))
+        pp = rng.uniform(0.5, 1.5, model.np) if p_of is None else p_of
+        if p_of is not None:
+            zz[1:1 + nu] = rng.uniform(0.2, 1.0, nu)  # ESC commands
+            zz[1 + nu + 12:] = rng.uniform(1.5, 2.5, 4)
+        args = (zz, pp, 0.025, rng.normal(size=nx))
         want = [np.array(v) for v in oracle(*args)]
         got = [np.array(v) for v in (*jac(*args[:3]), hess(*args))]
         assert np.abs(want[2]).max() > 1e-3

@@ -34,7 +34,9 @@ CASES: dict[str, tuple[str, str | None, float, float]] = {
     "paper": ("SY250", None, 3.8839, 10.0),
     "hs210": ("HS210", None, 3.8346, 10.0),
     "gates": ("SY250", "multigp-cdra-gates", 2.1625, 10.0),
-    "propeller": ("SY250-propeller", None, 4.3650, 30.0),
+    # the propeller data changed after issue 43's 4.3650 s (the fit over the whole measured
+    # sweep, isotropic drag): the best lap of the shipped data + 0.1 % (--certify 4.4663 s)
+    "propeller": ("SY250-propeller", None, 4.4708, 30.0),
     "3laps": ("SY250", "uzh-waypoints-3laps", float("inf"), 60.0),
 }
 #: Figures measured before the fast path (issue 43: the command's defaults then, four starts
@@ -47,28 +49,27 @@ BEFORE = {"paper": (3.8800, 106), "hs210": (3.8307, 115), "gates": (2.1603, 114)
 #: rows above).
 DESIGNS = [
     "## Which start wins, and the designs tried", "",
-    "- **fatrop from the fine-grid start lands in worse optima**: SY250 3.9276 s and HS210 "
-    "3.8948 s against IPOPT's 3.8914 s and 3.8307 s from the same start (HS210 needed 327 "
-    "iterations, 68.8 s CPU). fatrop's cheaper iteration does not pay where its barrier path "
-    "ends in another basin; the fast path keeps IPOPT.",
-    "- **The fine-grid start** (the point-mass reference solved on 60 intervals, resampled "
-    "onto 40) wins on the paper track (HS210 3.8307 s, the best known); SY250's lands at "
-    "3.8914 s on this AMD EPYC VM (3.8800 s on an Intel Xeon VM: "
-    "`RESULTS-limitlap-issue19.md`), 0.31 % above the best known 3.8795 s, which only the grid "
-    "rounds reach (`--certify`: 3.8795 s from grid-30-round-2, 136 s CPU in one process, "
-    "`benchmarks/RESULTS-limitlap-sensitivity-fd.md`).",
-    "- **The coarse-grid start** (the closed-loop lap solved on 30 intervals, resampled) wins "
-    "on the gate track: SY250 2.1603 s, the best known, in 25.5 s CPU alone.",
-    "- **One grid round reaches SY250's best**: `casadrone limit-lap SY250 --grid-rounds 1` "
-    "gives 3.8795 s (the best known) from grid-60-round-1-fine-grid: the fine-grid lap solved "
-    "on 60 intervals and brought back; the round's other three solves (through 30 intervals, "
-    "and from the coarse-grid lap) gain nothing. 95 s CPU against the fast path's 64 s.",
-    "- So the fast path is those two starts without rounds: it meets the gate, HS210 and "
-    "SY250-propeller laps and not SY250's paper lap on this VM (one round does), and no "
-    "measured design met the CPU targets (one cold IPOPT solve on 40 intervals costs 4-5 s on "
-    "a quiet core, a grid-continuation start two solves; SY250-propeller's 80 intervals per "
-    "leg make its fine grid 120). The 3-lap waypoint course was not measured (no machine "
-    "time left).",
+    "- **The library start (the fast path now)**: the certified best lap of a reference frame "
+    "on each shipped track ships with the package (`casadrone/data/laps/`, written by `python "
+    "-m casadrone.limit.ship AIRFRAME [--track NAME]`), and the fast path starts every frame "
+    "from it: SY250 converges back to its own lap in 12 iterations, HS210 reaches 3.8312 s from "
+    "SY250's lap in 54 (its best known 3.8307 s), and over 50 random Table 1 frames the library "
+    "start alone lands -1.57 to +0.29 % from the best of four cold starts "
+    "(`RESULTS-limitlap-library.md`). The grid-continuation starts remain the fallback where no "
+    "lap is shipped for the track.",
+    "- **Why a cold start is not enough**: which local optimum a cold solve reaches depends on "
+    "the grid, the start and the last bits of the derivatives (SY250's fine-grid start: "
+    "3.8800 s on an Intel Xeon VM, 3.8914 s on an AMD EPYC VM; 3.8800 s with the chained "
+    "blocks), and the best laps known come only from the grid rounds.",
+    "- **Tried before the library** (rows `recipe:` and the earlier `fast` rows in "
+    "`limitlap-fastpath.jsonl`): the coarse-grid and fine-grid starts without rounds, 64-77 s "
+    "of CPU on the paper and gate tracks (six point-mass solves of 430-600 iterations are most "
+    "of it), SY250 3.8914 s; fatrop from the fine-grid start lands in worse optima (SY250 "
+    "3.9276 s and HS210 3.8948 s against IPOPT's 3.8914 s and 3.8307 s); one grid round "
+    "reaches SY250's best (`--grid-rounds 1`, 95 s).",
+    "- **The point-mass reference** is solved from the lap's own path (its projection is a "
+    "feasible point of the relaxation): tens to a few hundred iterations instead of three "
+    "straight-line starts of 430-600 each.",
 ]
 
 
@@ -217,8 +218,9 @@ def summary(rows: list[dict]) -> list[tuple[str, str, str]]:
     fast = {r["case"]: r for r in rows if r["mode"] == "fast" and "lap_time_s" in r}
     figure = "; ".join(f"{c} {r['lap_time_s']:.4f} s in {r['cpu_s']:.1f} s CPU"
                        for c, r in fast.items())
-    return [("limit lap, the command's fast path (the coarse-grid and fine-grid starts, IPOPT, "
-             "no grid rounds) at the defaults, blocks compiled, CPU of the process and children",
+    return [("limit lap, the command's fast path (the track's shipped lap, the library start; "
+             "IPOPT, no grid rounds) at the defaults, blocks compiled, CPU of the process and "
+             "children (targets: 10 s; the propeller 30 s, the 3-lap course 60 s)",
              figure, "`python benchmarks/bench_limitlap_fastpath.py --cases "
              + " ".join(fast) + " --modes fast`")]
 
@@ -231,12 +233,13 @@ def report(log: Path, out: Path) -> None:
         "# Limit lap: the fast path against --certify", "",
         f"## What was measured ({', '.join(dates)})", "",
         "What was measured: `casadrone limit-lap` as a user runs it (a fresh process, solver "
-        "blocks compiled), on the fast path (the default: the coarse-grid and fine-grid "
-        "starts with IPOPT, no grid rounds), with `--certify` (four cold starts and grid "
-        "rounds with IPOPT, the default before), and the designs tried for the fast path "
+        "blocks compiled), on the fast path (the default: one solve from the track's shipped "
+        "lap, the library start, IPOPT, no grid rounds; the coarse-grid and fine-grid starts "
+        "where none is shipped), with `--certify` (four cold starts, the library start and "
+        "grid rounds with IPOPT), and the designs tried for the fast path "
         "(`recipe:STARTS:SOLVER`: those cold starts alone); CPU of the process and its "
-        "children (the machine's 2 cores were shared with other jobs at load average 10-16, "
-        "which inflates wall time, and CPU time too, through cache and memory contention). "
+        "children (each row's load average is in the log: rows measured at load 10-16 are "
+        "inflated in wall time, and in CPU time too, through cache and memory contention). "
         "Iterations of all solves count the solves in the lap's `starts` (a grid-continuation "
         "start's own solve on its grid is not among them).", "",
         *[f"- **{r['case']}**: {r['lap_time_s']:.4f} s in {r['cpu_s']:.1f} s CPU "

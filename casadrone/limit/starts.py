@@ -302,7 +302,11 @@ def library_solves(pb: Problem) -> list[StartSolve]:
                 pb.solve(guess_from_lap(pb.full, s.lap, pb.x0))
             done(sol)
         solves.append((f"library-{s.name}", sol))
-    return solves or [("library", not_run(pb, "library"))]
+    if not solves:  # a line for it too, saying why it did not run
+        with events.start("library", pb.layout.intervals) as done:
+            solves.append(("library", not_run(pb, "library")))
+            done(solves[-1][1])
+    return solves
 
 
 def warm_solves(pb: Problem) -> list[StartSolve]:

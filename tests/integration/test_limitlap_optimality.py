@@ -197,10 +197,18 @@ RELAXATION_RTOL = 4e-4  # ~10x the observed 2.4e-5 to 3.7e-5
 # --------------------------------------------------------------------------------------------
 
 
+#: IPOPT's tolerance of the finite differences' re-solves (the lap's own: LimitLapOptions.tol).
+RESOLVE_TOL = 1e-10
+
+
 def _resolved(lap, name_overrides: list[str]):
-    """The lap of SY250 with ``overrides``, warm-started from ``lap`` (the same local optimum)."""
+    """The lap of SY250 with ``overrides``, warm-started from ``lap`` (the same local optimum),
+    solved to RESOLVE_TOL: a central difference over a step of 1 % divides the laps' own error
+    by the step, so the re-solves must be far more accurate than the slope compared (at the
+    default tol, 1e-6, the difference of dT/dK moved by 8e-4 of itself with the last bits of
+    the derivative blocks)."""
     opts = replace(OPTIONS, starts=(), point_mass_reference=False, resimulate=False,
-                   sensitivities=False)
+                   sensitivities=False, tol=RESOLVE_TOL)
     out = design_limit_lap(load_airframe(NAME, name_overrides), TRACK, opts,
                            LapSeeds(warm_starts=(lap,)))
     assert out.completed, out.reason

@@ -299,7 +299,7 @@ def grid_rounds(lap_on_grid: Callable[[LimitLapOptions, LimitLap], LimitLap],
         before = best(good)[1].objective
         sources = _distinct(good) if r == 1 else [best(good)]
         jobs = [(f"grid-{g}-" + (f"round-{r}-{name}" if r == 1 else f"round-{r}"),
-                 assemble_lap(pb, [(name, sol)], solves, misses), g)
+                 assemble_lap(pb, [(name, sol)], solves, misses, reference=False), g)
                 for name, sol in sources for g in grids]
         if sd is not None:
             solves += parallel.round_solves(sd, pb, jobs, misses)
@@ -435,10 +435,12 @@ def with_theta_sensitivities(result: LimitLap, cfg: AirframeConfig, pb: Problem,
 
 
 def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],
-                 misses: dict[str, float], grid_laps: dict[int, float] | None = None
-                 ) -> LimitLap:
+                 misses: dict[str, float], grid_laps: dict[int, float] | None = None,
+                 reference: bool = True) -> LimitLap:
     """The LimitLap of the best verified start; ``grid_laps`` (intervals per leg → lap) are the
-    other grids' laps of the grid-continuation starts, part of its certainty."""
+    other grids' laps of the grid-continuation starts, part of its certainty. ``reference``:
+    solve its point-mass reference (with the options' ``point_mass_reference``; not for the
+    laps a grid round starts from, which report none)."""
     name, chosen = best(good)
     T, X, U = pb.full.unpack(chosen.point.w)
     if is_lagless(pb.frame):  # the rotor states the lag-free model flies: T = K δ
@@ -446,7 +448,8 @@ def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],
     ends = np.cumsum(T)
     lap_ends = ends[list(pb.targets.lap_ends)]
     agreement, spread = certainty(good, tuple((grid_laps or {}).values()))
-    ref = pb.lap_reference(chosen.point.w) if pb.options.point_mass_reference else None
+    ref = pb.lap_reference(chosen.point.w) if reference and pb.options.point_mass_reference \
+        else None
     return LimitLap(
         status="completed", reason="", lap_time_s=float(np.sum(T)),
         split_times_s=ends[pb.targets.first_timed:], leg_times_s=T,

@@ -428,10 +428,12 @@ def with_theta_sensitivities(result: LimitLap, cfg: AirframeConfig, pb: Problem,
     if result.solution is None:
         return result
     chosen = theta_sensitivities_at(cfg, pb, result.solution)
-    others = [theta_sensitivities_at(cfg, pb, sol.point)
-              for name, sol in _distinct(good or []) if name != result.start]
+    distinct = [sol for name, sol in _distinct(good or []) if name != result.start]
+    others = [theta_sensitivities_at(cfg, pb, sol.point) for sol in distinct]
+    gaps = [sol.objective - result.lap_time_s for sol in distinct]
     return replace(result, sensitivities=chosen,
-                   sensitivity_table=sensitivity_table(chosen, others))
+                   sensitivity_table=sensitivity_table(chosen, others, gaps,
+                                                       result.lap_time_s))
 
 
 def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],

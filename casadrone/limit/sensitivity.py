@@ -10,6 +10,16 @@ reported with the range of the slopes of every verified optimum the call found: 
 uncertainty is the largest distance from the chosen optimum's slope to another's, and where
 the optima disagree in sign the slope is "not resolved". With one optimum (the command's fast
 path) there is nothing to compare: the uncertainty is NaN, and ``--certify`` gives it.
+
+A designer reads a slope as what a move of a few percent of the range does to the best lap, and
+the best lap found at a neighbouring frame may come from another of the optima the search
+counts as the same answer (within CERTAIN_REL of the best: ``certainty`` "agreed"). A central
+difference over ±FD_PERCENT % whose two ends come from optima c and k, δ_k apart, shows
+(g_c + g_k)/2 ± δ_k/(2h) instead of g_c: so for each such optimum the uncertainty also
+covers |g_k − g_c|/2 + δ_k/(2h) (h = FD_PERCENT % of the range). Measured against central
+differences of the ``--certify`` laps at ±2 % (benchmarks/RESULTS-limitlap-sensitivity-fd.md):
+HS210's dT/dβ −1.105 ms/% against −0.999 from laps of two grid-round optima, 0.106 apart where
+the optima's slopes alone gave ±0.097.
 """
 
 from __future__ import annotations
@@ -25,6 +35,12 @@ from casadrone.results import AsDict
 
 #: Share of a key's Table 1 range the scaled slopes are given per (1 %).
 PERCENT = 0.01
+#: The move (± this many percent of the key's range) whose central difference of the best laps
+#: the uncertainty covers (module docstring).
+FD_PERCENT = 2.0
+#: Optima within this share of the best lap are the same answer to the search
+#: (casadrone.limit.choose.CERTAIN_REL, repeated here: this floor does not import the search).
+SAME_ANSWER_REL = 1e-3
 
 
 def percent_of_range(key: str) -> float:
@@ -55,21 +71,37 @@ class KeySensitivity(AsDict):
     optima: int
 
 
-def key_sensitivity(key: str, chosen: float, others: Sequence[float]) -> KeySensitivity:
+def key_sensitivity(key: str, chosen: float, others: Sequence[float],
+                    gaps: Sequence[float] | None = None, lap_s: float = math.nan
+                    ) -> KeySensitivity:
     """The chosen optimum's slope ``chosen`` (s per unit) against the other verified optima's
-    (``others``): uncertainty the largest distance to one of them (NaN without any), resolved
-    unless two slopes have opposite signs (a zero slope agrees with both)."""
+    (``others``): uncertainty the largest distance to one of them (NaN without any), and, for
+    the optima whose lap is within SAME_ANSWER_REL of ``lap_s`` (``gaps``: each one's lap minus
+    the chosen one, s), |g_k − g_c|/2 + δ_k/(2h) (module docstring); resolved unless two slopes
+    have opposite signs (a zero slope agrees with both)."""
     values = np.array([chosen, *others], float)
     unc = float(np.max(np.abs(values[1:] - chosen))) if len(values) > 1 else math.nan
-    resolved = not (np.any(values > 0) and np.any(values < 0))
     scale = percent_of_range(key)
+    h = FD_PERCENT * scale  # the move, in the key's unit
+    for g, gap in zip(others, gaps or (), strict=False):
+        if math.isfinite(h) and h > 0 and abs(gap) <= SAME_ANSWER_REL * lap_s:
+            unc = max(unc, abs(g - chosen) / 2 + abs(gap) / (2 * h))
+    resolved = not (np.any(values > 0) and np.any(values < 0))
     return KeySensitivity(key, float(chosen), float(chosen * scale), unc, unc * scale,
                           float(values.min()), float(values.max()), bool(resolved), len(values))
 
 
-def sensitivity_table(chosen: Mapping[str, float], others: Sequence[Mapping[str, float]]
+def sensitivity_table(chosen: Mapping[str, float], others: Sequence[Mapping[str, float]],
+                      gaps: Sequence[float] | None = None, lap_s: float = math.nan
                       ) -> tuple[KeySensitivity, ...]:
     """One :class:`KeySensitivity` per key of ``chosen`` (dT/dθ of the chosen optimum, s per
-    unit) against the same keys of the other verified optima."""
-    return tuple(key_sensitivity(k, v, [o[k] for o in others if k in o])
-                 for k, v in chosen.items())
+    unit, its lap ``lap_s``) against the same keys of the other verified optima (their laps
+    ``gaps`` s slower)."""
+    table = []
+    for k, v in chosen.items():
+        pairs = [(o[k], gap) for o, gap in zip(others, gaps or [0.0] * len(others),
+                                              strict=True) if k in o]
+        table.append(key_sensitivity(k, v, [g for g, _ in pairs],
+                                     [gap for _, gap in pairs] if gaps is not None else None,
+                                     lap_s))
+    return tuple(table)

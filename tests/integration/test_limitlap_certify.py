@@ -3,7 +3,8 @@ superset of the fast path's starts with the same deterministic solver, so its la
 slower, and its sensitivity table is taken over every distinct verified optimum. Oracles: the
 fast path's solves reappear in the certified lap's starts with the same laps (IPOPT with MUMPS
 is deterministic); the table counts the distinct verified laps the starts list, and its
-uncertainty is the farthest end of its range."""
+uncertainty is the farthest end of its range (at least; more where an optimum lies within
+0.1 % of the lap)."""
 
 from __future__ import annotations
 
@@ -48,6 +49,13 @@ def test_certified_table_spans_every_optimum(laps):
         assert t.optima == len(laps_found)
         assert t.s_per_unit == certified.sensitivities[key]
         assert t.low_s_per_unit <= t.s_per_unit <= t.high_s_per_unit
-        if t.optima > 1:
-            assert t.uncertainty_s_per_unit == pytest.approx(
-                max(t.high_s_per_unit - t.s_per_unit, t.s_per_unit - t.low_s_per_unit))
+        if t.optima > 1:  # at least the farthest end of the range (more where another
+            # optimum is within 0.1 % of the lap: casadrone.limit.sensitivity)
+            assert t.uncertainty_s_per_unit >= (1 - 1e-12) * max(
+                t.high_s_per_unit - t.s_per_unit, t.s_per_unit - t.low_s_per_unit)
+            near = [s.lap_time_s for s in certified.starts if s.success and s.lap_time_s
+                    - certified.lap_time_s > 1e-9 * certified.lap_time_s
+                    and s.lap_time_s <= (1 + 1e-3) * certified.lap_time_s]
+            if not near:
+                assert t.uncertainty_s_per_unit == pytest.approx(
+                    max(t.high_s_per_unit - t.s_per_unit, t.s_per_unit - t.low_s_per_unit))

@@ -310,15 +310,19 @@ def test_chained_interval_blocks_are_the_whole_steps_derivatives(which):
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
 
 
-@pytest.mark.parametrize("which", ["point-mass", "quadrotor"])
+@pytest.mark.parametrize("which", ["point-mass", "quadrotor", "quadrotor-propeller"])
 def test_chained_theta_blocks_are_the_whole_steps_derivatives(which):
-    """Co-design's θ-blocks, chained over the interval's three RK4 steps, against CasADi's
-    symbolic derivatives of the whole interval along the directions D (p + Dσ, σ = 0): the
-    same numbers to rounding at random points."""
+    """Co-design's θ-blocks, chained over the interval's three RK4 steps (the propeller model's
+    steps from their four stages), against CasADi's symbolic derivatives of the whole interval
+    along the directions D (p + Dσ, σ = 0): the same numbers to rounding at random points (the
+    propeller model's near SY250-propeller's parameters, as in the limit lap's test above)."""
     from casadrone.codesign.blocks import chained_theta_block_functions
     from casadrone.limit import nlp
 
-    model = nlp.point_mass_ocp_model() if which == "point-mass" else nlp.quadrotor_ocp_model()
+    model = {"point-mass": nlp.point_mass_ocp_model, "quadrotor": nlp.quadrotor_ocp_model,
+             "quadrotor-propeller": lambda: nlp.quadrotor_ocp_model("propeller")}[which]()
+    p_of = (np.asarray(build_airframe(load_airframe("SY250-propeller")).p, float)
+            if model.propulsion == "propeller" else None)
     nx, nu, nd = model.nx, model.nu, 4
     jac, hess = chained_theta_block_functions(model, 3, nd)
     z = ca.SX.sym("z", 1 + nu + nx)
@@ -337,6 +341,10 @@ def test_chained_theta_blocks_are_the_whole_steps_derivatives(which):
         zz[0] = rng.uniform(0.5, 4.0)
         pp, ll, dd = rng.uniform(0.5, 1.5, model.np), rng.normal(size=nx), \
             rng.normal(size=(model.np, nd))
+        if p_of is not None:  # physical parameters, commands and rotor speeds (krad/s)
+            pp, dd = p_of, 1e-3 * np.abs(p_of)[:, None] * dd
+            zz[1:1 + nu] = rng.uniform(0.2, 1.0, nu)
+            zz[1 + nu + 12:] = rng.uniform(1.5, 2.5, 4)
         want = [np.array(v) for v in oracle(zz, pp, 0.025, ll, dd, np.zeros(nd))]
         got = [np.array(jac(zz, pp, 0.025, dd)), *(np.array(v) for v in hess(zz, pp, 0.025,
                                                                                ll, dd))]

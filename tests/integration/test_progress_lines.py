@@ -169,15 +169,15 @@ def _console(console: list[str], *args: str) -> tuple[dict, list[str]]:
 
 @pytest.mark.slow
 def test_the_shipped_commands_say_each_start_on_stderr(console):
-    """What the issue ran, at the defaults (about 110 s and 75 s of CPU with the blocks
-    compiled): ``limit-lap SY250`` a line per start of its result (grid-round starts included)
-    and per grid round; ``codesign codesign-paper`` a line as each of its starts begins and
-    one as it ends."""
+    """What the issue ran, at the defaults (seconds and about 75 s of CPU with the blocks
+    compiled): ``limit-lap SY250`` a line per start of its result (the fast path: the shipped
+    lap's; grid rounds print theirs in the test above); ``codesign codesign-paper`` a line as
+    each of its starts begins and one as it ends."""
     lap, err = _console(console, "limit-lap", "SY250")
+    assert lap["starts"]
     for s in lap["starts"]:
         assert sum(line.startswith(f"limit-lap: start {s['start']} ") for line in err) == 1, \
             (s["start"], err)
-    assert any(line.startswith("limit-lap: grid round 1:") for line in err)
 
     design, err = _console(console, "codesign", "codesign-paper")
     labels = [s["label"] for s in design["starts"]]

@@ -41,8 +41,7 @@ class SearchSettings:
 #: default before the fast path).
 SEARCHES: dict[Search, SearchSettings] = {
     "fast": SearchSettings(("library",), 0, "ipopt", ("coarse-grid", "fine-grid")),
-    "certify": SearchSettings((*LimitLapOptions.starts, "library"), COMMAND_GRID_ROUNDS,
-                              "ipopt"),
+    "certify": SearchSettings(LimitLapOptions.starts, COMMAND_GRID_ROUNDS, "ipopt"),
 }
 
 

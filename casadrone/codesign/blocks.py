@@ -111,13 +111,26 @@ def chained_theta_block_functions(model: OcpModel, substeps: int, n_dir: int
     _, J, Hs, chain = chained_substeps(sub_jac, sub_hess, v, n_head, args, lam, substeps, sig)
     zi = list(range(1 + nu)) + list(range(n_head, n_head + nx))
     gp = sum((sub_gp(y_k, *args, mu) for y_k, mu in chain), ca.MX(model.np, 1))
-    tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+    tag = _theta_tag(model, substeps, n_dir)
     jac = ca.Function(f"codesign_jac_{tag}", [z, p, inv_n, D], [ca.densify(J[:, sig].T)],
                       ["z", "p", "inv_n", "D"], ["Js"])
     hess = ca.Function(f"codesign_hess_{tag}", [z, p, inv_n, lam, D],
                        [ca.densify(Hs[zi, :].T), ca.densify(Hs[sig, :]), ca.densify(gp)],
                        ["z", "p", "inv_n", "lam", "D"], ["Hzs", "Hss", "gp"])
     return jac, hess
+
+
+def _theta_tag(model: OcpModel, substeps: int, n_dir: int) -> str:
+    """The θ-blocks' name tag: model, RK4 steps per interval and directions."""
+    return f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+
+
+def _step_symbols(sym, model: OcpModel, n_dir: int) -> tuple:
+    """The inputs of one step's θ-derivatives, as ``sym`` (ca.SX or ca.MX): y = [S, u, σ, x],
+    p, inv_n, the directions D, the adjoint mu and the Hessian's directions V."""
+    y = sym.sym("y", 1 + model.nu + n_dir + model.nx)
+    return (y, sym.sym("p", model.np), sym.sym("inv_n"), sym.sym("D", model.np, n_dir),
+            sym.sym("mu", model.nx), sym.sym("V", y.numel(), n_dir))
 
 
 def theta_substep_functions(model: OcpModel, substeps: int, n_dir: int
@@ -127,18 +140,13 @@ def theta_substep_functions(model: OcpModel, substeps: int, n_dir: int
     (A = ∂x_next/∂y, dense), ``sub_hess(y, p, inv_n, D, mu, V) -> ∇²_y(mu·x_next) V`` (V:
     nθ directions in y) and
     ``sub_gp(y, p, inv_n, D, mu) -> ∂(mu·x_next)/∂p``."""
-    nx, nu = model.nx, model.nu
-    y = ca.SX.sym("y", 1 + nu + n_dir + nx)
-    p = ca.SX.sym("p", model.np)
-    inv_n = ca.SX.sym("inv_n")
-    D = ca.SX.sym("D", model.np, n_dir)
-    mu = ca.SX.sym("mu", nx)
-    V = ca.SX.sym("V", y.numel(), n_dir)
+    nu = model.nu
+    y, p, inv_n, D, mu, V = _step_symbols(ca.SX, model, n_dir)
     sig = y[1 + nu:1 + nu + n_dir]
     x_next = rk4_step(model, 1)(y[1 + nu + n_dir:], y[1:1 + nu], p + ca.mtimes(D, sig),
                                 y[0] * inv_n / substeps)
     L = ca.dot(mu, x_next)
-    tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+    tag = _theta_tag(model, substeps, n_dir)
     ins, names = [y, p, inv_n, D], ["y", "p", "inv_n", "D"]
     return (ca.Function(f"codesign_subjac_{tag}", ins, [x_next, ca.densify(ca.jacobian(
                 x_next, y))], names, ["x_next", "A"]),
@@ -158,7 +166,7 @@ def staged_theta_substep_functions(model: OcpModel, substeps: int, n_dir: int
     if not chains_stages(model):
         return theta_substep_functions(model, substeps, n_dir)
     nx, nu = model.nx, model.nu
-    tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+    tag = _theta_tag(model, substeps, n_dir)
     wx = ca.SX.sym("w", nx + nu + n_dir)
     ps = ca.SX.sym("p", model.np)
     Ds = ca.SX.sym("D", model.np, n_dir)
@@ -166,12 +174,7 @@ def staged_theta_substep_functions(model: OcpModel, substeps: int, n_dir: int
                                                  ps + ca.mtimes(Ds, wx[nx + nu:]))],
                     ["w", "p", "D"], ["k"])
     stage_jac, stage_hess, stage_gp = stage_functions(g, f"codesign_{tag}", with_gp=True)
-    y = ca.MX.sym("y", 1 + nu + n_dir + nx)
-    p = ca.MX.sym("p", model.np)
-    inv_n = ca.MX.sym("inv_n")
-    D = ca.MX.sym("D", model.np, n_dir)
-    mu = ca.MX.sym("mu", nx)
-    V = ca.MX.sym("V", y.numel(), n_dir)
+    y, p, inv_n, D, mu, V = _step_symbols(ca.MX, model, n_dir)
     x_next, A, H, stages = rk4_stages(stage_jac, stage_hess, y, nu + n_dir, (p, D),
                                       inv_n / substeps, mu)
     assert H is not None  # given mu
@@ -191,11 +194,12 @@ def theta_blocks(model: OcpModel, substeps: int, n_dir: int, design: str | None 
     design = block_design() if design is None else design
     key = (model.name, model.scale, substeps, n_dir, design)
     if key not in _THETA_BLOCKS:
-        tag = f"{model.name.replace('-', '_')}_rk4x{substeps}_d{n_dir}"
+        tag = _theta_tag(model, substeps, n_dir)
         fingerprint, build = block_recipe(
             design, rk4_step(model, substeps), theta_block_functions,
             (chained_theta_block_functions, staged_theta_substep_functions, chains_stages,
-             stage_functions, rk4_stages, theta_substep_functions, chained_substeps))
+             stage_functions, rk4_stages, theta_substep_functions, _theta_tag, _step_symbols,
+             chained_substeps))
         jac, hess = compile_recipe(
             (f"codesign_jac_{tag}", f"codesign_hess_{tag}"), fingerprint,
             lambda: build(model, substeps, n_dir), BLOCK_FLAGS)

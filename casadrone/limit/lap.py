@@ -359,7 +359,7 @@ def refined(again: Callable[[LimitLapOptions, LimitLap], LimitLap], options: Lim
                       leg_times_s=T, t=node_times(T, n), x=X, u=U,
                       attitude=pb.full.model.attitude, layout=pb.layout, solution=sol.point)
     lap = again(replace(options, intervals=fine, starts=(), fallback_reference=None,
-                        refinements=options.refinements - 1), coarse)
+                        fallback_starts=(), refinements=options.refinements - 1), coarse)
     if not lap.completed:
         return None
     name = f"refined-{fine}"
@@ -433,7 +433,7 @@ def with_theta_sensitivities(result: LimitLap, cfg: AirframeConfig, pb: Problem,
     gaps = [sol.objective - result.lap_time_s for sol in distinct]
     return replace(result, sensitivities=chosen,
                    sensitivity_table=sensitivity_table(chosen, others, gaps,
-                                                       result.lap_time_s))
+                                                       CERTAIN_REL * result.lap_time_s))
 
 
 def assemble_lap(pb: Problem, good: list[StartSolve], solves: list[StartSolve],

@@ -13,7 +13,8 @@ path) there is nothing to compare: the uncertainty is NaN, and ``--certify`` giv
 
 A designer reads a slope as what a move of a few percent of the range does to the best lap, and
 the best lap found at a neighbouring frame may come from another of the optima the search
-counts as the same answer (within CERTAIN_REL of the best: ``certainty`` "agreed"). A central
+counts as the same answer (within casadrone.limit.choose.CERTAIN_REL of the best: ``certainty``
+"agreed"; the caller gives that margin in seconds). A central
 difference over ±FD_PERCENT % whose two ends come from optima c and k, δ_k apart, shows
 (g_c + g_k)/2 ± δ_k/(2h) instead of g_c: so for each such optimum the uncertainty also
 covers |g_k − g_c|/2 + δ_k/(2h) (h = FD_PERCENT % of the range). Measured against central
@@ -38,9 +39,6 @@ PERCENT = 0.01
 #: The move (± this many percent of the key's range) whose central difference of the best laps
 #: the uncertainty covers (module docstring).
 FD_PERCENT = 2.0
-#: Optima within this share of the best lap are the same answer to the search
-#: (casadrone.limit.choose.CERTAIN_REL, repeated here: this floor does not import the search).
-SAME_ANSWER_REL = 1e-3
 
 
 def percent_of_range(key: str) -> float:
@@ -72,19 +70,19 @@ class KeySensitivity(AsDict):
 
 
 def key_sensitivity(key: str, chosen: float, others: Sequence[float],
-                    gaps: Sequence[float] | None = None, lap_s: float = math.nan
+                    gaps: Sequence[float] | None = None, same_answer_s: float = 0.0
                     ) -> KeySensitivity:
     """The chosen optimum's slope ``chosen`` (s per unit) against the other verified optima's
     (``others``): uncertainty the largest distance to one of them (NaN without any), and, for
-    the optima whose lap is within SAME_ANSWER_REL of ``lap_s`` (``gaps``: each one's lap minus
-    the chosen one, s), |g_k − g_c|/2 + δ_k/(2h) (module docstring); resolved unless two slopes
-    have opposite signs (a zero slope agrees with both)."""
+    the optima whose lap is at most ``same_answer_s`` from the chosen one (``gaps``: each one's
+    lap minus the chosen one, s), |g_k − g_c|/2 + δ_k/(2h) (module docstring); resolved unless
+    two slopes have opposite signs (a zero slope agrees with both)."""
     values = np.array([chosen, *others], float)
     unc = float(np.max(np.abs(values[1:] - chosen))) if len(values) > 1 else math.nan
     scale = percent_of_range(key)
     h = FD_PERCENT * scale  # the move, in the key's unit
     for g, gap in zip(others, gaps or (), strict=False):
-        if math.isfinite(h) and h > 0 and abs(gap) <= SAME_ANSWER_REL * lap_s:
+        if math.isfinite(h) and h > 0 and abs(gap) <= same_answer_s:
             unc = max(unc, abs(g - chosen) / 2 + abs(gap) / (2 * h))
     resolved = not (np.any(values > 0) and np.any(values < 0))
     return KeySensitivity(key, float(chosen), float(chosen * scale), unc, unc * scale,
@@ -92,16 +90,16 @@ def key_sensitivity(key: str, chosen: float, others: Sequence[float],
 
 
 def sensitivity_table(chosen: Mapping[str, float], others: Sequence[Mapping[str, float]],
-                      gaps: Sequence[float] | None = None, lap_s: float = math.nan
+                      gaps: Sequence[float] | None = None, same_answer_s: float = 0.0
                       ) -> tuple[KeySensitivity, ...]:
     """One :class:`KeySensitivity` per key of ``chosen`` (dT/dθ of the chosen optimum, s per
-    unit, its lap ``lap_s``) against the same keys of the other verified optima (their laps
-    ``gaps`` s slower)."""
+    unit) against the same keys of the other verified optima (their laps ``gaps`` s slower;
+    those at most ``same_answer_s`` slower are the same answer)."""
     table = []
     for k, v in chosen.items():
         pairs = [(o[k], gap) for o, gap in zip(others, gaps or [0.0] * len(others),
                                               strict=True) if k in o]
         table.append(key_sensitivity(k, v, [g for g, _ in pairs],
                                      [gap for _, gap in pairs] if gaps is not None else None,
-                                     lap_s))
+                                     same_answer_s))
     return tuple(table)

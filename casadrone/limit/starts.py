@@ -213,10 +213,11 @@ def fine_intervals(n: int) -> int:
 
 def inner_options(options: LimitLapOptions, **changes) -> LimitLapOptions:
     """``options`` for a lap solved inside another (a grid-continuation start's own grid, a grid
-    round): no point-mass reference, sensitivities, fallback, refinement or grid rounds of its
-    own (the outer lap checks what it brings back), with ``changes``."""
+    round): no point-mass reference, sensitivities, fallback (reference or starts), refinement
+    or grid rounds of its own (the outer lap checks what it brings back), with ``changes``."""
     return replace(options, point_mass_reference=False, sensitivities=False,
-                   fallback_reference=None, refinements=0, grid_rounds=0, **changes)
+                   fallback_reference=None, fallback_starts=(), refinements=0, grid_rounds=0,
+                   **changes)
 
 
 def coarse_grid_start(pb: Problem, lap_of: LapOf) -> NlpSolution | None:

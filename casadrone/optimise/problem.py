@@ -136,8 +136,10 @@ def limit_setup(problem: ProblemConfig, template: AirframeConfig, periodic: bool
     # resimulate: every converged warm start is flown by CVODES (~30 ms) and counts only if it
     # passes the targets, so a lap that exploits the discretisation never reaches the front.
     options = lap_options(problem.limit_lap, periodic)
-    return {"limit": replace(options, starts=("closed-loop",), point_mass_reference=False,
-                             resimulate=True, sensitivities=False),
+    # the command's fast path falls back to the grid-continuation starts (a minute of CPU);
+    # a candidate that no start verifies is a recorded failure instead
+    return {"limit": replace(options, starts=("closed-loop",), fallback_starts=(),
+                             point_mass_reference=False, resimulate=True, sensitivities=False),
             "limit_references": (template_theta, centre)}
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import pytest
 
 from casadrone.config.airframe import load_airframe
-from casadrone.limit.lap import LimitLapOptions, design_limit_lap
+from casadrone.limit.lap import CERTAIN_REL, LimitLapOptions, design_limit_lap
 from casadrone.limit.search import search_options
 
 pytestmark = pytest.mark.slow
@@ -55,7 +55,7 @@ def test_certified_table_spans_every_optimum(laps):
                 t.high_s_per_unit - t.s_per_unit, t.s_per_unit - t.low_s_per_unit)
             near = [s.lap_time_s for s in certified.starts if s.success and s.lap_time_s
                     - certified.lap_time_s > 1e-9 * certified.lap_time_s
-                    and s.lap_time_s <= (1 + 1e-3) * certified.lap_time_s]
+                    and s.lap_time_s <= (1 + CERTAIN_REL) * certified.lap_time_s]
             if not near:
                 assert t.uncertainty_s_per_unit == pytest.approx(
                     max(t.high_s_per_unit - t.s_per_unit, t.s_per_unit - t.low_s_per_unit))

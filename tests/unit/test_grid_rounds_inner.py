@@ -6,6 +6,7 @@ rounds on 45 and 90 intervals)."""
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from types import SimpleNamespace
 
 from casadrone.config.io import load
@@ -34,6 +35,9 @@ def test_grid_continuation_starts_solve_their_grid_without_rounds():
         assert start(pb, lap_of) is None
         (opts,) = seen
         assert opts.grid_rounds == 0 and opts.intervals != 40
+    # nor the fast path's fallback starts: an inner lap that fails is the outer start's failure
+    fast = replace(OPTIONS, fallback_starts=("coarse-grid", "fine-grid"))
+    assert starts.inner_options(fast, starts=()).fallback_starts == ()
 
 
 def test_the_fallback_reference_lap_runs_no_rounds():

@@ -16,7 +16,6 @@ import pytest
 from casadrone.config.airframe import load_airframe
 from casadrone.config.io import load, resolve_config
 from casadrone.config.track import TrackConfig
-from casadrone.limit import library
 from casadrone.limit.lap import LimitLapOptions, design_limit_lap
 from casadrone.limit.library import LIBRARY_DIR, read, shipped_laps, track_key, usable, write
 from casadrone.limit.result import LimitLap
@@ -111,7 +110,6 @@ def test_no_shipped_lap_runs_the_fallback_starts(monkeypatch):
         asked.append(pb.options.starts)
         return None
 
-    monkeypatch.setattr(library, "LIBRARY_DIR", LIBRARY_DIR / "none")
     monkeypatch.setattr(starts, "shipped_laps", lambda track, kind: ())
     monkeypatch.setitem(starts.COLD_STARTS, "coarse-grid", recorded)
     monkeypatch.setitem(starts.COLD_STARTS, "fine-grid", recorded)

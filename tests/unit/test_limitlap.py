@@ -309,6 +309,9 @@ def test_limit_lap_problem_sets_up_limit_options_and_references():
     template = load_airframe(problem.airframe)
     extra = limit_setup(problem, template)
     assert extra["limit"] is not None
+    # per candidate: the closed-loop start and the references' warm starts, never the command's
+    # fallback to the grid-continuation starts (a minute of CPU for each candidate that fails)
+    assert extra["limit"].starts == ("closed-loop",) and extra["limit"].fallback_starts == ()
     assert len(extra["limit_references"]) == 2  # the template and the centre of the box
     assert extra["limit_references"][1]["alpha_deg"] == pytest.approx(77.5)
     assert limit_setup(load_problem("quick"), template) == {}

@@ -67,14 +67,11 @@ def test_uncertainty_covers_a_difference_that_mixes_optima_of_the_same_answer():
     each shows (g_c + g_k)/2 ± δ/(2h) = 1.5e-4 ± 5e-4 s/mm, so the uncertainty is
     |g_k − g_c|/2 + δ/(2h) = 5.5e-4 (worked by hand); an optimum 10 ms (0.25 %) slower is
     another answer and adds only the slopes' distance."""
-    from casadrone.limit.choose import CERTAIN_REL
-    from casadrone.limit.sensitivity import SAME_ANSWER_REL
-
-    assert SAME_ANSWER_REL == CERTAIN_REL
-    near = key_sensitivity("lambda_a_mm", 1e-4, [2e-4], [1e-3], 4.0)
+    same = 1e-3 * 4.0  # the search's 0.1 % of a 4 s lap
+    near = key_sensitivity("lambda_a_mm", 1e-4, [2e-4], [1e-3], same)
     assert near.uncertainty_s_per_unit == pytest.approx(5.5e-4)
     assert near.uncertainty_s_per_percent == pytest.approx(2.75e-4)  # × 0.5 mm per %
-    far = key_sensitivity("lambda_a_mm", 1e-4, [2e-4], [1e-2], 4.0)
+    far = key_sensitivity("lambda_a_mm", 1e-4, [2e-4], [1e-2], same)
     assert far.uncertainty_s_per_unit == pytest.approx(1e-4)
     assert key_sensitivity("lambda_a_mm", 1e-4, [2e-4]).uncertainty_s_per_unit == \
         pytest.approx(1e-4)  # no laps given: the slopes' distance alone

@@ -1,22 +1,24 @@
 """``casadrone build`` against brute force: every combination of a catalogue co-designed and raced
-alone (:func:`casadrone.build.solve.solve_combination`, one after another in this process),
-against the build's branch and bound (screen, bound, co-design best-first, prune) in this
-process; the winner, the ranking (race times within 0.1 %), the CPU of each, and the bound
-against every co-designed race (bound over race time ≤ 1 where the bound holds).
+alone (:func:`casadrone.build.solve.solve_combination` without seeds, one after another), against
+the build (screen, bound, co-design best-first from the nearest raced neighbour, prune), serial
+and on two Dask workers; the winner, the ranking (race times within 0.1 %), the CPU of each, and
+the bound against every co-designed race (bound over race time ≤ 1 where the bound holds).
 
 Usage (from the checkout)::
 
     python benchmarks/bench_build.py                      # build-small (3 x 3 x 3)
     python benchmarks/bench_build.py --propellers 2 --motors 1 --packs 2 --short
+    python benchmarks/bench_build.py --dask               # and the build on 2 Dask workers
 
-Brute force and the build each run in a process of their own (spawned side by side), so neither
-reuses what the other built (co-design NLPs, point-mass solves are cached per process).
-``--propellers/--motors/--packs N`` keep the first N of each kind of build-small; ``--short``
-flies the co-design tests' short track (tests/data/codesign/short-track.yaml) on 16 intervals
-instead of the paper track. CPU is
-``time.process_time`` of this process (the co-design and race solves run in it: serial
-backend), so the figures do not depend on what else the machine runs; wall time does. Writes
-``benchmarks/RESULTS-build.md`` (dated summary first) and prints the same.
+Each side runs in a process of its own (spawned one after another), so none reuses what another
+built (co-design NLPs, point-mass solves are cached per process). Brute force keeps each
+combination's result as a JSON line in ``--state`` (default: a folder under the system's
+temporary directory named after the catalogue) and resumes from it: an hour of CPU survives a
+stop. ``--propellers/--motors/--packs N`` keep the first N of each kind of build-small;
+``--short`` flies the co-design tests' short track (tests/data/codesign/short-track.yaml) on 16
+intervals instead of the paper track. CPU is ``time.process_time`` of the process plus, for the
+Dask build, every worker's co-design CPU (``Build.cpu_s``); wall time depends on what else the
+machine runs. Writes ``benchmarks/RESULTS-build.md`` (dated summary first) and prints the same.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import json
 import math
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -40,46 +43,85 @@ RESULTS = Path(__file__).resolve().parent / "RESULTS-build.md"
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def problem_of(args: argparse.Namespace):
-    """build-small with the first N parts of each kind, serial, uncertified."""
+def problem_of(args: argparse.Namespace, backend: str = "serial"):
+    """build-small with the first N parts of each kind, on ``backend`` (serial, or dask with two
+    local workers), uncertified."""
     full = load_build_problem("build-small")
     b = full.build
     pick = {"propellers": list(b.propellers)[:args.propellers],
             "motors": list(b.motors)[:args.motors], "packs": list(b.packs)[:args.packs]}
     over = [f"build.{k}=[{', '.join(v)}]" for k, v in pick.items()]
-    over += ["backend.name=serial", "build.certify=false", f"build.rank={args.rank}"]
+    over += ["build.certify=false", f"build.rank={args.rank}"]
     if args.short:  # the co-design tests' short track on their propeller grid
         over += [f"track={ROOT / 'tests/data/codesign/short-track.yaml'}",
                  "limit_lap.intervals=16",
                  "limit_lap.starts=[closed-loop, point-mass, coarse-grid]"]
-    return load_build_problem("build-small", over), over
+    where = ["backend.name=serial"] if backend == "serial" else \
+        ["backend.name=dask", "backend.workers=2"]
+    return load_build_problem("build-small", over + where), over
 
 
-def brute_force(problem) -> list:
-    """Every screened-in combination co-designed and raced alone."""
+def size_of(args: argparse.Namespace) -> str:
+    return f"{args.propellers}x{args.motors}x{args.packs}" + ("-short" if args.short else "")
+
+
+def state_file(args: argparse.Namespace) -> Path:
+    folder = Path(args.state) if args.state else \
+        Path(tempfile.gettempdir()) / "casadrone-bench-build"
+    return folder / f"brute-{size_of(args)}-rank{args.rank}.jsonl"
+
+
+def brute_force(args: argparse.Namespace) -> dict:
+    """Every screened-in combination co-designed and raced alone, each result a JSON line of
+    the state file as it is known; the ones already there are read back, not solved again."""
+    problem, _ = problem_of(args)
     kept, _ = screened(problem)
-    return [solve_combination(problem, c, None) for c in kept]
+    path = state_file(args)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    held = {}
+    if path.exists():
+        held = {d["label"]: d for d in map(json.loads, path.read_text().splitlines())}
+    for c in kept:
+        if c.label in held:
+            continue
+        w0 = time.perf_counter()
+        r = solve_combination(problem, c, None)
+        d = jsonable(r.as_dict()) | {"wall_s": time.perf_counter() - w0}
+        with path.open("a") as f:
+            f.write(json.dumps(d) + "\n")
+        held[c.label] = d
+    results = [held[c.label] for c in kept]
+    return {"cpu_s": sum(r["cpu_s"] for r in results),
+            "wall_s": sum(r["wall_s"] for r in results), "results": results}
 
 
 def part(args: argparse.Namespace) -> None:
     """One side in this (fresh) process: its results, CPU and wall as JSON on stdout."""
-    problem, _ = problem_of(args)
-    wall0, c0 = time.perf_counter(), time.process_time()
     if args.part == "brute":
-        results = brute_force(problem)
-    else:
-        done = build(problem)
-        results = list(done.results)
-    cpu, wall = time.process_time() - c0, time.perf_counter() - wall0
-    print(json.dumps(jsonable({"cpu_s": cpu, "wall_s": wall,
-                               "results": [r.as_dict() for r in results]})))
+        print(json.dumps(brute_force(args)))
+        return
+    problem, _ = problem_of(args, args.part)
+    done = build(problem)
+    print(json.dumps(jsonable({"cpu_s": done.cpu_s, "wall_s": done.wall_time_s,
+                               "results": [r.as_dict() for r in done.results]})))
 
 
-def run_part(name: str) -> subprocess.Popen:
-    """This script for one side, in a process of its own (no cache shared with the other)."""
-    argv = [a for a in sys.argv[1:]]
-    return subprocess.Popen([sys.executable, __file__, *argv, "--part", name],
-                            stdout=subprocess.PIPE, text=True)
+def run_part(name: str) -> dict:
+    """This script for one side, in a process of its own (no cache shared with another)."""
+    out = subprocess.run([sys.executable, __file__, *sys.argv[1:], "--part", name],
+                         stdout=subprocess.PIPE, text=True, check=True).stdout
+    return json.loads(out.splitlines()[-1])
+
+
+def ranked(side: dict, rank: int) -> list[dict]:
+    return sorted((r for r in side["results"] if r["outcome"] == "raced" and r["feasible"]),
+                  key=lambda r: (r["race_s"], r["label"]))[:rank]
+
+
+def same_ranking(a: list[dict], b: list[dict]) -> bool:
+    """The same labels in the same order, race times within 0.1 %."""
+    return [r["label"] for r in a] == [r["label"] for r in b] and all(
+        abs(x["race_s"] - y["race_s"]) <= 1e-3 * x["race_s"] for x, y in zip(a, b, strict=True))
 
 
 def main() -> None:
@@ -89,57 +131,67 @@ def main() -> None:
     ap.add_argument("--rank", type=int, default=3)
     ap.add_argument("--short", action="store_true", help="the short test track instead of "
                     "build-small's paper track")
-    ap.add_argument("--part", choices=("brute", "build"), help=argparse.SUPPRESS)
+    ap.add_argument("--dask", action="store_true", help="also the build on two Dask workers")
+    ap.add_argument("--state", help="folder of brute force's resumable results")
+    ap.add_argument("--part", choices=("brute", "serial", "dask"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.part:
         part(args)
         return
     _, over = problem_of(args)
-    procs = {name: run_part(name) for name in ("brute", "build")}  # side by side
-    got = {name: json.loads(p.communicate()[0]) for name, p in procs.items()}
-    brute, bb = got["brute"], got["build"]
-    brute_rank = sorted((r for r in brute["results"] if r["feasible"]),
-                        key=lambda r: (r["race_s"], r["label"]))[:args.rank]
-    bb_rank = sorted((r for r in bb["results"] if r["outcome"] == "raced" and r["feasible"]),
-                     key=lambda r: (r["race_s"], r["label"]))[:args.rank]
-    same = [a["label"] for a in brute_rank] == [b["label"] for b in bb_rank] and all(
-        abs(a["race_s"] - b["race_s"]) <= 1e-3 * a["race_s"]
-        for a, b in zip(brute_rank, bb_rank, strict=True))
+    sides = ("brute", "serial", "dask") if args.dask else ("brute", "serial")
+    got = {name: run_part(name) for name in sides}  # one after another: CPU undisturbed
+    brute, bb = got["brute"], got["serial"]
+    want = ranked(brute, args.rank)
+    same = same_ranking(want, ranked(bb, args.rank))
     by_label = {r["label"]: r for r in bb["results"]}
     ratios = [by_label[r["label"]]["bound_s"] / r["race_s"] for r in brute["results"]
               if r["label"] in by_label and r["race_s"] is not None
               and by_label[r["label"]]["bound_s"] is not None]
     co = sum(r["outcome"] in ("raced", "failed") for r in bb["results"])
-    size = f"{args.propellers}x{args.motors}x{args.packs}"
+    size = size_of(args)
     cmd = "python benchmarks/bench_build.py" + (
         "" if size == "3x3x3" else
         f" --propellers {args.propellers} --motors {args.motors} --packs {args.packs}") + (
-        f" --rank {args.rank}" if args.rank != 3 else "") + (" --short" if args.short else "")
+        f" --rank {args.rank}" if args.rank != 3 else "") + (" --short" if args.short else "") + (
+        " --dask" if args.dask else "")
     lines = [f"# casadrone build against brute force ({size} catalogue of build-small)", "",
              f"Problem: build-small with {' '.join(over)}. Each side in a process of its own "
-             "(no in-process cache shared), both at once.", "",
+             "(no in-process cache shared), one after another.", "",
              "| | CPU s | wall s | combinations co-designed |", "|---|---|---|---|",
-             f"| brute force | {brute['cpu_s']:.1f} | {brute['wall_s']:.1f} | "
-             f"{len(brute['results'])} |",
-             f"| build (branch and bound) | {bb['cpu_s']:.1f} | {bb['wall_s']:.1f} | {co} |", "",
-             f"Same winner and ranking (race times within 0.1 %): {same}.", "",
-             "| combination | brute force | build outcome | bound s |", "|---|---|---|---|"]
+             f"| brute force (each alone, serial) | {brute['cpu_s']:.1f} | {brute['wall_s']:.1f} "
+             f"| {len(brute['results'])} |",
+             f"| build, serial | {bb['cpu_s']:.1f} | {bb['wall_s']:.1f} | {co} |"]
+    if "dask" in got:
+        dk = got["dask"]
+        dco = sum(r["outcome"] in ("raced", "failed") for r in dk["results"])
+        lines.append(f"| build, 2 Dask workers | {dk['cpu_s']:.1f} | {dk['wall_s']:.1f} | "
+                     f"{dco} |")
+    lines += ["", f"Same winner and ranking as brute force (race times within 0.1 %): {same}."]
+    if "dask" in got:
+        dsame = same_ranking(ranked(bb, args.rank), ranked(got["dask"], args.rank))
+        lines.append(f"Two Dask workers rank as the serial build: {dsame}.")
+    lines += ["", "| combination | brute force | build | build outcome | bound s |",
+              "|---|---|---|---|---|"]
     for r in brute["results"]:
         b = by_label.get(r["label"], {})
         fig = (f"{r['race_s']:.4f} s" if r["race_s"] is not None
                else f"{r['outcome']}: {r['reason']}")
+        bfig = f"{b['race_s']:.4f} s" if b.get("race_s") is not None else "-"
         bound = b.get("bound_s")
-        lines.append(f"| {r['label']} | {fig} | {b.get('outcome', '-')} | "
+        lines.append(f"| {r['label']} | {fig} | {bfig} | {b.get('outcome', '-')} | "
                      f"{'-' if bound is None else f'{bound:.4f}'} |")
     for r in bb["results"]:
         if r["outcome"] == "refused":
-            lines.append(f"| {r['label']} | - | refused: {r['reason']} | - |")
+            lines.append(f"| {r['label']} | - | - | refused: {r['reason']} | - |")
     lines += ["", f"Bound over race time: largest {max(ratios, default=math.nan):.3f} "
               "(at most 1 where the bound holds).", "", "## Machine", "",
               "\n".join(f"- {k}: {v}" for k, v in describe().items())]
-    rows = [(f"build of a {size} catalogue against brute force co-design, one process each",
-             f"{bb['cpu_s']:.0f} s CPU against {brute['cpu_s']:.0f} s "
-             f"({bb['cpu_s'] / brute['cpu_s']:.2f}x); same ranking: {same}", f"`{cmd}`")]
+    fig = (f"{bb['cpu_s']:.0f} s CPU against {brute['cpu_s']:.0f} s "
+           f"({bb['cpu_s'] / brute['cpu_s']:.2f}x); same ranking: {same}")
+    if "dask" in got:
+        fig += f"; 2 Dask workers rank as serial: {dsame}"
+    rows = [(f"build of a {size} catalogue against brute force co-design", fig, f"`{cmd}`")]
     text = with_summary("\n".join(lines) + "\n", rows)
     RESULTS.write_text(text)
     print(text)

@@ -45,6 +45,7 @@ from casadrone.codesign.checks import template_of
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.build import BuildProblemConfig
 from casadrone.config.parts import load_parts
+from casadrone.limit.result import LapSeeds
 from casadrone.progress import emit
 from casadrone.results import AsDict
 
@@ -62,6 +63,7 @@ class Build(AsDict):
     cpu_s: float  # this process and every worker's co-design CPU together
     wall_time_s: float
     winner_airframe: AirframeConfig | None = None  # the winner's combination at its frame
+    resumed: int = 0  # results read back from the folder of a stopped build, not solved again
 
     _omit = ("winner_airframe",)
     _properties = ("counts", "winner", "fronts")
@@ -139,11 +141,12 @@ def threshold(raced: list[BuildResult], rank: int) -> float:
 
 def branch_and_bound(problem: BuildProblemConfig, order: list[tuple[float, Combination]],
                      laps: int | None, pool: Pool,
-                     record: Callable[[BuildResult], None] = lambda r: None
-                     ) -> list[BuildResult]:
-    """Co-design the combinations of ``order`` best-first on ``pool`` (module docstring);
-    ``record`` sees each result as it is known."""
-    done: list[BuildResult] = []
+                     record: Callable[[BuildResult], None] = lambda r: None,
+                     held: tuple[BuildResult, ...] = ()) -> list[BuildResult]:
+    """Co-design the combinations of ``order`` best-first on ``pool`` (module docstring), after
+    the results ``held`` already (a resumed build's: they set the threshold and seed their
+    neighbours as if just solved); ``record`` sees each new result as it is known."""
+    done: list[BuildResult] = list(held)
     running: dict[Any, float] = {}
     for bound, combo in order:
         while len(running) >= pool.workers:
@@ -154,10 +157,28 @@ def branch_and_bound(problem: BuildProblemConfig, order: list[tuple[float, Combi
                 f"{threshold(done, problem.build.rank):.4f} s")))
             record(done[-1])
             continue
-        running[pool.submit(solve_combination, problem, combo, laps, bound)] = bound
+        near = neighbour(combo, done)
+        seeds = LapSeeds() if near is None else LapSeeds(warm_starts=(near.race_lap,))
+        running[pool.submit(solve_combination, problem, combo, laps, bound, seeds,
+                            None if near is None else near.theta)] = bound
     while running:
         _collect(pool, running, done, record)
     return done
+
+
+def neighbour(combo: Combination, done: list[BuildResult]) -> BuildResult | None:
+    """The nearest combination raced so far, whose co-designed geometry and race start
+    ``combo``'s (continuation across the catalogue): one with the same propeller and motor,
+    else the same propeller, else any, the latest raced first (their bounds are the closest:
+    best-first order); None before the first race."""
+    raced = [r for r in reversed(done) if r.race_lap is not None]
+    c = combo
+
+    def nearness(r: BuildResult) -> int:
+        o = r.combination
+        return (o.propeller.name == c.propeller.name) + (o.motor.name == c.motor.name) * (
+            o.propeller.name == c.propeller.name)
+    return max(raced, key=nearness, default=None)  # max keeps the first of equals: the latest
 
 
 def _collect(pool: Pool, running: dict[Any, float], done: list[BuildResult],
@@ -203,29 +224,37 @@ def announced(record: Callable[[BuildResult], None]) -> Callable[[BuildResult], 
 
 
 def build(problem: BuildProblemConfig, laps: int | None = None,
-          record: Callable[[BuildResult], None] = lambda r: None) -> Build:
+          record: Callable[[BuildResult], None] = lambda r: None,
+          held: tuple[BuildResult, ...] = ()) -> Build:
     """The build of ``problem`` (module docstring) for a race of ``laps`` laps (the
     ``build.laps`` or the track's when None) on the problem's ``backend``; ``record`` sees
-    each combination's result as it is known (and a progress line reports it)."""
+    each new combination's result as it is known (and a progress line reports it). ``held``:
+    the results of this build known before (a resumed one, :mod:`casadrone.build.resume`),
+    neither bounded nor solved again; the CPU is this call's."""
     record = announced(record)
     wall0, cpu0 = time.perf_counter(), time.process_time()
     laps = laps or problem.build.laps
+    known = {r.label for r in held}
     kept, refused = screened(problem)
     for r in refused:
-        record(r)
-    order = bounded(problem, kept, laps)
+        if r.label not in known:
+            record(r)
+    order = bounded(problem, [c for c in kept if c.label not in known], laps)
     pool = Pool(problem.backend)
     try:
-        results = branch_and_bound(problem, order, laps, pool, record)
+        results = branch_and_bound(problem, order, laps, pool, record,
+                                   tuple(r for r in held if r.outcome != "refused"))
     finally:
         pool.close()
     ranked = ranking(results, problem.build.rank)
     if problem.build.certify:
         ranked = certified(problem, ranked)
-    worker_cpu = sum(r.cpu_s for r in results) if pool.name != "serial" else 0.0
+    new = results[len(held) - sum(r.outcome == "refused" for r in held):]
+    worker_cpu = sum(r.cpu_s for r in new) if pool.name != "serial" else 0.0
     return Build(problem.name, race_track(problem, laps).laps, tuple(refused + results), ranked,
                  pool.name, pool.workers, time.process_time() - cpu0 + worker_cpu,
-                 time.perf_counter() - wall0, winner_airframe(problem, ranked))
+                 time.perf_counter() - wall0, winner_airframe(problem, ranked),
+                 resumed=len(held))
 
 
 def winner_airframe(problem: BuildProblemConfig, ranked: tuple[BuildResult, ...]

@@ -26,7 +26,7 @@ from casadrone.config.codesign import CodesignProblemConfig
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
 from casadrone.limit.race import race
-from casadrone.limit.result import LimitLapOptions
+from casadrone.limit.result import LapSeeds, LimitLapOptions
 from casadrone.results import AsDict
 
 #: What became of a combination: refused before any solve, pruned by its bound, co-designed and
@@ -61,8 +61,9 @@ class BuildResult(AsDict):
     cpu_s: float = 0.0
     point: Any = None  # casadrone.codesign.driver.CodesignPoint, for the certificate
     certificate: Any = None  # casadrone.codesign.certificate.Certificate of a ranked build
+    race_lap: Any = None  # casadrone.limit.result.LimitLap of the race: a neighbour's seed
 
-    _omit = ("point", "certificate")
+    _omit = ("point", "certificate", "race_lap")
     _properties = ("label", "bound_ratio", "certified", "certificate_report")
 
     @property
@@ -127,14 +128,23 @@ def combination_start(problem: BuildProblemConfig, combo: Combination) -> Airfra
 
 
 def solve_combination(problem: BuildProblemConfig, combo: Combination, laps: int | None,
-                      bound_s: float = math.nan) -> BuildResult:
-    """Co-design ``combo``'s frame and race it (module docstring); the CPU of this process."""
+                      bound_s: float = math.nan, seeds: LapSeeds = LapSeeds(),
+                      start: dict[str, float] | None = None) -> BuildResult:
+    """Co-design ``combo``'s frame and race it (module docstring); the CPU of this process.
+    With ``seeds`` and ``start`` (a neighbouring combination's race and co-designed geometry),
+    the co-design starts from that geometry, its first lap and the race's from that race, and
+    from the problem's starts only where they give no verified lap (and the combination is
+    solved alone where the co-design so started finds no frame); without, it is solved alone."""
     from casadrone.codesign.design import codesign
     c0 = time.process_time()
     base = BuildResult(combo, "failed", bound_s=bound_s)
     try:
         cfg = combination_start(problem, combo)
-        result = codesign(codesign_problem(problem, cfg), certify=False)
+        result = codesign(codesign_problem(problem, cfg), certify=False, seeds=seeds,
+                          start=start)
+        if result.best is None and (seeds.warm_starts or start):
+            seeds = LapSeeds()
+            result = codesign(codesign_problem(problem, cfg), certify=False)
     except ConfigError as exc:
         return replace(base, reason=exc.lines[0], cpu_s=time.process_time() - c0)
     if result.best is None:
@@ -142,7 +152,7 @@ def solve_combination(problem: BuildProblemConfig, combo: Combination, laps: int
     best = result.best
     frame = with_theta(cfg, best.theta)
     track = race_track(problem, laps)
-    raced = race(frame, track, lap_options(problem, cfg))
+    raced = race(frame, track, lap_options(problem, cfg), seeds=seeds)
     hover = hover_of(frame)
     out = replace(base, outcome="raced", laps=track.laps, theta=dict(best.theta),
                   lap_s=best.objective, mass_kg=best.mass_kg, point=best,
@@ -153,6 +163,7 @@ def solve_combination(problem: BuildProblemConfig, combo: Combination, laps: int
     e = raced.energy
     assert e is not None  # a combination's pack has a capacity (combination_airframe)
     return replace(out, race_s=raced.lap.lap_time_s, feasible=raced.feasible,
+                   race_lap=raced.lap,
                    reason=raced.reason, peak_pack_current_a=e.peak_pack_current_a,
                    peak_motor_current_a=e.peak_motor_current_a,
                    pack_current_margin_a=e.pack_current_margin_a,

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from casadrone.airframe import build_airframe
+from casadrone.build import resume
 from casadrone.build.checks import load_build_problem
 from casadrone.build.search import Build, build
 from casadrone.cli.common import (
@@ -21,6 +22,7 @@ from casadrone.cli.common import (
     JsonOpt,
     QuietOpt,
     app,
+    bad_input,
     check_out_folder,
     cost_text,
     jsonable,
@@ -30,6 +32,7 @@ from casadrone.cli.common import (
 )
 from casadrone.export import FORMATS
 from casadrone.export.source import ExportSource
+from casadrone.progress import emit
 
 if TYPE_CHECKING:
     from casadrone.build.solve import BuildResult
@@ -52,8 +55,9 @@ def build_command(
     laps: Annotated[int | None, typer.Option(min=1, max=20, help="laps of the race (default: "
                                              "build.laps, else the track's)")] = None,
     out: Annotated[Path | None, typer.Option(help="folder for result.json, ranking.csv and the "
-                                             "winner's bill of materials; must be new or "
-                                             "empty")] = None,
+                                             "winner's bill of materials; new, empty, or a "
+                                             "stopped build of the same problem to resume")
+                   ] = None,
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -70,14 +74,26 @@ def build_command(
 
     Exit codes: 0 when some build flies the race; 2 for bad input, refused before any solve (one
     line naming the file and key: an unknown part, a template not of the propeller kind, an
-    --out that cannot be a new folder); 3 (EXIT_FAILED) when no combination flies it (the
-    result is still printed and written to --out).
+    --out that holds anything but a build of this problem and race); 3 (EXIT_FAILED) when no
+    combination flies it (the result is still printed and written to --out).
+
+    Every result is kept in --out as it is known: run the same command again after a stop and
+    the build resumes, solving only the combinations it does not hold.
     """
-    check_out_folder(out)
     cfg = load_build_problem(problem, overrides or [])
+    why = None if out is None else resume.folder_problem(out, cfg, laps)
+    if why:
+        raise bad_input([f"--out: {out}: {why}"])
+    if out is not None and not out.exists():
+        check_out_folder(out)  # a folder that cannot be made
+    held = resume.held(out)
+    if out is not None:
+        resume.begin(out, cfg, laps)
     record = recorder(out)
     with progress_lines("build", quiet):
-        result = build(cfg, laps, record)
+        if held:
+            emit("stage", f"resuming: {len(held)} combinations held in {out}")
+        result = build(cfg, laps, record, held)
     data = result.as_dict()
     if out is not None:
         write_outputs(out, result)
@@ -90,12 +106,14 @@ def build_command(
 
 
 def recorder(folder: Path | None) -> Callable[[BuildResult], None]:
-    """Each combination's result appended to ``folder/combinations.jsonl`` as it is known (a
-    result is on disk whatever happens to the later ones); nothing without a folder."""
+    """Each combination's result appended to ``folder/combinations.jsonl`` and kept whole in
+    ``folder/state/`` as it is known (a result is on disk whatever happens to the later ones,
+    and a stopped build resumes from it: :mod:`casadrone.build.resume`); nothing without a
+    folder."""
     def record(r: BuildResult) -> None:
         if folder is None:
             return
-        folder.mkdir(parents=True, exist_ok=True)
+        resume.keep(folder, r)
         with (folder / "combinations.jsonl").open("a") as f:
             f.write(json.dumps(jsonable(r.as_dict())) + "\n")
     return record

@@ -238,7 +238,8 @@ def _miss(pb, warm) -> float:
     if not warm.success:
         return math.inf
     return resimulation_miss(pb.frame, trajectory(pb.full, warm.point.w, pb.layout),
-                             pb.targets.vector, pb.targets.kinds)
+                             pb.targets.vector, pb.targets.kinds,
+                             legs=pb.options.resimulation == "legs")
 
 
 @dataclass(frozen=True)

@@ -93,10 +93,11 @@ def codesign_lap_options(problem: CodesignProblemConfig, template: AirframeConfi
     """The limit lap's options co-design poses every lap with, from the problem's ``limit_lap:``
     section: its ``intervals`` (default: the limit lap's own grid for the template's propulsion
     kind, :data:`~casadrone.limit.result.DEFAULT_INTERVALS`: a propeller lap on the paper's 40
-    intervals misses its re-simulation) and its ``starts`` for the template's lap and the
-    certificate's cold re-solve (default: co-design's :data:`DEFAULT_LAP_STARTS`); no
-    sensitivities, no point-mass reference unless a start needs it
-    (:func:`casadrone.codesign.driver.template_lap`) and no grid refinement inside the limit lap:
+    intervals misses its re-simulation), its ``resimulation`` (every lap's check and the
+    certificate's: the whole lap, or each leg from its own node) and its ``starts`` for the
+    template's lap and the certificate's cold re-solve (default: co-design's
+    :data:`DEFAULT_LAP_STARTS`); no sensitivities, no point-mass reference unless a start needs
+    it (:func:`casadrone.codesign.driver.template_lap`) and no grid refinement inside the limit lap:
     every lap here is on the co-design NLP's grid, which co-design refines itself (design.py).
     Every frame is posed with ``gate_clearance_m`` (:func:`gate_clearance`). The settings
     co-design cannot honour were refused with the problem
@@ -107,7 +108,7 @@ def codesign_lap_options(problem: CodesignProblemConfig, template: AirframeConfi
     return LimitLapOptions(intervals=lap.intervals or DEFAULT_INTERVALS[template.propulsion.model],
                            sensitivities=False, starts=lap.starts or DEFAULT_LAP_STARTS,
                            point_mass_reference=False, gate_clearance_m=gate_clearance_m,
-                           refinements=0)
+                           refinements=0, resimulation=lap.resimulation)
 
 
 def codesign_track_problems(problem: CodesignProblemConfig) -> list[tuple[str, str]]:

@@ -31,6 +31,7 @@ from casadrone.codesign.driver import (
 from casadrone.codesign.front import design_front, write_run
 from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
 from casadrone.limit.lap import refined_intervals
+from casadrone.limit.result import LapSeeds
 from casadrone.progress import nested
 
 #: Co-design restarts from the certificate's faster fixed-frame lap (at most this many): where
@@ -152,15 +153,17 @@ def _certificate(prep, best):
 
 
 def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
-             run_dir: Path | None = None) -> CodesignResult:
+             run_dir: Path | None = None, seeds: LapSeeds = LapSeeds(),
+             start: dict[str, float] | None = None) -> CodesignResult:
     """The fastest frame of ``problem`` (see the module docstring) and, when the problem names
     a front measure beside J3_limit, the design front (written as a run directory to
-    ``run_dir`` if given); never raises for a start that fails (it is reported), raises
-    ConfigError for a problem co-design cannot pose."""
+    ``run_dir`` if given); the template's laps started from ``seeds`` and its geometry moved to
+    ``start`` where given (:func:`casadrone.codesign.driver.prepare`); never raises for a start
+    that fails (it is reported), raises ConfigError for a problem co-design cannot pose."""
     if not isinstance(problem, CodesignProblemConfig):
         problem = load_codesign_problem(problem)
     wall0, cpu0 = time.perf_counter(), time.process_time()
-    prep = prepare(problem)
+    prep = prepare(problem, seeds=seeds, start=start)
     build_cpu = time.process_time() - cpu0
     reports, points = [], []
     starts = start_points(prep)

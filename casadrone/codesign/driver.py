@@ -35,13 +35,12 @@ from casadrone.config.codesign import DEFAULT_LAP_STARTS, FRONT_MEASURES, Codesi
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
 from casadrone.limit.lap import (
-    LapSeeds,
     LimitLap,
     LimitLapOptions,
     design_limit_lap,
 )
 from casadrone.limit.nlp import NlpPoint
-from casadrone.limit.result import Start
+from casadrone.limit.result import LapSeeds, Start, seeds_alone
 from casadrone.limit.starts import prepare as prepare_lap
 from casadrone.limit.starts import trajectory
 from casadrone.progress import nested
@@ -183,13 +182,19 @@ def _part(template: AirframeConfig, track: TrackConfig, options: LimitLapOptions
 
 
 def template_lap(template: AirframeConfig, track: TrackConfig,
-                 options: LimitLapOptions) -> LimitLap:
+                 options: LimitLapOptions, seeds: LapSeeds = LapSeeds()) -> LimitLap:
     """The template's limit lap, the co-design's first start and every other frame's warm
-    start: from ``options.starts`` (``limit_lap.starts``), and where those give no verified
-    lap from the schema's default starts (:data:`DEFAULT_LAP_STARTS`) not tried yet (each start
-    is its own solve, so the ones tried would fail again). No point-mass reference unless a
-    start needs it: co-design does not report it, and it is three point-mass solves (13 s of the
-    paper track's 38)."""
+    start: from ``seeds`` alone where given (a neighbouring lap: a build's combination starts
+    from the lap of one raced before it), else or where those give no verified lap from
+    ``options.starts`` (``limit_lap.starts``), and where those give none from the schema's
+    default starts (:data:`DEFAULT_LAP_STARTS`) not tried yet (each start is its own solve, so
+    the ones tried would fail again). No point-mass reference unless a start needs it:
+    co-design does not report it, and it is three point-mass solves (13 s of the paper track's
+    38)."""
+    if seeds.warm_starts:
+        lap = design_limit_lap(template, track, seeds_alone(options), seeds)
+        if lap.completed:
+            return lap
     lap = design_limit_lap(template, track, options)
     rest: tuple[Start, ...] = tuple(s for s in DEFAULT_LAP_STARTS if s not in options.starts)
     if lap.completed or not rest:
@@ -200,9 +205,13 @@ def template_lap(template: AirframeConfig, track: TrackConfig,
 _BUILT: dict[tuple, CodesignNlp] = {}
 
 
-def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Prepared:
-    """The template, the variables, the tracks and the co-design NLP (cached per shape)."""
-    template = template_of(problem)
+def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = (),
+            seeds: LapSeeds = LapSeeds(), start: dict[str, float] | None = None) -> Prepared:
+    """The template, the variables, the tracks and the co-design NLP (cached per shape); the
+    template's laps started from ``seeds`` where given (:func:`template_lap`). ``start``: the
+    template's geometry moved to these values of the variables (a neighbour's optimum, where
+    they make a valid frame), so that co-design starts there."""
+    template = at_start(template_of(problem), start)
     keys = tuple(v.name for v in problem.variables)
     bad = [k for k in keys if k not in CODESIGN_KEYS]
     if bad:
@@ -219,10 +228,22 @@ def prepare(problem: CodesignProblemConfig, epsilon: tuple[str, ...] = ()) -> Pr
     frame = SymbolicFrame(template, keys, lower, upper)
     nlp = _built(problem, template, keys, lower, upper, tracks, weights, parts, frame, epsilon)
     with nested():  # the template's limit laps, reported as one line each
-        laps = tuple(template_lap(template, t, options) for t in tracks)
+        laps = tuple(template_lap(template, t, options, seeds) for t in tracks)
     events.template_laps(labels, laps)
     return Prepared(problem, template, keys, lower, upper, labels, tracks, weights, options,
                     nlp, laps)
+
+
+def at_start(template: AirframeConfig, start: dict[str, float] | None) -> AirframeConfig:
+    """``template`` with ``start``'s geometry where given and valid; else as it is."""
+    if not start:
+        return template
+    try:
+        moved = with_theta(template, start)
+        build_airframe(moved)  # a frame whose propellers overlap is refused here
+    except ConfigError:
+        return template
+    return moved
 
 
 def _built(problem, template, keys, lower, upper, tracks, weights, parts, frame,

@@ -160,7 +160,8 @@ def _certify(prep: Prepared, point: CodesignPoint) -> Certificate:
         ref = point.laps_s[label]
         gap = 100 * (lap - ref) / ref
         miss = resimulation_miss(frame, trajectory(pb.full, ws[k], pb.layout),
-                                 pb.targets.vector, pb.targets.kinds)
+                                 pb.targets.vector, pb.targets.kinds,
+                                 legs=prep.options.resimulation == "legs")
         passed = abs(gap) <= 100 * LAP_RTOL and miss <= prep.options.max_miss_m
         checks.append(TrackCheck(label, ref, lap, math.nan, lap, gap, miss, bool(passed)))
         grads.append(theta_gradient(prep, cfg, prep.tracks[k],

@@ -62,13 +62,12 @@ CODESIGN_LAP_FIXED: dict[str, tuple[tuple[Any, ...], str]] = {
     "grid_rounds": ((None, 0), "co-design refines its own grid instead"),
     "rotor_step": (("rk4",), "co-design's θ-derivative blocks step the rotors with rk4"),
     "substeps": ((3,), "co-design's θ-derivative blocks take 3 steps per interval"),
-    "resimulation": (("lap",), "co-design's certificate re-simulates the whole lap"),
 }
 
 
 def codesign_lap_problems(lap: LimitLapConfig) -> list[tuple[str, str]]:
     """The ``limit_lap:`` settings co-design cannot honour (:data:`CODESIGN_LAP_FIXED`), as
-    (key, message); co-design reads ``intervals`` and ``starts`` alone."""
+    (key, message); co-design reads ``intervals``, ``starts`` and ``resimulation``."""
     return [(f"limit_lap.{key}", f"{why} (give {' or '.join(give)} or leave it out)")
             for key, (allowed, why) in CODESIGN_LAP_FIXED.items()
             if getattr(lap, key) not in allowed

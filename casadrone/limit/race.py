@@ -33,7 +33,7 @@ from casadrone.config.airframe import AirframeConfig
 from casadrone.config.track import TrackConfig
 from casadrone.limit.energy import RaceEnergy, flight_energy, race_energy
 from casadrone.limit.lap import design_limit_lap
-from casadrone.limit.result import LapSeeds, LimitLap, LimitLapOptions
+from casadrone.limit.result import LapSeeds, LimitLap, LimitLapOptions, seeds_alone
 from casadrone.pool import Pool
 from casadrone.propulsion.electric import Pack, pack_of
 from casadrone.results import AsDict
@@ -93,20 +93,27 @@ def with_open_circuit_voltage(cfg: AirframeConfig, volts: float) -> AirframeConf
 
 def race(cfg: AirframeConfig, track: TrackConfig,
          options: LimitLapOptions = LimitLapOptions(), frame: Airframe | None = None,
-         pool: Pool | None = None) -> Race:
+         pool: Pool | None = None, seeds: LapSeeds = LapSeeds()) -> Race:
     """The race of ``track.laps`` laps (module docstring); without a pack capacity, the limit
     lap alone (of ``frame``, where ``cfg`` is built already); each lap's independent solves on
-    ``pool`` where given."""
+    ``pool`` where given. With ``seeds`` (a neighbouring race), the first pass starts from them
+    alone and each later one from the pass before alone (:func:`seeded_lap`); without, each
+    pass solves its starts, the later ones with the pass before beside them."""
     pack = pack_of(cfg.propulsion.battery)
     if pack is None:
-        return Race(design_limit_lap(cfg, track, options, frame=frame, pool=pool))
+        return Race(seeded_lap(cfg, track, options, seeds, frame, pool))
     passes: list[Pass] = []
     soc, lap, account = pack.start_soc, None, None
     volts = pack.open_circuit_voltage_v  # the first pass: the section's own
     for _ in range(MAX_PASSES):
         flown = with_open_circuit_voltage(cfg, volts)
-        seeds = LapSeeds() if lap is None else LapSeeds(warm_starts=(lap,))
-        lap = design_limit_lap(flown, track, options, seeds, pool=pool)
+        if lap is None:
+            lap = seeded_lap(flown, track, options, seeds, None, pool)
+        elif seeds.warm_starts:  # seeded: each later pass from the one before alone
+            lap = seeded_lap(flown, track, options, LapSeeds(warm_starts=(lap,)), None, pool)
+        else:
+            lap = design_limit_lap(flown, track, options, LapSeeds(warm_starts=(lap,)),
+                                   pool=pool)
         if not lap.completed:
             return Race(lap, None, tuple(passes))
         account = account_of(flown, lap, pack)
@@ -118,6 +125,19 @@ def race(cfg: AirframeConfig, track: TrackConfig,
         volts = float(pack.ocv(soc))
     assert lap is not None
     return Race(lap, account, tuple(passes))
+
+
+def seeded_lap(cfg: AirframeConfig, track: TrackConfig, options: LimitLapOptions,
+               seeds: LapSeeds, frame: Airframe | None, pool: Pool | None) -> LimitLap:
+    """The limit lap from ``seeds``' warm starts alone where there are any, and from
+    ``options.starts`` where there are none or they give no verified lap (a pass warm-started
+    from the one before, or a race from a neighbour's, is one solve instead of the starts')."""
+    if seeds.warm_starts:
+        lap = design_limit_lap(cfg, track, seeds_alone(options), seeds, frame=frame,
+                               pool=pool)
+        if lap.completed:
+            return lap
+    return design_limit_lap(cfg, track, options, frame=frame, pool=pool)
 
 
 def account_of(cfg: AirframeConfig, lap: LimitLap, pack: Pack) -> RaceEnergy:

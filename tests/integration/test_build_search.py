@@ -1,7 +1,7 @@
 """casadrone build solved (slow): on a catalogue small enough to co-design every combination
 alone (2 propellers x 1 motor x 2 packs of build-small, on the short test track), the bound is
 below every co-designed race, the branch and bound returns brute force's winner and ranking, and
-two processes rank as one."""
+two processes and two Dask workers rank as one."""
 
 from __future__ import annotations
 
@@ -61,10 +61,12 @@ def test_pruning_keeps_brute_forces_winner(brute):
     assert result.ranking[0].race_s == pytest.approx(best.race_s, rel=1e-3)
 
 
-def test_two_processes_rank_as_one(brute):
-    """rank 2: the first two of brute force, serial and on two processes alike."""
+def test_two_processes_and_two_dask_workers_rank_as_one(brute):
+    """rank 2: the first two of brute force, serial, on two processes and on two Dask workers
+    (a LocalCluster) alike."""
     expected = ranking([r for r, _ in brute], 2)
-    for backend in (["backend.name=serial"], ["backend.name=processes", "backend.workers=2"]):
+    for backend in (["backend.name=serial"], ["backend.name=processes", "backend.workers=2"],
+                    ["backend.name=dask", "backend.workers=2"]):
         result = build(tiny(*backend, "build.rank=2"))
         assert [r.label for r in result.ranking] == [r.label for r in expected], backend
         for got, want in zip(result.ranking, expected, strict=True):

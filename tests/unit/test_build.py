@@ -211,7 +211,8 @@ def test_branch_and_bound_prunes_above_the_rank_th_race_and_keeps_the_rest(probl
 
     combos = combinations(shipped_catalogue(), problem.build)[:4]
     monkeypatch.setattr(search, "solve_combination",
-                        lambda prob, c, laps, bound: _raced(c, 1.1 * bound, bound_s=bound))
+                        lambda prob, c, laps, bound, seeds, start:
+                        _raced(c, 1.1 * bound, bound_s=bound))
     order = list(zip([1.0, 1.05, 2.0, 3.0], combos, strict=True))
     strict = problem.model_copy(update={"build": problem.build.model_copy(update={"rank": 1})})
     results = search.branch_and_bound(strict, order, None, Pool(BackendConfig()))
@@ -230,3 +231,75 @@ def test_fronts_keep_the_builds_no_other_beats_in_both():
           _raced(combos[2], 3.0, 0.55, 2.0))
     assert front(rs, lambda r: r.mass_kg) == [combos[0].label, combos[1].label]
     assert front(rs, lambda r: -r.energy_left_wh) == [combos[0].label, combos[1].label]
+
+
+def test_a_build_resumes_from_its_folder_and_refuses_another_problems(tmp_path, monkeypatch):
+    """A stopped build's folder: the results it holds are read back whole and neither bounded
+    nor solved again; the others are. A folder of another problem is refused (exit 2, one line),
+    nothing in it touched."""
+    import casadrone.build.search as search
+    from casadrone.build import resume
+    from casadrone.build.solve import BuildResult
+
+    problem = load_build_problem(SMALL, ["backend.name=serial", "build.certify=false"])
+    kept, _ = search.screened(problem)
+    solved, bounded = [], []
+
+    def fake_solve(problem, combo, laps, bound_s=math.nan, seeds=None, start=None):
+        solved.append(combo.label)
+        return BuildResult(combo, "raced", race_s=10.0 + len(solved), bound_s=bound_s,
+                           feasible=True)
+
+    def fake_bound(problem, combo, laps):
+        bounded.append(combo.label)
+        return 1.0
+    monkeypatch.setattr(search, "solve_combination", fake_solve)
+    monkeypatch.setattr(search, "bound_of", fake_bound)
+    out = tmp_path / "b"
+    resume.begin(out, problem, None)
+    first = BuildResult(kept[0], "raced", race_s=5.0, feasible=True, theta={"lambda_a_mm": 120.0})
+    resume.keep(out, first)  # the stop came after one combination
+    held = resume.held(out)
+    assert [(r.label, r.race_s, r.theta) for r in held] == [(first.label, 5.0, first.theta)]
+    result = search.build(problem, None, lambda r: resume.keep(out, r), held)
+    assert kept[0].label not in solved + bounded
+    assert sorted(solved) == sorted(c.label for c in kept[1:])
+    assert result.resumed == 1 and result.winner == kept[0].label
+    assert len(resume.held(out)) == len(result.results)  # every result on disk, once
+    assert resume.folder_problem(out, problem, None) is None
+    other = load_build_problem(SMALL, ["build.rank=5"])
+    assert "another problem" in resume.folder_problem(out, other, None)
+    assert "another problem" in resume.folder_problem(out, problem, 3)
+    before = sorted(p.name for p in out.rglob("*"))
+    cli_result = cli("build", SMALL, "build.rank=5", "--out", out)
+    assert cli_result.exit_code == 2 and len(cli_result.stderr.splitlines()) == 1
+    assert cli_result.stderr.startswith(f"--out: {out}: holds a build of another problem")
+    assert sorted(p.name for p in out.rglob("*")) == before
+
+
+def test_a_combination_starts_from_its_nearest_raced_neighbour():
+    """Continuation across the catalogue: a raced combination with the same propeller and motor
+    starts the next, else one with the same propeller, else the latest raced; none before the
+    first race, and a result without a race (failed, pruned) never."""
+    from casadrone.build.search import neighbour
+    from casadrone.build.solve import BuildResult
+
+    combos = combinations(shipped_catalogue(), load_build_problem(SMALL).build)
+    target = combos[0]
+    same_prop = next(c for c in combos if c.propeller == target.propeller
+                     and c.motor != target.motor)
+    same_both = next(c for c in combos[1:] if c.propeller == target.propeller
+                     and c.motor == target.motor)
+    other = next(c for c in combos if c.propeller != target.propeller)
+
+    def raced(c, lap):
+        return BuildResult(c, "raced", race_lap=lap)
+
+    def near(done):
+        got = neighbour(target, done)
+        return None if got is None else got.race_lap
+    assert near([]) is None
+    assert near([BuildResult(same_both, "failed")]) is None
+    assert near([raced(other, "o1"), raced(other, "o2")]) == "o2"
+    assert near([raced(same_prop, "p"), raced(other, "o")]) == "p"
+    assert near([raced(same_both, "b"), raced(same_prop, "p"), raced(other, "o")]) == "b"

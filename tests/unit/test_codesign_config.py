@@ -107,8 +107,7 @@ def test_a_moved_codesign_key_is_refused_with_its_new_place(tmp_path, cli_runner
 @pytest.mark.parametrize("overrides", [
     ["limit_lap.attitude=quaternion", "limit_lap.tilt=cone"], ["limit_lap.tilt=cone"],
     ["limit_lap.solver=fatrop"], ["limit_lap.grid_rounds=1"], ["limit_lap.search=certify"],
-    ["limit_lap.rotor_step=exponential"], ["limit_lap.substeps=4"],
-    ["limit_lap.resimulation=legs"]])
+    ["limit_lap.rotor_step=exponential"], ["limit_lap.substeps=4"]])
 def test_a_limit_lap_setting_codesign_cannot_honour_is_refused(cli_runner, overrides):
     """Co-design poses every lap as euler, axes, ipopt, rk4 x 3, no grid rounds and checks it
     with its own certificate: any other value is refused by key (exit 2, one line each), not
@@ -139,3 +138,29 @@ def test_cli_refuses_a_closed_loop_index_with_exit_code_2(cli_runner):
     assert result.exit_code == 2
     assert "'J5' is a closed-loop index" in result.stderr
     assert "Traceback" not in result.output
+
+
+def test_legs_resimulation_reaches_every_lap_and_the_certificate(monkeypatch):
+    """``limit_lap.resimulation=legs`` is honoured, not refused: every lap co-design poses checks
+    each leg from its own node, and so does the certificate's re-simulation (a lap that is
+    accurate but drifts open loop over the whole lap would fail it otherwise)."""
+    from types import SimpleNamespace
+
+    from casadrone.codesign import certificate
+    from casadrone.codesign.checks import codesign_lap_options, template_of
+
+    for value, legs in (("legs", True), ("lap", False)):
+        problem = load_codesign_problem("codesign-paper", [f"limit_lap.resimulation={value}"])
+        options = codesign_lap_options(problem, template_of(problem), 0.0)
+        assert options.resimulation == value
+        seen: dict[str, bool] = {}
+
+        def miss(*args, legs=False, seen=seen):
+            seen["legs"] = legs
+            return 0.0
+        monkeypatch.setattr(certificate, "trajectory", lambda *a: "lap")
+        monkeypatch.setattr(certificate, "resimulation_miss", miss)
+        pb = SimpleNamespace(options=options, frame=None, full=None, layout=None,
+                             targets=SimpleNamespace(vector=None, kinds=()))
+        certificate._miss(pb, SimpleNamespace(success=True, point=SimpleNamespace(w=None)))
+        assert seen["legs"] is legs

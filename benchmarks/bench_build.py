@@ -106,10 +106,17 @@ def part(args: argparse.Namespace) -> None:
                                "results": [r.as_dict() for r in done.results]})))
 
 
-def run_part(name: str) -> dict:
-    """This script for one side, in a process of its own (no cache shared with another)."""
-    out = subprocess.run([sys.executable, __file__, *sys.argv[1:], "--part", name],
+def run_part(name: str, args: argparse.Namespace) -> dict:
+    """This script for one side, in a process of its own (no cache shared with another); its
+    JSON kept beside the brute force state, and read back from there with ``--reuse``."""
+    kept = state_file(args).with_name(f"{name}-{size_of(args)}-rank{args.rank}.json")
+    if args.reuse and kept.exists() and name != "brute":
+        return json.loads(kept.read_text())
+    argv = [a for a in sys.argv[1:] if a != "--reuse"]
+    out = subprocess.run([sys.executable, __file__, *argv, "--part", name],
                          stdout=subprocess.PIPE, text=True, check=True).stdout
+    kept.parent.mkdir(parents=True, exist_ok=True)
+    kept.write_text(out.splitlines()[-1])
     return json.loads(out.splitlines()[-1])
 
 
@@ -133,6 +140,8 @@ def main() -> None:
                     "build-small's paper track")
     ap.add_argument("--dask", action="store_true", help="also the build on two Dask workers")
     ap.add_argument("--state", help="folder of brute force's resumable results")
+    ap.add_argument("--reuse", action="store_true", help="the builds' results kept by an earlier "
+                    "run of this command (brute force always resumes from its state)")
     ap.add_argument("--part", choices=("brute", "serial", "dask"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.part:
@@ -140,7 +149,7 @@ def main() -> None:
         return
     _, over = problem_of(args)
     sides = ("brute", "serial", "dask") if args.dask else ("brute", "serial")
-    got = {name: run_part(name) for name in sides}  # one after another: CPU undisturbed
+    got = {name: run_part(name, args) for name in sides}  # one after another
     brute, bb = got["brute"], got["serial"]
     want = ranked(brute, args.rank)
     same = same_ranking(want, ranked(bb, args.rank))

@@ -250,11 +250,11 @@ def test_a_build_resumes_from_its_folder_and_refuses_another_problems(tmp_path, 
         return BuildResult(combo, "raced", race_s=10.0 + len(solved), bound_s=bound_s,
                            feasible=True)
 
-    def fake_bound(problem, combo, laps):
+    def fake_bound(problem, combo, laps, near=None):
         bounded.append(combo.label)
-        return 1.0
+        return 1.0, None
     monkeypatch.setattr(search, "solve_combination", fake_solve)
-    monkeypatch.setattr(search, "bound_of", fake_bound)
+    monkeypatch.setattr(search, "bound_and_solution", fake_bound)
     out = tmp_path / "b"
     resume.begin(out, problem, None)
     first = BuildResult(kept[0], "raced", race_s=5.0, feasible=True, theta={"lambda_a_mm": 120.0})

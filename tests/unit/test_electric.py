@@ -212,3 +212,31 @@ def test_a_start_voltage_outside_the_curve_is_refused():
     assert result.exit_code == 2
     assert "propulsion.battery.open_circuit_voltage_v: 16.8 V is outside" in line
 
+
+
+def test_a_seeded_lap_solves_its_seeds_alone_then_its_starts_where_they_fail(monkeypatch):
+    """A race seeded by a neighbour's (the build's continuation) solves from the seeds alone: no
+    cold start, no fallback start or reference; only where that gives no verified lap does it
+    solve from the options' starts. Unseeded, it solves from the starts once."""
+    from types import SimpleNamespace
+
+    from casadrone.limit import race as race_mod
+    from casadrone.limit.result import LapSeeds, LimitLapOptions
+
+    calls = []
+
+    def fake(cfg, track, options, seeds=LapSeeds(), frame=None, pool=None):
+        calls.append((options.starts, options.fallback_starts, options.fallback_reference,
+                      len(seeds.warm_starts)))
+        return SimpleNamespace(completed=outcome.pop(0))
+    monkeypatch.setattr(race_mod, "design_limit_lap", fake)
+    options = LimitLapOptions(starts=("library",), fallback_starts=("coarse-grid",))
+    seeded = LapSeeds(warm_starts=("neighbour",))  # type: ignore[arg-type]
+    for outcome, seeds, want in (
+            ([True], seeded, [((), (), None, 1)]),
+            ([False, True], seeded, [((), (), None, 1),
+                                     (("library",), ("coarse-grid",), "SY250", 0)]),
+            ([True], LapSeeds(), [(("library",), ("coarse-grid",), "SY250", 0)])):
+        calls.clear()
+        race_mod.seeded_lap(None, None, options, seeds, None, None)
+        assert calls == want

@@ -223,12 +223,13 @@ def test_a_seeded_lap_solves_its_seeds_alone_then_its_starts_where_they_fail(mon
     from casadrone.limit import race as race_mod
     from casadrone.limit.result import LapSeeds, LimitLapOptions
 
-    calls = []
+    calls: list[tuple] = []
+    outcomes: list[bool] = []
 
     def fake(cfg, track, options, seeds=LapSeeds(), frame=None, pool=None):
         calls.append((options.starts, options.fallback_starts, options.fallback_reference,
                       len(seeds.warm_starts)))
-        return SimpleNamespace(completed=outcome.pop(0))
+        return SimpleNamespace(completed=outcomes.pop(0))
     monkeypatch.setattr(race_mod, "design_limit_lap", fake)
     options = LimitLapOptions(starts=("library",), fallback_starts=("coarse-grid",))
     seeded = LapSeeds(warm_starts=("neighbour",))  # type: ignore[arg-type]
@@ -238,5 +239,6 @@ def test_a_seeded_lap_solves_its_seeds_alone_then_its_starts_where_they_fail(mon
                                      (("library",), ("coarse-grid",), "SY250", 0)]),
             ([True], LapSeeds(), [(("library",), ("coarse-grid",), "SY250", 0)])):
         calls.clear()
+        outcomes[:] = outcome
         race_mod.seeded_lap(None, None, options, seeds, None, None)
         assert calls == want

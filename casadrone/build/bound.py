@@ -26,9 +26,11 @@ What is *not* certified by the argument: IPOPT returns local optima, of the poin
 the full model, and the two are on their own grids. The bound is the best of the point mass's
 straight-line starts for the first combination and, for each next one in catalogue order, the
 relaxation solved from the one before (:func:`point_mass_bound`'s ``near``), so a poor local
-optimum of the point mass could lie above the full model's lap. That is why the inequality is tested, combination by combination, against the
-co-designed race on the build's small catalogue (tests/integration/test_build_search.py) and
-reported by every build (``bound_ratio``: bound over race time, at most 1 where it holds).
+optimum of the point mass could lie above the full model's lap. That is why the inequality is
+tested, combination by combination, against the co-designed race on the build's small
+catalogue (tests/integration/test_build_search.py), against every combination co-designed alone
+(benchmarks/bench_build.py, pruned ones included) and reported by every build
+(``bound_ratio``: bound over race time, at most 1 where it holds).
 """
 
 from __future__ import annotations

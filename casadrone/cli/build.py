@@ -158,8 +158,9 @@ def _cell(v: object) -> str:
 def text(result: Build) -> str:
     """The build as lines: the ranking with its figures, then every other combination."""
     counts = ", ".join(f"{n} {k}" for k, n in sorted(result.counts.items()))
+    held = f", {result.resumed} read back from --out" if result.resumed else ""
     lines = [f"{result.problem}: build of a {result.laps}-lap race, {len(result.results)} "
-             f"combinations ({counts}); {result.backend} x{result.workers}",
+             f"combinations ({counts}{held}); {result.backend} x{result.workers}",
              f"  {cost_text(result.cpu_s, result.wall_time_s)}"]
     if not result.ranking:
         lines.append("  no combination flies the race")

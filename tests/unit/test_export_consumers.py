@@ -102,3 +102,28 @@ def test_urdf_links_sum_to_the_airframe(frame, tmp_path):
     np.testing.assert_allclose(c, 0.0, atol=1e-9)  # base_link's origin is the centre of mass
     np.testing.assert_allclose(J, src.airframe.inertia, rtol=0, atol=1e-8 * np.abs(
         src.airframe.inertia).max())  # 9 digits written; observed <= 3.6e-9 relative
+
+
+def test_a_build_winners_urdf_weighs_the_build_mass_in_pybullet(bullet, tmp_path):
+    """A build's winner (its parts at a co-designed geometry, as ``casadrone build`` writes
+    winner.yaml: :func:`casadrone.build.search.winner_airframe`) loads in pybullet with the
+    build's mass: the links' masses sum to the mass the build reports (that of its airframe)."""
+    from casadrone.airframe import build_airframe
+    from casadrone.build.checks import load_build_problem
+    from casadrone.build.search import screened, winner_airframe
+    from casadrone.build.solve import BuildResult
+    from casadrone.export.source import ExportSource
+
+    p, client = bullet
+    problem = load_build_problem("build-small")
+    combo = screened(problem)[0][1]  # the DA4022 with the 1750 KV motor and the 4S 1300 mAh
+    won = BuildResult(combo, "raced", theta={"lambda_a_mm": 104.0, "lambda_b_mm": 131.0})
+    cfg = winner_airframe(problem, (won,))
+    assert cfg is not None and cfg.lambda_a_mm == 104.0 and cfg.lambda_b_mm == 131.0
+    frame = build_airframe(cfg)
+    body = load(p, client, ExportSource(cfg, frame, "build", combo.label), tmp_path, 1.0)
+    links = range(-1, p.getNumJoints(body, physicsClientId=client))
+    total = sum(p.getDynamicsInfo(body, i, physicsClientId=client)[0] for i in links)
+    assert total == pytest.approx(frame.mass, rel=1e-6)
+    # the co-designed geometry is in it: shorter arms weigh less (components mass model)
+    assert frame.mass > build_airframe(cfg.model_copy(update={"lambda_a_mm": 100.0})).mass

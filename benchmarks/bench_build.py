@@ -131,6 +131,24 @@ def same_ranking(a: list[dict], b: list[dict]) -> bool:
         abs(x["race_s"] - y["race_s"]) <= 1e-3 * x["race_s"] for x, y in zip(a, b, strict=True))
 
 
+def winner_alone(args: argparse.Namespace, side: dict) -> tuple[str, float, float, float]:
+    """The build's winner flown again alone: its parts at its co-designed geometry, the race
+    solved from the problem's own starts (no seed), in this process; (label, the build's race,
+    this race, CPU s)."""
+    from casadrone.airframe import with_theta
+    from casadrone.build.solve import combination_start, lap_options, race_track
+    from casadrone.limit.race import race
+
+    problem, _ = problem_of(args)
+    best = ranked(side, 1)[0]
+    combo = next(c for c in screened(problem)[0] if c.label == best["label"])
+    start = combination_start(problem, combo)
+    c0 = time.process_time()
+    alone = race(with_theta(start, best["theta"]), race_track(problem, None),
+                 lap_options(problem, start))
+    return best["label"], best["race_s"], alone.lap.lap_time_s, time.process_time() - c0
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     for kind, n in (("propellers", 3), ("motors", 3), ("packs", 3)):
@@ -180,6 +198,10 @@ def main() -> None:
     if "dask" in got:
         dsame = same_ranking(ranked(bb, args.rank), ranked(got["dask"], args.rank))
         lines.append(f"Two Dask workers rank as the serial build: {dsame}.")
+    label, built, alone, alone_cpu = winner_alone(args, bb)
+    lines += [f"The winner ({label}) raced again alone at its co-designed geometry, from the "
+              f"problem's starts: {alone:.4f} s against the build's {built:.4f} s "
+              f"({100 * (alone - built) / built:+.3f} %, {alone_cpu:.0f} s CPU)."]
     lines += ["", "| combination | brute force | build | build outcome | bound s |",
               "|---|---|---|---|---|"]
     for r in brute["results"]:

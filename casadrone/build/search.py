@@ -7,7 +7,10 @@ best-first, side by side, with the others pruned by their bound (branch and boun
 3. :func:`branch_and_bound`: in the order of their bounds, each combination is co-designed and
    raced (:func:`casadrone.build.solve.solve_combination`) on the pool, unless its bound is
    above the ``rank``-th best race time found so far (pruned: if the bound holds, it cannot
-   enter the ranking). A combination whose bound is NaN is never pruned.
+   enter the ranking). A combination whose bound is NaN is never pruned. Each one after the
+   first starts from its :func:`neighbour`'s co-designed geometry and race (continuation
+   across the catalogue: neighbours differ by one part, so the co-design starts near its
+   optimum; alone, it starts from the template's geometry and the problem's lap starts).
 4. :func:`ranking`: the feasible races, fastest first, the first ``rank`` of them exact.
 
 With more workers than one, a combination may be co-designed that one worker would have pruned

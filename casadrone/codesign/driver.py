@@ -38,10 +38,9 @@ from casadrone.limit.lap import (
     LimitLap,
     LimitLapOptions,
     design_limit_lap,
-    seeded_lap,
 )
 from casadrone.limit.nlp import NlpPoint
-from casadrone.limit.result import LapSeeds, Start
+from casadrone.limit.result import LapSeeds, Start, seeds_alone
 from casadrone.limit.starts import prepare as prepare_lap
 from casadrone.limit.starts import trajectory
 from casadrone.progress import nested
@@ -192,7 +191,11 @@ def template_lap(template: AirframeConfig, track: TrackConfig,
     the ones tried would fail again). No point-mass reference unless a start needs it:
     co-design does not report it, and it is three point-mass solves (13 s of the paper track's
     38)."""
-    lap = seeded_lap(template, track, options, seeds)
+    if seeds.warm_starts:
+        lap = design_limit_lap(template, track, seeds_alone(options), seeds)
+        if lap.completed:
+            return lap
+    lap = design_limit_lap(template, track, options)
     rest: tuple[Start, ...] = tuple(s for s in DEFAULT_LAP_STARTS if s not in options.starts)
     if lap.completed or not rest:
         return lap

@@ -185,21 +185,6 @@ def design_limit_lap(config: AirframeConfig, track: TrackConfig,
                   options, seeds, pool)
 
 
-def seeded_lap(config: AirframeConfig, track: TrackConfig, options: LimitLapOptions,
-               seeds: LapSeeds, frame: Airframe | None = None,
-               pool: Pool | None = None) -> LimitLap:
-    """:func:`design_limit_lap` from ``seeds``' warm starts alone where there are any (no cold
-    start, no fallback start or reference: one solve instead of the starts'), and from
-    ``options`` where there are none or they give no verified lap (a neighbour's lap seeds a
-    build's next combination; a race's pass seeds the next)."""
-    if seeds.warm_starts:
-        alone = replace(options, starts=(), fallback_starts=(), fallback_reference=None)
-        lap = design_limit_lap(config, track, alone, seeds, frame=frame, pool=pool)
-        if lap.completed:
-            return lap
-    return design_limit_lap(config, track, options, frame=frame, pool=pool)
-
-
 def round_lap(frame: Airframe, cfg: AirframeConfig | None, track: TrackConfig,
               options: LimitLapOptions, seeds: LapSeeds) -> LimitLap:
     """The limit lap of ``frame`` (and its config, where given) in one process: a grid round's

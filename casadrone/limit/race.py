@@ -32,8 +32,8 @@ from casadrone.airframe import Airframe, build_airframe
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.track import TrackConfig
 from casadrone.limit.energy import RaceEnergy, flight_energy, race_energy
-from casadrone.limit.lap import design_limit_lap, seeded_lap
-from casadrone.limit.result import LapSeeds, LimitLap, LimitLapOptions
+from casadrone.limit.lap import design_limit_lap
+from casadrone.limit.result import LapSeeds, LimitLap, LimitLapOptions, seeds_alone
 from casadrone.pool import Pool
 from casadrone.propulsion.electric import Pack, pack_of
 from casadrone.results import AsDict
@@ -125,6 +125,19 @@ def race(cfg: AirframeConfig, track: TrackConfig,
         volts = float(pack.ocv(soc))
     assert lap is not None
     return Race(lap, account, tuple(passes))
+
+
+def seeded_lap(cfg: AirframeConfig, track: TrackConfig, options: LimitLapOptions,
+               seeds: LapSeeds, frame: Airframe | None, pool: Pool | None) -> LimitLap:
+    """The limit lap from ``seeds``' warm starts alone where there are any, and from
+    ``options.starts`` where there are none or they give no verified lap (a pass warm-started
+    from the one before, or a race from a neighbour's, is one solve instead of the starts')."""
+    if seeds.warm_starts:
+        lap = design_limit_lap(cfg, track, seeds_alone(options), seeds, frame=frame,
+                               pool=pool)
+        if lap.completed:
+            return lap
+    return design_limit_lap(cfg, track, options, frame=frame, pool=pool)
 
 
 def account_of(cfg: AirframeConfig, lap: LimitLap, pack: Pack) -> RaceEnergy:

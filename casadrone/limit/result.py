@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal, Protocol
 
 import numpy as np
@@ -352,3 +352,11 @@ def node_times(T: np.ndarray, intervals: int) -> np.ndarray:
     ends = np.cumsum(T)
     return np.concatenate([[0.0]] + [e - d + np.linspace(0, d, intervals + 1)[1:]
                                      for e, d in zip(ends, T, strict=True)])
+
+
+
+def seeds_alone(options: LimitLapOptions) -> LimitLapOptions:
+    """``options`` for a lap solved from its seeds' warm starts alone: no cold start, no
+    fallback start or reference (a caller that gets no verified lap solves again with
+    ``options``, rather than paying the fallbacks twice)."""
+    return replace(options, starts=(), fallback_starts=(), fallback_reference=None)

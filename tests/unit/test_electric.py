@@ -220,7 +220,7 @@ def test_a_seeded_lap_solves_its_seeds_alone_then_its_starts_where_they_fail(mon
     solve from the options' starts. Unseeded, it solves from the starts once."""
     from types import SimpleNamespace
 
-    from casadrone.limit import lap as lap_mod
+    from casadrone.limit import race as race_mod
     from casadrone.limit.result import LapSeeds, LimitLapOptions
 
     calls: list[tuple] = []
@@ -230,7 +230,7 @@ def test_a_seeded_lap_solves_its_seeds_alone_then_its_starts_where_they_fail(mon
         calls.append((options.starts, options.fallback_starts, options.fallback_reference,
                       len(seeds.warm_starts)))
         return SimpleNamespace(completed=outcomes.pop(0))
-    monkeypatch.setattr(lap_mod, "design_limit_lap", fake)
+    monkeypatch.setattr(race_mod, "design_limit_lap", fake)
     options = LimitLapOptions(starts=("library",), fallback_starts=("coarse-grid",))
     seeded = LapSeeds(warm_starts=("neighbour",))  # type: ignore[arg-type]
     for outcome, seeds, want in (
@@ -240,5 +240,5 @@ def test_a_seeded_lap_solves_its_seeds_alone_then_its_starts_where_they_fail(mon
             ([True], LapSeeds(), [(("library",), ("coarse-grid",), "SY250", 0)])):
         calls.clear()
         outcomes[:] = outcome
-        lap_mod.seeded_lap(None, None, options, seeds)
+        race_mod.seeded_lap(None, None, options, seeds, None, None)
         assert calls == want

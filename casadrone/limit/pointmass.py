@@ -32,22 +32,31 @@ def point_mass_p(airframe: Airframe) -> np.ndarray:
 
 
 def point_mass_problem(pm: Nlp, airframe: Airframe, track: TrackConfig,
-                       options: LimitLapOptions, targets: Targets, x0: np.ndarray
+                       options: LimitLapOptions, targets: Targets, x0: np.ndarray,
+                       thrust_cap: float | None = None
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                   np.ndarray]:
     """The point-mass relaxation's P, box (lbx, ubx), row bounds (lbg, ubg) and start state
-    (position, world velocity) for the full model's start state ``x0`` (16 Euler states)."""
+    (position, world velocity) for the full model's start state ``x0`` (16 Euler states).
+    ``thrust_cap``: a rotor's thrust bound (N) below the propulsion's own where the currents
+    are limited (:func:`casadrone.propulsion.propeller.electric_thrust_bound`): the total
+    thrust at most four times it; None: the propulsion's (:func:`casadrone.propulsion.
+    rotor_thrust_bound`)."""
     R = np.asarray(rotation_matrix(*x0[9:12])).reshape(3, 3)
     x0_pm = np.concatenate([x0[0:3], R @ x0[3:6]])
     P = np.concatenate([point_mass_p(airframe), x0_pm, targets.vector])
     lbx, ubx = bounds(pm, airframe, track, options, point_mass=True)
+    if thrust_cap is not None:
+        T, X, U = pm.unpack(ubx)
+        U[:, 3] = np.minimum(U[:, 3], 4 * thrust_cap)
+        ubx = pm.pack(T, X, U)
     lbg, ubg = row_bounds(pm, track, options)
     return P, lbx, ubx, lbg, ubg, x0_pm
 
 
 def point_mass_reference(pm: Nlp, airframe: Airframe, track: TrackConfig,
-                         options: LimitLapOptions, targets: Targets, x0: np.ndarray
-                         ) -> NlpSolution | None:
+                         options: LimitLapOptions, targets: Targets, x0: np.ndarray,
+                         thrust_cap: float | None = None) -> NlpSolution | None:
     """The best converged point-mass solve over straight-line starts at REFERENCE_SPEEDS_MPS,
     cached per (mass, gravity, drag, thrust, track targets, start, bounds): never per frame.
 
@@ -55,7 +64,8 @@ def point_mass_reference(pm: Nlp, airframe: Airframe, track: TrackConfig,
     the full model is one of the point mass), so its *global* optimum bounds the lap from below,
     but IPOPT finds local optima, and the best of a few starts is only the best found.
     """
-    P, lbx, ubx, lbg, ubg, x0_pm = point_mass_problem(pm, airframe, track, options, targets, x0)
+    P, lbx, ubx, lbg, ubg, x0_pm = point_mass_problem(pm, airframe, track, options, targets, x0,
+                                                      thrust_cap)
     key = b"".join(np.ascontiguousarray(a, float).tobytes() for a in (P, lbx, ubx, lbg, ubg)) \
         + repr((pm.layout, options.tol, options.max_iter)).encode()
     if key not in _POINT_MASS:
@@ -69,13 +79,15 @@ def point_mass_reference(pm: Nlp, airframe: Airframe, track: TrackConfig,
 
 
 def point_mass_from(pm: Nlp, w_pm: np.ndarray, airframe: Airframe, track: TrackConfig,
-                    options: LimitLapOptions, targets: Targets, x0: np.ndarray
-                    ) -> NlpSolution | None:
+                    options: LimitLapOptions, targets: Targets, x0: np.ndarray,
+                    thrust_cap: float | None = None) -> NlpSolution | None:
     """The point-mass relaxation solved from ``w_pm`` (the projection of a full-model lap:
     :func:`casadrone.limit.guesses.point_mass_guess`), None when it does not converge. A
     feasible lap of the full model is a feasible point of the relaxation, so this local optimum
     lies at or below that lap: tens to a few hundred iterations where the straight-line starts
-    take 430-600 (benchmarks/RESULTS-limitlap-fastpath.md)."""
-    P, lbx, ubx, lbg, ubg, _ = point_mass_problem(pm, airframe, track, options, targets, x0)
+    take 430-600 (benchmarks/RESULTS-limitlap-fastpath.md). ``thrust_cap``: as in
+    :func:`point_mass_problem`."""
+    P, lbx, ubx, lbg, ubg, _ = point_mass_problem(pm, airframe, track, options, targets, x0,
+                                                  thrust_cap)
     sol = solve(pm, np.clip(w_pm, lbx, ubx), P, lbx, ubx, lbg=lbg, ubg=ubg)
     return sol if sol.success else None

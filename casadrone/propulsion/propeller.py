@@ -412,6 +412,64 @@ def thrust_bound(q: dict[str, float]) -> float:
     return float(T.max())
 
 
+def pack_power(q: dict[str, float], pack_a: float) -> float:
+    """The largest power (W) the pack gives at currents up to ``pack_a`` (A):
+    I (V_oc − R_b I) at I = min(``pack_a``, V_oc / (2 R_b)), the current of its largest power
+    (more current gives less)."""
+    voc, rb = q["batt_Voc"], q["batt_R"]
+    current = pack_a if rb <= 0 else min(pack_a, voc / (2 * rb))
+    return current * (voc - rb * current)
+
+
+def electric_thrust_bound(q: dict[str, float], motor_a: float | None,
+                          pack_power: float | None) -> float:
+    """The largest steady thrust (N) of one rotor over every effective axial inflow (the grid
+    of :func:`thrust_bound`) when the motor's current is at most ``motor_a`` (A) and the rotor
+    draws at most ``pack_power`` (W) at the motor's terminals, at or below full command: at
+    each inflow the rotor speed is the least of the full-command speed
+    (:func:`full_command_speed`), the speed whose shaft torque draws ``motor_a``
+    (I = I₀ + K_V Q, Q quadratic in n: its positive root) and the speed whose terminal power
+    (R I + ω/K_V) I reaches ``pack_power`` (increasing in n: bisection); the thrust is CT's at
+    that speed. None for either limit leaves it out; neither: :func:`thrust_bound`. The DC
+    motor's (the first-order motor has no current: :func:`thrust_bound`).
+
+    Why ``pack_power`` bounds a rotor's share (:func:`casadrone.build.bound`): the four motors
+    together draw at most the pack's power at its current limit, and a rotor's largest thrust
+    grows slower than its power (≈ P^(2/3) at rest, and each inflow's less), so four rotors
+    sharing a power give the most thrust sharing it equally; checked against random steady
+    states of the model under the limits (tests/unit/test_propulsion.py)."""
+    import numpy as np
+
+    if q["motor_dc"] < 0.5 or (motor_a is None and pack_power is None):
+        return thrust_bound(q)
+    eps = q["inflow_eps"]
+    v = np.concatenate([[-eps / 2], np.arange(0.0, BOUND_INFLOW_MAX_M_S, BOUND_INFLOW_STEP_M_S)])
+    D, rho, kv, R = q["prop_D"], q["rho"], q["motor_kv"], q["motor_R"]
+    n = full_command_speed(q, v) / (2 * math.pi)
+
+    def torque(n_):  # shaft torque (N·m) at n_ rev/s
+        return rho / (2 * math.pi) * (q["cp0"] * D**5 * n_**2 + q["cp1"] * D**4 * n_ * v
+                                      + q["cp2"] * D**3 * v**2)
+
+    if motor_a is not None:  # Q(n) = (I_max − I₀)/K_V: the positive root
+        a, b = rho / (2 * math.pi) * q["cp0"] * D**5, rho / (2 * math.pi) * q["cp1"] * D**4 * v
+        c = rho / (2 * math.pi) * q["cp2"] * D**3 * v**2 - (motor_a - q["motor_I0"]) / kv
+        n = np.minimum(n, (-b + np.sqrt(np.maximum(b * b - 4 * a * c, 0.0))) / (2 * a))
+    if pack_power is not None:
+        def power(n_):
+            current = q["motor_I0"] + kv * torque(n_)
+            return (R * current + 2 * math.pi * n_ / kv) * current
+
+        lo, hi = np.zeros_like(n), n.copy()
+        for _ in range(60):  # bisection to machine precision of n (2^-60 of its range)
+            mid = 0.5 * (lo + hi)
+            over = power(mid) > pack_power
+            hi, lo = np.where(over, mid, hi), np.where(over, lo, mid)
+        n = np.where(power(n) > pack_power, lo, n)
+    T = rho * (q["ct0"] * D**4 * n**2 + q["ct1"] * D**3 * n * v + q["ct2"] * D**2 * v**2)
+    return float(T.max())
+
+
 def values(cfg: PropulsionConfig, rho: float) -> dict[str, float]:
     """The named propeller parameters of a section (air density ``rho``, kg/m³) as floats."""
     return {"rho": rho, **dict(zip(PROPELLER_PARAM_NAMES, propeller_params(cfg, rho),

@@ -432,6 +432,62 @@ def test_point_mass_thrust_bound_holds_over_steady_flight(frame):
     assert Tb < box_thrust_bound(airframe_values(frame)) / 2  # far tighter than the box bound
 
 
+def _motor_currents(frame, w, u):
+    """The DC motor's currents (A, 4) of casadrone.propulsion.propeller.motor_currents."""
+    from casadrone.model import named
+    from casadrone.propulsion.propeller import motor_currents
+
+    p = ca.SX.sym("p", len(frame.p))
+    ws, us = ca.SX.sym("w", 4), ca.SX.sym("u", 4)
+    f = ca.Function("f", [ws, us, p], [motor_currents(ws, us, named(p))[1]])
+    return np.asarray(f(w, u, frame.p)).ravel()
+
+
+def test_current_limited_thrust_bound_holds_over_steady_flight(frame):
+    """The build's point-mass cap under current limits (propeller.electric_thrust_bound: each
+    motor ≤ 20 A, the pack's power at 40 A shared by four) against the model: over 400 random
+    steady states (commands up to 1, axial airspeed −10…40 m/s, body rates up to ±8 rad/s;
+    rotor speeds from scipy's root finder on the model's rotor rates) whose pack current
+    (propeller_outputs) and motor currents are within the limits, the total thrust never
+    exceeds four times the cap; equal commands at rest raised until the pack draws 40 A reach
+    it within 1 %; the cap is below the full-command bound (the limits bind) and equals it
+    without limits. Observed: 267 of the 400 states within the limits, the largest ΣT 0.93 of
+    the cap."""
+    from casadrone.propulsion.propeller import electric_thrust_bound, pack_power, thrust_bound
+
+    q = airframe_values(frame)
+    motor_a, pack_a = 20.0, 40.0
+    cap = electric_thrust_bound(q, motor_a, pack_power(q, pack_a) / 4)
+    out = propeller_outputs()
+    rng = np.random.default_rng(29)
+    cases = [(rng.uniform(0.3, 1) * rng.uniform(0.5, 1, 4), (0, 0, rng.uniform(-10, 40)),
+              rng.uniform(-8, 8, 3)) for _ in range(400)]
+    kept = []
+    for u, vel, rates in cases:
+        w = _steady_rotor_speeds(frame, u, vel, rates)
+        assert w is not None
+        o = out(_state(vel, rates, w), u, frame.p)
+        if float(o[4]) <= pack_a and _motor_currents(frame, w, u).max() <= motor_a:
+            kept.append(float(np.sum(o[0])))
+    assert len(kept) > 100  # the limits leave many states, and cut many
+    assert max(kept) <= 4 * cap * (1 + 1e-9)
+
+    def pack_current(delta):  # equal commands at rest: the pack's current
+        u = np.full(4, delta)
+        w = _steady_rotor_speeds(frame, u, (0, 0, 0), (0, 0, 0))
+        return float(out(_state(w=w), u, frame.p)[4]), w, u
+
+    lo, hi = 0.0, 1.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if pack_current(mid)[0] > pack_a else (mid, hi)
+    _, w, u = pack_current(lo)
+    at_limit = float(np.sum(out(_state(w=w), u, frame.p)[0]))
+    assert at_limit == pytest.approx(4 * cap, rel=1e-2)
+    assert cap < 0.9 * thrust_bound(q)
+    assert electric_thrust_bound(q, None, None) == thrust_bound(q)
+
+
 @pytest.mark.parametrize("solver", ["ipopt", "newton"])
 def test_forward_trim_never_reports_backward_rotors(frame, solver):
     """At 40 m/s level SY250-propeller's trim equations have a root with the rotors turning

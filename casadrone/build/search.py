@@ -141,14 +141,32 @@ def bound_and_solution(problem: BuildProblemConfig, combo: Combination, laps: in
 def bounded(problem: BuildProblemConfig, combos: list[Combination], laps: int | None
             ) -> list[tuple[float, Combination]]:
     """Each combination with its bound, lowest first (NaN bounds last, in catalogue order).
-    In catalogue order, each relaxation is solved from the one before (neighbours differ by
+    In :func:`snake` order each relaxation is solved from the one before (neighbours differ by
     one part): a few seconds each instead of the straight-line starts' tens."""
     pairs, near = [], None
-    for c in combos:
+    for c in snake(combos):
         bound, sol = bound_and_solution(problem, c, laps, near)
         pairs.append((bound, c))
         near = sol if sol is not None else near
     return sorted(pairs, key=lambda p: (math.isnan(p[0]), p[0] if not math.isnan(p[0]) else 0))
+
+
+def snake(combos: list[Combination]) -> list[Combination]:
+    """``combos`` in boustrophedon order: by propeller, then motor and pack, each inner part's
+    order reversed on every other run of its outer one, so that consecutive combinations differ
+    in one part (the pack most often) and a run ends where the next begins (a 6S pack after a
+    6S pack, not after a 650 mAh one, whose point-mass laps are far apart)."""
+    rank: dict[str, dict[str, int]] = {kind: {} for kind in ("propeller", "motor", "pack")}
+    for c in combos:
+        for kind in rank:
+            rank[kind].setdefault(getattr(c, kind).name, len(rank[kind]))
+
+    def key(c: Combination) -> tuple[int, int, int]:
+        p, m, k = (rank[kind][getattr(c, kind).name] for kind in ("propeller", "motor", "pack"))
+        m = m if p % 2 == 0 else len(rank["motor"]) - 1 - m
+        run = p * len(rank["motor"]) + m
+        return p, m, k if run % 2 == 0 else len(rank["pack"]) - 1 - k
+    return sorted(combos, key=key)
 
 
 def threshold(raced: list[BuildResult], rank: int) -> float:

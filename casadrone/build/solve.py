@@ -152,7 +152,11 @@ def solve_combination(problem: BuildProblemConfig, combo: Combination, laps: int
     best = result.best
     frame = with_theta(cfg, best.theta)
     track = race_track(problem, laps)
-    raced = race(frame, track, lap_options(problem, cfg), seeds=seeds)
+    # the race's first pass is the co-design's lap at its θ (the same NLP, θ fixed): from that
+    # point alone (a few iterations), the problem's starts only where it gives no verified lap;
+    # the neighbour's race where the co-design returned no lap
+    raced = race(frame, track, lap_options(problem, cfg),
+                 seeds=LapSeeds(warm_starts=result.laps or seeds.warm_starts))
     hover = hover_of(frame)
     out = replace(base, outcome="raced", laps=track.laps, theta=dict(best.theta),
                   lap_s=best.objective, mass_kg=best.mass_kg, point=best,

@@ -27,6 +27,7 @@ from casadrone.codesign.driver import (
     solve_from,
     start_points,
     vector_of,
+    warm_laps,
 )
 from casadrone.codesign.front import design_front, write_run
 from casadrone.config.codesign import FRONT_MEASURES, CodesignProblemConfig
@@ -203,5 +204,6 @@ def codesign(problem: CodesignProblemConfig | str | Path, certify: bool = True,
             write_run(run_dir, prep, front, len(front.points))
     return CodesignResult("completed", "", best=best, distinct=tuple(distinct), certificate=cert,
                           front=front, intervals=prep.options.intervals or 0,
+                          laps=warm_laps(prep, best),
                           cpu_s=time.process_time() - cpu0,
                           wall_time_s=time.perf_counter() - wall0, **common)

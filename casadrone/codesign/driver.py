@@ -40,7 +40,7 @@ from casadrone.limit.lap import (
     design_limit_lap,
 )
 from casadrone.limit.nlp import NlpPoint
-from casadrone.limit.result import LapSeeds, Start, seeds_alone
+from casadrone.limit.result import LapSeeds, Start, node_times, seeds_alone
 from casadrone.limit.starts import prepare as prepare_lap
 from casadrone.limit.starts import trajectory
 from casadrone.progress import nested
@@ -124,6 +124,9 @@ class CodesignResult:
     cpu_s: float = math.nan
     wall_time_s: float = math.nan
     build_cpu_s: float = math.nan
+    #: the returned point's lap on each track as a warm start of that track's limit lap with
+    #: the point's θ fixed (:func:`warm_laps`; left out of :meth:`as_dict`); () without a point
+    laps: tuple[LimitLap, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         """Plain data for ``--json`` (arrays of the raw solution left out)."""
@@ -151,6 +154,27 @@ class CodesignResult:
                                for p in self.front.points]},
                 "intervals": self.intervals, "cpu_s": self.cpu_s,
                 "wall_time_s": self.wall_time_s, "build_cpu_s": self.build_cpu_s}
+
+
+def warm_laps(prep: Prepared, point: CodesignPoint) -> tuple[LimitLap, ...]:
+    """Each track's lap of a co-design ``point`` as a warm start of the limit lap of the frame
+    at its θ: the same NLP with θ fixed, so its primal-dual point (the slices of the point's own,
+    as the certificate's fixed-frame check takes them) is that lap's optimum; its nodes serve a
+    lap on another grid. Not verified: the lap that starts from it re-simulates its own."""
+    cd = prep.nlp
+    out = []
+    for k, part in enumerate(cd.parts):
+        nlp = part.nlp
+        w = point.z[cd.offsets[k]:cd.offsets[k + 1]]
+        T, X, U = nlp.unpack(w)
+        solution = NlpPoint(w, point.lam_x[cd.offsets[k]:cd.offsets[k + 1]],
+                            point.lam_g[cd.row_offsets[k]:cd.row_offsets[k + 1]],
+                            np.zeros(nlp.problem["p"].numel()))
+        out.append(LimitLap(status="completed", reason="", lap_time_s=float(np.sum(T)),
+                            leg_times_s=T, t=node_times(T, nlp.layout.intervals), x=X, u=U,
+                            attitude=nlp.model.attitude, layout=nlp.layout,
+                            solution=solution))
+    return tuple(out)
 
 
 # --------------------------------------------------------------------------------------------

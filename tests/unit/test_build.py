@@ -303,3 +303,23 @@ def test_a_combination_starts_from_its_nearest_raced_neighbour():
     assert near([raced(other, "o1"), raced(other, "o2")]) == "o2"
     assert near([raced(same_prop, "p"), raced(other, "o")]) == "p"
     assert near([raced(same_both, "b"), raced(same_prop, "p"), raced(other, "o")]) == "b"
+
+
+def test_bounds_walk_the_catalogue_one_part_at_a_time(problem):
+    """The order the bounds are solved in (each from the one before: search.snake) visits
+    every combination of build-small once, consecutive ones differing in exactly one part, and
+    with some refused (6S with two of the motors) still differing in one or two; the plain
+    catalogue order jumps from a 6S pack back to a 650 mAh one at every motor."""
+    from casadrone.build.search import screened, snake
+
+    every = list(combinations(shipped_catalogue(), problem.build))
+    walk = snake(every)
+    assert sorted(c.label for c in walk) == sorted(c.label for c in every)
+
+    def changed(a, b):
+        return sum(getattr(a, k).name != getattr(b, k).name for k in ("propeller", "motor", "pack"))
+
+    assert all(changed(a, b) == 1 for a, b in zip(walk, walk[1:]))
+    assert any(changed(a, b) == 2 for a, b in zip(every, every[1:]))  # the catalogue's order
+    kept = snake(screened(problem)[0])
+    assert max(changed(a, b) for a, b in zip(kept, kept[1:])) <= 2

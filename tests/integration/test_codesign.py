@@ -20,7 +20,7 @@ from casadrone.codesign.design import codesign
 from casadrone.config.codesign import CodesignProblemConfig
 from casadrone.config.io import load
 from casadrone.config.track import TrackConfig
-from casadrone.limit.lap import LimitLapOptions, design_limit_lap
+from casadrone.limit.lap import LapSeeds, LimitLapOptions, design_limit_lap
 
 ROOT = Path(__file__).resolve().parents[2]
 SHORT = ROOT / "tests" / "data" / "codesign" / "short-track.yaml"
@@ -53,6 +53,25 @@ def test_codesign_frame_is_valid_and_no_slower_than_the_template(short_result):
                                        LimitLapOptions(intervals=8, sensitivities=False))
     assert r.best.laps_s["short"] <= template.lap_time_s * (1 + 1e-6)
     assert build_airframe(cfg).mass == pytest.approx(r.best.mass_kg, rel=1e-12)
+
+
+def test_the_returned_laps_warm_start_the_fixed_frame_lap_at_its_optimum(short_result):
+    """CodesignResult.laps (driver.warm_laps: the point's lap as a fixed-frame warm start,
+    what a build's race starts from) against the limit lap of the co-designed frame solved from
+    it alone: the same lap within the solver's tolerance, in a handful of iterations where the
+    default starts take tens to hundreds (the same NLP with θ fixed, started at its optimum)."""
+    from casadrone.limit.result import seeds_alone
+
+    r = short_result
+    (warm,) = r.laps
+    assert warm.lap_time_s == pytest.approx(r.best.laps_s["short"], rel=1e-9)
+    opts = LimitLapOptions(intervals=8, sensitivities=False, point_mass_reference=False)
+    fixed = design_limit_lap(with_theta(r_template(), r.best.theta), load(TrackConfig, SHORT),
+                             seeds_alone(opts), LapSeeds(warm_starts=r.laps))
+    assert fixed.completed, fixed.reason
+    assert fixed.start == "warm-1"
+    assert fixed.lap_time_s == pytest.approx(r.best.laps_s["short"], rel=1e-5)
+    assert fixed.iterations <= 15
 
 
 def test_certificate_lap_gradient_and_resimulation(short_result):

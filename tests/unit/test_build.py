@@ -5,6 +5,7 @@ catalogue's rows and the URDF read by a second parser."""
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import replace
@@ -317,9 +318,10 @@ def test_bounds_walk_the_catalogue_one_part_at_a_time(problem):
     assert sorted(c.label for c in walk) == sorted(c.label for c in every)
 
     def changed(a, b):
-        return sum(getattr(a, k).name != getattr(b, k).name for k in ("propeller", "motor", "pack"))
+        return sum(getattr(a, k).name != getattr(b, k).name
+                   for k in ("propeller", "motor", "pack"))
 
-    assert all(changed(a, b) == 1 for a, b in zip(walk, walk[1:]))
-    assert any(changed(a, b) == 2 for a, b in zip(every, every[1:]))  # the catalogue's order
+    assert all(changed(a, b) == 1 for a, b in itertools.pairwise(walk))
+    assert any(changed(a, b) == 2 for a, b in itertools.pairwise(every))  # the catalogue's order
     kept = snake(screened(problem)[0])
-    assert max(changed(a, b) for a, b in zip(kept, kept[1:])) <= 2
+    assert max(changed(a, b) for a, b in itertools.pairwise(kept)) <= 2

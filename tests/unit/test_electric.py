@@ -242,3 +242,40 @@ def test_a_seeded_lap_solves_its_seeds_alone_then_its_starts_where_they_fail(mon
         outcomes[:] = outcome
         race_mod.seeded_lap(None, None, options, seeds, None, None)
         assert calls == want
+
+
+@pytest.mark.parametrize("name, laps", [("paper-rectangle", 3), ("multigp-cdra-gates", 2)])
+def test_a_one_lap_seed_is_repeated_over_the_races_laps(name, laps):
+    """race.repeated (a co-design's one-lap lap as the guess of a race of several) against the
+    race's own targets (problem.track_targets of the track with its laps): a fake one-lap lap
+    whose every leg ends on its target, repeated, ends every leg of the race on the race's
+    target of that leg (the gate track closes through its first gate: later laps skip it), and
+    keeps each leg's duration; a track of one lap, or a lap of another track, gives None."""
+    from casadrone.config.track import load_track
+    from casadrone.limit.problem import track_targets
+    from casadrone.limit.race import repeated
+    from casadrone.limit.result import LimitLap, LimitLapOptions
+
+    one = load_track(name)
+    race_track = one.model_copy(update={"laps": laps})
+    route = track_targets(one, LimitLapOptions()).route
+    L, N = len(route) - 1, 3
+    X = np.zeros((L * N + 1, 16))
+    for k in range(L):  # each leg a straight line from its route point to the next
+        s = np.linspace(0, 1, N + 1)[:-1, None]
+        X[k * N:(k + 1) * N, 0:3] = route[k] + s * (route[k + 1] - route[k])
+    X[-1, 0:3] = route[-1]
+    T = 1.0 + np.arange(L)
+    lap = LimitLap(status="completed", reason="", leg_times_s=T, x=X, u=np.ones((L * N, 4)),
+                   layout=Layout(kinds=("ball",) * L, intervals=N))
+    many = repeated(lap, race_track)
+    want = track_targets(race_track, LimitLapOptions()).route
+    assert many is not None and many.layout is not None
+    assert many.layout.n_legs == len(want) - 1 > L
+    ends = many.x[N::N, 0:3]  # the node ending each leg but the last
+    assert np.allclose(ends[:-1], want[1:-1][:len(ends) - 1])
+    assert np.allclose(many.x[-1, 0:3], want[-1])
+    assert np.isclose(many.lap_time_s, many.leg_times_s.sum())
+    assert repeated(lap, one) is None
+    assert repeated(replace(lap, layout=Layout(kinds=("ball",) * (L - 1), intervals=N)),
+                    race_track) is None

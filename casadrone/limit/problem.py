@@ -55,12 +55,6 @@ def _lap_items(track: TrackConfig) -> list[int]:
     return items
 
 
-def later_lap_items(track: TrackConfig) -> list[int]:
-    """Waypoint index of each target of a lap after the first (:func:`_lap_items`)."""
-    n = len(track.waypoints_m)
-    return _lap_items(track.model_copy(update={"laps": 2}))[n:]
-
-
 def frame_clearance_m(airframe: Airframe, prop_diameter_m: float = 0.127) -> float:
     """The frame's own size as a gate clearance (m): the farthest rotor centre from the centre
     of mass in the rotor plane plus a propeller's radius (the default 127 mm is the paper's

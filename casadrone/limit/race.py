@@ -26,17 +26,14 @@ little within the race.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
-
-import numpy as np
+from dataclasses import dataclass
 
 from casadrone.airframe import Airframe, build_airframe
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.track import TrackConfig
 from casadrone.limit.energy import RaceEnergy, flight_energy, race_energy
 from casadrone.limit.lap import design_limit_lap
-from casadrone.limit.problem import later_lap_items
-from casadrone.limit.result import LapSeeds, LimitLap, LimitLapOptions, node_times, seeds_alone
+from casadrone.limit.result import LapSeeds, LimitLap, LimitLapOptions, seeds_alone
 from casadrone.pool import Pool
 from casadrone.propulsion.electric import Pack, pack_of
 from casadrone.results import AsDict
@@ -102,9 +99,6 @@ def race(cfg: AirframeConfig, track: TrackConfig,
     ``pool`` where given. With ``seeds`` (a neighbouring race), the first pass starts from them
     alone and each later one from the pass before alone (:func:`seeded_lap`); without, each
     pass solves its starts, the later ones with the pass before beside them."""
-    many = tuple(r for r in (repeated(w, track) for w in seeds.warm_starts) if r is not None)
-    if many:  # one-lap seeds (a co-design's, a sprint's) of a race of several laps: repeated
-        seeds = replace(seeds, warm_starts=many)
     pack = pack_of(cfg.propulsion.battery)
     if pack is None:
         return Race(seeded_lap(cfg, track, options, seeds, frame, pool))
@@ -131,29 +125,6 @@ def race(cfg: AirframeConfig, track: TrackConfig,
         volts = float(pack.ocv(soc))
     assert lap is not None
     return Race(lap, account, tuple(passes))
-
-
-def repeated(lap: LimitLap, track: TrackConfig) -> LimitLap | None:
-    """A one-lap ``lap`` of ``track`` flown ``track.laps`` times, as a guess of the race's
-    flight: its legs after the first timed one's start (the climb and the first lap) as they
-    are, then for each later lap the legs of the first lap that reach the same targets (their
-    durations, nodes and commands); no solver's point, so the race resamples it. Between laps
-    the guess jumps from the first lap's end to the start of its first timed leg (at rest after
-    the climb, where the race flies on): multiple shooting starts from the jump and closes it.
-    None where ``lap`` is not one lap of ``track`` or the track has one lap."""
-    layout = lap.layout
-    first = track.first_timed_segment
-    if layout is None or track.laps < 2 or layout.n_legs != first + len(track.waypoints_m):
-        return None
-    N, nx = layout.intervals, lap.x.shape[1]
-    legs = list(range(layout.n_legs)) + [first + j for j in later_lap_items(track)] * (
-        track.laps - 1)
-    x = np.vstack([lap.x[:-1].reshape(layout.n_legs, N, nx)[legs].reshape(-1, nx), lap.x[-1:]])
-    u = lap.u.reshape(layout.n_legs, N, -1)[legs].reshape(len(legs) * N, -1)
-    T = np.asarray(lap.leg_times_s)[legs]
-    return LimitLap(status="completed", reason="", lap_time_s=float(T.sum()), leg_times_s=T,
-                    t=node_times(T, N), x=x, u=u, attitude=lap.attitude,
-                    layout=replace(layout, kinds=tuple(layout.kinds[i] for i in legs)))
 
 
 def seeded_lap(cfg: AirframeConfig, track: TrackConfig, options: LimitLapOptions,

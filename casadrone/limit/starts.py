@@ -312,14 +312,12 @@ def library_solves(pb: Problem) -> list[StartSolve]:
 
 def warm_solves(pb: Problem) -> list[StartSolve]:
     """One solve per usable warm start: ``warm-i`` (primal-dual, same layout and attitude) or
-    ``resampled-i`` (same legs and method, another grid or attitude, or nodes without a
-    solver's point: :func:`casadrone.limit.race.repeated`)."""
+    ``resampled-i`` (same legs and method, another grid or attitude)."""
     solves: list[StartSolve] = []
     for i, ws in enumerate(pb.seeds.warm_starts):
-        if ws.layout is None:
+        if ws.solution is None or ws.layout is None:
             continue
-        if ws.solution is not None and ws.layout == pb.layout \
-                and ws.attitude == pb.full.model.attitude:
+        if ws.layout == pb.layout and ws.attitude == pb.full.model.attitude:
             solves.append((f"warm-{i + 1}", pb.solve(ws.solution.w, warm=ws.solution)))
         elif ws.layout.kinds == pb.layout.kinds and ws.layout.method == pb.layout.method:
             solves.append((f"resampled-{i + 1}", pb.solve(guess_from_lap(pb.full, ws, pb.x0))))

@@ -104,9 +104,15 @@ def race_track(problem: CodesignProblemConfig, laps: int | None) -> TrackConfig:
 def lap_options(problem: CodesignProblemConfig, template: AirframeConfig) -> LimitLapOptions:
     """The limit lap as co-design poses it for ``template`` (a combination's airframe;
     :func:`casadrone.codesign.driver.prepare`): the problem's grid and lap starts, one gate
-    clearance for every frame of the box, no point-mass reference, no grid refinement."""
+    clearance for every frame of the box, no point-mass reference, no grid refinement; where
+    the starts are the shipped lap alone, the point-mass start where it gives none (a race of
+    ``--laps`` N on a track whose shipped lap is one lap: no lap of N is shipped)."""
     keys, lower, upper = geometry_box(problem)
-    return codesign_lap_options(problem, template, gate_clearance(template, lower, upper, keys))
+    options = codesign_lap_options(problem, template, gate_clearance(template, lower, upper,
+                                                                     keys))
+    if tuple(options.starts) == ("library",) and not options.fallback_starts:
+        options = replace(options, fallback_starts=("point-mass",))
+    return options
 
 
 def codesign_problem(problem: BuildProblemConfig, cfg: AirframeConfig) -> CodesignProblemConfig:

@@ -54,3 +54,23 @@ def test_a_race_longer_than_the_pack_lasts_is_refused_naming_the_pack():
     assert not result.feasible
     assert result.reason.startswith("4S 10 mAh pack empty in lap 1 of 1")
     assert result.energy is not None and result.energy.empty_at_s < result.lap.lap_time_s
+
+
+def test_a_race_of_two_laps_without_a_shipped_lap_flies_from_the_fallback_start():
+    """A race whose only start is the shipped lap, on a track of two laps none is shipped for
+    (what `casadrone build --laps 2` asks of build-small), flies from the fallback start
+    (the point mass): on the co-design tests' short track (SY250, 8 intervals per leg) it
+    completes, from that start, in less than twice the one-lap flight (the second lap starts at
+    speed) and more than once."""
+    from pathlib import Path
+
+    short = load(TrackConfig, Path(__file__).resolve().parents[1] / "data" / "codesign"
+                 / "short-track.yaml")
+    cfg = load_airframe("SY250")
+    opts = LimitLapOptions(intervals=8, sensitivities=False, point_mass_reference=False,
+                           starts=("library",), fallback_starts=("point-mass",))
+    one = race(cfg, short, opts).lap
+    two = race(cfg, short.model_copy(update={"laps": 2}), opts).lap
+    assert one.completed and two.completed, (one.reason, two.reason)
+    assert two.start == "point-mass"
+    assert one.lap_time_s < two.lap_time_s < 2 * one.lap_time_s

@@ -325,3 +325,16 @@ def test_bounds_walk_the_catalogue_one_part_at_a_time(problem):
     assert any(changed(a, b) == 2 for a, b in itertools.pairwise(every))  # the catalogue's order
     kept = snake(screened(problem)[0])
     assert max(changed(a, b) for a, b in itertools.pairwise(kept)) <= 2
+
+
+def test_a_race_from_the_shipped_lap_alone_falls_back_on_the_point_mass_start(problem):
+    """build-small starts every lap from the shipped lap alone; a race of several laps has
+    none shipped, so the build's lap options solve the point-mass start where the shipped lap
+    gives none (and only there: a problem that names its starts keeps them)."""
+    from casadrone.build.solve import lap_options
+
+    template = template_of(problem)
+    assert tuple(lap_options(problem, template).starts) == ("library",)
+    assert lap_options(problem, template).fallback_starts == ("point-mass",)
+    named = load_build_problem(SMALL, ["limit_lap.starts=[library, coarse-grid]"])
+    assert lap_options(named, template_of(named)).fallback_starts == ()

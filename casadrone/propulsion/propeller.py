@@ -73,7 +73,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from functools import cache
-from typing import Any, TypedDict
+from typing import Any, TypedDict, cast
 
 from casadrone.drag import DRAG_PARAM_NAMES
 from casadrone.num import Num
@@ -402,14 +402,18 @@ def thrust_bound(q: dict[str, float]) -> float:
     over the limit lap's whole box is :func:`box_thrust_bound` (3× looser); how far a lap's
     total thrust comes to 4 T_b is measured in benchmarks/RESULTS-propulsion.md.
     """
+    v = bound_inflows(q)
+    return float(rotor_loads(full_command_speed(q, v), v, cast(PropellerParams, q))[0].max())
+
+
+def bound_inflows(q: dict[str, float]):
+    """The effective axial inflows (m/s) over which the thrust bounds are maximised: the
+    smoothing's −ε/2, then 0 to :data:`BOUND_INFLOW_MAX_M_S` every
+    :data:`BOUND_INFLOW_STEP_M_S`."""
     import numpy as np
 
-    eps = q["inflow_eps"]
-    v = np.concatenate([[-eps / 2], np.arange(0.0, BOUND_INFLOW_MAX_M_S, BOUND_INFLOW_STEP_M_S)])
-    n = full_command_speed(q, v) / (2 * math.pi)
-    D, rho = q["prop_D"], q["rho"]
-    T = rho * (q["ct0"] * D**4 * n**2 + q["ct1"] * D**3 * n * v + q["ct2"] * D**2 * v**2)
-    return float(T.max())
+    return np.concatenate([[-q["inflow_eps"] / 2],
+                           np.arange(0.0, BOUND_INFLOW_MAX_M_S, BOUND_INFLOW_STEP_M_S)])
 
 
 def pack_power(q: dict[str, float], pack_a: float) -> float:
@@ -422,52 +426,55 @@ def pack_power(q: dict[str, float], pack_a: float) -> float:
 
 
 def electric_thrust_bound(q: dict[str, float], motor_a: float | None,
-                          pack_power: float | None) -> float:
-    """The largest steady thrust (N) of one rotor over every effective axial inflow (the grid
-    of :func:`thrust_bound`) when the motor's current is at most ``motor_a`` (A) and the rotor
-    draws at most ``pack_power`` (W) at the motor's terminals, at or below full command: at
+                          rotor_power_w: float | None) -> float:
+    """The largest steady thrust (N) of one rotor over every effective axial inflow
+    (:func:`bound_inflows`) when the motor's current is at most ``motor_a`` (A) and the rotor
+    draws at most ``rotor_power_w`` (W) at the motor's terminals, at or below full command: at
     each inflow the rotor speed is the least of the full-command speed
     (:func:`full_command_speed`), the speed whose shaft torque draws ``motor_a``
-    (I = I₀ + K_V Q, Q quadratic in n: its positive root) and the speed whose terminal power
-    (R I + ω/K_V) I reaches ``pack_power`` (increasing in n: bisection); the thrust is CT's at
-    that speed. None for either limit leaves it out; neither: :func:`thrust_bound`. The DC
-    motor's (the first-order motor has no current: :func:`thrust_bound`).
+    (I = I₀ + K_V Q, Q quadratic in ω: its positive root) and the speed whose terminal power
+    (R I + ω/K_V) I reaches ``rotor_power_w`` (increasing in ω: bisection); the thrust is CT's
+    at that speed (:func:`rotor_loads`). None for either limit leaves it out; neither:
+    :func:`thrust_bound`. The DC motor's (the first-order motor has no current:
+    :func:`thrust_bound`).
 
-    Why ``pack_power`` bounds a rotor's share (:func:`casadrone.build.bound`): the four motors
-    together draw at most the pack's power at its current limit, and a rotor's largest thrust
-    grows slower than its power (≈ P^(2/3) at rest, and each inflow's less), so four rotors
-    sharing a power give the most thrust sharing it equally; checked against random steady
-    states of the model under the limits (tests/unit/test_propulsion.py)."""
+    Why a quarter of the pack's power (:func:`pack_power`) bounds a rotor's share
+    (:mod:`casadrone.build.bound`): the four motors together draw at most the pack's power at
+    its current limit, and a rotor's largest thrust grows slower than its power (≈ P^(2/3) at
+    rest, and each inflow's less), so four rotors sharing a power give the most thrust sharing
+    it equally; checked against random steady states of the model under the limits
+    (tests/unit/test_propulsion.py)."""
     import numpy as np
 
-    if q["motor_dc"] < 0.5 or (motor_a is None and pack_power is None):
+    if q["motor_dc"] < 0.5 or (motor_a is None and rotor_power_w is None):
         return thrust_bound(q)
-    eps = q["inflow_eps"]
-    v = np.concatenate([[-eps / 2], np.arange(0.0, BOUND_INFLOW_MAX_M_S, BOUND_INFLOW_STEP_M_S)])
-    D, rho, kv, R = q["prop_D"], q["rho"], q["motor_kv"], q["motor_R"]
-    n = full_command_speed(q, v) / (2 * math.pi)
+    v = bound_inflows(q)
+    kv, R = q["motor_kv"], q["motor_R"]
+    w = full_command_speed(q, v)
+    pq = cast(PropellerParams, q)
 
-    def torque(n_):  # shaft torque (N·m) at n_ rev/s
-        return rho / (2 * math.pi) * (q["cp0"] * D**5 * n_**2 + q["cp1"] * D**4 * n_ * v
-                                      + q["cp2"] * D**3 * v**2)
+    def torque(w_):  # shaft torque (N·m) at rotor speed w_ (rad/s), quadratic in it
+        return rotor_loads(w_, v, pq)[1]
 
-    if motor_a is not None:  # Q(n) = (I_max − I₀)/K_V: the positive root
-        a, b = rho / (2 * math.pi) * q["cp0"] * D**5, rho / (2 * math.pi) * q["cp1"] * D**4 * v
-        c = rho / (2 * math.pi) * q["cp2"] * D**3 * v**2 - (motor_a - q["motor_I0"]) / kv
-        n = np.minimum(n, (-b + np.sqrt(np.maximum(b * b - 4 * a * c, 0.0))) / (2 * a))
-    if pack_power is not None:
-        def power(n_):
-            current = q["motor_I0"] + kv * torque(n_)
-            return (R * current + 2 * math.pi * n_ / kv) * current
+    def current(w_):  # the DC motor's steady current (A)
+        return q["motor_I0"] + kv * torque(w_)
 
-        lo, hi = np.zeros_like(n), n.copy()
-        for _ in range(60):  # bisection to machine precision of n (2^-60 of its range)
+    if motor_a is not None:  # Q(ω) = A ω² + B ω + C = (I_max − I₀)/K_V: the positive root
+        up, down, rest = torque(1.0), torque(-1.0), torque(0.0)
+        A, B = (up + down) / 2 - rest, (up - down) / 2
+        C = rest - (motor_a - q["motor_I0"]) / kv
+        w = np.minimum(w, (-B + np.sqrt(np.maximum(B * B - 4 * A * C, 0.0))) / (2 * A))
+    if rotor_power_w is not None:
+        def power(w_):
+            return (R * current(w_) + w_ / kv) * current(w_)
+
+        lo, hi = np.zeros_like(w), w.copy()
+        for _ in range(60):  # bisection to machine precision of ω (2^-60 of its range)
             mid = 0.5 * (lo + hi)
-            over = power(mid) > pack_power
+            over = power(mid) > rotor_power_w
             hi, lo = np.where(over, mid, hi), np.where(over, lo, mid)
-        n = np.where(power(n) > pack_power, lo, n)
-    T = rho * (q["ct0"] * D**4 * n**2 + q["ct1"] * D**3 * n * v + q["ct2"] * D**2 * v**2)
-    return float(T.max())
+        w = np.where(power(w) > rotor_power_w, lo, w)
+    return float(rotor_loads(w, v, pq)[0].max())
 
 
 def values(cfg: PropulsionConfig, rho: float) -> dict[str, float]:

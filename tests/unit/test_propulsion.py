@@ -385,9 +385,9 @@ def test_limit_lap_falls_back_on_a_reference_of_the_same_propulsion():
     assert _fallback_name("NO-SUCH-FRAME", "propeller") is None
 
 
-def _steady_rotor_speeds(frame, u, vel, rates):
+def _steady_rotor_speeds(frame, u, vel, rates, guess=2500.0):
     """Rotor speeds (rad/s) at which the model's rotor rates vanish for commands ``u``, body
-    velocity and rates held (scipy's root finder on the model's own f)."""
+    velocity and rates held (scipy's root finder on the model's own f, from ``guess``)."""
     from scipy.optimize import fsolve
 
     f = quadrotor_model("propeller").f
@@ -395,7 +395,7 @@ def _steady_rotor_speeds(frame, u, vel, rates):
     def rotor_rates(w):
         return np.asarray(f(_state(vel, rates, w), u, frame.p)).ravel()[THR] / 1e3
 
-    w, info, ok, _ = fsolve(rotor_rates, np.full(4, 2500.0), full_output=True, xtol=1e-12)
+    w, info, ok, _ = fsolve(rotor_rates, np.full(4, 1.0) * guess, full_output=True, xtol=1e-12)
     return w if ok == 1 and np.max(np.abs(rotor_rates(w))) < 1e-6 else None
 
 
@@ -444,47 +444,54 @@ def _motor_currents(frame, w, u):
 
 
 def test_current_limited_thrust_bound_holds_over_steady_flight(frame):
-    """The build's point-mass cap under current limits (propeller.electric_thrust_bound: each
-    motor ≤ 20 A, the pack's power at 40 A shared by four) against the model: over 400 random
-    steady states (commands up to 1, axial airspeed −10…40 m/s, body rates up to ±8 rad/s;
-    rotor speeds from scipy's root finder on the model's rotor rates) whose pack current
-    (propeller_outputs) and motor currents are within the limits, the total thrust never
-    exceeds four times the cap; equal commands at rest raised until the pack draws 40 A reach
-    it within 1 %; the cap is below the full-command bound (the limits bind) and equals it
-    without limits. Observed: 267 of the 400 states within the limits, the largest ΣT 0.93 of
-    the cap."""
+    """The build's point-mass cap under current limits (propeller.electric_thrust_bound) against
+    the model, with each limit binding in turn: each motor ≤ 20 A with the pack's power at
+    40 A shared by four (the pack binds), and each motor ≤ 20 A alone (the motor binds). Over
+    400 random steady states (commands up to 1, axial airspeed −10…40 m/s, body rates up to
+    ±8 rad/s; rotor speeds from scipy's root finder on the model's rotor rates), those whose
+    pack current (propeller_outputs) and motor currents are within the limits never exceed
+    four times the cap; equal commands at rest raised until the limiting current is reached
+    (bisection on the command) reach it within 1 %; each cap is below the full-command bound
+    (the limits bind) and it equals that bound without limits. Observed: 267 of the 400 states
+    within both limits and 268 within the motor's, the largest ΣT 0.93 and 0.81 of their caps."""
     from casadrone.propulsion.propeller import electric_thrust_bound, pack_power, thrust_bound
 
     q = airframe_values(frame)
     motor_a, pack_a = 20.0, 40.0
-    cap = electric_thrust_bound(q, motor_a, pack_power(q, pack_a) / 4)
+    both = electric_thrust_bound(q, motor_a, pack_power(q, pack_a) / 4)
+    motor_only = electric_thrust_bound(q, motor_a, None)
     out = propeller_outputs()
     rng = np.random.default_rng(29)
     cases = [(rng.uniform(0.3, 1) * rng.uniform(0.5, 1, 4), (0, 0, rng.uniform(-10, 40)),
               rng.uniform(-8, 8, 3)) for _ in range(400)]
-    kept = []
+    within_both, within_motor = [], []
     for u, vel, rates in cases:
         w = _steady_rotor_speeds(frame, u, vel, rates)
         assert w is not None
         o = out(_state(vel, rates, w), u, frame.p)
-        if float(o[4]) <= pack_a and _motor_currents(frame, w, u).max() <= motor_a:
-            kept.append(float(np.sum(o[0])))
-    assert len(kept) > 100  # the limits leave many states, and cut many
-    assert max(kept) <= 4 * cap * (1 + 1e-9)
+        if _motor_currents(frame, w, u).max() <= motor_a:
+            within_motor.append(float(np.sum(o[0])))
+            if float(o[4]) <= pack_a:
+                within_both.append(float(np.sum(o[0])))
+    assert len(within_both) > 100 and len(within_motor) > len(within_both)
+    assert max(within_both) <= 4 * both * (1 + 1e-9)
+    assert max(within_motor) <= 4 * motor_only * (1 + 1e-9)
 
-    def pack_current(delta):  # equal commands at rest: the pack's current
-        u = np.full(4, delta)
-        w = _steady_rotor_speeds(frame, u, (0, 0, 0), (0, 0, 0))
-        return float(out(_state(w=w), u, frame.p)[4]), w, u
+    def at_rest(delta):  # equal commands at rest: (pack current, motor current, total thrust)
+        u = np.full(4, delta)  # the root from the static speed's first-order guess K_V δ V_oc
+        w = _steady_rotor_speeds(frame, u, (0, 0, 0), (0, 0, 0),
+                                 q["motor_kv"] * delta * q["batt_Voc"])
+        assert w is not None
+        o = out(_state(w=w), u, frame.p)
+        return float(o[4]), _motor_currents(frame, w, u).max(), float(np.sum(o[0]))
 
-    lo, hi = 0.0, 1.0
-    for _ in range(40):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if pack_current(mid)[0] > pack_a else (mid, hi)
-    _, w, u = pack_current(lo)
-    at_limit = float(np.sum(out(_state(w=w), u, frame.p)[0]))
-    assert at_limit == pytest.approx(4 * cap, rel=1e-2)
-    assert cap < 0.9 * thrust_bound(q)
+    for limit, which, cap in ((pack_a, 0, both), (motor_a, 1, motor_only)):
+        lo, hi = 0.0, 1.0
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if at_rest(mid)[which] > limit else (mid, hi)
+        assert at_rest(lo)[2] == pytest.approx(4 * cap, rel=1e-2)
+    assert both < motor_only < 0.9 * thrust_bound(q)
     assert electric_thrust_bound(q, None, None) == thrust_bound(q)
 
 

@@ -68,10 +68,16 @@ def begin(folder: Path, problem: BuildProblemConfig, laps: int | None) -> None:
 
 
 def held(folder: Path | None) -> tuple[BuildResult, ...]:
-    """The results ``folder`` holds, in the order they were known (none without a folder)."""
+    """The results ``folder`` holds, in the order they were first known, each combination's
+    latest (a ranked one raced at its dominant frame, then co-designed:
+    :func:`casadrone.build.search.confirmed`); none without a folder."""
     if folder is None or not (folder / STATE).is_dir():
         return ()
-    return tuple(loads(p.read_bytes()) for p in sorted((folder / STATE).glob("*.pkl")))
+    latest: dict[str, BuildResult] = {}
+    for p in sorted((folder / STATE).glob("*.pkl")):
+        result = loads(p.read_bytes())
+        latest[result.label] = result  # a key keeps its first place in a dict
+    return tuple(latest.values())
 
 
 def keep(folder: Path, result: BuildResult) -> None:

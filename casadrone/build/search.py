@@ -1,19 +1,23 @@
-"""The build's search: every combination screened, bounded, and the promising ones co-designed
+"""The build's search: every combination screened, bounded, and the promising ones raced
 best-first, side by side, with the others pruned by their bound (branch and bound).
 
 1. :func:`screened`: the combinations of the ``build:`` section, each refused without a solve
    where no frame of the box can fly it (:func:`casadrone.build.combos.refusal`);
 2. :func:`bounded`: each other's point-mass race (:mod:`casadrone.build.bound`);
-3. :func:`branch_and_bound`: in the order of their bounds, each combination is co-designed and
-   raced (:func:`casadrone.build.solve.solve_combination`) on the pool, unless its bound is
-   above the ``rank``-th best race time found so far (pruned: if the bound holds, it cannot
-   enter the ranking). A combination whose bound is NaN is never pruned. Each one after the
-   first starts from its :func:`neighbour`'s co-designed geometry and race (continuation
-   across the catalogue: neighbours differ by one part, so the co-design starts near its
-   optimum; alone, it starts from the template's geometry and the problem's lap starts).
-4. :func:`ranking`: the feasible races, fastest first, the first ``rank`` of them exact.
+3. :func:`branch_and_bound`: in the order of their bounds, each combination is raced at its
+   box's dominant frame where the box has one (:mod:`casadrone.build.dominance`: its race is
+   the co-design's answer), else co-designed and raced
+   (:func:`casadrone.build.solve.solve_combination`), on the pool (:func:`evaluate`), unless
+   its bound is above the ``rank``-th best race time found so far (pruned: if the bound holds,
+   it cannot enter the ranking). A combination whose bound is NaN is never pruned. Each one
+   after the first starts from its :func:`neighbour`'s race (and a co-design from its
+   geometry: continuation across the catalogue, neighbours differ by one part; alone, a
+   combination starts from the template's geometry and the problem's lap starts).
+4. :func:`confirmed`: the ranked combinations raced at their dominant frame are co-designed
+   from it, so the ranking is of co-designed frames;
+5. :func:`ranking`: the feasible races, fastest first, the first ``rank`` of them exact.
 
-With more workers than one, a combination may be co-designed that one worker would have pruned
+With more workers than one, a combination may be raced that one worker would have pruned
 (its bound was below the threshold when it was handed out); the ranking is the same.
 """
 
@@ -34,6 +38,7 @@ from casadrone.build.combos import (
     refusal,
     valid_frames,
 )
+from casadrone.build.dominance import dominant_theta
 from casadrone.build.pool import Pool
 from casadrone.build.solve import (
     BuildResult,
@@ -41,12 +46,14 @@ from casadrone.build.solve import (
     combination_start,
     geometry_box,
     lap_options,
+    race_dominant,
     race_track,
     solve_combination,
 )
 from casadrone.codesign.checks import template_of
 from casadrone.config.airframe import AirframeConfig
 from casadrone.config.build import BuildProblemConfig
+from casadrone.config.io import ConfigError
 from casadrone.config.parts import load_parts
 from casadrone.limit.nlp import NlpSolution
 from casadrone.limit.result import LapSeeds
@@ -87,7 +94,7 @@ class Build(AsDict):
     @property
     def fronts(self) -> dict[str, list[str]]:
         """The race time against the mass (lower is better) and against the energy left
-        (higher is better): the co-designed feasible builds no other beats in both, fastest
+        (higher is better): the raced feasible builds no other beats in both, fastest
         first (:func:`front`). Pruned builds are not on it: their race is not known."""
         return {"mass_kg": front(self.results, lambda r: r.mass_kg),
                 "energy_left_wh": front(self.results, lambda r: -r.energy_left_wh)}
@@ -195,11 +202,65 @@ def branch_and_bound(problem: BuildProblemConfig, order: list[tuple[float, Combi
             continue
         near = neighbour(combo, done)
         seeds = LapSeeds() if near is None else LapSeeds(warm_starts=(near.race_lap,))
-        running[pool.submit(solve_combination, problem, combo, laps, bound, seeds,
+        running[pool.submit(evaluate, problem, combo, laps, bound, seeds,
                             None if near is None else near.theta)] = bound
     while running:
         _collect(pool, running, done, record)
     return done
+
+
+def evaluate(problem: BuildProblemConfig, combo: Combination, laps: int | None,
+             bound_s: float = math.nan, seeds: LapSeeds = LapSeeds(),
+             start: dict[str, float] | None = None) -> BuildResult:
+    """One combination of the branch and bound: its box's dominant frame raced
+    (:func:`race_dominant`) where the box has one (:mod:`casadrone.build.dominance`), else its
+    frame co-designed and raced (:func:`solve_combination`, from ``start`` and ``seeds``); co-
+    designed too where the dominant frame's race finds no verified lap (the co-design reaches
+    that frame from the template's, whose lap its starts may find where the frame's own do
+    not)."""
+    keys, lower, upper = geometry_box(problem)
+    try:
+        theta = dominant_theta(combination_start(problem, combo), keys, lower, upper)
+    except ConfigError:
+        theta = None  # the combination's own solve says why
+    if theta is not None:
+        fast = race_dominant(problem, combo, laps, theta, bound_s, seeds)
+        if math.isfinite(fast.race_s):
+            return fast
+        slow = solve_combination(problem, combo, laps, bound_s, seeds, start)
+        return replace(slow, cpu_s=slow.cpu_s + fast.cpu_s)
+    return solve_combination(problem, combo, laps, bound_s, seeds, start)
+
+
+def confirmed(problem: BuildProblemConfig, results: list[BuildResult], laps: int | None,
+              pool: Pool, record: Callable[[BuildResult], None] = lambda r: None
+              ) -> list[BuildResult]:
+    """``results`` with the ranked combinations whose frame is their box's dominant one
+    co-designed from it (:func:`solve_combination`, its race as the first lap's seed): the
+    ranking is of co-designed frames, as brute force's, with their co-design points for the
+    certificates, and a co-design that finds a faster frame than the dominant one shows where
+    the dominance argument fails (:mod:`casadrone.build.dominance`). Until the ranking holds
+    no dominant frame: a co-design slower than its dominant race may let another in."""
+    out, tried = list(results), set()
+    while True:
+        todo = [r for r in ranking(out, problem.build.rank)
+                if r.geometry_by == "dominance" and r.label not in tried]
+        if not todo:
+            return out
+        tried |= {r.label for r in todo}
+        running = {pool.submit(solve_combination, problem, r.combination, laps, r.bound_s,
+                               LapSeeds(warm_starts=(r.race_lap,)), r.theta): r for r in todo}
+        while running:
+            for fut in pool.first_done(list(running)):
+                was = running.pop(fut)
+                got = fut.result()
+                new = replace(got, cpu_s=got.cpu_s + was.cpu_s) \
+                    if got.outcome == "raced" and math.isfinite(got.race_s) else \
+                    replace(was, cpu_s=got.cpu_s + was.cpu_s, reason=(
+                        f"its co-design from the dominant frame failed ({got.reason}): the "
+                        "dominant frame's race is kept"))
+                out[next(i for i, r in enumerate(out) if r is was)] = new
+                record(new)
 
 
 def neighbour(combo: Combination, done: list[BuildResult]) -> BuildResult | None:
@@ -280,6 +341,7 @@ def build(problem: BuildProblemConfig, laps: int | None = None,
     try:
         results = branch_and_bound(problem, order, laps, pool, record,
                                    tuple(r for r in held if r.outcome != "refused"))
+        results = confirmed(problem, results, laps, pool, record)
     finally:
         pool.close()
     ranked = ranking(results, problem.build.rank)

@@ -17,7 +17,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from casadrone.airframe import with_theta
+from casadrone.airframe import build_airframe, with_theta
 from casadrone.build.combos import Combination, hover_of, start_airframe
 from casadrone.codesign.checks import codesign_lap_options, gate_clearance, template_of
 from casadrone.config.airframe import AirframeConfig
@@ -43,7 +43,8 @@ class BuildResult(AsDict):
     reason: str = ""
     bound_s: float = math.nan
     race_s: float = math.nan
-    lap_s: float = math.nan  # the co-designed lap (the track as given)
+    lap_s: float = math.nan  # the co-designed lap (the track as given; a dominant frame's:
+    # its race's first pass, at the full pack's voltage)
     laps: int = 0
     feasible: bool = False  # the pack flies the race within its limits
     theta: dict[str, float] = field(default_factory=dict)
@@ -59,6 +60,9 @@ class BuildResult(AsDict):
     energy_left_wh: float = math.nan
     end_soc: float = math.nan
     cpu_s: float = 0.0
+    #: how the frame's geometry was found: co-designed, or the box's dominant frame raced
+    #: without a co-design (:mod:`casadrone.build.dominance`)
+    geometry_by: Literal["co-design", "dominance"] = "co-design"
     point: Any = None  # casadrone.codesign.driver.CodesignPoint, for the certificate
     certificate: Any = None  # casadrone.codesign.certificate.Certificate of a ranked build
     race_lap: Any = None  # casadrone.limit.result.LimitLap of the race: a neighbour's seed
@@ -156,27 +160,56 @@ def solve_combination(problem: BuildProblemConfig, combo: Combination, laps: int
     if result.best is None:
         return replace(base, reason=result.reason, cpu_s=time.process_time() - c0)
     best = result.best
-    frame = with_theta(cfg, best.theta)
-    track = race_track(problem, laps)
     # the race's first pass is the co-design's lap at its θ (the same NLP, θ fixed): from that
     # point alone (a few iterations), the problem's starts only where it gives no verified lap;
     # the neighbour's race where the co-design returned no lap
-    raced = race(frame, track, lap_options(problem, cfg),
-                 seeds=LapSeeds(warm_starts=result.laps or seeds.warm_starts))
+    out = raced(problem, cfg, dict(best.theta), laps, LapSeeds(
+        warm_starts=result.laps or seeds.warm_starts),
+        replace(base, lap_s=best.objective, mass_kg=best.mass_kg, point=best))
+    return replace(out, cpu_s=time.process_time() - c0)
+
+
+def race_dominant(problem: BuildProblemConfig, combo: Combination, laps: int | None,
+                  theta: dict[str, float], bound_s: float = math.nan,
+                  seeds: LapSeeds = LapSeeds()) -> BuildResult:
+    """Race ``combo`` at ``theta``, the dominant frame of its box
+    (:func:`casadrone.build.dominance.dominant_theta`), without a co-design: its race is the
+    co-design's answer where the dominance holds. ``seeds``: a neighbouring race to start from
+    (the problem's starts where it gives no verified lap). The lap (``lap_s``) is the race's
+    first pass, at the full pack's voltage: the co-design's lap of that frame."""
+    c0 = time.process_time()
+    base = BuildResult(combo, "failed", bound_s=bound_s, geometry_by="dominance")
+    try:
+        cfg = combination_start(problem, combo)
+        out = raced(problem, cfg, theta, laps, seeds, base)
+    except ConfigError as exc:
+        return replace(base, reason=exc.lines[0], cpu_s=time.process_time() - c0)
+    return replace(out, cpu_s=time.process_time() - c0)
+
+
+def raced(problem: BuildProblemConfig, cfg: AirframeConfig, theta: dict[str, float],
+          laps: int | None, seeds: LapSeeds, base: BuildResult) -> BuildResult:
+    """``base`` with the race of ``cfg`` at ``theta`` over the build's laps (its ``lap_s``,
+    where NaN, the race's first pass), the frame's hover and the pack's account."""
+    frame = with_theta(cfg, theta)
+    track = race_track(problem, laps)
+    run = race(frame, track, lap_options(problem, cfg), seeds=seeds)
     hover = hover_of(frame)
-    out = replace(base, outcome="raced", laps=track.laps, theta=dict(best.theta),
-                  lap_s=best.objective, mass_kg=best.mass_kg, point=best,
+    lap_s = base.lap_s if math.isfinite(base.lap_s) or not run.passes else \
+        run.passes[0].race_time_s
+    out = replace(base, outcome="raced", laps=track.laps, theta=dict(theta), lap_s=lap_s,
+                  mass_kg=base.mass_kg if math.isfinite(base.mass_kg) else
+                  build_airframe(frame).mass,
                   thrust_to_weight=hover.thrust_to_weight, hover_throttle=hover.throttle,
                   hover_pack_current_a=hover.pack_current_a)
-    if not raced.lap.completed:
-        return replace(out, reason=f"race: {raced.reason}", cpu_s=time.process_time() - c0)
-    e = raced.energy
+    if not run.lap.completed:
+        return replace(out, reason=f"race: {run.reason}")
+    e = run.energy
     assert e is not None  # a combination's pack has a capacity (combination_airframe)
-    return replace(out, race_s=raced.lap.lap_time_s, feasible=raced.feasible,
-                   race_lap=raced.lap,
-                   reason=raced.reason, peak_pack_current_a=e.peak_pack_current_a,
+    return replace(out, race_s=run.lap.lap_time_s, feasible=run.feasible, race_lap=run.lap,
+                   reason=run.reason, peak_pack_current_a=e.peak_pack_current_a,
                    peak_motor_current_a=e.peak_motor_current_a,
                    pack_current_margin_a=e.pack_current_margin_a,
                    motor_current_margin_a=e.motor_current_margin_a,
                    energy_used_wh=e.energy_used_wh, energy_left_wh=e.energy_left_wh,
-                   end_soc=e.end_soc, cpu_s=time.process_time() - c0)
+                   end_soc=e.end_soc)

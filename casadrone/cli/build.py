@@ -67,10 +67,12 @@ def build_command(
     Every combination of the parts the problem names is screened without a solve (refused with
     its reason: propellers that overlap at every frame of the box, tips past max_tip_mach,
     thrust-to-weight below 1, a hover current over the pack's C x capacity or the motor's
-    largest), bounded by its point-mass race at the box's least mass, and co-designed
-    best-first on the problem's backend (processes, or Dask with an address), pruned where its
-    bound is above the rank-th best race found so far. Each co-designed frame flies the race
-    with its pack's state of charge; a race the pack cannot fly is infeasible, with the reason.
+    largest), bounded by its point-mass race at the box's least mass, and raced best-first on
+    the problem's backend (processes, or Dask with an address), pruned where its bound is above
+    the rank-th best race found so far. A combination is raced at the frame of the geometry box
+    that dominates the others (lightest, least inertia, most angular authority) where the box
+    has one, else co-designed; the ranked ones are co-designed. Each frame flies the race with
+    its pack's state of charge; a race the pack cannot fly is infeasible, with the reason.
 
     Exit codes: 0 when some build flies the race; 2 for bad input, refused before any solve (one
     line naming the file and key: an unknown part, a template not of the propeller kind, an
@@ -185,6 +187,8 @@ def text(result: Build) -> str:
         if r.label in ranked:
             continue
         fig = f" race {r.race_s:.4f} s" if math.isfinite(r.race_s) else ""
+        if r.outcome == "raced" and r.geometry_by == "dominance":
+            fig += " (the box's dominant frame)"
         why = f": {r.reason}" if r.reason else ""
         lines.append(f"    {r.outcome:<8} {r.label}{fig}{why}")
     return "\n".join(lines)

@@ -211,7 +211,7 @@ def test_branch_and_bound_prunes_above_the_rank_th_race_and_keeps_the_rest(probl
     from casadrone.config.problem import BackendConfig
 
     combos = combinations(shipped_catalogue(), problem.build)[:4]
-    monkeypatch.setattr(search, "solve_combination",
+    monkeypatch.setattr(search, "evaluate",
                         lambda prob, c, laps, bound, seeds, start:
                         _raced(c, 1.1 * bound, bound_s=bound))
     order = list(zip([1.0, 1.05, 2.0, 3.0], combos, strict=True))
@@ -254,7 +254,7 @@ def test_a_build_resumes_from_its_folder_and_refuses_another_problems(tmp_path, 
     def fake_bound(problem, combo, laps, near=None):
         bounded.append(combo.label)
         return 1.0, None
-    monkeypatch.setattr(search, "solve_combination", fake_solve)
+    monkeypatch.setattr(search, "evaluate", fake_solve)
     monkeypatch.setattr(search, "bound_and_solution", fake_bound)
     out = tmp_path / "b"
     resume.begin(out, problem, None)

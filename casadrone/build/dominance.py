@@ -1,0 +1,101 @@
+"""The dominant frame of a combination's geometry box: a frame of the box at least as good as
+every other in each way the geometry enters the model, so that its race is the co-design's
+answer without the co-design.
+
+The geometry (arm lengths, arm angles) enters the model through the frame's mass, its inertia
+and its rotor positions about the centre of mass (:func:`casadrone.airframe.build_airframe`):
+the torque arms, and the rotors' inflow v + Ω × r_i; the propellers' and motors' data, the body
+drag, the gate clearance (one for the whole box: :func:`casadrone.codesign.checks.
+gate_clearance`) and the pack do not move with it. A frame D of the box
+*dominates* it where, against every frame F of the box,
+
+1. **mass**: m_D ≤ m_F: the same thrusts give D every translational acceleration they give F
+   (the argument of :mod:`casadrone.build.bound`, item 2);
+2. **inertia**: each principal moment I_D,kk ≤ I_F,kk, and D has no products of inertia;
+3. **angular authority**: about x and about y, the rotors' arms about that axis (from the
+   centre of mass) summed over its moment of inertia, Σ|r_⊥| / I_kk, is at least F's: the
+   angular acceleration a thrust moved across the axis makes. Yaw follows from 2: its arm is
+   the propeller's κ, the same for every frame of the box.
+
+Then any manoeuvre of F is within D's reach, and D's limit lap is the smallest of the box: the
+co-design's optimum is D itself. For the components mass model with the arm lengths as the
+box (build-small), every part on an arm moves out with it: mass and inertia grow, and the
+inertia (∝ λ²) faster than the arm (∝ λ), so the short-arm corner dominates; with the arm
+*angles* in the box, a frame gains roll authority only by losing pitch authority and no frame
+dominates (:func:`dominant_theta` returns None and the combination is co-designed).
+
+What the argument does not cover: the inflow Ω × r_i (a rolling frame's rotors see its rate
+times their arm: a damping that grows with the arm, in favour of the short-arm corner); the
+gyroscopic coupling ω × Iω of the rigid body (it moves
+with the differences of the moments, not with their size); the products of inertia of the
+dominated frames; the extremes of the rotors' thrust box. The strict form of 3 (every
+combination of rotor thrusts in [0, T_max] of F, mapped to D's, needs no thrust outside
+[0, T_max]) fails on build-small's box at the corners where three rotors are off: matching F's
+yaw there with D's smaller I_zz needs a rotor at -2.6 % of its full thrust (at the long-arm
+corner), a state no lap flies. And IPOPT returns local optima. That is why the build co-designs
+its ranked combinations from their dominant frame (:func:`casadrone.build.search.confirmed`): the
+ranking is of co-designed frames, and a co-design that finds a faster frame replaces the
+dominant race; and why the benchmark compares every dominant race with the same combination
+co-designed alone (benchmarks/bench_build.py).
+
+The box is checked on a grid (:data:`GRID` points per key, its bounds among them): mass and
+inertia are polynomials of the geometry, smooth over the box, and its extremes are at the
+bounds for the arm lengths.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from casadrone.airframe import Airframe, build_airframe, with_theta
+from casadrone.config.airframe import AirframeConfig
+from casadrone.config.io import ConfigError
+
+#: Points per key of the grid the box is checked on (its bounds included).
+GRID = 5
+#: Relative slack of every comparison (rounding of the mass model's sums).
+TOL = 1e-9
+
+
+def grid(keys: tuple[str, ...], lower: np.ndarray, upper: np.ndarray,
+         n: int = GRID) -> list[dict[str, float]]:
+    """θ on an ``n``-point grid per key of the box (its corners among them)."""
+    axes = [np.linspace(lo, hi, n) for lo, hi in zip(lower, upper, strict=True)]
+    return [dict(zip(keys, (float(v) for v in point), strict=True))
+            for point in itertools.product(*axes)]
+
+
+def authority(frame: Airframe) -> np.ndarray:
+    """The frame's angular authority about x and y: the rotors' arms about that axis (|y|
+    for roll, |x| for pitch, from the centre of mass) summed, over its moment of inertia
+    (1/(kg·m)): the angular acceleration per newton of thrust moved across the axis."""
+    r, inertia = frame.rotor_positions, frame.inertia
+    return np.array([np.abs(r[:, 1]).sum() / inertia[0, 0],
+                     np.abs(r[:, 0]).sum() / inertia[1, 1]])
+
+
+def dominates(d: Airframe, f: Airframe, tol: float = TOL) -> bool:
+    """Whether ``d`` dominates ``f`` (module docstring: mass, inertia, angular authority)."""
+    products = d.inertia[[0, 0, 1], [1, 2, 2]]
+    return bool(d.mass <= f.mass * (1 + tol)
+                and np.all(np.diag(d.inertia) <= np.diag(f.inertia) * (1 + tol))
+                and np.all(np.abs(products) <= tol * np.trace(d.inertia))
+                and np.all(authority(d) >= authority(f) * (1 - tol)))
+
+
+def dominant_theta(cfg: AirframeConfig, keys: tuple[str, ...], lower: np.ndarray,
+                   upper: np.ndarray, n: int = GRID) -> dict[str, float] | None:
+    """The θ of the frame of ``cfg``'s box that dominates every valid frame of the box's grid
+    (module docstring), the least massive first where several do; None where none does."""
+    frames: list[tuple[dict[str, float], Airframe]] = []
+    for theta in grid(keys, lower, upper, n):
+        try:
+            frames.append((theta, build_airframe(with_theta(cfg, theta))))
+        except ConfigError:  # the propellers overlap there: no frame to fly
+            continue
+    for theta, d in sorted(frames, key=lambda tf: tf[1].mass):
+        if all(dominates(d, f) for _, f in frames):
+            return theta
+    return None

@@ -1,0 +1,66 @@
+"""The dominant frame's race against the co-design (a second method): on the co-design tests'
+short track, a combination of build-small raced at its box's dominant frame without a
+co-design equals its frame co-designed from the template's geometry and raced, and the co-design
+lands on the dominant frame; a build ranks by co-designed frames only."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from casadrone.build.checks import load_build_problem
+from casadrone.build.dominance import dominant_theta
+from casadrone.build.search import build, screened
+from casadrone.build.solve import (
+    combination_start,
+    geometry_box,
+    race_dominant,
+    solve_combination,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+SHORT = [f"track={ROOT / 'tests/data/codesign/short-track.yaml'}", "limit_lap.intervals=16",
+         "limit_lap.starts=[closed-loop, point-mass, coarse-grid]", "backend.name=serial",
+         "build.certify=false"]
+ONE = ["build.propellers=[uiuc-da4022-5x3.75-3blade]",
+       "build.motors=[tmotor-velox-v2207-v2-1750kv]"]
+
+
+@pytest.fixture(scope="module")
+def short():
+    return load_build_problem("build-small", [*SHORT, *ONE,
+                                              "build.packs=[cnhl-black-v2-1300mah-4s]"])
+
+
+def test_the_dominant_frames_race_is_the_codesigned_race(short):
+    (combo,), _ = screened(short)
+    keys, lower, upper = geometry_box(short)
+    theta = dominant_theta(combination_start(short, combo), keys, lower, upper)
+    assert theta is not None
+    fast = race_dominant(short, combo, None, theta)
+    full = solve_combination(short, combo, None)
+    assert fast.outcome == full.outcome == "raced" and fast.feasible and full.feasible
+    assert fast.geometry_by == "dominance" and full.geometry_by == "co-design"
+    for key in keys:  # the co-design, from the template's 125 mm arms, ends at the corner
+        assert full.theta[key] == pytest.approx(theta[key], abs=0.01)
+    assert fast.race_s == pytest.approx(full.race_s, rel=1e-3)
+    assert fast.mass_kg == pytest.approx(full.mass_kg, rel=1e-9)
+
+
+def test_a_build_ranks_codesigned_frames_only(short):
+    """Two packs, rank 1: the other combination is raced at its dominant frame alone, the
+    winner is co-designed from its dominant frame (its co-design point kept for the
+    certificate) and every CPU second is counted once."""
+    problem = load_build_problem("build-small", [
+        *SHORT, *ONE, "build.packs=[cnhl-ministar-650mah-4s, cnhl-black-v2-1300mah-4s]",
+        "build.rank=1"])
+    done = build(problem)
+    (winner,) = done.ranking
+    assert winner.geometry_by == "co-design" and winner.point is not None
+    assert winner.combination.pack.name == "cnhl-black-v2-1300mah-4s"
+    others = [r for r in done.results if r.label != winner.label]
+    assert [r.geometry_by for r in others] == ["dominance"]
+    assert all(math.isfinite(r.race_s) and r.race_s > winner.race_s for r in others)
+    assert len({r.label for r in done.results}) == len(done.results)

@@ -84,3 +84,70 @@ def test_a_frame_dominates_itself_and_no_heavier_copy_dominates_it():
     heavier = replace(frame, mass=frame.mass * 1.01)
     assert dominates(frame, frame)
     assert dominates(frame, heavier) and not dominates(heavier, frame)
+
+
+def test_a_dominant_race_that_finds_no_lap_is_co_designed(small, monkeypatch):
+    """evaluate: a box with a dominant frame is raced there; where that race finds no lap the
+    combination is co-designed, its CPU the two solves' together; a box without one is
+    co-designed at once."""
+    import math
+
+    from casadrone.build import search
+    from casadrone.build.solve import BuildResult
+
+    problem, kept = small
+    calls = []
+
+    def dominant(problem, combo, laps, theta, bound_s, seeds, lap=math.nan):
+        calls.append(("dominant", theta))
+        return BuildResult(combo, "raced", race_s=lap, cpu_s=2.0, geometry_by="dominance")
+
+    def codesign(problem, combo, laps, bound_s, seeds, start):
+        calls.append(("co-design", start))
+        return BuildResult(combo, "raced", race_s=5.0, cpu_s=30.0)
+    monkeypatch.setattr(search, "solve_combination", codesign)
+    monkeypatch.setattr(search, "race_dominant", dominant)
+    got = search.evaluate(problem, kept[0], None)
+    assert [c[0] for c in calls] == ["dominant", "co-design"]
+    assert calls[0][1] == {"lambda_a_mm": 100.0, "lambda_b_mm": 100.0}
+    assert got.geometry_by == "co-design" and got.cpu_s == 32.0
+    calls.clear()
+    monkeypatch.setattr(search, "race_dominant",
+                        lambda *a: dominant(*a, lap=4.0))
+    got = search.evaluate(problem, kept[0], None)
+    assert [c[0] for c in calls] == ["dominant"] and got.race_s == 4.0
+    calls.clear()
+    monkeypatch.setattr(search, "dominant_theta", lambda *a: None)
+    got = search.evaluate(problem, kept[0], None)
+    assert [c[0] for c in calls] == ["co-design"]
+
+
+def test_confirmation_codesigns_the_ranking_until_it_holds_no_dominant_race(small, monkeypatch):
+    """rank 2 over dominant races of 4.0, 4.1 and 4.2 s: the first two are co-designed; the
+    second's co-design comes out at 4.3 s (slower than its dominant race: the argument failed
+    there), which lets the 4.2 s one into the ranking, and it is co-designed in turn (4.15 s).
+    The ranking ends 4.0, 4.15, all co-designed, each CPU the two solves' together."""
+    from casadrone.build import search
+    from casadrone.build.pool import Pool
+    from casadrone.build.solve import BuildResult
+    from casadrone.config.problem import BackendConfig
+
+    problem, kept = small
+    problem = problem.model_copy(update={"build": problem.build.model_copy(update={"rank": 2})})
+    dominant = [BuildResult(c, "raced", race_s=t, feasible=True, cpu_s=1.0,
+                            geometry_by="dominance", theta={"lambda_a_mm": 100.0})
+                for c, t in zip(kept[:3], (4.0, 4.1, 4.2), strict=True)]
+    codesigned = {kept[0].label: 4.0, kept[1].label: 4.3, kept[2].label: 4.15}
+    asked = []
+
+    def codesign(problem, combo, laps, bound_s, seeds, start):
+        asked.append(combo.label)
+        assert start == {"lambda_a_mm": 100.0}
+        return BuildResult(combo, "raced", race_s=codesigned[combo.label], feasible=True,
+                           cpu_s=10.0)
+    monkeypatch.setattr(search, "solve_combination", codesign)
+    out = search.confirmed(problem, dominant, None, Pool(BackendConfig()))
+    assert asked == [kept[0].label, kept[1].label, kept[2].label]
+    ranked = search.ranking(out, 2)
+    assert [(r.label, r.race_s) for r in ranked] == [(kept[0].label, 4.0), (kept[2].label, 4.15)]
+    assert all(r.geometry_by == "co-design" and r.cpu_s == 11.0 for r in out)

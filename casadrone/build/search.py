@@ -215,21 +215,25 @@ def evaluate(problem: BuildProblemConfig, combo: Combination, laps: int | None,
     """One combination of the branch and bound: its box's dominant frame raced
     (:func:`race_dominant`) where the box has one (:mod:`casadrone.build.dominance`), else its
     frame co-designed and raced (:func:`solve_combination`, from ``start`` and ``seeds``); co-
-    designed too where the dominant frame's race finds no verified lap (the co-design reaches
-    that frame from the template's, whose lap its starts may find where the frame's own do
-    not)."""
+    designed too where the dominant frame's race is not flown within the pack's limits: where
+    it finds no verified lap (the co-design reaches that frame from the template's, whose lap
+    its starts may find where the frame's own do not), or where its re-simulation breaks a
+    current limit (by a tenth of an ampere on build-small's DA4052 + 1750 KV + 6S: a lap's
+    local optimum, which the co-design's does not share). The co-design's result is kept
+    unless it finds no lap and the dominant race did."""
     keys, lower, upper = geometry_box(problem)
     try:
         theta = dominant_theta(combination_start(problem, combo), keys, lower, upper)
     except ConfigError:
         theta = None  # the combination's own solve says why
-    if theta is not None:
-        fast = race_dominant(problem, combo, laps, theta, bound_s, seeds)
-        if math.isfinite(fast.race_s):
-            return fast
-        slow = solve_combination(problem, combo, laps, bound_s, seeds, start)
-        return replace(slow, cpu_s=slow.cpu_s + fast.cpu_s)
-    return solve_combination(problem, combo, laps, bound_s, seeds, start)
+    if theta is None:
+        return solve_combination(problem, combo, laps, bound_s, seeds, start)
+    fast = race_dominant(problem, combo, laps, theta, bound_s, seeds)
+    if fast.feasible:
+        return fast
+    slow = solve_combination(problem, combo, laps, bound_s, seeds, start)
+    kept = fast if math.isfinite(fast.race_s) and not math.isfinite(slow.race_s) else slow
+    return replace(kept, cpu_s=slow.cpu_s + fast.cpu_s)
 
 
 def confirmed(problem: BuildProblemConfig, results: list[BuildResult], laps: int | None,

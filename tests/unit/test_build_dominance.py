@@ -87,9 +87,9 @@ def test_a_frame_dominates_itself_and_no_heavier_copy_dominates_it():
 
 
 def test_a_dominant_race_that_finds_no_lap_is_co_designed(small, monkeypatch):
-    """evaluate: a box with a dominant frame is raced there; where that race finds no lap the
-    combination is co-designed, its CPU the two solves' together; a box without one is
-    co-designed at once."""
+    """evaluate: a box with a dominant frame is raced there; where that race finds no lap, or
+    breaks a limit, the combination is co-designed, its CPU the two solves' together; a box
+    without one is co-designed at once."""
     import math
 
     from casadrone.build import search
@@ -98,9 +98,10 @@ def test_a_dominant_race_that_finds_no_lap_is_co_designed(small, monkeypatch):
     problem, kept = small
     calls = []
 
-    def dominant(problem, combo, laps, theta, bound_s, seeds, lap=math.nan):
+    def dominant(problem, combo, laps, theta, bound_s, seeds, lap=math.nan, ok=False):
         calls.append(("dominant", theta))
-        return BuildResult(combo, "raced", race_s=lap, cpu_s=2.0, geometry_by="dominance")
+        return BuildResult(combo, "raced", race_s=lap, cpu_s=2.0, geometry_by="dominance",
+                           feasible=ok)
 
     def codesign(problem, combo, laps, bound_s, seeds, start):
         calls.append(("co-design", start))
@@ -111,9 +112,12 @@ def test_a_dominant_race_that_finds_no_lap_is_co_designed(small, monkeypatch):
     assert [c[0] for c in calls] == ["dominant", "co-design"]
     assert calls[0][1] == {"lambda_a_mm": 100.0, "lambda_b_mm": 100.0}
     assert got.geometry_by == "co-design" and got.cpu_s == 32.0
+    calls.clear()  # a race that breaks a current limit: co-designed, its result kept
+    monkeypatch.setattr(search, "race_dominant", lambda *a: dominant(*a, lap=4.0))
+    got = search.evaluate(problem, kept[0], None)
+    assert [c[0] for c in calls] == ["dominant", "co-design"] and got.race_s == 5.0
     calls.clear()
-    monkeypatch.setattr(search, "race_dominant",
-                        lambda *a: dominant(*a, lap=4.0))
+    monkeypatch.setattr(search, "race_dominant", lambda *a: dominant(*a, lap=4.0, ok=True))
     got = search.evaluate(problem, kept[0], None)
     assert [c[0] for c in calls] == ["dominant"] and got.race_s == 4.0
     calls.clear()

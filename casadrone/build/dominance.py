@@ -32,11 +32,11 @@ dominated frames; the extremes of the rotors' thrust box. The strict form of 3 (
 combination of rotor thrusts in [0, T_max] of F, mapped to D's, needs no thrust outside
 [0, T_max]) fails on build-small's box at the corners where three rotors are off: matching F's
 yaw there with D's smaller I_zz needs a rotor at -2.6 % of its full thrust (at the long-arm
-corner), a state no lap flies. And IPOPT returns local optima. That is why the build co-designs
-its ranked combinations from their dominant frame (:func:`casadrone.build.search.confirmed`): the
-ranking is of co-designed frames, and a co-design that finds a faster frame replaces the
-dominant race; and why the benchmark compares every dominant race with the same combination
-co-designed alone (benchmarks/bench_build.py).
+corner), a state no lap flies. And IPOPT returns local optima. That is why the build checks each
+ranked dominant race a second way (:func:`stationary`: its own gradient dT/dθ meets the
+co-design's first-order optimality over the box) and co-designs it from its frame where that
+fails (:func:`casadrone.build.search.confirmed`), and why the benchmark compares every dominant
+race with the same combination co-designed alone (benchmarks/bench_build.py).
 
 The box is checked on a grid (:data:`GRID` points per key, its bounds among them): mass and
 inertia are polynomials of the geometry, smooth over the box, and its extremes are at the
@@ -99,3 +99,24 @@ def dominant_theta(cfg: AirframeConfig, keys: tuple[str, ...], lower: np.ndarray
         if all(dominates(d, f) for _, f in frames):
             return theta
     return None
+
+
+def stationary(theta: dict[str, float], gradient: dict[str, float], keys: tuple[str, ...],
+               lower: np.ndarray, upper: np.ndarray) -> bool:
+    """Whether a race's gradient dT/dθ (s per unit of each key) at ``theta`` meets the
+    co-design's first-order optimality over the box: no key can move into the box and shorten
+    the race (dT/dθ ≥ 0 at a lower bound, ≤ 0 at an upper one, zero inside), each slope taken
+    over the box's width and counted as zero below the co-design certificate's tolerances
+    (:data:`casadrone.codesign.certificate.GRAD_RTOL` of the largest, or ``GRAD_ATOL``). False
+    where a key has no gradient."""
+    from casadrone.codesign.certificate import AT_BOUND, GRAD_ATOL, GRAD_RTOL
+
+    if any(k not in gradient or not np.isfinite(gradient[k]) for k in keys):
+        return False
+    width = np.asarray(upper, float) - np.asarray(lower, float)
+    g = np.array([gradient[k] for k in keys]) * width  # s per box width
+    tol = max(GRAD_ATOL, GRAD_RTOL * float(np.max(np.abs(g))))
+    x = (np.array([theta[k] for k in keys]) - lower) / width
+    at_lower, at_upper = x <= AT_BOUND, x >= 1 - AT_BOUND
+    return bool(np.all(np.where(at_lower, g >= -tol, np.where(at_upper, g <= tol,
+                                                              np.abs(g) <= tol))))

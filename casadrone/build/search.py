@@ -13,8 +13,9 @@ best-first, side by side, with the others pruned by their bound (branch and boun
    after the first starts from its :func:`neighbour`'s race (and a co-design from its
    geometry: continuation across the catalogue, neighbours differ by one part; alone, a
    combination starts from the template's geometry and the problem's lap starts).
-4. :func:`confirmed`: the ranked combinations raced at their dominant frame are co-designed
-   from it, so the ranking is of co-designed frames;
+4. :func:`confirmed`: each ranked combination raced at its dominant frame is checked by its
+   race's gradient (first-order optimal over the box) and co-designed from that frame where
+   the check fails or a certificate is asked for;
 5. :func:`ranking`: the feasible races, fastest first, the first ``rank`` of them exact.
 
 With more workers than one, a combination may be raced that one worker would have pruned
@@ -38,7 +39,7 @@ from casadrone.build.combos import (
     refusal,
     valid_frames,
 )
-from casadrone.build.dominance import dominant_theta
+from casadrone.build.dominance import dominant_theta, stationary
 from casadrone.build.pool import Pool
 from casadrone.build.solve import (
     BuildResult,
@@ -214,13 +215,13 @@ def evaluate(problem: BuildProblemConfig, combo: Combination, laps: int | None,
              start: dict[str, float] | None = None) -> BuildResult:
     """One combination of the branch and bound: its box's dominant frame raced
     (:func:`race_dominant`) where the box has one (:mod:`casadrone.build.dominance`), else its
-    frame co-designed and raced (:func:`solve_combination`, from ``start`` and ``seeds``); co-
-    designed too where the dominant frame's race is not flown within the pack's limits: where
-    it finds no verified lap (the co-design reaches that frame from the template's, whose lap
-    its starts may find where the frame's own do not), or where its re-simulation breaks a
-    current limit (by a tenth of an ampere on build-small's DA4052 + 1750 KV + 6S: a lap's
-    local optimum, which the co-design's does not share). The co-design's result is kept
-    unless it finds no lap and the dominant race did."""
+    frame co-designed and raced (:func:`solve_combination`, from ``start`` and ``seeds``). Where
+    the dominant frame's race is not flown within the pack's limits, it is raced again from
+    the problem's starts alone (the neighbour's race may lead to a local optimum whose
+    re-simulation breaks a current limit by a tenth of an ampere: build-small's DA4052 +
+    1750 KV + 6S from DA4022's), then co-designed (the co-design reaches the frame from the
+    template's, whose lap its starts may find where the frame's own do not); the co-design's
+    result is kept unless it finds no lap and the dominant race did."""
     keys, lower, upper = geometry_box(problem)
     try:
         theta = dominant_theta(combination_start(problem, combo), keys, lower, upper)
@@ -229,6 +230,9 @@ def evaluate(problem: BuildProblemConfig, combo: Combination, laps: int | None,
     if theta is None:
         return solve_combination(problem, combo, laps, bound_s, seeds, start)
     fast = race_dominant(problem, combo, laps, theta, bound_s, seeds)
+    if not fast.feasible and seeds.warm_starts:  # the neighbour's race may mislead: alone
+        again = race_dominant(problem, combo, laps, theta, bound_s)
+        fast = replace(again, cpu_s=again.cpu_s + fast.cpu_s)
     if fast.feasible:
         return fast
     slow = solve_combination(problem, combo, laps, bound_s, seeds, start)
@@ -239,16 +243,23 @@ def evaluate(problem: BuildProblemConfig, combo: Combination, laps: int | None,
 def confirmed(problem: BuildProblemConfig, results: list[BuildResult], laps: int | None,
               pool: Pool, record: Callable[[BuildResult], None] = lambda r: None
               ) -> list[BuildResult]:
-    """``results`` with the ranked combinations whose frame is their box's dominant one
-    co-designed from it (:func:`solve_combination`, its race as the first lap's seed): the
-    ranking is of co-designed frames, as brute force's, with their co-design points for the
-    certificates, and a co-design that finds a faster frame than the dominant one shows where
-    the dominance argument fails (:mod:`casadrone.build.dominance`). Until the ranking holds
-    no dominant frame: a co-design slower than its dominant race may let another in."""
+    """``results`` with each ranked combination raced at its box's dominant frame checked,
+    and co-designed from that frame (:func:`solve_combination`, its race as the first lap's
+    seed) where the check fails or ``build.certify`` asks for its certificate (made of a
+    co-design point). The check: the race's own dT/dθ at the frame meets the co-design's
+    first-order optimality over the box (:func:`casadrone.build.dominance.stationary`: no key
+    moves into the box and shortens the race), a second argument beside the dominance's,
+    made of the lap's multipliers (no solve). A co-design slower than its dominant race may
+    let another combination in, which is checked in turn."""
+    keys, lower, upper = geometry_box(problem)
+
+    def settled(r: BuildResult) -> bool:
+        return r.geometry_by != "dominance" or (not problem.build.certify and stationary(
+            r.theta, r.race_gradient, keys, lower, upper))
     out, tried = list(results), set()
     while True:
         todo = [r for r in ranking(out, problem.build.rank)
-                if r.geometry_by == "dominance" and r.label not in tried]
+                if not settled(r) and r.label not in tried]
         if not todo:
             return out
         tried |= {r.label for r in todo}

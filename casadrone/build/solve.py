@@ -63,6 +63,9 @@ class BuildResult(AsDict):
     #: how the frame's geometry was found: co-designed, or the box's dominant frame raced
     #: without a co-design (:mod:`casadrone.build.dominance`)
     geometry_by: Literal["co-design", "dominance"] = "co-design"
+    #: dT/dθ of a dominant frame's race (s per unit of each geometry key, by the envelope
+    #: theorem: casadrone.limit.check.theta_sensitivities); empty for a co-designed frame
+    race_gradient: dict[str, float] = field(default_factory=dict)
     point: Any = None  # casadrone.codesign.driver.CodesignPoint, for the certificate
     certificate: Any = None  # casadrone.codesign.certificate.Certificate of a ranked build
     race_lap: Any = None  # casadrone.limit.result.LimitLap of the race: a neighbour's seed
@@ -181,23 +184,29 @@ def race_dominant(problem: BuildProblemConfig, combo: Combination, laps: int | N
     base = BuildResult(combo, "failed", bound_s=bound_s, geometry_by="dominance")
     try:
         cfg = combination_start(problem, combo)
-        out = raced(problem, cfg, theta, laps, seeds, base)
+        out = raced(problem, cfg, theta, laps, seeds, base, gradient=True)
     except ConfigError as exc:
         return replace(base, reason=exc.lines[0], cpu_s=time.process_time() - c0)
     return replace(out, cpu_s=time.process_time() - c0)
 
 
 def raced(problem: BuildProblemConfig, cfg: AirframeConfig, theta: dict[str, float],
-          laps: int | None, seeds: LapSeeds, base: BuildResult) -> BuildResult:
+          laps: int | None, seeds: LapSeeds, base: BuildResult,
+          gradient: bool = False) -> BuildResult:
     """``base`` with the race of ``cfg`` at ``theta`` over the build's laps (its ``lap_s``,
-    where NaN, the race's first pass), the frame's hover and the pack's account."""
+    where NaN, the race's first pass), the frame's hover and the pack's account; with
+    ``gradient``, the race's dT/dθ over the box's keys (``race_gradient``)."""
     frame = with_theta(cfg, theta)
     track = race_track(problem, laps)
-    run = race(frame, track, lap_options(problem, cfg), seeds=seeds)
+    run = race(frame, track, replace(lap_options(problem, cfg), sensitivities=gradient),
+               seeds=seeds)
+    keys = geometry_box(problem)[0]
     hover = hover_of(frame)
     lap_s = base.lap_s if math.isfinite(base.lap_s) or not run.passes else \
         run.passes[0].race_time_s
     out = replace(base, outcome="raced", laps=track.laps, theta=dict(theta), lap_s=lap_s,
+                  race_gradient={k: float(v) for k, v in run.lap.sensitivities.items()
+                                 if k in keys},
                   mass_kg=base.mass_kg if math.isfinite(base.mass_kg) else
                   build_airframe(frame).mass,
                   thrust_to_weight=hover.thrust_to_weight, hover_throttle=hover.throttle,

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from casadrone.build.checks import load_build_problem
-from casadrone.build.dominance import dominant_theta
+from casadrone.build.dominance import dominant_theta, stationary
 from casadrone.build.search import build, screened
 from casadrone.build.solve import (
     combination_start,
@@ -19,6 +19,7 @@ from casadrone.build.solve import (
     race_dominant,
     solve_combination,
 )
+from casadrone.limit.result import LapSeeds
 
 ROOT = Path(__file__).resolve().parents[2]
 SHORT = [f"track={ROOT / 'tests/data/codesign/short-track.yaml'}", "limit_lap.intervals=16",
@@ -47,18 +48,28 @@ def test_the_dominant_frames_race_is_the_codesigned_race(short):
         assert full.theta[key] == pytest.approx(theta[key], abs=0.01)
     assert fast.race_s == pytest.approx(full.race_s, rel=1e-3)
     assert fast.mass_kg == pytest.approx(full.mass_kg, rel=1e-9)
+    # the race's gradient at the corner (envelope theorem) points out of the box, as forward
+    # differences of the race re-solved 2 mm in say (a second method): the corner is
+    # first-order optimal and the build takes its race without a co-design
+    assert stationary(fast.theta, fast.race_gradient, keys, lower, upper)
+    for key in keys:
+        inner = race_dominant(short, combo, None, {**theta, key: theta[key] + 2.0},
+                              seeds=LapSeeds(warm_starts=(fast.race_lap,)))
+        assert fast.race_gradient[key] > 0
+        assert (inner.race_s - fast.race_s) / 2.0 > 0, key
 
 
-def test_a_build_ranks_codesigned_frames_only(short):
-    """Two packs, rank 1: the other combination is raced at its dominant frame alone, the
-    winner is co-designed from its dominant frame (its co-design point kept for the
-    certificate) and every CPU second is counted once."""
+def test_a_certified_build_ranks_codesigned_frames_only(short):
+    """Two packs, rank 1, certificates asked for: the other combination is raced at its
+    dominant frame alone, the winner is co-designed from its dominant frame (its co-design
+    point kept for the certificate) and every CPU second is counted once."""
     problem = load_build_problem("build-small", [
         *SHORT, *ONE, "build.packs=[cnhl-ministar-650mah-4s, cnhl-black-v2-1300mah-4s]",
-        "build.rank=1"])
+        "build.rank=1", "build.certify=true"])
     done = build(problem)
     (winner,) = done.ranking
     assert winner.geometry_by == "co-design" and winner.point is not None
+    assert winner.certificate is not None
     assert winner.combination.pack.name == "cnhl-black-v2-1300mah-4s"
     others = [r for r in done.results if r.label != winner.label]
     assert [r.geometry_by for r in others] == ["dominance"]

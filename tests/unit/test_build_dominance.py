@@ -127,10 +127,11 @@ def test_a_dominant_race_that_finds_no_lap_is_co_designed(small, monkeypatch):
 
 
 def test_confirmation_codesigns_the_ranking_until_it_holds_no_dominant_race(small, monkeypatch):
-    """rank 2 over dominant races of 4.0, 4.1 and 4.2 s: the first two are co-designed; the
-    second's co-design comes out at 4.3 s (slower than its dominant race: the argument failed
-    there), which lets the 4.2 s one into the ranking, and it is co-designed in turn (4.15 s).
-    The ranking ends 4.0, 4.15, all co-designed, each CPU the two solves' together."""
+    """rank 2 over dominant races of 4.0, 4.1 and 4.2 s whose gradient is unknown (not
+    stationary): the first two are co-designed; the second's co-design comes out at 4.3 s
+    (slower than its dominant race: the argument failed there), which lets the 4.2 s one into
+    the ranking, and it is co-designed in turn (4.15 s). The ranking ends 4.0, 4.15, all
+    co-designed, each CPU the two solves' together."""
     from casadrone.build import search
     from casadrone.build.pool import Pool
     from casadrone.build.solve import BuildResult
@@ -155,3 +156,47 @@ def test_confirmation_codesigns_the_ranking_until_it_holds_no_dominant_race(smal
     ranked = search.ranking(out, 2)
     assert [(r.label, r.race_s) for r in ranked] == [(kept[0].label, 4.0), (kept[2].label, 4.15)]
     assert all(r.geometry_by == "co-design" and r.cpu_s == 11.0 for r in out)
+
+
+def test_a_corner_is_stationary_when_no_key_can_move_in_and_gain():
+    """s per mm over a 50 mm box: at the lower corner, slopes ≥ 0 are optimal; a slope of
+    -1e-4 s/mm (-5 ms over the box) against a largest of 1e-3 s/mm is not (beyond 2 % of it);
+    -1e-6 s/mm is (below the tolerance); inside the box a slope must be zero; a key without
+    a gradient is never stationary."""
+    from casadrone.build.dominance import stationary
+
+    keys, lower, upper = ("a", "b"), np.array([100.0, 100.0]), np.array([150.0, 150.0])
+    corner = {"a": 100.0, "b": 100.0}
+    assert stationary(corner, {"a": 1e-3, "b": 2e-4}, keys, lower, upper)
+    assert not stationary(corner, {"a": 1e-3, "b": -1e-4}, keys, lower, upper)
+    assert stationary(corner, {"a": 1e-3, "b": -1e-6}, keys, lower, upper)
+    assert not stationary({"a": 100.0, "b": 120.0}, {"a": 1e-3, "b": 1e-4}, keys, lower, upper)
+    assert stationary({"a": 100.0, "b": 150.0}, {"a": 1e-3, "b": -1e-4}, keys, lower, upper)
+    assert not stationary(corner, {"a": 1e-3}, keys, lower, upper)
+
+
+def test_a_stationary_dominant_race_is_kept_unless_a_certificate_is_asked(small, monkeypatch):
+    """The ranked dominant race whose gradient points out of the box is kept as it is (no
+    co-design) in an uncertified build; with build.certify its co-design is made, for the
+    certificate's co-design point."""
+    from casadrone.build import search
+    from casadrone.build.pool import Pool
+    from casadrone.build.solve import BuildResult
+    from casadrone.config.problem import BackendConfig
+
+    problem, kept = small
+    race = BuildResult(kept[0], "raced", race_s=4.0, feasible=True, geometry_by="dominance",
+                       theta={"lambda_a_mm": 100.0, "lambda_b_mm": 100.0},
+                       race_gradient={"lambda_a_mm": 1e-4, "lambda_b_mm": 3e-4})
+    asked = []
+
+    def codesign(problem, combo, laps, bound_s, seeds, start):
+        asked.append(combo.label)
+        return BuildResult(combo, "raced", race_s=4.0, feasible=True)
+    monkeypatch.setattr(search, "solve_combination", codesign)
+    for certify, calls in ((False, []), (True, [kept[0].label])):
+        asked.clear()
+        prob = problem.model_copy(update={"build": problem.build.model_copy(
+            update={"rank": 1, "certify": certify})})
+        search.confirmed(prob, [race], None, Pool(BackendConfig()))
+        assert asked == calls, certify

@@ -218,7 +218,12 @@ def main() -> None:
         dk = got["dask"]
         lines.append(f"| build, 2 Dask workers | {dk['cpu_s']:.1f} | {dk['wall_s']:.1f} | "
                      f"{codesigned(dk)} | {dominant(dk)} |")
-    lines += ["", f"Same winner and ranking as brute force (race times within 0.1 %): {same}.",
+    order = [r["label"] for r in want] == [r["label"] for r in ranked(bb, args.rank)]
+    gaps = ", ".join(f"{100 * (b['race_s'] - w['race_s']) / w['race_s']:+.3f} %"
+                     for w, b in zip(want, ranked(bb, args.rank), strict=False))
+    lines += ["", f"Same winner and ranking as brute force (race times within 0.1 %): {same}. "
+              f"The same combinations in the same order: {order}; the build's ranked races "
+              f"against brute force's: {gaps}.",
               f"The {len(dom)} combinations raced at their box's dominant frame without a "
               f"co-design race within {100 * dom_gap:.3f} % of their co-designed race alone."]
     if "dask" in got:
@@ -249,7 +254,8 @@ def main() -> None:
               "(at most 1 where the bound holds).", "", "## Machine", "",
               "\n".join(f"- {k}: {v}" for k, v in describe().items())]
     fig = (f"{bb['cpu_s']:.0f} s CPU against {brute['cpu_s']:.0f} s "
-           f"({bb['cpu_s'] / brute['cpu_s']:.2f}x); same ranking: {same}; dominant-frame "
+           f"({bb['cpu_s'] / brute['cpu_s']:.2f}x); same order: {order}, races within 0.1 %: "
+           f"{same} ({gaps}); dominant-frame "
            f"races within {100 * dom_gap:.3f} % of their co-design")
     if "dask" in got:
         fig += f"; 2 Dask workers rank as serial: {dsame}"

@@ -8,6 +8,7 @@ optimum (within CERTAIN_REL), or the result says it is not sure."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import pytest
@@ -36,17 +37,28 @@ def laps():
     return frame, track, plain, rounds
 
 
-def test_a_round_leaves_the_start_for_a_faster_verified_lap(laps):
+def test_a_round_leaves_the_start_only_for_a_faster_verified_lap(laps):
+    """The round's lap is solved and reported beside the start's, and chosen only where it is
+    verified and faster. Which optimum each path reaches is the machine's: on the AMD EPYC VMs
+    the start stops at 3.8914 s and the round's lap, 3.8805 s, is chosen (faster by far more
+    than the solver's tolerance moves a lap, ~1e-6); on an Intel Xeon VM the start stops at
+    3.9560 s and the round's lap, 3.9689 s and not verified, is not."""
     _, _, plain, rounds = laps
     assert plain.completed and rounds.completed, (plain.reason, rounds.reason)
     assert plain.start == "point-mass"
-    assert rounds.start.startswith("grid-") and "-round-1" in rounds.start
-    # another optimum: faster by far more than the solver's tolerance moves a lap (~1e-6;
-    # observed 0.4 % with whole-step derivative blocks, 0.075 % with the chained ones)
-    assert rounds.lap_time_s < (1 - 1e-4) * plain.lap_time_s
-    assert rounds.resimulation_miss_m <= OPTIONS.max_miss_m
     by_name = {s.start: s for s in rounds.starts}
     assert by_name["point-mass"].lap_time_s == pytest.approx(plain.lap_time_s, rel=1e-9)
+    round_laps = [s for s in rounds.starts if s.start.startswith("grid-")
+                  and "-round-1" in s.start]
+    assert round_laps and math.isfinite(round_laps[0].lap_time_s)
+    assert rounds.resimulation_miss_m <= OPTIONS.max_miss_m
+    if rounds.start == "point-mass":  # the round found no faster verified lap
+        assert rounds.lap_time_s == plain.lap_time_s
+        assert all(s.lap_time_s >= plain.lap_time_s or not s.resimulation_miss_m
+                   <= OPTIONS.max_miss_m for s in round_laps)
+    else:
+        assert rounds.start in {s.start for s in round_laps}
+        assert rounds.lap_time_s < (1 - 1e-4) * plain.lap_time_s
 
 
 def test_the_chosen_lap_is_an_optimum_of_its_own_grid(laps):

@@ -114,18 +114,21 @@ def combination_airframe(template: AirframeConfig, combo: Combination,
     return AirframeConfig.model_validate(data)
 
 
-def box_corners(keys: tuple[str, ...], lower: np.ndarray, upper: np.ndarray
-                ) -> list[dict[str, float]]:
-    """The corners of the geometry box, as θ."""
-    return [dict(zip(keys, (float(c) for c in corner), strict=True))
-            for corner in itertools.product(*zip(lower, upper, strict=True))]
+def box_grid(keys: tuple[str, ...], lower: np.ndarray, upper: np.ndarray, n: int = 2
+             ) -> list[dict[str, float]]:
+    """θ on an ``n``-point grid per key of the geometry box, its bounds included (``n`` = 2:
+    the box's corners)."""
+    axes = [np.linspace(lo, hi, n) for lo, hi in zip(lower, upper, strict=True)]
+    return [dict(zip(keys, (float(v) for v in point), strict=True))
+            for point in itertools.product(*axes)]
 
 
 def valid_frames(cfg: AirframeConfig, keys: tuple[str, ...], lower: np.ndarray,
-                 upper: np.ndarray) -> list[AirframeConfig]:
-    """``cfg`` at each corner of the box where it is a valid airframe (no propeller overlap)."""
+                 upper: np.ndarray, n: int = 2) -> list[AirframeConfig]:
+    """``cfg`` at each point of the box's :func:`box_grid` (its corners by default) where it is
+    a valid airframe (no propeller overlap)."""
     out = []
-    for theta in box_corners(keys, lower, upper):
+    for theta in box_grid(keys, lower, upper, n):
         try:
             out.append(with_theta(cfg, theta))
         except ConfigError:

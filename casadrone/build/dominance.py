@@ -51,26 +51,17 @@ bounds for the arm lengths.
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 
-from casadrone.airframe import Airframe, build_airframe, with_theta
+from casadrone.airframe import Airframe, build_airframe
+from casadrone.build.combos import valid_frames
+from casadrone.codesign.certificate import AT_BOUND, GRAD_ATOL, GRAD_RTOL
 from casadrone.config.airframe import AirframeConfig
-from casadrone.config.io import ConfigError
 
 #: Points per key of the grid the box is checked on (its bounds included).
 GRID = 5
 #: Relative slack of every comparison (rounding of the mass model's sums).
 TOL = 1e-9
-
-
-def grid(keys: tuple[str, ...], lower: np.ndarray, upper: np.ndarray,
-         n: int = GRID) -> list[dict[str, float]]:
-    """θ on an ``n``-point grid per key of the box (its corners among them)."""
-    axes = [np.linspace(lo, hi, n) for lo, hi in zip(lower, upper, strict=True)]
-    return [dict(zip(keys, (float(v) for v in point), strict=True))
-            for point in itertools.product(*axes)]
 
 
 def authority(frame: Airframe) -> np.ndarray:
@@ -95,12 +86,8 @@ def dominant_theta(cfg: AirframeConfig, keys: tuple[str, ...], lower: np.ndarray
                    upper: np.ndarray, n: int = GRID) -> dict[str, float] | None:
     """The θ of the frame of ``cfg``'s box that dominates every valid frame of the box's grid
     (module docstring), the least massive first where several do; None where none does."""
-    frames: list[tuple[dict[str, float], Airframe]] = []
-    for theta in grid(keys, lower, upper, n):
-        try:
-            frames.append((theta, build_airframe(with_theta(cfg, theta))))
-        except ConfigError:  # the propellers overlap there: no frame to fly
-            continue
+    frames = [({k: float(getattr(f, k)) for k in keys}, build_airframe(f))
+              for f in valid_frames(cfg, keys, lower, upper, n)]
     for theta, d in sorted(frames, key=lambda tf: tf[1].mass):
         if all(dominates(d, f) for _, f in frames):
             return theta
@@ -115,8 +102,6 @@ def stationary(theta: dict[str, float], gradient: dict[str, float], keys: tuple[
     over the box's width and counted as zero below the co-design certificate's tolerances
     (:data:`casadrone.codesign.certificate.GRAD_RTOL` of the largest, or ``GRAD_ATOL``). False
     where a key has no gradient."""
-    from casadrone.codesign.certificate import AT_BOUND, GRAD_ATOL, GRAD_RTOL
-
     if any(k not in gradient or not np.isfinite(gradient[k]) for k in keys):
         return False
     width = np.asarray(upper, float) - np.asarray(lower, float)

@@ -88,17 +88,19 @@ def test_a_frame_dominates_itself_and_no_heavier_copy_dominates_it():
 
 def test_a_dominant_race_that_finds_no_lap_is_co_designed(small, monkeypatch):
     """evaluate: a box with a dominant frame is raced there; where that race finds no lap, or
-    breaks a limit, the combination is co-designed, its CPU the two solves' together; a box
-    without one is co-designed at once."""
+    breaks a limit, the combination is co-designed, its CPU the two solves' together; a race
+    seeded from a neighbour that breaks a limit is first raced again alone, and kept where that
+    one flies; a box without a dominant frame is co-designed at once."""
     import math
 
     from casadrone.build import search
     from casadrone.build.solve import BuildResult
+    from casadrone.limit.result import LapSeeds
 
     problem, kept = small
     calls = []
 
-    def dominant(problem, combo, laps, theta, bound_s, seeds, lap=math.nan, ok=False):
+    def dominant(problem, combo, laps, theta, bound_s, seeds=None, lap=math.nan, ok=False):
         calls.append(("dominant", theta))
         return BuildResult(combo, "raced", race_s=lap, cpu_s=2.0, geometry_by="dominance",
                            feasible=ok)
@@ -120,6 +122,19 @@ def test_a_dominant_race_that_finds_no_lap_is_co_designed(small, monkeypatch):
     monkeypatch.setattr(search, "race_dominant", lambda *a: dominant(*a, lap=4.0, ok=True))
     got = search.evaluate(problem, kept[0], None)
     assert [c[0] for c in calls] == ["dominant"] and got.race_s == 4.0
+    calls.clear()  # seeded from a neighbour and over a limit: raced again alone, which flies
+    seeded = LapSeeds(warm_starts=("neighbour's race",))
+
+    def by_seed(problem, combo, laps, theta, bound_s, seeds=None):
+        calls.append(("dominant", seeds))
+        ok = seeds is None or not seeds.warm_starts
+        return BuildResult(combo, "raced", race_s=4.0 if ok else 3.9, cpu_s=2.0,
+                           geometry_by="dominance", feasible=ok)
+    monkeypatch.setattr(search, "race_dominant", by_seed)
+    got = search.evaluate(problem, kept[0], None, seeds=seeded)
+    assert [c[0] for c in calls] == ["dominant", "dominant"] and calls[0][1] is seeded
+    assert not (calls[1][1] or LapSeeds()).warm_starts
+    assert got.race_s == 4.0 and got.feasible and got.cpu_s == 4.0
     calls.clear()
     monkeypatch.setattr(search, "dominant_theta", lambda *a: None)
     got = search.evaluate(problem, kept[0], None)
@@ -200,3 +215,22 @@ def test_a_stationary_dominant_race_is_kept_unless_a_certificate_is_asked(small,
             update={"rank": 1, "certify": certify})})
         search.confirmed(prob, [race], None, Pool(BackendConfig()))
         assert asked == calls, certify
+
+
+def test_a_resumed_folder_gives_each_combination_its_latest_result(small, tmp_path):
+    """A ranked combination is recorded twice (its dominant race, then its co-design): the
+    folder reads back one result per combination, the latest, in the order first known."""
+    from casadrone.build import resume
+    from casadrone.build.solve import BuildResult
+
+    problem, kept = small
+    resume.begin(tmp_path, problem, None)
+    first = BuildResult(kept[0], "raced", race_s=4.0, geometry_by="dominance")
+    for r in (first, BuildResult(kept[1], "pruned", bound_s=5.0),
+              BuildResult(kept[0], "raced", race_s=3.9)):
+        resume.keep(tmp_path, r)
+    held = resume.held(tmp_path)
+    assert [(r.label, r.outcome, r.geometry_by) for r in held] == [
+        (kept[0].label, "raced", "co-design"), (kept[1].label, "pruned", "co-design")]
+    assert held[0].race_s == 3.9 and held[1].bound_s == 5.0
+    assert len(list((tmp_path / resume.STATE).glob("*.pkl"))) == 3

@@ -55,7 +55,6 @@ import numpy as np
 
 from casadrone.airframe import Airframe, build_airframe
 from casadrone.build.combos import valid_frames
-from casadrone.codesign.certificate import AT_BOUND, GRAD_ATOL, GRAD_RTOL
 from casadrone.config.airframe import AirframeConfig
 
 #: Points per key of the grid the box is checked on (its bounds included).
@@ -102,6 +101,8 @@ def stationary(theta: dict[str, float], gradient: dict[str, float], keys: tuple[
     over the box's width and counted as zero below the co-design certificate's tolerances
     (:data:`casadrone.codesign.certificate.GRAD_RTOL` of the largest, or ``GRAD_ATOL``). False
     where a key has no gradient."""
+    from casadrone.codesign.certificate import AT_BOUND, GRAD_ATOL, GRAD_RTOL  # casadi: lazy
+
     if any(k not in gradient or not np.isfinite(gradient[k]) for k in keys):
         return False
     width = np.asarray(upper, float) - np.asarray(lower, float)

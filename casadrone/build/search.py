@@ -14,8 +14,9 @@ best-first, side by side, with the others pruned by their bound (branch and boun
    geometry: continuation across the catalogue, neighbours differ by one part; alone, a
    combination starts from the template's geometry and the problem's lap starts).
 4. :func:`confirmed`: each ranked combination raced at its dominant frame is checked by its
-   race's gradient (first-order optimal over the box) and co-designed from that frame where
-   the check fails or a certificate is asked for;
+   race's gradient (first-order optimal over the box), moved by that gradient where the check
+   fails (:mod:`casadrone.build.descent`: a few warm-started races), and co-designed from its
+   frame where that does not settle or a certificate is asked for;
 5. :func:`ranking`: the feasible races, fastest first, the first ``rank`` of them exact.
 
 With more workers than one, a combination may be raced that one worker would have pruned
@@ -39,6 +40,7 @@ from casadrone.build.combos import (
     refusal,
     valid_frames,
 )
+from casadrone.build.descent import descend
 from casadrone.build.dominance import dominant_theta, stationary
 from casadrone.build.pool import Pool
 from casadrone.build.solve import (
@@ -243,14 +245,11 @@ def evaluate(problem: BuildProblemConfig, combo: Combination, laps: int | None,
 def confirmed(problem: BuildProblemConfig, results: list[BuildResult], laps: int | None,
               pool: Pool, record: Callable[[BuildResult], None] = lambda r: None
               ) -> list[BuildResult]:
-    """``results`` with each ranked combination raced at its box's dominant frame checked,
-    and co-designed from that frame (:func:`solve_combination`, its race as the first lap's
-    seed) where the check fails or ``build.certify`` asks for its certificate (made of a
-    co-design point). The check: the race's own dT/dθ at the frame meets the co-design's
-    first-order optimality over the box (:func:`casadrone.build.dominance.stationary`: no key
-    moves into the box and shortens the race), a second argument beside the dominance's,
-    made of the lap's multipliers (no solve). A co-design slower than its dominant race may
-    let another combination in, which is checked in turn."""
+    """``results`` with each ranked combination raced at its box's dominant frame checked by
+    its race's gradient, on the pool (:func:`confirm`): kept where it is first-order optimal
+    over the box, else moved there by the race's gradient, and co-designed where that does not
+    settle or ``build.certify`` asks for a certificate (made of a co-design point). A co-design
+    slower than its dominant race may let another combination in, which is checked in turn."""
     keys, lower, upper = geometry_box(problem)
 
     def settled(r: BuildResult) -> bool:
@@ -263,19 +262,46 @@ def confirmed(problem: BuildProblemConfig, results: list[BuildResult], laps: int
         if not todo:
             return out
         tried |= {r.label for r in todo}
-        running = {pool.submit(solve_combination, problem, r.combination, laps, r.bound_s,
-                               LapSeeds(warm_starts=(r.race_lap,)), r.theta): r for r in todo}
+        running = {pool.submit(confirm, problem, r, laps): r for r in todo}
         while running:
             for fut in pool.first_done(list(running)):
                 was = running.pop(fut)
-                got = fut.result()
-                new = replace(got, cpu_s=got.cpu_s + was.cpu_s) \
-                    if got.outcome == "raced" and math.isfinite(got.race_s) else \
-                    replace(was, cpu_s=got.cpu_s + was.cpu_s, reason=(
-                        f"its co-design from the dominant frame failed ({got.reason}): the "
-                        "dominant frame's race is kept"))
+                new = fut.result()
                 out[next(i for i, r in enumerate(out) if r is was)] = new
                 record(new)
+
+
+def confirm(problem: BuildProblemConfig, r: BuildResult, laps: int | None) -> BuildResult:
+    """A ranked dominant race ``r`` confirmed (:func:`confirmed`); its CPU and every solve's
+    of the confirmation together.
+
+    1. The check: the race's own dT/dθ at the frame meets the co-design's first-order
+       optimality over the box (:func:`casadrone.build.dominance.stationary`: no key moves
+       into the box and shortens the race), a second argument beside the dominance's, made of
+       the lap's multipliers (no solve);
+    2. where it fails, a descent from the frame by that gradient, one warm-started race per
+       step (:func:`casadrone.build.descent.descend`), a few races where a co-design is one
+       large NLP and a race;
+    3. a co-design from the best frame (:func:`solve_combination`, its race as the first lap's
+       seed) where the descent does not settle or a certificate is asked for."""
+    keys, lower, upper = geometry_box(problem)
+    best = r
+    if not problem.build.certify:
+        def race_at(theta: dict[str, float], near: BuildResult) -> BuildResult:
+            return race_dominant(problem, r.combination, laps, theta, r.bound_s,
+                                 LapSeeds(warm_starts=(near.race_lap,)))
+
+        def flat(b: BuildResult) -> bool:
+            return stationary(b.theta, b.race_gradient, keys, lower, upper)
+        best, done = descend(r, keys, lower, upper, race_at, flat)
+        if done:
+            return best
+    got = solve_combination(problem, r.combination, laps, r.bound_s,
+                            LapSeeds(warm_starts=(best.race_lap,)), best.theta)
+    if got.outcome == "raced" and math.isfinite(got.race_s):
+        return replace(got, cpu_s=got.cpu_s + best.cpu_s)
+    return replace(best, cpu_s=got.cpu_s + best.cpu_s, reason=(
+        f"its co-design from the frame failed ({got.reason}): the frame's race is kept"))
 
 
 def neighbour(combo: Combination, done: list[BuildResult]) -> BuildResult | None:

@@ -60,9 +60,10 @@ class BuildResult(AsDict):
     energy_left_wh: float = math.nan
     end_soc: float = math.nan
     cpu_s: float = 0.0
-    #: how the frame's geometry was found: co-designed, or the box's dominant frame raced
-    #: without a co-design (:mod:`casadrone.build.dominance`)
-    geometry_by: Literal["co-design", "dominance"] = "co-design"
+    #: how the frame's geometry was found: co-designed, the box's dominant frame raced without
+    #: a co-design (:mod:`casadrone.build.dominance`), or that frame moved by its race's
+    #: gradient (:mod:`casadrone.build.descent`)
+    geometry_by: Literal["co-design", "dominance", "descent"] = "co-design"
     #: dT/dθ of a dominant frame's race (s per unit of each geometry key, by the envelope
     #: theorem: casadrone.limit.check.theta_sensitivities); empty for a co-designed frame
     race_gradient: dict[str, float] = field(default_factory=dict)

@@ -157,6 +157,11 @@ def _cell(v: object) -> str:
     return "" if v is None else str(v)
 
 
+#: How a build's frame geometry was found (BuildResult.geometry_by), in words.
+GEOMETRY_BY = {"co-design": "co-designed", "dominance": "the box's dominant frame",
+               "descent": "the box's dominant frame moved by its race's gradient"}
+
+
 def text(result: Build) -> str:
     """The build as lines: the ranking with its figures, then every other combination."""
     counts = ", ".join(f"{n} {k}" for k, n in sorted(result.counts.items()))
@@ -172,8 +177,9 @@ def text(result: Build) -> str:
                                                " certificate FAILED")
         lines += [f"  {i}. {r.label}: race {r.race_s:.4f} s (lap {r.lap_s:.4f} s, bound "
                   f"{r.bound_s:.4f} s){cert}",
-                  f"     frame {th}; mass {r.mass_kg:.4f} kg, thrust/weight "
-                  f"{r.thrust_to_weight:.2f}, hover throttle {r.hover_throttle:.3f}",
+                  f"     frame {th} ({GEOMETRY_BY[r.geometry_by]}); mass {r.mass_kg:.4f} kg, "
+                  f"thrust/weight {r.thrust_to_weight:.2f}, hover throttle "
+                  f"{r.hover_throttle:.3f}",
                   f"     peak currents: pack {r.peak_pack_current_a:.1f} A (margin "
                   f"{r.pack_current_margin_a:.1f} A), motor {r.peak_motor_current_a:.1f} A "
                   f"(margin {r.motor_current_margin_a:.1f} A); energy used "
@@ -187,8 +193,8 @@ def text(result: Build) -> str:
         if r.label in ranked:
             continue
         fig = f" race {r.race_s:.4f} s" if math.isfinite(r.race_s) else ""
-        if r.outcome == "raced" and r.geometry_by == "dominance":
-            fig += " (the box's dominant frame)"
+        if r.outcome == "raced" and r.geometry_by != "co-design":
+            fig += f" ({GEOMETRY_BY[r.geometry_by]})"
         why = f": {r.reason}" if r.reason else ""
         lines.append(f"    {r.outcome:<8} {r.label}{fig}{why}")
     return "\n".join(lines)

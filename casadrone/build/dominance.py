@@ -40,8 +40,8 @@ combination of rotor thrusts in [0, T_max] of F, mapped to D's, needs no thrust 
 yaw there with D's smaller I_zz needs a rotor at -2.6 % of its full thrust (at the long-arm
 corner), a state no lap flies. And IPOPT returns local optima. That is why the build checks each
 ranked dominant race a second way (:func:`stationary`: its own gradient dT/dθ meets the
-co-design's first-order optimality over the box) and co-designs it from its frame where that
-fails (:func:`casadrone.build.search.confirmed`), and why the benchmark compares every dominant
+co-design's first-order optimality over the box) and moves it by that gradient where that
+fails (:mod:`casadrone.build.descent`, :func:`casadrone.build.search.confirmed`), and why the benchmark compares every dominant
 race with the same combination co-designed alone (benchmarks/bench_build.py).
 
 The box is checked on a grid (:data:`GRID` points per key, its bounds among them): mass and

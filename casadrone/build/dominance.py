@@ -41,8 +41,9 @@ yaw there with D's smaller I_zz needs a rotor at -2.6 % of its full thrust (at t
 corner), a state no lap flies. And IPOPT returns local optima. That is why the build checks each
 ranked dominant race a second way (:func:`stationary`: its own gradient dT/dθ meets the
 co-design's first-order optimality over the box) and moves it by that gradient where that
-fails (:mod:`casadrone.build.descent`, :func:`casadrone.build.search.confirmed`), and why the benchmark compares every dominant
-race with the same combination co-designed alone (benchmarks/bench_build.py).
+fails (:mod:`casadrone.build.descent`, :func:`casadrone.build.search.confirmed`), and why the
+benchmark compares every dominant race with the same combination co-designed alone
+(benchmarks/bench_build.py).
 
 The box is checked on a grid (:data:`GRID` points per key, its bounds among them): mass and
 inertia are polynomials of the geometry, smooth over the box, and its extremes are at the

@@ -206,7 +206,8 @@ def branch_and_bound(problem: BuildProblemConfig, order: list[tuple[float, Combi
         near = neighbour(combo, done)
         seeds = LapSeeds() if near is None else LapSeeds(warm_starts=(near.race_lap,))
         running[pool.submit(evaluate, problem, combo, laps, bound, seeds,
-                            None if near is None else near.theta)] = bound
+                            None if near is None else near.theta,
+                            None if near is None else near.end_soc)] = bound
     while running:
         _collect(pool, running, done, record)
     return done
@@ -214,7 +215,7 @@ def branch_and_bound(problem: BuildProblemConfig, order: list[tuple[float, Combi
 
 def evaluate(problem: BuildProblemConfig, combo: Combination, laps: int | None,
              bound_s: float = math.nan, seeds: LapSeeds = LapSeeds(),
-             start: dict[str, float] | None = None) -> BuildResult:
+             start: dict[str, float] | None = None, soc: float | None = None) -> BuildResult:
     """One combination of the branch and bound: its box's dominant frame raced
     (:func:`race_dominant`) where the box has one (:mod:`casadrone.build.dominance`), else its
     frame co-designed and raced (:func:`solve_combination`, from ``start`` and ``seeds``). Where
@@ -223,7 +224,9 @@ def evaluate(problem: BuildProblemConfig, combo: Combination, laps: int | None,
     re-simulation breaks a current limit by a tenth of an ampere: build-small's DA4052 +
     1750 KV + 6S from DA4022's), then co-designed (the co-design reaches the frame from the
     template's, whose lap its starts may find where the frame's own do not); the co-design's
-    result is kept unless it finds no lap and the dominant race did."""
+    result is kept unless it finds no lap and the dominant race did. ``soc``: the neighbour's
+    end state of charge, where the dominant race's first pass flies (one pass where this race
+    ends near it)."""
     keys, lower, upper = geometry_box(problem)
     try:
         theta = dominant_theta(combination_start(problem, combo), keys, lower, upper)
@@ -231,7 +234,7 @@ def evaluate(problem: BuildProblemConfig, combo: Combination, laps: int | None,
         theta = None  # the combination's own solve says why
     if theta is None:
         return solve_combination(problem, combo, laps, bound_s, seeds, start)
-    fast = race_dominant(problem, combo, laps, theta, bound_s, seeds)
+    fast = race_dominant(problem, combo, laps, theta, bound_s, seeds, soc)
     if not fast.feasible and seeds.warm_starts:  # the neighbour's race may mislead: alone
         again = race_dominant(problem, combo, laps, theta, bound_s)
         fast = replace(again, cpu_s=again.cpu_s + fast.cpu_s)
@@ -289,7 +292,7 @@ def confirm(problem: BuildProblemConfig, r: BuildResult, laps: int | None) -> Bu
     if not problem.build.certify:
         def race_at(theta: dict[str, float], near: BuildResult) -> BuildResult:
             return race_dominant(problem, r.combination, laps, theta, r.bound_s,
-                                 LapSeeds(warm_starts=(near.race_lap,)))
+                                 LapSeeds(warm_starts=(near.race_lap,)), near.end_soc)
 
         def flat(b: BuildResult) -> bool:
             return stationary(b.theta, b.race_gradient, keys, lower, upper)

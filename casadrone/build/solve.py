@@ -175,17 +175,19 @@ def solve_combination(problem: BuildProblemConfig, combo: Combination, laps: int
 
 def race_dominant(problem: BuildProblemConfig, combo: Combination, laps: int | None,
                   theta: dict[str, float], bound_s: float = math.nan,
-                  seeds: LapSeeds = LapSeeds()) -> BuildResult:
+                  seeds: LapSeeds = LapSeeds(), soc: float | None = None) -> BuildResult:
     """Race ``combo`` at ``theta``, the dominant frame of its box
     (:func:`casadrone.build.dominance.dominant_theta`), without a co-design: its race is the
     co-design's answer where the dominance holds. ``seeds``: a neighbouring race to start from
     (the problem's starts where it gives no verified lap). The lap (``lap_s``) is the race's
-    first pass, at the full pack's voltage: the co-design's lap of that frame."""
+    first pass, at the full pack's voltage: the co-design's lap of that frame (at ``soc``'s
+    voltage where given: the neighbour's end state of charge, :func:`casadrone.limit.race.
+    race`'s first pass)."""
     c0 = time.process_time()
     base = BuildResult(combo, "failed", bound_s=bound_s, geometry_by="dominance")
     try:
         cfg = combination_start(problem, combo)
-        out = raced(problem, cfg, theta, laps, seeds, base, gradient=True)
+        out = raced(problem, cfg, theta, laps, seeds, base, gradient=True, soc=soc)
     except ConfigError as exc:
         return replace(base, reason=exc.lines[0], cpu_s=time.process_time() - c0)
     return replace(out, cpu_s=time.process_time() - c0)
@@ -193,14 +195,15 @@ def race_dominant(problem: BuildProblemConfig, combo: Combination, laps: int | N
 
 def raced(problem: BuildProblemConfig, cfg: AirframeConfig, theta: dict[str, float],
           laps: int | None, seeds: LapSeeds, base: BuildResult,
-          gradient: bool = False) -> BuildResult:
+          gradient: bool = False, soc: float | None = None) -> BuildResult:
     """``base`` with the race of ``cfg`` at ``theta`` over the build's laps (its ``lap_s``,
     where NaN, the race's first pass), the frame's hover and the pack's account; with
-    ``gradient``, the race's dT/dθ over the box's keys (``race_gradient``)."""
+    ``gradient``, the race's dT/dθ over the box's keys (``race_gradient``); ``soc``: the state
+    of charge the race's first pass flies (None: the full pack)."""
     frame = with_theta(cfg, theta)
     track = race_track(problem, laps)
     run = race(frame, track, replace(lap_options(problem, cfg), sensitivities=gradient),
-               seeds=seeds)
+               seeds=seeds, soc=soc)
     keys = geometry_box(problem)[0]
     hover = hover_of(frame)
     lap_s = base.lap_s if math.isfinite(base.lap_s) or not run.passes else \

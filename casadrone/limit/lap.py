@@ -409,12 +409,37 @@ def param_sensitivity(pb: Problem, point: NlpPoint) -> np.ndarray:
     return out
 
 
+def start_sensitivity(pb: Problem, point: NlpPoint) -> np.ndarray:
+    """dT/dx_start (the model's states, s per SI unit) at a solution. The start state enters
+    the NLP twice: as a row on the parameter x_start, and as equal bounds on the first node
+    wherever the track fixes it (:func:`casadrone.limit.problem.bounds`: the bound helps
+    IPOPT). The two constraints coincide, and IPOPT may put the whole multiplier on either:
+    on the short test track from rest it puts it on the bounds, where the parameter multipliers
+    give 0 and dT/dθ missed the start's hover rotor speeds (the envelope gradient in λa was a
+    quarter of the forward difference of re-solved laps). So both: minus the parameter
+    multipliers, minus each fixed bound's multiplier times the bound's slope in x_start (the
+    NLP's units: 1 over the state's scale)."""
+    nlp, nx = pb.full, pb.full.model.nx
+    out = -point.lam_p[len(pb.frame.p):len(pb.frame.p) + nx].copy()
+    lo, hi = pb.box
+    lay = nlp.layout
+    coll = np.zeros((lay.n_intervals, lay.n_coll, nx)) if lay.n_coll else None
+    for k in range(nx):
+        X = np.zeros((lay.n_intervals + 1, nx))
+        X[0, k] = 1.0
+        e = nlp.pack(np.zeros(lay.n_legs), X, np.zeros((lay.n_intervals, nlp.model.nu)), coll)
+        fixed = (e != 0) & (lo == hi)
+        out[k] -= float(point.lam_x[fixed] @ e[fixed])
+    return out
+
+
 def theta_sensitivities_at(cfg: AirframeConfig, pb: Problem, point: NlpPoint
                            ) -> dict[str, float]:
     """dT/dθ (s per unit of each decision-variable key) at the optimum ``point``: dT/dp and
-    dT/dx0 chained through θ → p and θ → start state (the same build as the evaluation)."""
-    options, n_p = pb.options, len(pb.frame.p)
-    dT_dx0 = -point.lam_p[n_p:n_p + pb.full.model.nx]
+    dT/dx0 (:func:`start_sensitivity`) chained through θ → p and θ → start state (the same
+    build as the evaluation)."""
+    options = pb.options
+    dT_dx0 = start_sensitivity(pb, point)
     return theta_sensitivities(
         cfg, param_sensitivity(pb, point), dT_dx0,
         lambda f: model_states(options.attitude, start_state(f, pb.track, options))[0])

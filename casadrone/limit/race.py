@@ -93,18 +93,26 @@ def with_open_circuit_voltage(cfg: AirframeConfig, volts: float) -> AirframeConf
 
 def race(cfg: AirframeConfig, track: TrackConfig,
          options: LimitLapOptions = LimitLapOptions(), frame: Airframe | None = None,
-         pool: Pool | None = None, seeds: LapSeeds = LapSeeds()) -> Race:
+         pool: Pool | None = None, seeds: LapSeeds = LapSeeds(),
+         soc: float | None = None) -> Race:
     """The race of ``track.laps`` laps (module docstring); without a pack capacity, the limit
     lap alone (of ``frame``, where ``cfg`` is built already); each lap's independent solves on
     ``pool`` where given. With ``seeds`` (a neighbouring race), the first pass starts from them
     alone and each later one from the pass before alone (:func:`seeded_lap`); without, each
-    pass solves its starts, the later ones with the pass before beside them."""
+    pass solves its starts, the later ones with the pass before beside them. ``soc``: the
+    state of charge whose open-circuit voltage the first pass flies (a neighbouring race's
+    end, where it is known: one pass instead of two where the race ends within
+    :data:`SOC_TOL` of it, the same test as every later pass's); the pack's start where None
+    or where the pack has no OCV curve."""
     pack = pack_of(cfg.propulsion.battery)
     if pack is None:
         return Race(seeded_lap(cfg, track, options, seeds, frame, pool))
     passes: list[Pass] = []
-    soc, lap, account = pack.start_soc, None, None
-    volts = pack.open_circuit_voltage_v  # the first pass: the section's own
+    lap, account = None, None
+    guess = soc is not None and pack.ocv_curve is not None and math.isfinite(soc)
+    # the first pass: at the guess, else the section's own voltage
+    soc = min(max(soc, 0.0), pack.start_soc) if guess and soc is not None else pack.start_soc
+    volts = float(pack.ocv(soc)) if guess else pack.open_circuit_voltage_v
     for _ in range(MAX_PASSES):
         flown = with_open_circuit_voltage(cfg, volts)
         if lap is None:

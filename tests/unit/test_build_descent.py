@@ -135,13 +135,14 @@ def test_the_build_confirms_a_ranked_dominant_race_by_descent_not_co_design(comb
     _, race = bowl(101.3, 1e-3)
     lap = object()
 
-    def race_dominant(problem_, combo_, laps, theta, bound_s, seeds):
-        assert seeds.warm_starts and seeds.warm_starts[0] is not None
+    def race_dominant(problem_, combo_, laps, theta, bound_s, seeds, soc):
+        assert seeds.warm_starts and seeds.warm_starts[0] is lap
+        assert soc == 0.9  # the best race's end: the first pass flies its voltage
         return replace_lap(race(combo_, theta))
 
     def replace_lap(r):
         from dataclasses import replace
-        return replace(r, race_lap=lap)
+        return replace(r, race_lap=lap, end_soc=0.9)
 
     def codesign(*a, **k):
         raise AssertionError("co-designed")

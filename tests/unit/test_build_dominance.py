@@ -100,7 +100,8 @@ def test_a_dominant_race_that_finds_no_lap_is_co_designed(small, monkeypatch):
     problem, kept = small
     calls = []
 
-    def dominant(problem, combo, laps, theta, bound_s, seeds=None, lap=math.nan, ok=False):
+    def dominant(problem, combo, laps, theta, bound_s, seeds=None, soc=None, lap=math.nan,
+                 ok=False):
         calls.append(("dominant", theta))
         return BuildResult(combo, "raced", race_s=lap, cpu_s=2.0, geometry_by="dominance",
                            feasible=ok)
@@ -125,15 +126,16 @@ def test_a_dominant_race_that_finds_no_lap_is_co_designed(small, monkeypatch):
     calls.clear()  # seeded from a neighbour and over a limit: raced again alone, which flies
     seeded = LapSeeds(warm_starts=("neighbour's race",))
 
-    def by_seed(problem, combo, laps, theta, bound_s, seeds=None):
-        calls.append(("dominant", seeds))
+    def by_seed(problem, combo, laps, theta, bound_s, seeds=None, soc=None):
+        calls.append(("dominant", seeds, soc))
         ok = seeds is None or not seeds.warm_starts
         return BuildResult(combo, "raced", race_s=4.0 if ok else 3.9, cpu_s=2.0,
                            geometry_by="dominance", feasible=ok)
     monkeypatch.setattr(search, "race_dominant", by_seed)
-    got = search.evaluate(problem, kept[0], None, seeds=seeded)
+    got = search.evaluate(problem, kept[0], None, seeds=seeded, soc=0.9)
     assert [c[0] for c in calls] == ["dominant", "dominant"] and calls[0][1] is seeded
-    assert not (calls[1][1] or LapSeeds()).warm_starts
+    assert calls[0][2] == 0.9  # the neighbour's end state of charge, for the first race only
+    assert not (calls[1][1] or LapSeeds()).warm_starts and calls[1][2] is None
     assert got.race_s == 4.0 and got.feasible and got.cpu_s == 4.0
     calls.clear()
     monkeypatch.setattr(search, "dominant_theta", lambda *a: None)

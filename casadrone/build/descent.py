@@ -132,7 +132,10 @@ def descend(r: BuildResult, keys: tuple[str, ...], lower: np.ndarray, upper: np.
 def _done(r: BuildResult, best: BuildResult, cpu: float, races: int, settled: bool
           ) -> tuple[BuildResult, bool]:
     how = "descent" if best is not r else r.geometry_by
-    note = (f"descended from the dominant frame in {races} race{'s' * (races != 1)}, "
-            f"{(r.race_s - best.race_s) / r.race_s:.4%} faster") if races else ""
+    n = f"{races} race{'s' * (races != 1)}"
+    note = "" if not races else (
+        f"descended from the dominant frame in {n}, "
+        f"{(r.race_s - best.race_s) / r.race_s:.4%} faster" if best is not r else
+        f"no faster frame in {n} of descent: the dominant frame's race is kept")
     return replace(best, geometry_by=how, cpu_s=cpu,
                    reason="; ".join(s for s in (best.reason, note) if s)), settled

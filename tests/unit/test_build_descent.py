@@ -118,6 +118,7 @@ def test_a_slower_step_keeps_the_dominant_race(combo):
     assert len(seen) == descent.MAX_RACES and not settled
     assert best.theta == first.theta and best.race_s == first.race_s
     assert best.geometry_by == "dominance" and best.cpu_s == pytest.approx(30 + 20 * len(seen))
+    assert "no faster frame in 3 races" in best.reason
 
 
 def test_the_build_confirms_a_ranked_dominant_race_by_descent_not_co_design(combo,

@@ -123,6 +123,8 @@ def descend(r: BuildResult, keys: tuple[str, ...], lower: np.ndarray, upper: np.
                                              strict=True)}
         got = race_at(theta, best)
         cpu, races = cpu + got.cpu_s, races + 1
+        if not got.theta:  # the frame was refused before any solve: no step to learn from
+            return _done(r, best, cpu, races, False)
         accepted = got.feasible and got.race_s < best.race_s
         other = (x, g) if accepted else scaled(got, keys, lower, upper)
         best = got if accepted else best

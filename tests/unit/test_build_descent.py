@@ -154,3 +154,19 @@ def test_the_build_confirms_a_ranked_dominant_race_by_descent_not_co_design(comb
     assert out[0].geometry_by == "descent"
     assert out[0].theta[KEYS[0]] == pytest.approx(101.3)
     assert search.ranking(out, 1)[0].race_s == pytest.approx(T0)
+
+
+def test_a_frame_refused_before_any_solve_ends_the_descent_unsettled(combo):
+    """A step whose frame is refused (no θ in its result: an invalid airframe) teaches the
+    secant nothing: the descent stops there, the dominant race kept and the combination left
+    to the co-design."""
+    _, problem_combo = combo
+    _, race = bowl(101.3, 1e-3)
+
+    def refused(c, theta, cpu=20.0):
+        return BuildResult(c, "failed", reason="the frame is not valid", cpu_s=0.5)
+    first = race(problem_combo, {KEYS[0]: 100.0, KEYS[1]: 100.0}, cpu=30.0)
+    best, settled = descent.descend(
+        first, KEYS, LOWER, UPPER, lambda theta, near: refused(problem_combo, theta),
+        lambda r: stationary(r.theta, r.race_gradient, KEYS, LOWER, UPPER))
+    assert not settled and best.theta == first.theta and best.cpu_s == pytest.approx(30.5)

@@ -20,9 +20,13 @@ neighbour's lap costs ~20 s; two gradients along a step give the curvature; so:
    last one raced (their gradients' difference along their difference), at most
    :data:`GROW` times the last move; without a positive curvature the last move doubled
    (after a faster race) or halved (after a slower one); each frame clipped into the box;
-3. each step is a race of that frame warm-started from the best one's (the race's first
-   pass is the co-design's lap of the frame: :func:`casadrone.build.solve.race_dominant`);
-   the faster feasible race is kept;
+3. each step is a race of that frame warm-started from the best one's, its first pass flown
+   at the voltage of the best race's last pass (:func:`casadrone.build.solve.race_dominant`,
+   ``soc``): one pass where the step's race ends within the race's tolerance of that charge,
+   and two races that differ by θ alone (flown first at the best race's *end* charge, within
+   the same tolerance of it, build-small's winner's 0.5 mm step, 0.005 % faster at one
+   voltage, came out slower: the voltage moves a race as much as the step). The faster
+   feasible race is kept;
 4. it stops where the best frame is stationary, where the secant predicts less than
    :data:`GAIN_RTOL` of the race left to gain (|p|²/2h: a tenth of the build's ranking
    tolerance, below the ~0.05 % by which local optima of one race differ), or after

@@ -59,6 +59,10 @@ class BuildResult(AsDict):
     energy_used_wh: float = math.nan
     energy_left_wh: float = math.nan
     end_soc: float = math.nan
+    #: the state of charge whose open-circuit voltage the race's last pass flew (its end's
+    #: within casadrone.limit.race.SOC_TOL): a race of a nearby frame flown at the same
+    #: voltage is comparable with this one to the solver's tolerance
+    flown_soc: float = math.nan
     cpu_s: float = 0.0
     #: how the frame's geometry was found: co-designed, the box's dominant frame raced without
     #: a co-design (:mod:`casadrone.build.dominance`), or that frame moved by its race's
@@ -219,7 +223,9 @@ def raced(problem: BuildProblemConfig, cfg: AirframeConfig, theta: dict[str, flo
         return replace(out, reason=f"race: {run.reason}")
     e = run.energy
     assert e is not None  # a combination's pack has a capacity (combination_airframe)
+    flown = run.passes[-1].soc_flown if run.passes else math.nan
     return replace(out, race_s=run.lap.lap_time_s, feasible=run.feasible, race_lap=run.lap,
+                   flown_soc=flown,
                    reason=run.reason, peak_pack_current_a=e.peak_pack_current_a,
                    peak_motor_current_a=e.peak_motor_current_a,
                    pack_current_margin_a=e.pack_current_margin_a,

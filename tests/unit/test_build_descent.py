@@ -138,12 +138,12 @@ def test_the_build_confirms_a_ranked_dominant_race_by_descent_not_co_design(comb
 
     def race_dominant(problem_, combo_, laps, theta, bound_s, seeds, soc):
         assert seeds.warm_starts and seeds.warm_starts[0] is lap
-        assert soc == 0.9  # the best race's end: the first pass flies its voltage
+        assert soc == 0.91  # the voltage the best race's last pass flew, not its end's
         return replace_lap(race(combo_, theta))
 
     def replace_lap(r):
         from dataclasses import replace
-        return replace(r, race_lap=lap, end_soc=0.9)
+        return replace(r, race_lap=lap, end_soc=0.9, flown_soc=0.91)
 
     def codesign(*a, **k):
         raise AssertionError("co-designed")

@@ -25,8 +25,9 @@ from casadrone.config.build import BuildProblemConfig
 from casadrone.config.codesign import CodesignProblemConfig
 from casadrone.config.io import ConfigError, load
 from casadrone.config.track import TrackConfig
-from casadrone.limit.race import race
+from casadrone.limit.race import account_of, race, with_open_circuit_voltage
 from casadrone.limit.result import LapSeeds, LimitLapOptions
+from casadrone.propulsion.electric import pack_of
 from casadrone.results import AsDict
 
 #: What became of a combination: refused before any solve, pruned by its bound, co-designed and
@@ -177,21 +178,56 @@ def solve_combination(problem: BuildProblemConfig, combo: Combination, laps: int
     return replace(out, cpu_s=time.process_time() - c0)
 
 
+def derated(cfg: AirframeConfig, pack: float, motor: float) -> AirframeConfig:
+    """``cfg`` with its pack's C rating and its motor's current limit scaled by ``pack`` and
+    ``motor`` (factors ≤ 1): the limits a race is solved under where its re-simulation broke
+    the parts' own between the solve's nodes."""
+    section = cfg.propulsion
+    assert section.battery is not None and section.motor is not None
+    battery = section.battery if section.battery.c_rating is None else \
+        section.battery.model_copy(update={"c_rating": section.battery.c_rating * pack})
+    motor_cfg = section.motor if section.motor.max_current_a is None else \
+        section.motor.model_copy(update={"max_current_a": section.motor.max_current_a * motor})
+    return cfg.model_copy(update={"propulsion": section.model_copy(
+        update={"battery": battery, "motor": motor_cfg})})
+
+
+def current_derate(r: BuildResult, most: float = 0.05) -> tuple[float, float] | None:
+    """(pack, motor) factors that lower each current limit a race's re-simulation broke by
+    twice what it broke it by (1 for a limit it kept); None where the race broke none, ran
+    the pack out, or broke one by more than ``most`` of it (not a matter of the solve's
+    nodes: :data:`casadrone.limit.nlp.CURRENT_MARGIN` is 1 %)."""
+    if r.race_lap is None or r.feasible or not r.end_soc > 0:
+        return None
+    factors = []
+    for peak, margin in ((r.peak_pack_current_a, r.pack_current_margin_a),
+                         (r.peak_motor_current_a, r.motor_current_margin_a)):
+        limit = peak + margin
+        over = -margin / limit if math.isfinite(margin) and limit > 0 and margin < 0 else 0.0
+        factors.append(1.0 - 2.0 * over)
+    if all(f == 1.0 for f in factors) or min(factors) < 1.0 - 2.0 * most:
+        return None
+    return factors[0], factors[1]
+
+
 def race_dominant(problem: BuildProblemConfig, combo: Combination, laps: int | None,
                   theta: dict[str, float], bound_s: float = math.nan,
-                  seeds: LapSeeds = LapSeeds(), soc: float | None = None) -> BuildResult:
+                  seeds: LapSeeds = LapSeeds(), soc: float | None = None,
+                  derate: tuple[float, float] | None = None) -> BuildResult:
     """Race ``combo`` at ``theta``, the dominant frame of its box
     (:func:`casadrone.build.dominance.dominant_theta`), without a co-design: its race is the
     co-design's answer where the dominance holds. ``seeds``: a neighbouring race to start from
     (the problem's starts where it gives no verified lap). The lap (``lap_s``) is the race's
     first pass, at the full pack's voltage: the co-design's lap of that frame (at ``soc``'s
     voltage where given: the neighbour's end state of charge, :func:`casadrone.limit.race.
-    race`'s first pass)."""
+    race`'s first pass); ``derate``: the race's pack and motor current limits scaled by
+    these factors for the solve, its account against the parts' own (:func:`raced`)."""
     c0 = time.process_time()
     base = BuildResult(combo, "failed", bound_s=bound_s, geometry_by="dominance")
     try:
         cfg = combination_start(problem, combo)
-        out = raced(problem, cfg, theta, laps, seeds, base, gradient=True, soc=soc)
+        out = raced(problem, cfg, theta, laps, seeds, base, gradient=True, soc=soc,
+                    derate=derate)
     except ConfigError as exc:
         return replace(base, reason=exc.lines[0], cpu_s=time.process_time() - c0)
     return replace(out, cpu_s=time.process_time() - c0)
@@ -199,15 +235,23 @@ def race_dominant(problem: BuildProblemConfig, combo: Combination, laps: int | N
 
 def raced(problem: BuildProblemConfig, cfg: AirframeConfig, theta: dict[str, float],
           laps: int | None, seeds: LapSeeds, base: BuildResult,
-          gradient: bool = False, soc: float | None = None) -> BuildResult:
+          gradient: bool = False, soc: float | None = None,
+          derate: tuple[float, float] | None = None) -> BuildResult:
     """``base`` with the race of ``cfg`` at ``theta`` over the build's laps (its ``lap_s``,
     where NaN, the race's first pass), the frame's hover and the pack's account; with
     ``gradient``, the race's dT/dθ over the box's keys (``race_gradient``); ``soc``: the state
-    of charge the race's first pass flies (None: the full pack)."""
+    of charge the race's first pass flies (None: the full pack); ``derate``: (pack, motor)
+    factors on the current limits the race is solved under (:func:`derated`), its account
+    then made against the parts' own limits."""
     frame = with_theta(cfg, theta)
     track = race_track(problem, laps)
-    run = race(frame, track, replace(lap_options(problem, cfg), sensitivities=gradient),
-               seeds=seeds, soc=soc)
+    run = race(derated(frame, *derate) if derate else frame, track,
+               replace(lap_options(problem, cfg), sensitivities=gradient), seeds=seeds, soc=soc)
+    if derate and run.lap.completed and run.passes:
+        at = with_open_circuit_voltage(frame, run.passes[-1].open_circuit_voltage_v)
+        pack = pack_of(frame.propulsion.battery)
+        assert pack is not None  # a combination's pack has a capacity
+        run = replace(run, energy=account_of(at, run.lap, pack))
     keys = geometry_box(problem)[0]
     hover = hover_of(frame)
     lap_s = base.lap_s if math.isfinite(base.lap_s) or not run.passes else \

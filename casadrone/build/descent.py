@@ -20,8 +20,9 @@ neighbour's lap costs ~20 s; two gradients along a step give the curvature; so:
    last one raced (their gradients' difference along their difference), at most
    :data:`GROW` times the last move; without a positive curvature the last move doubled
    (after a faster race) or halved (after a slower one); each frame clipped into the box;
-3. each step is a race of that frame warm-started from the best one's, its first pass flown
-   at the voltage of the best race's last pass (:func:`casadrone.build.solve.race_dominant`,
+3. each step is a race of that frame warm-started from the best one's, under its current
+   limits (a derated race's: :func:`casadrone.build.solve.current_derate`), its first pass
+   flown at the voltage of the best race's last pass (:func:`casadrone.build.solve.race_dominant`,
    ``soc``): one pass where the step's race ends within the race's tolerance of that charge,
    and two races that differ by θ alone (flown first at the best race's *end* charge, within
    the same tolerance of it, build-small's winner's 0.5 mm step, 0.005 % faster at one

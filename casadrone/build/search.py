@@ -300,10 +300,11 @@ def confirm(problem: BuildProblemConfig, r: BuildResult, laps: int | None) -> Bu
     best = r
     if not problem.build.certify:
         def race_at(theta: dict[str, float], near: BuildResult) -> BuildResult:
-            # at the voltage the best race flew: the two races differ by θ alone
+            # at the voltage the best race flew
             soc = near.flown_soc if math.isfinite(near.flown_soc) else near.end_soc
+            # and under its current limits: the two races differ by θ alone
             return race_dominant(problem, r.combination, laps, theta, r.bound_s,
-                                 LapSeeds(warm_starts=(near.race_lap,)), soc)
+                                 LapSeeds(warm_starts=(near.race_lap,)), soc, near.derate)
 
         def flat(b: BuildResult) -> bool:
             return stationary(b.theta, b.race_gradient, keys, lower, upper)

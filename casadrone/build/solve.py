@@ -64,6 +64,9 @@ class BuildResult(AsDict):
     #: within casadrone.limit.race.SOC_TOL): a race of a nearby frame flown at the same
     #: voltage is comparable with this one to the solver's tolerance
     flown_soc: float = math.nan
+    #: (pack, motor) factors on the current limits the race was solved under (None: the
+    #: parts' own; :func:`current_derate`); its account is against the parts' own
+    derate: tuple[float, float] | None = None
     cpu_s: float = 0.0
     #: how the frame's geometry was found: co-designed, the box's dominant frame raced without
     #: a co-design (:mod:`casadrone.build.dominance`), or that frame moved by its race's
@@ -223,7 +226,8 @@ def race_dominant(problem: BuildProblemConfig, combo: Combination, laps: int | N
     race`'s first pass); ``derate``: the race's pack and motor current limits scaled by
     these factors for the solve, its account against the parts' own (:func:`raced`)."""
     c0 = time.process_time()
-    base = BuildResult(combo, "failed", bound_s=bound_s, geometry_by="dominance")
+    base = BuildResult(combo, "failed", bound_s=bound_s, geometry_by="dominance",
+                       derate=derate)
     try:
         cfg = combination_start(problem, combo)
         out = raced(problem, cfg, theta, laps, seeds, base, gradient=True, soc=soc,

@@ -136,14 +136,15 @@ def test_the_build_confirms_a_ranked_dominant_race_by_descent_not_co_design(comb
     _, race = bowl(101.3, 1e-3)
     lap = object()
 
-    def race_dominant(problem_, combo_, laps, theta, bound_s, seeds, soc):
+    def race_dominant(problem_, combo_, laps, theta, bound_s, seeds, soc, derate):
         assert seeds.warm_starts and seeds.warm_starts[0] is lap
         assert soc == 0.91  # the voltage the best race's last pass flew, not its end's
+        assert derate == (1.0, 0.99)  # the best race's current limits
         return replace_lap(race(combo_, theta))
 
     def replace_lap(r):
         from dataclasses import replace
-        return replace(r, race_lap=lap, end_soc=0.9, flown_soc=0.91)
+        return replace(r, race_lap=lap, end_soc=0.9, flown_soc=0.91, derate=(1.0, 0.99))
 
     def codesign(*a, **k):
         raise AssertionError("co-designed")

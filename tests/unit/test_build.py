@@ -212,7 +212,7 @@ def test_branch_and_bound_prunes_above_the_rank_th_race_and_keeps_the_rest(probl
 
     combos = combinations(shipped_catalogue(), problem.build)[:4]
     monkeypatch.setattr(search, "evaluate",
-                        lambda prob, c, laps, bound, seeds, start:
+                        lambda prob, c, laps, bound, seeds, start, soc:
                         _raced(c, 1.1 * bound, bound_s=bound))
     order = list(zip([1.0, 1.05, 2.0, 3.0], combos, strict=True))
     strict = problem.model_copy(update={"build": problem.build.model_copy(update={"rank": 1})})
@@ -246,7 +246,7 @@ def test_a_build_resumes_from_its_folder_and_refuses_another_problems(tmp_path, 
     kept, _ = search.screened(problem)
     solved, bounded = [], []
 
-    def fake_solve(problem, combo, laps, bound_s=math.nan, seeds=None, start=None):
+    def fake_solve(problem, combo, laps, bound_s=math.nan, seeds=None, start=None, soc=None):
         solved.append(combo.label)
         return BuildResult(combo, "raced", race_s=10.0 + len(solved), bound_s=bound_s,
                            feasible=True)

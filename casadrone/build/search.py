@@ -227,10 +227,9 @@ def evaluate(problem: BuildProblemConfig, combo: Combination, laps: int | None,
     build-small's DA4052 + 1750 KV + 6S from DA4022's race, DA4022 + 2550 KV + 4S 1300 mAh
     alone), then from the problem's starts alone, then co-designed (the co-design reaches
     the frame from the template's, whose lap its starts may find where the frame's own do
-    not); the co-design's
-    result is kept unless it finds no lap and the dominant race did. ``soc``: the neighbour's
-    end state of charge, where the dominant race's first pass flies (one pass where this race
-    ends near it)."""
+    not); the co-design's result is kept unless it finds no lap and the dominant race did.
+    ``soc``: the neighbour's end state of charge, where the dominant race's first pass flies
+    (one pass where this race ends near it)."""
     keys, lower, upper = geometry_box(problem)
     try:
         theta = dominant_theta(combination_start(problem, combo), keys, lower, upper)

@@ -7,10 +7,11 @@ co-design's optimum; where its gradient dT/dθ is not first-order optimal over t
 (:func:`casadrone.build.dominance.stationary`), the build used to co-design the combination
 from that frame: one co-design NLP (θ and the whole lap, a cold IPOPT of ~200 iterations) and a
 race of its frame, 60–120 s of CPU on the paper track. Measured on build-small's winner
-(DA4022 + 1750 KV + 6S at the short-arm corner; benchmarks/RESULTS-build.md), the race's
-gradient in λa is -0.41 ms/mm at the corner and -0.30 ms/mm 0.5 mm in, and the forward
-difference of the two races is -0.44 ms/mm: the envelope gradient means what it says there,
-and the race is a smooth function of θ at the millimetre scale. A race warm-started from its
+(DA4022 + 1750 KV + 6S at the short-arm corner, paper track), the race's gradient in λa is
+-0.333 ms/mm, and central differences of the lap re-solved at the race's voltage ±0.1 and
+±0.25 mm around it give -0.324 and -0.315 ms/mm (tests/integration/
+test_build_descent_race.py): the envelope gradient means what it says there, and the lap is
+a smooth function of θ at the millimetre scale. A race warm-started from its
 neighbour's lap costs ~20 s; two gradients along a step give the curvature; so:
 
 1. the gradient per box width, each key that sits at a bound and whose slope points out of the

@@ -91,8 +91,8 @@ def test_a_step_the_pack_cannot_fly_shrinks_and_the_fastest_flown_race_is_kept(c
 
 
 def test_a_gain_below_the_tolerance_is_not_chased(combo):
-    """The bowl of build-small's winner (its race's gradient in λa went from -0.41 to
-    -0.30 ms/mm over the first 0.5 mm: c = 0.115 ms/mm², a* = 101.3 mm): after the 0.5 mm
+    """A bowl as shallow as build-small's winner's (c = 0.115 ms/mm², a* = 101.3 mm: a slope
+    of -0.3 ms/mm at the corner, its co-designs at λa 100.3-101.7 mm): after the 0.5 mm
     step the secant (exact here) says c (a* - 100.5)² = 0.07 ms is left, below 1e-4 of the
     race: it stops there, settled, after one race."""
     _, problem_combo = combo

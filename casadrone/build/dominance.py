@@ -24,9 +24,10 @@ inertia (∝ λ²) faster than the arm (∝ λ), so the short-arm corner dominat
 criteria. Measured there (benchmarks/RESULTS-build.md), it is nearly but not quite the
 co-design's optimum: the criterion sums the two senses of pitch, and a longer front arm
 lengthens the front rotors' pitch arm about the centre of mass (which moves forward by less),
-0.6 % more nose-up authority at λa = 112.5 mm; the races' gradient at the corner points into
-the box in λa (−0.1 to −0.7 ms per mm), brute force's co-designs sit at λa 100.3–101.7 mm, and
-the corner's races are within −0.07 to +0.24 % of theirs. With the arm
+0.6 % more nose-up authority at λa = 112.5 mm; the races' gradient points into the box in
+λa at the frames of 10 of build-small's 11 raced combinations (−0.03 to −0.58 ms per mm),
+brute force's co-designs sit at λa 100.3–101.7 mm, and the corner's races are within −0.08 to
++0.22 % of theirs. With the arm
 *angles* in the box, a frame gains roll authority only by losing pitch authority and no frame
 dominates (:func:`dominant_theta` returns None and the combination is co-designed).
 

@@ -419,17 +419,15 @@ def start_sensitivity(pb: Problem, point: NlpPoint) -> np.ndarray:
     quarter of the forward difference of re-solved laps). So both: minus the parameter
     multipliers, minus each fixed bound's multiplier times the bound's slope in x_start (the
     NLP's units: 1 over the state's scale)."""
-    nlp, nx = pb.full, pb.full.model.nx
+    nlp, nx, lay = pb.full, pb.full.model.nx, pb.full.layout
     out = -point.lam_p[len(pb.frame.p):len(pb.frame.p) + nx].copy()
     lo, hi = pb.box
-    lay = nlp.layout
-    coll = np.zeros((lay.n_intervals, lay.n_coll, nx)) if lay.n_coll else None
-    for k in range(nx):
-        X = np.zeros((lay.n_intervals + 1, nx))
-        X[0, k] = 1.0
-        e = nlp.pack(np.zeros(lay.n_legs), X, np.zeros((lay.n_intervals, nlp.model.nu)), coll)
-        fixed = (e != 0) & (lo == hi)
-        out[k] -= float(point.lam_x[fixed] @ e[fixed])
+    X = np.zeros((lay.n_intervals + 1, nx))
+    X[0] = 1.0  # the first node's states, in their order: the bounds' slopes in x_start
+    e = nlp.pack(np.zeros(lay.n_legs), X, np.zeros((lay.n_intervals, nlp.model.nu)),
+                 np.zeros((lay.n_intervals, lay.n_coll, nx)) if lay.n_coll else None)
+    at = np.flatnonzero(e)
+    out -= np.where(lo[at] == hi[at], point.lam_x[at] * e[at], 0.0)
     return out
 
 

@@ -6,6 +6,7 @@ order of the fallbacks."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 
@@ -29,13 +30,25 @@ def over(combo, motor_margin: float, pack_margin: float = 20.0, **kw) -> BuildRe
     return BuildResult(combo, "raced", **(fields | kw))
 
 
-def test_a_limit_broken_by_a_tenth_of_an_ampere_is_lowered_by_twice_that(small):
-    """The motor's 36.6 A broken by 0.1 A: its factor 1 - 2 × 0.1 / 36.6, the pack's 1."""
+def test_a_limit_broken_by_a_tenth_of_an_ampere_is_lowered_by_a_quarter_more(small):
+    """The motor's 36.6 A broken by 0.1 A: its factor 1 - 1.25 × 0.1 / 36.6, the pack's 1;
+    the pack's 169 A broken by 1.69 A (1 %): 1 - 1.25 × 0.01."""
     _, kept = small
     pack, motor = current_derate(over(kept[0], -0.1))
-    assert pack == 1.0 and motor == pytest.approx(1 - 0.2 / 36.6)
+    assert pack == 1.0 and motor == pytest.approx(1 - 0.125 / 36.6)
     pack, motor = current_derate(over(kept[0], 1.0, pack_margin=-1.69))
-    assert pack == pytest.approx(0.98) and motor == 1.0
+    assert pack == pytest.approx(1 - 0.0125) and motor == 1.0
+
+
+def test_a_derated_race_still_over_a_limit_is_lowered_again_from_its_own_derate(small):
+    """A race solved under a motor limit at 0.99 of the part's that still breaks the part's
+    by 0.1 A: the next factor is 0.99 × (1 - 1.25 × 0.1 / 36.6) (its account is against the
+    part's own limit, so the excess is the part's), the pack's derate kept."""
+    _, kept = small
+    pack, motor = current_derate(over(kept[0], -0.1, derate=(0.98, 0.99)))
+    assert pack == pytest.approx(0.98)
+    assert motor == pytest.approx(0.99 * (1 - 0.125 / 36.6))
+    assert motor < 0.99  # lower than the derate it broke
 
 
 def test_no_derate_for_a_flown_race_a_flat_pack_no_lap_or_a_large_excess(small):
@@ -83,5 +96,52 @@ def test_evaluate_races_a_limit_breaker_again_derated_from_its_own_lap(small, mo
     assert len(calls) == 2
     seeds, soc, derate = calls[1]
     assert seeds.warm_starts == (first.race_lap,) and soc == 0.91
-    assert derate == pytest.approx((1.0, 1 - 0.2 / 36.6))
+    assert derate == pytest.approx((1.0, 1 - 0.125 / 36.6))
     assert got.feasible and got.race_s == 4.01 and got.cpu_s == 40.0
+
+
+def test_evaluate_derates_again_while_the_derated_race_breaks_a_limit(small, monkeypatch):
+    """The first derated race still breaks the motor limit by 0.05 A: a second derate, lower
+    again, from the first derated race's lap and charge; the second flies and is kept with
+    the three races' CPU. One that never flies stops after MAX_DERATES derated races and
+    goes on to the co-design."""
+    from casadrone.build import search
+    from casadrone.build.solve import MAX_DERATES
+
+    problem, kept = small
+    first = over(kept[0], -0.1, flown_soc=0.91, cpu_s=30.0)
+    calls = []
+
+    def race_dominant(problem_, combo, laps, theta, bound_s, seeds=None, soc=None,
+                      derate=None):
+        calls.append((seeds, soc, derate))
+        if derate is None:
+            return first
+        if len(calls) == 2:
+            return over(combo, -0.05, flown_soc=0.9, cpu_s=10.0, race_s=4.005, derate=derate)
+        return over(combo, 0.4, feasible=True, cpu_s=5.0, race_s=4.01, derate=derate)
+
+    def codesign(*a, **k):
+        raise AssertionError("co-designed")
+    monkeypatch.setattr(search, "race_dominant", race_dominant)
+    monkeypatch.setattr(search, "solve_combination", codesign)
+    got = search.evaluate(problem, kept[0], None)
+    assert len(calls) == 3
+    (_, _, d1), (seeds, soc, d2) = calls[1], calls[2]
+    assert soc == 0.9 and seeds.warm_starts[0] is not first.race_lap
+    assert d2[1] == pytest.approx(d1[1] * (1 - 1.25 * 0.05 / 36.6)) and d2[1] < d1[1]
+    assert got.feasible and got.race_s == 4.01 and got.cpu_s == 45.0
+
+    calls.clear()
+    never = over(kept[0], -0.1, flown_soc=0.91, cpu_s=1.0)
+
+    def always_over(problem_, combo, laps, theta, bound_s, seeds=None, soc=None,
+                    derate=None):
+        calls.append(derate)
+        return replace(never, derate=derate)
+    codesigned = over(kept[0], 0.3, feasible=True, cpu_s=100.0, race_s=4.02)
+    monkeypatch.setattr(search, "race_dominant", always_over)
+    monkeypatch.setattr(search, "solve_combination", lambda *a, **k: codesigned)
+    got = search.evaluate(problem, kept[0], None)
+    assert len(calls) == 1 + MAX_DERATES
+    assert got.race_s == 4.02 and got.cpu_s == 100.0 + 1 + MAX_DERATES

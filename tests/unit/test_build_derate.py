@@ -71,28 +71,35 @@ def test_derated_limits_are_the_models_limits_scaled(small):
     assert low.mass == plain.mass
 
 
+def evaluated(problem, combo, monkeypatch, answer, codesigned=None):
+    """``search.evaluate`` of ``combo`` with its races answered by ``answer(n, derate)`` (n:
+    the race's index) and its co-design by ``codesigned`` (an error where None); the calls'
+    (seeds, soc, derate) beside the result."""
+    from casadrone.build import search
+    calls = []
+
+    def race_dominant(problem_, combo_, laps, theta, bound_s, seeds=None, soc=None,
+                      derate=None):
+        calls.append((seeds, soc, derate))
+        return answer(len(calls) - 1, derate)
+
+    def codesign(*a, **k):
+        if codesigned is None:
+            raise AssertionError("co-designed")
+        return codesigned
+    monkeypatch.setattr(search, "race_dominant", race_dominant)
+    monkeypatch.setattr(search, "solve_combination", codesign)
+    return search.evaluate(problem, combo, None), calls
+
+
 def test_evaluate_races_a_limit_breaker_again_derated_from_its_own_lap(small, monkeypatch):
     """The dominant race breaks the motor limit by 0.1 A: raced again from its own lap at its
     flown charge, derated; that one flies and is kept with both races' CPU; no race alone,
     no co-design."""
-    from casadrone.build import search
-
     problem, kept = small
     first = over(kept[0], -0.1, flown_soc=0.91, cpu_s=30.0)
-    calls = []
-
-    def race_dominant(problem_, combo, laps, theta, bound_s, seeds=None, soc=None,
-                      derate=None):
-        calls.append((seeds, soc, derate))
-        if derate is None:
-            return first
-        return over(combo, 0.4, feasible=True, cpu_s=10.0, race_s=4.01)
-
-    def codesign(*a, **k):
-        raise AssertionError("co-designed")
-    monkeypatch.setattr(search, "race_dominant", race_dominant)
-    monkeypatch.setattr(search, "solve_combination", codesign)
-    got = search.evaluate(problem, kept[0], None)
+    got, calls = evaluated(problem, kept[0], monkeypatch, lambda n, derate: first if n == 0
+                           else over(kept[0], 0.4, feasible=True, cpu_s=10.0, race_s=4.01))
     assert len(calls) == 2
     seeds, soc, derate = calls[1]
     assert seeds.warm_starts == (first.race_lap,) and soc == 0.91
@@ -105,43 +112,23 @@ def test_evaluate_derates_again_while_the_derated_race_breaks_a_limit(small, mon
     again, from the first derated race's lap and charge; the second flies and is kept with
     the three races' CPU. One that never flies stops after MAX_DERATES derated races and
     goes on to the co-design."""
-    from casadrone.build import search
     from casadrone.build.solve import MAX_DERATES
 
     problem, kept = small
     first = over(kept[0], -0.1, flown_soc=0.91, cpu_s=30.0)
-    calls = []
-
-    def race_dominant(problem_, combo, laps, theta, bound_s, seeds=None, soc=None,
-                      derate=None):
-        calls.append((seeds, soc, derate))
-        if derate is None:
-            return first
-        if len(calls) == 2:
-            return over(combo, -0.05, flown_soc=0.9, cpu_s=10.0, race_s=4.005, derate=derate)
-        return over(combo, 0.4, feasible=True, cpu_s=5.0, race_s=4.01, derate=derate)
-
-    def codesign(*a, **k):
-        raise AssertionError("co-designed")
-    monkeypatch.setattr(search, "race_dominant", race_dominant)
-    monkeypatch.setattr(search, "solve_combination", codesign)
-    got = search.evaluate(problem, kept[0], None)
+    answers = [lambda d: first,
+               lambda d: over(kept[0], -0.05, flown_soc=0.9, cpu_s=10.0, race_s=4.005, derate=d),
+               lambda d: over(kept[0], 0.4, feasible=True, cpu_s=5.0, race_s=4.01, derate=d)]
+    got, calls = evaluated(problem, kept[0], monkeypatch, lambda n, d: answers[n](d))
     assert len(calls) == 3
     (_, _, d1), (seeds, soc, d2) = calls[1], calls[2]
     assert soc == 0.9 and seeds.warm_starts[0] is not first.race_lap
     assert d2[1] == pytest.approx(d1[1] * (1 - 1.25 * 0.05 / 36.6)) and d2[1] < d1[1]
     assert got.feasible and got.race_s == 4.01 and got.cpu_s == 45.0
 
-    calls.clear()
     never = over(kept[0], -0.1, flown_soc=0.91, cpu_s=1.0)
-
-    def always_over(problem_, combo, laps, theta, bound_s, seeds=None, soc=None,
-                    derate=None):
-        calls.append(derate)
-        return replace(never, derate=derate)
     codesigned = over(kept[0], 0.3, feasible=True, cpu_s=100.0, race_s=4.02)
-    monkeypatch.setattr(search, "race_dominant", always_over)
-    monkeypatch.setattr(search, "solve_combination", lambda *a, **k: codesigned)
-    got = search.evaluate(problem, kept[0], None)
+    got, calls = evaluated(problem, kept[0], monkeypatch,
+                           lambda n, d: replace(never, derate=d), codesigned)
     assert len(calls) == 1 + MAX_DERATES
     assert got.race_s == 4.02 and got.cpu_s == 100.0 + 1 + MAX_DERATES

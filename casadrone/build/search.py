@@ -220,18 +220,19 @@ def evaluate(problem: BuildProblemConfig, combo: Combination, laps: int | None,
              start: dict[str, float] | None = None, soc: float | None = None) -> BuildResult:
     """One combination of the branch and bound: its box's dominant frame raced
     (:func:`race_dominant`) where the box has one (:mod:`casadrone.build.dominance`), else its
-    frame co-designed and raced (:func:`solve_combination`, from ``start`` and ``seeds``). Where
-    the dominant frame's race is not flown within the pack's limits, it is raced again from
-    the limits it broke lowered by a quarter more than its re-simulation broke them by, from
-    its own lap, and again while the derated race still breaks one, at most
-    :data:`MAX_DERATES` times (:func:`casadrone.build.solve.current_derate`: the lap's
-    current rows hold at its nodes, and between them the re-simulation may exceed a limit by
-    a tenth of an ampere: build-small's DA4052 + 1750 KV + 6S from DA4022's race, DA4022 +
-    2550 KV + 4S 1300 mAh alone), then from the problem's starts alone, then co-designed
-    (the co-design reaches the frame from the template's, whose lap its starts may find
-    where the frame's own do not); the co-design's result is kept unless it finds no lap
-    and the dominant race did. ``soc``: the neighbour's end state of charge, where the
-    dominant race's first pass flies (one pass where this race ends near it)."""
+    frame co-designed and raced (:func:`solve_combination`, from ``start`` and ``seeds``).
+
+    Where the dominant frame's race is not flown within the pack's limits, it is raced again:
+    from its own lap with the limits it broke lowered by what its re-simulation broke them
+    by, and again while the derated race still breaks one, at most :data:`MAX_DERATES` times
+    (:func:`casadrone.build.solve.current_derate`: the lap's current rows hold at its nodes,
+    and between them the re-simulation may exceed a limit by a tenth of an ampere:
+    build-small's DA4052 + 1750 KV + 6S from DA4022's race, DA4022 + 2550 KV + 4S 1300 mAh
+    alone); then from the problem's starts alone; then co-designed (the co-design reaches the
+    frame from the template's, whose lap its starts may find where the frame's own do not),
+    the co-design's result kept unless it finds no lap and the dominant race did. ``soc``:
+    the neighbour's end state of charge, where the dominant race's first pass flies (one
+    pass where this race ends near it)."""
     keys, lower, upper = geometry_box(problem)
     try:
         theta = dominant_theta(combination_start(problem, combo), keys, lower, upper)

@@ -195,11 +195,13 @@ def derated(cfg: AirframeConfig, pack: float, motor: float) -> AirframeConfig:
         update={"battery": battery, "motor": motor_cfg})})
 
 
-#: How much a derate lowers a limit its race broke, in units of the excess: the excess and a
-#: quarter more (build-small's DA4022 + 2550 KV + 4S 1300 mAh at its dominant frame breaks its
-#: motor's limit by 0.146 %: lowered by 1.25 × that it races 4.3926 s, by 2 × 4.4008 s, both
-#: flown; co-designed alone 4.3954 s).
-DERATE_OVER = 1.25
+#: How much a derate lowers a limit its race broke, in units of the excess: the excess itself,
+#: the least that can clear it where the overshoot between the nodes scales with the limit
+#: (a race still over it is derated again, :data:`MAX_DERATES`). Each tenth of a percent of
+#: current costs the race about as much time: build-small's DA4022 + 2550 KV + 4S 1300 mAh,
+#: 0.146 % over its motor's limit at its dominant frame raced alone, races 4.3929 s lowered
+#: by 1 × that, 4.3926 s by 1.25 ×, 4.4008 s by 2 ×, all flown; co-designed alone 4.3954 s.
+DERATE_OVER = 1.0
 #: Most derated races of one combination (each from the excess the one before still left).
 MAX_DERATES = 3
 

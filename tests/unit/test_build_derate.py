@@ -30,24 +30,24 @@ def over(combo, motor_margin: float, pack_margin: float = 20.0, **kw) -> BuildRe
     return BuildResult(combo, "raced", **(fields | kw))
 
 
-def test_a_limit_broken_by_a_tenth_of_an_ampere_is_lowered_by_a_quarter_more(small):
-    """The motor's 36.6 A broken by 0.1 A: its factor 1 - 1.25 × 0.1 / 36.6, the pack's 1;
-    the pack's 169 A broken by 1.69 A (1 %): 1 - 1.25 × 0.01."""
+def test_a_limit_broken_by_a_tenth_of_an_ampere_is_lowered_by_that_much(small):
+    """The motor's 36.6 A broken by 0.1 A: its factor 1 - 0.1 / 36.6, the pack's 1; the
+    pack's 169 A broken by 1.69 A (1 %): 0.99."""
     _, kept = small
     pack, motor = current_derate(over(kept[0], -0.1))
-    assert pack == 1.0 and motor == pytest.approx(1 - 0.125 / 36.6)
+    assert pack == 1.0 and motor == pytest.approx(1 - 0.1 / 36.6)
     pack, motor = current_derate(over(kept[0], 1.0, pack_margin=-1.69))
-    assert pack == pytest.approx(1 - 0.0125) and motor == 1.0
+    assert pack == pytest.approx(0.99) and motor == 1.0
 
 
 def test_a_derated_race_still_over_a_limit_is_lowered_again_from_its_own_derate(small):
     """A race solved under a motor limit at 0.99 of the part's that still breaks the part's
-    by 0.1 A: the next factor is 0.99 × (1 - 1.25 × 0.1 / 36.6) (its account is against the
+    by 0.1 A: the next factor is 0.99 × (1 - 0.1 / 36.6) (its account is against the
     part's own limit, so the excess is the part's), the pack's derate kept."""
     _, kept = small
     pack, motor = current_derate(over(kept[0], -0.1, derate=(0.98, 0.99)))
     assert pack == pytest.approx(0.98)
-    assert motor == pytest.approx(0.99 * (1 - 0.125 / 36.6))
+    assert motor == pytest.approx(0.99 * (1 - 0.1 / 36.6))
     assert motor < 0.99  # lower than the derate it broke
 
 
@@ -103,7 +103,7 @@ def test_evaluate_races_a_limit_breaker_again_derated_from_its_own_lap(small, mo
     assert len(calls) == 2
     seeds, soc, derate = calls[1]
     assert seeds.warm_starts == (first.race_lap,) and soc == 0.91
-    assert derate == pytest.approx((1.0, 1 - 0.125 / 36.6))
+    assert derate == pytest.approx((1.0, 1 - 0.1 / 36.6))
     assert got.feasible and got.race_s == 4.01 and got.cpu_s == 40.0
 
 
@@ -123,7 +123,7 @@ def test_evaluate_derates_again_while_the_derated_race_breaks_a_limit(small, mon
     assert len(calls) == 3
     (_, _, d1), (seeds, soc, d2) = calls[1], calls[2]
     assert soc == 0.9 and seeds.warm_starts[0] is not first.race_lap
-    assert d2[1] == pytest.approx(d1[1] * (1 - 1.25 * 0.05 / 36.6)) and d2[1] < d1[1]
+    assert d2[1] == pytest.approx(d1[1] * (1 - 0.05 / 36.6)) and d2[1] < d1[1]
     assert got.feasible and got.race_s == 4.01 and got.cpu_s == 45.0
 
     never = over(kept[0], -0.1, flown_soc=0.91, cpu_s=1.0)

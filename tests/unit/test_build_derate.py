@@ -116,13 +116,13 @@ def test_evaluate_derates_again_while_the_derated_race_breaks_a_limit(small, mon
 
     problem, kept = small
     first = over(kept[0], -0.1, flown_soc=0.91, cpu_s=30.0)
-    answers = [lambda d: first,
-               lambda d: over(kept[0], -0.05, flown_soc=0.9, cpu_s=10.0, race_s=4.005, derate=d),
+    still_over = over(kept[0], -0.05, flown_soc=0.9, cpu_s=10.0, race_s=4.005)
+    answers = [lambda d: first, lambda d: replace(still_over, derate=d),
                lambda d: over(kept[0], 0.4, feasible=True, cpu_s=5.0, race_s=4.01, derate=d)]
     got, calls = evaluated(problem, kept[0], monkeypatch, lambda n, d: answers[n](d))
     assert len(calls) == 3
     (_, _, d1), (seeds, soc, d2) = calls[1], calls[2]
-    assert soc == 0.9 and seeds.warm_starts[0] is not first.race_lap
+    assert soc == 0.9 and seeds.warm_starts == (still_over.race_lap,)
     assert d2[1] == pytest.approx(d1[1] * (1 - 0.05 / 36.6)) and d2[1] < d1[1]
     assert got.feasible and got.race_s == 4.01 and got.cpu_s == 45.0
 
